@@ -1,0 +1,38 @@
+/* accel.h: building the per-tile acceleration structures (max-mipmaps, parameter
+ * planes) for a whole grid, in parallel over tiles. Built structures are immutable and
+ * shared by threads without locks. A server that keeps tiles individually (refcounted,
+ * evictable) calls the per-tile builders of maxmip.h and planes.h directly. */
+#ifndef TD_ACCEL_H
+#define TD_ACCEL_H
+
+#include "trace.h"
+
+#define TD_PLANES_K_DEFAULT 16
+
+typedef struct td_accel_opts {
+    int maxmip;   /* build max-mipmaps */
+    int planes;   /* build parameter planes */
+    int planes_k; /* slices for the planes (>= 1) */
+    int threads;  /* <= 0: one per core */
+} td_accel_opts;
+
+typedef struct td_accel_stats {
+    double maxmip_seconds, planes_seconds; /* wall time of each build */
+    uint64_t maxmip_bytes, planes_bytes;   /* resident bytes of each */
+    int64_t tiles;
+} td_accel_stats;
+
+typedef struct td_accel {
+    size_t ntiles;
+    td_tile_accel *tiles; /* ntiles entries, owned */
+} td_accel;
+
+void td_accel_opts_default(td_accel_opts *o);
+td_status td_accel_build(const td_grid *g, const td_accel_opts *o, td_accel **out,
+                         td_accel_stats *st, td_err *err);
+void td_accel_free(td_accel *a);
+
+/* Cores available to this process (at least 1). */
+int td_cpu_count(void);
+
+#endif

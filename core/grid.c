@@ -1,0 +1,180 @@
+/* grid.c: creation, statistics and tiling of the height field (see grid.h for the
+ * frame and layout). Checks every size against overflow and the configured limits
+ * before allocating, so a hostile header cannot make us allocate or write past a buffer. */
+#include "grid.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+void td_grid_limits_default(td_grid_limits *lim)
+{
+    lim->max_width = 65536;
+    lim->max_height = 65536;
+    lim->max_bytes = 0;
+}
+
+static int32_t tiles_along(int32_t samples, int tile_log2)
+{
+    int32_t cells = samples - 1;
+    int32_t t = (int32_t)1 << tile_log2;
+    return (cells + t - 1) / t;
+}
+
+uint64_t td_grid_bytes(int32_t w, int32_t h, int tile_log2)
+{
+    uint64_t bytes = 0;
+    if (w >= 2 && h >= 2 && tile_log2 >= 1 && tile_log2 <= 16) {
+        uint64_t n = (uint64_t)w * (uint64_t)h; /* < 2^62 for int32 sizes */
+        uint64_t tiles = (uint64_t)tiles_along(w, tile_log2) * (uint64_t)tiles_along(h, tile_log2);
+        bytes = n * sizeof(float) + tiles * sizeof(td_tile) + sizeof(td_grid);
+    }
+    return bytes;
+}
+
+td_status td_grid_create(int32_t w, int32_t h, double sx, double sy, int tile_log2,
+                         const td_grid_limits *lim, td_grid **out, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_grid_limits dflt;
+    td_grid *g = NULL;
+    size_t n = 0, ntiles = 0, bytes = 0;
+
+    *out = NULL;
+    if (!lim) {
+        td_grid_limits_default(&dflt);
+        lim = &dflt;
+    }
+    if (w < 2 || h < 2) {
+        rc = td_err_set(err, TD_EFORMAT, "grid of %d x %d samples has no cell (need at least 2 x 2)",
+                        (int)w, (int)h);
+        goto out;
+    }
+    if (w > lim->max_width || h > lim->max_height) {
+        rc = td_err_set(err, TD_ETOOBIG, "grid of %d x %d samples exceeds the limit of %d x %d",
+                        (int)w, (int)h, (int)lim->max_width, (int)lim->max_height);
+        goto out;
+    }
+    if (!(sx > 0.0) || !(sy > 0.0) || !isfinite(sx) || !isfinite(sy)) {
+        rc = td_err_set(err, TD_ERANGE, "spacing %g x %g m is not positive and finite", sx, sy);
+        goto out;
+    }
+    if (tile_log2 < 1 || tile_log2 > 16) {
+        rc = td_err_set(err, TD_ERANGE, "tile size 2^%d is out of range (2^1 .. 2^16)", tile_log2);
+        goto out;
+    }
+    if (!td_mul_size((size_t)w, (size_t)h, &n) || !td_mul_size(n, sizeof(float), &bytes)) {
+        rc = td_err_set(err, TD_ETOOBIG, "grid of %d x %d samples overflows", (int)w, (int)h);
+        goto out;
+    }
+    if (lim->max_bytes && td_grid_bytes(w, h, tile_log2) > lim->max_bytes) {
+        rc = td_err_set(err, TD_ETOOBIG, "grid of %d x %d samples needs %llu bytes, over the budget of %llu",
+                        (int)w, (int)h, (unsigned long long)td_grid_bytes(w, h, tile_log2),
+                        (unsigned long long)lim->max_bytes);
+        goto out;
+    }
+    g = calloc(1, sizeof *g);
+    if (!g) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for the grid record");
+        goto out;
+    }
+    g->w = w;
+    g->h = h;
+    g->sx = sx;
+    g->sy = sy;
+    g->tile_log2 = tile_log2;
+    g->tiles_x = tiles_along(w, tile_log2);
+    g->tiles_y = tiles_along(h, tile_log2);
+    ntiles = (size_t)g->tiles_x * (size_t)g->tiles_y;
+    g->z = malloc(bytes);
+    g->tiles = calloc(ntiles, sizeof *g->tiles);
+    g->zmin = g->zmax = NAN;
+    if (!g->z || !g->tiles) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for %d x %d samples", (int)w, (int)h);
+        goto out;
+    }
+out:
+    if (rc != TD_OK) {
+        td_grid_free(g);
+        g = NULL;
+    }
+    *out = g;
+    return rc;
+}
+
+td_status td_grid_finish(td_grid *g, td_err *err)
+{
+    td_status rc = TD_OK;
+    const int32_t T = td_grid_tile_size(g);
+    float gmin = INFINITY, gmax = -INFINITY;
+    int64_t voids = 0;
+
+    for (int32_t j = 0; j < g->h && rc == TD_OK; j++) {
+        const float *row = g->z + (size_t)j * (size_t)g->w;
+        for (int32_t i = 0; i < g->w; i++) {
+            float v = row[i];
+            if (isnan(v)) {
+                voids++;
+            } else if (isinf(v)) {
+                rc = td_err_set(err, TD_ERANGE, "infinite height at column %d, row %d from the north",
+                                (int)i, (int)(g->h - 1 - j));
+                break;
+            } else {
+                gmin = v < gmin ? v : gmin;
+                gmax = v > gmax ? v : gmax;
+            }
+        }
+    }
+    if (rc != TD_OK)
+        goto out;
+    g->voids = voids;
+    g->zmin = voids == (int64_t)g->w * g->h ? NAN : gmin;
+    g->zmax = voids == (int64_t)g->w * g->h ? NAN : gmax;
+
+    for (int32_t ty = 0; ty < g->tiles_y; ty++) {
+        for (int32_t tx = 0; tx < g->tiles_x; tx++) {
+            td_tile *t = &g->tiles[(size_t)ty * (size_t)g->tiles_x + (size_t)tx];
+            float lo = INFINITY, hi = -INFINITY;
+            t->i0 = tx * T;
+            t->j0 = ty * T;
+            t->nx = (g->w - 1 - t->i0) < T ? (g->w - 1 - t->i0) : T;
+            t->ny = (g->h - 1 - t->j0) < T ? (g->h - 1 - t->j0) : T;
+            for (int32_t j = t->j0; j <= t->j0 + t->ny; j++) {
+                const float *row = g->z + (size_t)j * (size_t)g->w;
+                for (int32_t i = t->i0; i <= t->i0 + t->nx; i++) {
+                    float v = row[i];
+                    if (v < lo) /* false for NaN */
+                        lo = v;
+                    if (v > hi)
+                        hi = v;
+                }
+            }
+            t->zmin = lo;
+            t->zmax = hi;
+        }
+    }
+out:
+    return rc;
+}
+
+void td_grid_free(td_grid *g)
+{
+    if (g) {
+        free(g->z);
+        free(g->tiles);
+        free(g);
+    }
+}
+
+void td_grid_lonlat_spacing(double lat_deg, double dlon_deg, double dlat_deg, double *sx,
+                            double *sy)
+{
+    const double a = 6378137.0, e2 = 6.69437999014e-3; /* WGS84 */
+    const double deg = M_PI / 180.0;
+    double s = sin(lat_deg * deg);
+    double w = sqrt(1.0 - e2 * s * s);
+    double n = a / w;                       /* prime vertical radius of curvature */
+    double m = a * (1.0 - e2) / (w * w * w); /* meridional radius of curvature */
+    *sx = n * cos(lat_deg * deg) * dlon_deg * deg;
+    *sy = m * dlat_deg * deg;
+}

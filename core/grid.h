@@ -1,0 +1,101 @@
+/* grid.h: the height field, its dataset frame, georeference and tiles.
+ *
+ * A grid is W x H float heights with spacing sx, sy in metres (they may differ, as on
+ * lon/lat grids). Storage is row-major with SOUTH-based rows, so sample (i, j) sits at
+ * (i*sx, j*sy, z[j*W + i]) in the dataset frame (x east, y north); loaders flip the
+ * file's north-first rows as they read. A void (nodata) sample is NaN; a cell with a
+ * void corner is a hole.
+ *
+ *        j = H-1  +----+----+----+      tiles of T x T cells share their edge samples:
+ *                 |    |    |    |      tile (tx, ty) covers cells i in [tx*T, tx*T+T)
+ *        j = 1    +----+----+----+      and samples i in [tx*T, tx*T+T] (clamped), so
+ *                 |cell|    |    |      the surface is watertight across seams.
+ *        j = 0    +----+----+----+
+ *               i = 0    1    2   W-1
+ *
+ * Built grids are immutable and shared by threads without locks. */
+#ifndef TD_GRID_H
+#define TD_GRID_H
+
+#include <stdint.h>
+#include <stddef.h>
+
+#include "status.h"
+
+#define TD_TILE_LOG2_DEFAULT 8 /* T = 256 cells */
+
+typedef enum td_geo_kind {
+    TD_GEO_NONE = 0,  /* local metres only */
+    TD_GEO_LONLAT,    /* x0, y0 in degrees; dx, dy in degrees per sample */
+    TD_GEO_PROJECTED  /* x0, y0 in projected units (easting/northing); dx, dy per sample */
+} td_geo_kind;
+
+/* Georeference of sample (0, 0), the south-west sample, kept in double precision. */
+typedef struct td_georef {
+    td_geo_kind kind;
+    double x0, y0; /* lon/lat or easting/northing of sample (0, 0) */
+    double dx, dy; /* georeferenced step per sample, east and north (both > 0) */
+    char crs[96];  /* free text, may be empty */
+} td_georef;
+
+typedef struct td_tile {
+    int32_t i0, j0;   /* first cell of the tile (also its first sample) */
+    int32_t nx, ny;   /* cells in the tile: T, or fewer on the east/north edge */
+    float zmin, zmax; /* over the valid samples of the tile, edges included;
+                         +inf/-inf if the tile has none */
+} td_tile;
+
+typedef struct td_grid_limits {
+    int32_t max_width, max_height; /* default 65536 each */
+    uint64_t max_bytes;            /* heights + tile records; 0 = no budget */
+} td_grid_limits;
+
+typedef struct td_grid {
+    int32_t w, h;      /* samples */
+    double sx, sy;     /* spacing in metres */
+    float *z;          /* w*h heights, south-based rows, NaN = void */
+    int tile_log2;     /* T = 1 << tile_log2 cells */
+    int32_t tiles_x, tiles_y;
+    td_tile *tiles;    /* tiles_x * tiles_y, row-major, south first */
+    float zmin, zmax;  /* over valid samples; NaN if all are void */
+    int64_t voids;     /* void samples */
+    td_georef geo;
+} td_grid;
+
+void td_grid_limits_default(td_grid_limits *lim);
+
+/* Bytes a w x h grid would take resident (heights and tile records), or 0 on overflow. */
+uint64_t td_grid_bytes(int32_t w, int32_t h, int tile_log2);
+
+/* Allocates a w x h grid (heights uninitialised) after checking size, overflow and the
+ * limits (lim may be NULL for the defaults). Nothing is allocated when a check fails.
+ * Fill g->z (south-based rows), then call td_grid_finish. */
+td_status td_grid_create(int32_t w, int32_t h, double sx, double sy, int tile_log2,
+                         const td_grid_limits *lim, td_grid **out, td_err *err);
+
+/* Computes zmin/zmax, void count and the tile records. Refuses +-inf heights. */
+td_status td_grid_finish(td_grid *g, td_err *err);
+
+void td_grid_free(td_grid *g);
+
+/* O(1) lookups. */
+static inline float td_grid_at(const td_grid *g, int32_t i, int32_t j)
+{
+    return g->z[(size_t)j * (size_t)g->w + (size_t)i];
+}
+
+static inline int32_t td_grid_tile_size(const td_grid *g) { return (int32_t)1 << g->tile_log2; }
+
+/* The tile that owns cell (ci, cj); 0 <= ci < w-1, 0 <= cj < h-1. */
+static inline const td_tile *td_grid_tile_of_cell(const td_grid *g, int32_t ci, int32_t cj)
+{
+    return &g->tiles[(size_t)(cj >> g->tile_log2) * (size_t)g->tiles_x +
+                     (size_t)(ci >> g->tile_log2)];
+}
+
+/* Spacing in metres of a lon/lat grid at latitude lat_deg on the WGS84 ellipsoid
+ * (radii of curvature in the prime vertical and the meridian). */
+void td_grid_lonlat_spacing(double lat_deg, double dlon_deg, double dlat_deg, double *sx,
+                            double *sy);
+
+#endif

@@ -1,0 +1,55 @@
+/* status.c: names of status codes, the error record, checked size arithmetic. */
+#include "status.h"
+
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdio.h>
+
+static const char *const td_status_texts[] = {
+#define TD_X_TEXT(code, text, json) text,
+    TD_STATUS_LIST(TD_X_TEXT)
+#undef TD_X_TEXT
+};
+
+static const char *const td_status_jsons[] = {
+#define TD_X_JSON(code, text, json) json,
+    TD_STATUS_LIST(TD_X_JSON)
+#undef TD_X_JSON
+};
+
+const char *td_status_text(td_status st)
+{
+    return (unsigned)st < TD_STATUS_COUNT ? td_status_texts[st] : "unknown status";
+}
+
+const char *td_status_json(td_status st)
+{
+    return (unsigned)st < TD_STATUS_COUNT ? td_status_jsons[st] : "unknown";
+}
+
+td_status td_err_set(td_err *err, td_status st, const char *fmt, ...)
+{
+    if (err) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(err->msg, sizeof err->msg, fmt, ap);
+        va_end(ap);
+    }
+    return st;
+}
+
+int td_mul_size(size_t a, size_t b, size_t *out)
+{
+    int ok = !(a != 0 && b > SIZE_MAX / a);
+    if (ok)
+        *out = a * b;
+    return ok;
+}
+
+int td_add_size(size_t a, size_t b, size_t *out)
+{
+    int ok = b <= SIZE_MAX - a;
+    if (ok)
+        *out = a + b;
+    return ok;
+}

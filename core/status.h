@@ -1,0 +1,49 @@
+/* status.h: the status codes every core function returns, and the error record that
+ * carries a human-readable reason back to the caller (core never logs; the caller
+ * decides what to do with the message).
+ *
+ * The list is one X-macro table, so the enum, its name and its JSON spelling cannot
+ * drift apart (after libuv's uv.h). */
+#ifndef TD_STATUS_H
+#define TD_STATUS_H
+
+#include <stddef.h>
+
+#define TD_STATUS_LIST(X)                                                      \
+    X(TD_OK, "ok", "ok")                                                       \
+    X(TD_EIO, "input/output error", "io")                                      \
+    X(TD_EFORMAT, "malformed input", "format")                                 \
+    X(TD_ERANGE, "value out of range", "range")                                \
+    X(TD_ETOOBIG, "exceeds configured limits", "too_big")                      \
+    X(TD_ENOMEM, "out of memory", "no_memory")                                 \
+    X(TD_EINVAL, "invalid argument", "invalid")                                \
+    X(TD_EUNSUPPORTED, "unsupported", "unsupported")                           \
+    X(TD_ENOTFOUND, "not found", "not_found")                                  \
+    X(TD_ECANCELED, "cancelled", "cancelled")
+
+typedef enum td_status {
+#define TD_X_ENUM(code, text, json) code,
+    TD_STATUS_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_STATUS_COUNT
+} td_status;
+
+/* Caller-supplied error record: functions that fail fill `msg` with a reason that
+ * names the file or field at fault. A NULL td_err is allowed everywhere. */
+typedef struct td_err {
+    char msg[512];
+} td_err;
+
+const char *td_status_text(td_status st);
+const char *td_status_json(td_status st);
+
+/* Formats the message into err (if non-NULL) and returns st, so a failing path can
+ * write `rc = td_err_set(err, TD_EFORMAT, "%s: ...", path); goto out;`. */
+td_status td_err_set(td_err *err, td_status st, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+
+/* Checked size arithmetic: return 0 on overflow, 1 otherwise. */
+int td_mul_size(size_t a, size_t b, size_t *out);
+int td_add_size(size_t a, size_t b, size_t *out);
+
+#endif

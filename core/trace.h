@@ -1,0 +1,94 @@
+/* trace.h: rays against the height field, with three methods over four surfaces.
+ *
+ * Methods and surfaces come from one X-macro table each (enum, name). A trace sees the
+ * grid and, per tile, whatever acceleration is resident (a view): `incremental` needs
+ * nothing, `hierarchical` uses a tile's max-mipmap where present, `parametric` its
+ * parameter planes; both fall back to the incremental walk in tiles that lack them.
+ * `auto` picks per tile from what is resident.
+ *
+ * Rays are given in the dataset frame in double precision; the walk re-bases them per
+ * tile. Surfaces are two-sided: the hit is the first t in [tmin, tmax] where the ray
+ * meets the surface (touching counts; a ray that starts on or below the surface hits at
+ * once: `tmin` for the triangle, linear and bilinear surfaces when it starts exactly on
+ * them, the first crossing when it starts below; the plane surface is a solid column,
+ * so an origin inside it hits at tmin). Cells with a void corner are holes. */
+#ifndef TD_TRACE_H
+#define TD_TRACE_H
+
+#include "grid.h"
+
+#define TD_METHOD_LIST(X)                                                      \
+    X(TD_METHOD_INCREMENTAL, "incremental")                                    \
+    X(TD_METHOD_HIERARCHICAL, "hierarchical")                                  \
+    X(TD_METHOD_PARAMETRIC, "parametric")                                      \
+    X(TD_METHOD_AUTO, "auto")
+
+#define TD_SURFACE_LIST(X)                                                     \
+    X(TD_SURFACE_PLANE, "plane")                                               \
+    X(TD_SURFACE_LINEAR, "linear")                                             \
+    X(TD_SURFACE_TRIANGLE, "triangle")                                         \
+    X(TD_SURFACE_BILINEAR, "bilinear")
+
+typedef enum td_method {
+#define TD_X_ENUM(e, name) e,
+    TD_METHOD_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_METHOD_COUNT
+} td_method;
+
+typedef enum td_surface {
+#define TD_X_ENUM(e, name) e,
+    TD_SURFACE_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_SURFACE_COUNT
+} td_surface;
+
+const char *td_method_name(td_method m);
+const char *td_surface_name(td_surface s);
+/* Parse a name; return TD_EINVAL (and leave *out) for an unknown one. */
+td_status td_method_parse(const char *name, td_method *out);
+td_status td_surface_parse(const char *name, td_surface *out);
+
+typedef struct td_maxmip td_maxmip; /* one tile's max pyramid (maxmip.h) */
+typedef struct td_planes td_planes; /* one tile's parameter planes (planes.h) */
+
+/* What is resident for one tile; either pointer may be NULL. */
+typedef struct td_tile_accel {
+    const td_maxmip *maxmip;
+    const td_planes *planes;
+} td_tile_accel;
+
+/* What one trace sees: the grid and, optionally, one td_tile_accel per tile
+ * (grid->tiles_x * grid->tiles_y entries, same order as grid->tiles). */
+typedef struct td_view {
+    const td_grid *grid;
+    const td_tile_accel *accel; /* may be NULL: no acceleration resident */
+} td_view;
+
+typedef struct td_ray {
+    double o[3];      /* origin, dataset frame, metres */
+    double d[3];      /* direction, need not be unit length, not zero */
+    double tmin, tmax; /* search interval in units of d; tmax may be +inf */
+} td_ray;
+
+typedef struct td_hit {
+    double t;          /* +inf for a miss */
+    double p[3];       /* hit point o + t*d (dataset frame), valid on a hit */
+    float n[3];        /* unit normal of the surface that was hit, facing up (n[2] >= 0) */
+    int32_t ci, cj;    /* the cell hit (column, south-based row) */
+    uint32_t steps;    /* steps the tracer took for this ray */
+    td_method method;  /* method used in the tile where the ray ended */
+} td_hit;
+
+/* Refuses NaN or inf in origin or direction, a zero direction, or a NaN/negative
+ * interval, with a message naming the component. */
+td_status td_ray_validate(const td_ray *r, td_err *err);
+
+/* Traces one validated ray. Never allocates; thread-safe for a shared view. */
+void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_hit *hit);
+
+/* Surface height at (x, y) in the dataset frame inside cell (ci, cj), NaN on a hole
+ * (the `linear` surface has no height of its own: it is evaluated as bilinear here). */
+double td_surface_height(const td_grid *g, td_surface s, int32_t ci, int32_t cj, double x, double y);
+
+#endif
