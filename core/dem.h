@@ -4,7 +4,25 @@
  * encoding), and anything else through GDAL when built with it.
  * Every loader checks sizes against the limits before allocating and refuses truncated,
  * oversized, inconsistent, non-numeric or NaN-laden input with a message naming the file
- * and the reason. */
+ * and the reason.
+ *
+ * Precedence of parameters: an explicit option (opts, e.g. from command-line flags) wins
+ * over the JSON sidecar beside the file, which wins over the defaults. For scale, offset
+ * and divisor, whose defaults are real numbers, "explicit" means the matching bit is set
+ * in opts->given (TD_DEM_GIVEN_*); encoding, spacing and nodata are explicit when set
+ * (encoding != TD_ENC_NONE, spacing > 0, has_nodata).
+ *
+ * Sidecar `<name>.json` (beside `<name>.f32` or `<name>.png`; keys other than these are
+ * ignored, so a descriptive JSON with min/max/source is fine):
+ *   width, height          integers (.f32 only, required there)
+ *   spacing_m              number, or [sx, sy], metres
+ *   nodata                 number, null (no voids), or "nan" (.f32: NaN samples are voids)
+ *   encoding, scale, offset, divisor   PNG only, as in td_dem_opts
+ *   dtype, byte_order      if present must be "float32" and "little" (.f32)
+ *   origin                 optional object: lon_west, lat_north, dlon_deg, dlat_deg
+ *                          (lon/lat of the north-west sample, degrees per sample), or
+ *                          x_ul, y_ul (projected coordinates of the north-west sample),
+ *                          and crs (free text) */
 #ifndef TD_DEM_H
 #define TD_DEM_H
 
@@ -33,7 +51,12 @@ typedef struct td_dem_opts {
     int has_nodata;
     int tile_log2;            /* 0: TD_TILE_LOG2_DEFAULT */
     td_grid_limits limits;
+    unsigned given;           /* TD_DEM_GIVEN_* bits: scale/offset/divisor set explicitly */
 } td_dem_opts;
+
+#define TD_DEM_GIVEN_SCALE 1u
+#define TD_DEM_GIVEN_OFFSET 2u
+#define TD_DEM_GIVEN_DIVISOR 4u
 
 void td_dem_opts_default(td_dem_opts *o);
 const char *td_dem_encoding_name(td_dem_encoding e);
@@ -43,7 +66,11 @@ td_status td_dem_encoding_parse(const char *name, td_dem_encoding *out);
 td_status td_dem_load(const char *path, const td_dem_opts *opts, td_grid **out, td_err *err);
 
 /* Non-zero if `path` names something td_dem_load recognises by its name (used to list a
- * data directory). */
+ * data directory). A .png counts only when its `<name>.json` sidecar exists (a PNG without
+ * one needs an explicit encoding, and is more likely an image such as an orthophoto). */
 int td_dem_recognised(const char *path);
+
+/* Non-zero when the build has the GDAL loader (GeoTIFF and other raster formats). */
+int td_dem_have_gdal(void);
 
 #endif

@@ -1,0 +1,293 @@
+/* demasc.c: the ESRI ASCII grid loader.
+ *
+ * The file is read in one pass through a 64 KiB buffer and a whitespace tokenizer (no
+ * copy of the whole text: an .asc is 5-10 bytes per sample, several times the grid).
+ * Header keys are case-insensitive, in any order, each at most once; the first token
+ * that does not start with a letter begins the data. Every value must be a finite
+ * decimal number (strtod on a token of digits, sign, point and exponent only, so "nan",
+ * "inf", hex and "12abc" are refused with their line), and there must be exactly
+ * ncols*nrows of them. Values equal to NODATA_value become NaN (voids).
+ *
+ * Georeference: xllcorner/yllcorner is the outer corner of the south-west cell, so its
+ * sample sits half a cell in; xllcenter/yllcenter is the sample itself.
+ * Lon/lat or projected: a `<name>.prj` beside the file decides when present (PROJCS ->
+ * projected, GEOGCS alone -> lon/lat). Without one, the grid is taken as lon/lat when
+ * both cell sizes are below 0.1 and the whole extent lies within [-180, 180] x [-90, 90]
+ * (no DEM in metres has cells under 10 cm over such a small area near (0, 0) without a
+ * .prj in practice; --spacing overrides the metres if it does). Lon/lat grids get their
+ * spacing in metres at the centre latitude (td_grid_lonlat_spacing); otherwise the cell
+ * size is the spacing in metres. */
+#include "demasc.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+#include "demutil.h"
+
+#define TD_ASC_TOKEN_MAX 64
+#define TD_ASC_PRJ_MAX 8192
+
+typedef struct asc_reader {
+    FILE *f;
+    size_t len, pos;
+    long line;
+    char buf[1 << 16];
+} asc_reader;
+
+static int asc_getc(asc_reader *r)
+{
+    int c = EOF;
+    if (r->pos == r->len) {
+        r->len = fread(r->buf, 1, sizeof r->buf, r->f);
+        r->pos = 0;
+    }
+    if (r->pos < r->len)
+        c = (unsigned char)r->buf[r->pos++];
+    return c;
+}
+
+/* Next whitespace-separated token: 1 found, 0 end of file, -1 longer than the buffer. */
+static int asc_token(asc_reader *r, char *tok)
+{
+    int c, k = 0, res = 0;
+    do {
+        c = asc_getc(r);
+        if (c == '\n')
+            r->line++;
+    } while (c != EOF && isspace(c));
+    while (c != EOF && !isspace(c)) {
+        if (k < TD_ASC_TOKEN_MAX - 1)
+            tok[k] = (char)c;
+        k++;
+        c = asc_getc(r);
+    }
+    if (c == '\n')
+        r->line++;
+    if (k > 0) {
+        res = k < TD_ASC_TOKEN_MAX ? 1 : -1;
+        tok[k < TD_ASC_TOKEN_MAX ? k : TD_ASC_TOKEN_MAX - 1] = '\0';
+    }
+    return res;
+}
+
+#define TD_ASC_KEY_LIST(X)                                                     \
+    X(K_NCOLS, "ncols")                                                        \
+    X(K_NROWS, "nrows")                                                        \
+    X(K_XLLCORNER, "xllcorner")                                                \
+    X(K_YLLCORNER, "yllcorner")                                                \
+    X(K_XLLCENTER, "xllcenter")                                                \
+    X(K_YLLCENTER, "yllcenter")                                                \
+    X(K_CELLSIZE, "cellsize")                                                  \
+    X(K_DX, "dx")                                                              \
+    X(K_DY, "dy")                                                              \
+    X(K_NODATA, "nodata_value")
+
+enum {
+#define TD_X_ENUM(k, name) k,
+    TD_ASC_KEY_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    K_COUNT
+};
+
+static const char *const asc_key_names[] = {
+#define TD_X_NAME(k, name) name,
+    TD_ASC_KEY_LIST(TD_X_NAME)
+#undef TD_X_NAME
+};
+
+/* 1 geographic, 0 projected, -1 no .prj (or unreadable / undecided). */
+static int asc_prj_says(const char *path)
+{
+    char prj[4096], text[TD_ASC_PRJ_MAX];
+    int res = -1;
+    size_t n;
+    FILE *f;
+    char *dot;
+    if (snprintf(prj, sizeof prj, "%s", path) >= (int)sizeof prj)
+        return -1;
+    dot = strrchr(prj, '.');
+    if (!dot || strchr(dot, '/') || (size_t)(dot - prj) + 5 > sizeof prj)
+        return -1;
+    strcpy(dot, ".prj");
+    f = fopen(prj, "rb");
+    if (f) {
+        n = fread(text, 1, sizeof text - 1, f);
+        text[n] = '\0';
+        fclose(f);
+        if (strstr(text, "PROJCS") || strstr(text, "PROJCRS"))
+            res = 0;
+        else if (strstr(text, "GEOGCS") || strstr(text, "GEOGCRS"))
+            res = 1;
+    }
+    return res;
+}
+
+td_status td_demasc_load(const char *path, const td_dem_opts *o, td_grid **out, td_err *err)
+{
+    td_status rc = TD_OK;
+    asc_reader *r = NULL;
+    td_grid *g = NULL;
+    char tok[TD_ASC_TOKEN_MAX], val[TD_ASC_TOKEN_MAX];
+    double kv[K_COUNT];
+    int seen[K_COUNT] = {0};
+    int t, geographic = 0, prj;
+    long w = 0, h = 0;
+    double dx = 0, dy = 0, x0, y0, sx = 0, sy = 0;
+    size_t n = 0, k = 0;
+    td_demside sc;
+    td_georef geo;
+
+    *out = NULL;
+    memset(&geo, 0, sizeof geo);
+    r = calloc(1, sizeof *r);
+    if (!r) {
+        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory", path);
+        goto out;
+    }
+    r->line = 1;
+    r->f = fopen(path, "rb");
+    if (!r->f) {
+        rc = td_err_set(err, TD_EIO, "%s: cannot open (%s)", path, strerror(errno));
+        goto out;
+    }
+    /* Header: key value pairs until a token that does not start with a letter. */
+    for (;;) {
+        int key = -1;
+        t = asc_token(r, tok);
+        if (t == 0) {
+            rc = td_err_set(err, TD_EFORMAT, "%s: ends in the header (no data)", path);
+            goto out;
+        }
+        if (t < 0 || !isalpha((unsigned char)tok[0]))
+            break;
+        for (int q = 0; q < K_COUNT && key < 0; q++)
+            if (!strcasecmp(tok, asc_key_names[q]))
+                key = q;
+        if (key < 0) {
+            rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: unknown header key '%s'", path, r->line, tok);
+            goto out;
+        }
+        if (seen[key]) {
+            rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: header key '%s' given twice", path, r->line,
+                            tok);
+            goto out;
+        }
+        if (asc_token(r, val) != 1 || !td_demutil_parse_double(val, &kv[key])) {
+            rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: header key '%s' needs a finite number",
+                            path, r->line, tok);
+            goto out;
+        }
+        seen[key] = 1;
+    }
+    if (!seen[K_NCOLS] || !seen[K_NROWS]) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: header lacks ncols or nrows", path);
+        goto out;
+    }
+    if (kv[K_NCOLS] != floor(kv[K_NCOLS]) || kv[K_NROWS] != floor(kv[K_NROWS]) ||
+        kv[K_NCOLS] < 2 || kv[K_NROWS] < 2 || kv[K_NCOLS] > INT32_MAX || kv[K_NROWS] > INT32_MAX) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: ncols %g, nrows %g: need integers of at least 2", path,
+                        kv[K_NCOLS], kv[K_NROWS]);
+        goto out;
+    }
+    w = (long)kv[K_NCOLS];
+    h = (long)kv[K_NROWS];
+    rc = td_demutil_check_limits(path, o, (int32_t)w, (int32_t)h, err);
+    if (rc != TD_OK)
+        goto out;
+    if (seen[K_CELLSIZE] && !seen[K_DX] && !seen[K_DY]) {
+        dx = dy = kv[K_CELLSIZE];
+    } else if (!seen[K_CELLSIZE] && seen[K_DX] && seen[K_DY]) {
+        dx = kv[K_DX];
+        dy = kv[K_DY];
+    } else {
+        rc = td_err_set(err, TD_EFORMAT, "%s: header needs cellsize, or dx and dy (not both)", path);
+        goto out;
+    }
+    if (!(dx > 0.0 && dy > 0.0)) {
+        rc = td_err_set(err, TD_ERANGE, "%s: cell size %g x %g is not positive", path, dx, dy);
+        goto out;
+    }
+    if (seen[K_XLLCORNER] == seen[K_XLLCENTER] || seen[K_YLLCORNER] == seen[K_YLLCENTER]) {
+        rc = td_err_set(err, TD_EFORMAT,
+                        "%s: header needs one of xllcorner/xllcenter and one of yllcorner/yllcenter",
+                        path);
+        goto out;
+    }
+    x0 = seen[K_XLLCORNER] ? kv[K_XLLCORNER] + 0.5 * dx : kv[K_XLLCENTER];
+    y0 = seen[K_YLLCORNER] ? kv[K_YLLCORNER] + 0.5 * dy : kv[K_YLLCENTER];
+    prj = asc_prj_says(path);
+    if (prj >= 0)
+        geographic = prj;
+    else
+        geographic = dx < 0.1 && dy < 0.1 && x0 - 0.5 * dx >= -180.0 &&
+                     x0 + ((double)w - 0.5) * dx <= 180.0 && y0 - 0.5 * dy >= -90.0 &&
+                     y0 + ((double)h - 0.5) * dy <= 90.0;
+    geo.kind = geographic ? TD_GEO_LONLAT : TD_GEO_PROJECTED;
+    geo.x0 = x0;
+    geo.y0 = y0;
+    geo.dx = dx;
+    geo.dy = dy;
+    memset(&sc, 0, sizeof sc);
+    if (!geographic) {
+        sc.has_spacing = 1;
+        sc.spacing[0] = dx;
+        sc.spacing[1] = dy;
+    }
+    rc = td_demutil_spacing(path, o, &sc, &geo, (int32_t)w, (int32_t)h, &sx, &sy, err);
+    if (rc != TD_OK)
+        goto out;
+    rc = td_demutil_create(path, o, (int32_t)w, (int32_t)h, sx, sy, &g, err);
+    if (rc != TD_OK)
+        goto out;
+    g->geo = geo;
+    n = (size_t)w * (size_t)h; /* checked by td_grid_create */
+    /* Data: tok holds the first data token already. */
+    t = 1;
+    for (k = 0; k < n; k++) {
+        double v;
+        if (k > 0)
+            t = asc_token(r, tok);
+        if (t == 0) {
+            rc = td_err_set(err, TD_EFORMAT, "%s: truncated: %zu of %ld x %ld values", path, k, w, h);
+            goto out;
+        }
+        if (t < 0 || !td_demutil_parse_double(tok, &v)) {
+            rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: '%s' is not a finite number", path,
+                            r->line, tok);
+            goto out;
+        }
+        if (seen[K_NODATA] && v == kv[K_NODATA]) {
+            v = NAN;
+        } else if (fabs(v) > FLT_MAX) {
+            rc = td_err_set(err, TD_ERANGE, "%s: line %ld: %s does not fit a float", path, r->line, tok);
+            goto out;
+        }
+        g->z[(size_t)(h - 1 - (long)(k / (size_t)w)) * (size_t)w + k % (size_t)w] = (float)v;
+    }
+    t = asc_token(r, tok);
+    if (t != 0) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: more than %ld x %ld values", path, r->line, w, h);
+        goto out;
+    }
+    if (ferror(r->f)) {
+        rc = td_err_set(err, TD_EIO, "%s: read error", path);
+        goto out;
+    }
+    rc = td_demutil_finish(path, g, err);
+out:
+    if (r && r->f)
+        fclose(r->f);
+    free(r);
+    if (rc != TD_OK) {
+        td_grid_free(g);
+        g = NULL;
+    }
+    *out = g;
+    return rc;
+}

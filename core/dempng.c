@@ -1,0 +1,254 @@
+/* dempng.c: the PNG loader (libpng).
+ *
+ * A PNG does not say how its pixels hold heights, and every packing decodes to plausible
+ * numbers under every other one, so the encoding must be stated: by option, or by the
+ * sidecar `<name>.json` (keys encoding, scale, offset, divisor, spacing_m, nodata,
+ * origin; see dem.h). Without one the file is refused, naming the flag and the key.
+ *
+ *   gray16       16-bit grayscale             m = v*scale + offset
+ *   terrain-rgb  8-bit RGB(A), Mapbox         m = -10000 + (R*65536 + G*256 + B) * 0.1
+ *   terrarium    8-bit RGB(A), Mapzen         m = R*256 + G + B/256 - 32768
+ *   rgb-div      8-bit RGB(A), e.g. Levi      m = (R*65536 + G*256 + B) / divisor
+ *
+ * Voids: a pixel whose alpha is 0, or whose raw value (v, or R*65536+G*256+B) equals the
+ * declared nodata. Rows are decoded one at a time (one row buffer) into their south-based
+ * place; interlaced PNGs, which need the whole image in memory first, are refused.
+ * libpng reports errors by longjmp: everything the error path frees lives in a context
+ * struct so no local is clobbered across setjmp. IHDR sizes are checked against the
+ * limits before the row buffer or grid is allocated, and libpng's own user limits are set
+ * to the same bounds. */
+#include "dempng.h"
+
+#include <errno.h>
+#include <float.h>
+#include <math.h>
+#include <setjmp.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <png.h>
+
+#include "demutil.h"
+
+typedef struct png_ctx {
+    const char *path;
+    FILE *f;
+    png_structp png;
+    png_infop info;
+    unsigned char *row;
+    td_grid *g;
+    char msg[256];
+    jmp_buf jmp;
+} png_ctx;
+
+static void png_ctx_error(png_structp png, png_const_charp msg)
+{
+    png_ctx *c = png_get_error_ptr(png);
+    snprintf(c->msg, sizeof c->msg, "%s", msg);
+    longjmp(c->jmp, 1);
+}
+
+static void png_ctx_warning(png_structp png, png_const_charp msg)
+{
+    (void)png;
+    (void)msg; /* core never logs; warnings do not change the decoded values */
+}
+
+typedef struct png_params {
+    td_dem_encoding enc;
+    double scale, offset, divisor;
+    int has_nodata;
+    double nodata;
+} png_params;
+
+static td_status resolve_params(const char *path, const td_dem_opts *o, const td_demside *sc,
+                                png_params *p, td_err *err)
+{
+    td_status rc = TD_OK;
+    p->enc = o->encoding != TD_ENC_NONE ? o->encoding : sc->encoding;
+    p->scale = (o->given & TD_DEM_GIVEN_SCALE) || !sc->has_scale ? o->scale : sc->scale;
+    p->offset = (o->given & TD_DEM_GIVEN_OFFSET) || !sc->has_offset ? o->offset : sc->offset;
+    p->divisor = (o->given & TD_DEM_GIVEN_DIVISOR) || !sc->has_divisor ? o->divisor : sc->divisor;
+    p->has_nodata = o->has_nodata || sc->nodata_kind == TD_NODATA_VALUE;
+    p->nodata = o->has_nodata ? o->nodata : sc->nodata;
+    if (p->enc == TD_ENC_NONE || (unsigned)p->enc >= TD_ENC_COUNT) {
+        rc = td_err_set(err, TD_EINVAL,
+                        "%s: a PNG's height encoding is never guessed: give --encoding "
+                        "(gray16, terrain-rgb, terrarium, rgb-div) or \"encoding\" in %s",
+                        path, sc->path);
+    } else if (p->enc == TD_ENC_GRAY16 && (!isfinite(p->scale) || p->scale == 0.0 ||
+                                           !isfinite(p->offset))) {
+        rc = td_err_set(err, TD_ERANGE, "%s: gray16 scale %g and offset %g must be finite, scale non-zero",
+                        path, p->scale, p->offset);
+    } else if (p->enc == TD_ENC_RGB_DIV && !(isfinite(p->divisor) && p->divisor > 0.0)) {
+        rc = td_err_set(err, TD_ERANGE, "%s: rgb-div divisor %g must be positive and finite", path,
+                        p->divisor);
+    } else if (p->has_nodata && !isfinite(p->nodata)) {
+        rc = td_err_set(err, TD_ERANGE, "%s: nodata must be finite", path);
+    }
+    return rc;
+}
+
+/* Decodes one row of raw pixels into heights. Returns 0 if a height is not a float. */
+static int decode_row(const png_params *p, const unsigned char *src, int channels, int32_t w,
+                      float *dst)
+{
+    int ok = 1;
+    for (int32_t i = 0; i < w && ok; i++) {
+        const unsigned char *px = src + (size_t)i * (size_t)channels * (p->enc == TD_ENC_GRAY16 ? 2u : 1u);
+        double raw, m;
+        int transparent = 0;
+        if (p->enc == TD_ENC_GRAY16) {
+            raw = (double)((px[0] << 8) | px[1]);
+            transparent = channels == 2 && ((px[2] << 8) | px[3]) == 0;
+            m = raw * p->scale + p->offset;
+        } else {
+            raw = (double)(((uint32_t)px[0] << 16) | ((uint32_t)px[1] << 8) | px[2]);
+            transparent = channels == 4 && px[3] == 0;
+            if (p->enc == TD_ENC_TERRAIN_RGB)
+                m = -10000.0 + raw * 0.1;
+            else if (p->enc == TD_ENC_TERRARIUM)
+                m = px[0] * 256.0 + px[1] + px[2] / 256.0 - 32768.0;
+            else
+                m = raw / p->divisor;
+        }
+        if (transparent || (p->has_nodata && raw == p->nodata))
+            dst[i] = NAN;
+        else if (fabs(m) <= FLT_MAX)
+            dst[i] = (float)m;
+        else
+            ok = 0;
+    }
+    return ok;
+}
+
+static td_status load(png_ctx *c, const td_dem_opts *o, td_err *err)
+{
+    td_status rc = TD_OK;
+    const char *path = c->path;
+    td_demside sc;
+    png_params p;
+    unsigned char sig[8];
+    png_uint_32 w = 0, h = 0;
+    int depth = 0, ctype = 0, interlace = 0, channels = 0;
+    double sx = 0, sy = 0;
+
+    rc = td_demutil_sidecar_read(path, 0, 0, &sc, err);
+    if (rc == TD_OK)
+        rc = resolve_params(path, o, &sc, &p, err);
+    if (rc != TD_OK)
+        goto out;
+    c->f = fopen(path, "rb");
+    if (!c->f) {
+        rc = td_err_set(err, TD_EIO, "%s: cannot open (%s)", path, strerror(errno));
+        goto out;
+    }
+    if (fread(sig, 1, 8, c->f) != 8 || png_sig_cmp(sig, 0, 8)) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: not a PNG file (bad signature)", path);
+        goto out;
+    }
+    c->png = png_create_read_struct(PNG_LIBPNG_VER_STRING, c, png_ctx_error, png_ctx_warning);
+    c->info = c->png ? png_create_info_struct(c->png) : NULL;
+    if (!c->info) {
+        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory for libpng", path);
+        goto out;
+    }
+    if (setjmp(c->jmp)) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: corrupt or truncated PNG (libpng: %s)", path, c->msg);
+        goto out;
+    }
+    png_set_user_limits(c->png, (png_uint_32)o->limits.max_width, (png_uint_32)o->limits.max_height);
+    png_init_io(c->png, c->f);
+    png_set_sig_bytes(c->png, 8);
+    png_read_info(c->png, c->info);
+    png_get_IHDR(c->png, c->info, &w, &h, &depth, &ctype, &interlace, NULL, NULL);
+    rc = td_demutil_check_limits(path, o, (int32_t)w, (int32_t)h, err);
+    if (rc != TD_OK)
+        goto out;
+    if (interlace != PNG_INTERLACE_NONE) {
+        rc = td_err_set(err, TD_EUNSUPPORTED, "%s: interlaced PNG; save it without interlacing", path);
+        goto out;
+    }
+    if (p.enc == TD_ENC_GRAY16) {
+        if (depth != 16 || (ctype != PNG_COLOR_TYPE_GRAY && ctype != PNG_COLOR_TYPE_GRAY_ALPHA)) {
+            rc = td_err_set(err, TD_EFORMAT,
+                            "%s: encoding gray16 needs a 16-bit grayscale PNG, this one has %d-bit %s",
+                            path, depth, ctype & PNG_COLOR_MASK_COLOR ? "colour" : "grayscale");
+            goto out;
+        }
+        channels = ctype == PNG_COLOR_TYPE_GRAY ? 1 : 2;
+    } else {
+        if (depth != 8 || (ctype != PNG_COLOR_TYPE_RGB && ctype != PNG_COLOR_TYPE_RGB_ALPHA)) {
+            rc = td_err_set(err, TD_EFORMAT,
+                            "%s: encoding %s needs an 8-bit RGB or RGBA PNG, this one has %d-bit %s%s",
+                            path, td_dem_encoding_name(p.enc), depth,
+                            ctype & PNG_COLOR_MASK_PALETTE ? "palette" :
+                            ctype & PNG_COLOR_MASK_COLOR ? "colour" : "grayscale",
+                            ctype & PNG_COLOR_MASK_ALPHA ? " with alpha" : "");
+            goto out;
+        }
+        channels = ctype == PNG_COLOR_TYPE_RGB ? 3 : 4;
+    }
+    if (png_get_rowbytes(c->png, c->info) != (size_t)w * (size_t)channels * (size_t)(depth / 8)) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: unexpected row size", path);
+        goto out;
+    }
+    if (sc.geo.kind == TD_GEO_LONLAT)
+        td_demutil_georef_from_north(&sc.geo, (int32_t)h);
+    rc = td_demutil_spacing(path, o, &sc, &sc.geo, (int32_t)w, (int32_t)h, &sx, &sy, err);
+    if (rc != TD_OK)
+        goto out;
+    if (sc.geo.kind == TD_GEO_PROJECTED) {
+        sc.geo.dx = sx;
+        sc.geo.dy = sy;
+        td_demutil_georef_from_north(&sc.geo, (int32_t)h);
+    }
+    rc = td_demutil_create(path, o, (int32_t)w, (int32_t)h, sx, sy, &c->g, err);
+    if (rc != TD_OK)
+        goto out;
+    c->g->geo = sc.geo;
+    c->row = malloc(png_get_rowbytes(c->png, c->info));
+    if (!c->row) {
+        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory for a row", path);
+        goto out;
+    }
+    for (png_uint_32 r = 0; r < h; r++) {
+        png_read_row(c->png, c->row, NULL);
+        if (!decode_row(&p, c->row, channels, (int32_t)w, c->g->z + (size_t)(h - 1 - r) * (size_t)w)) {
+            rc = td_err_set(err, TD_ERANGE, "%s: row %lu decodes to a height beyond float range", path,
+                            (unsigned long)r);
+            goto out;
+        }
+    }
+    png_read_end(c->png, NULL);
+    rc = td_demutil_finish(path, c->g, err);
+out:
+    return rc;
+}
+
+td_status td_dempng_load(const char *path, const td_dem_opts *o, td_grid **out, td_err *err)
+{
+    td_status rc;
+    png_ctx *c = calloc(1, sizeof *c);
+
+    *out = NULL;
+    if (!c) {
+        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory", path);
+        goto out;
+    }
+    c->path = path;
+    rc = load(c, o, err);
+    if (c->png)
+        png_destroy_read_struct(&c->png, c->info ? &c->info : NULL, NULL);
+    if (c->f)
+        fclose(c->f);
+    free(c->row);
+    if (rc == TD_OK)
+        *out = c->g;
+    else
+        td_grid_free(c->g);
+    free(c);
+out:
+    return rc;
+}
