@@ -166,6 +166,20 @@ void td_grid_free(td_grid *g)
     }
 }
 
+void td_grid_cell_max(const td_grid *g, const td_tile *t, float *out)
+{
+    for (int32_t cj = 0; cj < t->ny; cj++) {
+        const float *s0 = g->z + (size_t)(t->j0 + cj) * (size_t)g->w + (size_t)t->i0;
+        const float *s1 = s0 + g->w;
+        float *o = out + (size_t)cj * (size_t)t->nx;
+        for (int32_t ci = 0; ci < t->nx; ci++) {
+            float a = s0[ci], b = s0[ci + 1], c = s1[ci], d = s1[ci + 1];
+            float m = fmaxf(fmaxf(a, b), fmaxf(c, d));
+            o[ci] = (isnan(a) || isnan(b) || isnan(c) || isnan(d)) ? -INFINITY : m;
+        }
+    }
+}
+
 void td_grid_lonlat_spacing(double lat_deg, double dlon_deg, double dlat_deg, double *sx,
                             double *sy)
 {

@@ -93,6 +93,10 @@ static inline const td_tile *td_grid_tile_of_cell(const td_grid *g, int32_t ci, 
                      (size_t)(ci >> g->tile_log2)];
 }
 
+/* Per cell of tile t, the highest of its four corners (which bounds every surface), or
+ * -inf for a hole (a void corner). out holds t->nx * t->ny floats, row-major, south first. */
+void td_grid_cell_max(const td_grid *g, const td_tile *t, float *out);
+
 /* Spacing in metres of a lon/lat grid at latitude lat_deg on the WGS84 ellipsoid
  * (radii of curvature in the prime vertical and the meridian). */
 void td_grid_lonlat_spacing(double lat_deg, double dlon_deg, double dlat_deg, double *sx,

@@ -1,0 +1,165 @@
+/* accel.c: builds max-mipmaps and parameter planes for every tile of a grid, in
+ * parallel: worker threads take tiles from a shared atomic counter (tiles are
+ * independent, so no other synchronisation). Reports wall time and resident bytes. */
+#include "accel.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "maxmip.h"
+#include "planes.h"
+
+void td_accel_opts_default(td_accel_opts *o)
+{
+    o->maxmip = 1;
+    o->planes = 1;
+    o->planes_k = TD_PLANES_K_DEFAULT;
+    o->threads = 0;
+}
+
+int td_cpu_count(void)
+{
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n < 1 ? 1 : (int)n;
+}
+
+typedef struct build_job {
+    const td_grid *g;
+    td_accel *a;
+    int what; /* 0 maxmip, 1 planes */
+    int k;
+    atomic_size_t next;
+    atomic_int failed;
+    td_err err; /* first failure */
+    pthread_mutex_t err_lock;
+} build_job;
+
+static void *build_worker(void *arg)
+{
+    build_job *job = arg;
+    for (;;) {
+        size_t i = atomic_fetch_add(&job->next, 1);
+        td_err err;
+        td_status rc;
+        if (i >= job->a->ntiles || atomic_load(&job->failed))
+            break;
+        if (job->what == 0) {
+            td_maxmip *m = NULL;
+            rc = td_maxmip_build(job->g, i, &m, &err);
+            job->a->tiles[i].maxmip = m;
+        } else {
+            td_planes *p = NULL;
+            rc = td_planes_build(job->g, i, job->k, &p, &err);
+            job->a->tiles[i].planes = p;
+        }
+        if (rc != TD_OK) {
+            pthread_mutex_lock(&job->err_lock);
+            if (!atomic_load(&job->failed))
+                job->err = err;
+            atomic_store(&job->failed, (int)rc);
+            pthread_mutex_unlock(&job->err_lock);
+        }
+    }
+    return NULL;
+}
+
+static double now_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static td_status run_build(const td_grid *g, td_accel *a, int what, int k, int threads,
+                           double *seconds, td_err *err)
+{
+    td_status rc = TD_OK;
+    build_job job = {.g = g, .a = a, .what = what, .k = k};
+    pthread_t tid[256];
+    int started = 0;
+    double t0 = now_seconds();
+
+    atomic_init(&job.next, 0);
+    atomic_init(&job.failed, 0);
+    pthread_mutex_init(&job.err_lock, NULL);
+    if (threads > 256)
+        threads = 256;
+    for (int i = 1; i < threads; i++) {
+        if (pthread_create(&tid[started], NULL, build_worker, &job) == 0)
+            started++;
+    }
+    build_worker(&job); /* the calling thread works too */
+    for (int i = 0; i < started; i++)
+        pthread_join(tid[i], NULL);
+    pthread_mutex_destroy(&job.err_lock);
+    *seconds = now_seconds() - t0;
+    if (atomic_load(&job.failed)) {
+        rc = (td_status)atomic_load(&job.failed);
+        if (err)
+            *err = job.err;
+    }
+    return rc;
+}
+
+td_status td_accel_build(const td_grid *g, const td_accel_opts *o, td_accel **out,
+                         td_accel_stats *st, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_accel_stats stats;
+    td_accel *a = NULL;
+    int threads = o->threads > 0 ? o->threads : td_cpu_count();
+
+    memset(&stats, 0, sizeof stats);
+    *out = NULL;
+    a = calloc(1, sizeof *a);
+    if (!a) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for acceleration records");
+        goto out;
+    }
+    a->ntiles = (size_t)g->tiles_x * (size_t)g->tiles_y;
+    a->tiles = calloc(a->ntiles, sizeof *a->tiles);
+    if (!a->tiles) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for acceleration records");
+        goto out;
+    }
+    stats.tiles = (int64_t)a->ntiles;
+    if (o->maxmip) {
+        rc = run_build(g, a, 0, 0, threads, &stats.maxmip_seconds, err);
+        if (rc != TD_OK)
+            goto out;
+        for (size_t i = 0; i < a->ntiles; i++)
+            stats.maxmip_bytes += a->tiles[i].maxmip->bytes;
+    }
+    if (o->planes) {
+        rc = run_build(g, a, 1, o->planes_k, threads, &stats.planes_seconds, err);
+        if (rc != TD_OK)
+            goto out;
+        for (size_t i = 0; i < a->ntiles; i++)
+            stats.planes_bytes += a->tiles[i].planes->bytes;
+    }
+out:
+    if (rc != TD_OK) {
+        td_accel_free(a);
+        a = NULL;
+    }
+    if (st)
+        *st = stats;
+    *out = a;
+    return rc;
+}
+
+void td_accel_free(td_accel *a)
+{
+    if (a) {
+        for (size_t i = 0; a->tiles && i < a->ntiles; i++) {
+            td_maxmip_free((td_maxmip *)a->tiles[i].maxmip);
+            td_planes_free((td_planes *)a->tiles[i].planes);
+        }
+        free(a->tiles);
+        free(a);
+    }
+}

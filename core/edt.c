@@ -1,0 +1,84 @@
+/* edt.c: the Felzenszwalb-Huttenlocher distance transform, O(n) per line.
+ *
+ * For a line of samples with costs f(q) (0 on features, +inf elsewhere) it computes
+ * d(p) = min_q w*(p-q)^2 + f(q) as the lower envelope of parabolas rooted at the finite
+ * samples. Running it along rows (weight sx^2) and then along columns of the result
+ * (weight sy^2) gives the exact squared Euclidean distance in metres on grids whose
+ * spacing differs in x and y. Samples with infinite cost never enter the envelope, so no
+ * inf - inf arises. */
+#include "edt.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+int td_edt_scratch_init(td_edt_scratch *s, int32_t n)
+{
+    s->n = n;
+    s->f = malloc(sizeof(double) * (size_t)n);
+    s->d = malloc(sizeof(double) * (size_t)n);
+    s->zs = malloc(sizeof(double) * ((size_t)n + 1));
+    s->v = malloc(sizeof(int32_t) * (size_t)n);
+    return s->f && s->d && s->zs && s->v;
+}
+
+void td_edt_scratch_free(td_edt_scratch *s)
+{
+    free(s->f);
+    free(s->d);
+    free(s->zs);
+    free(s->v);
+    s->f = s->d = s->zs = NULL;
+    s->v = NULL;
+}
+
+/* One line: f[0..n) in, d[0..n) out. */
+static void edt_1d(const double *f, double *d, int32_t n, double w, int32_t *v, double *zs)
+{
+    int32_t k = -1;
+    for (int32_t q = 0; q < n; q++) {
+        if (isinf(f[q]))
+            continue;
+        double fq = f[q] + w * (double)q * (double)q;
+        while (k >= 0) {
+            int32_t p = v[k];
+            double s = (fq - (f[p] + w * (double)p * (double)p)) / (2.0 * w * (double)(q - p));
+            if (s > zs[k])
+                break;
+            k--;
+        }
+        k++;
+        v[k] = q;
+        zs[k] = k == 0 ? -INFINITY : (fq - (f[v[k - 1]] + w * (double)v[k - 1] * (double)v[k - 1])) /
+                                         (2.0 * w * (double)(q - v[k - 1]));
+        zs[k + 1] = INFINITY;
+    }
+    if (k < 0) {
+        for (int32_t q = 0; q < n; q++)
+            d[q] = INFINITY;
+    } else {
+        int32_t j = 0;
+        for (int32_t q = 0; q < n; q++) {
+            while (zs[j + 1] < (double)q)
+                j++;
+            double dq = (double)(q - v[j]);
+            d[q] = w * dq * dq + f[v[j]];
+        }
+    }
+}
+
+void td_edt_2d(double *dist, int32_t nx, int32_t ny, double wx, double wy, td_edt_scratch *s)
+{
+    for (int32_t y = 0; y < ny; y++) {
+        double *row = dist + (size_t)y * (size_t)nx;
+        for (int32_t x = 0; x < nx; x++)
+            s->f[x] = row[x];
+        edt_1d(s->f, row, nx, wx, s->v, s->zs);
+    }
+    for (int32_t x = 0; x < nx; x++) {
+        for (int32_t y = 0; y < ny; y++)
+            s->f[y] = dist[(size_t)y * (size_t)nx + (size_t)x];
+        edt_1d(s->f, s->d, ny, wy, s->v, s->zs);
+        for (int32_t y = 0; y < ny; y++)
+            dist[(size_t)y * (size_t)nx + (size_t)x] = s->d[y];
+    }
+}

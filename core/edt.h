@@ -1,0 +1,24 @@
+/* edt.h: exact squared Euclidean distance transform of a binary grid with separate
+ * weights along x and y (Felzenszwalb & Huttenlocher 2012, "Distance Transforms of
+ * Sampled Functions": two separable passes of the lower envelope of parabolas). */
+#ifndef TD_EDT_H
+#define TD_EDT_H
+
+#include <stdint.h>
+
+/* Scratch for a transform of up to n = max(nx, ny) samples per line. */
+typedef struct td_edt_scratch {
+    int32_t n;
+    double *f, *d, *zs; /* n, n, n+1 */
+    int32_t *v;         /* n */
+} td_edt_scratch;
+
+int td_edt_scratch_init(td_edt_scratch *s, int32_t n);
+void td_edt_scratch_free(td_edt_scratch *s);
+
+/* In: dist[c] = 0 for feature cells, +inf otherwise (nx*ny, row-major).
+ * Out: dist[c] = min over features q of wx*(cx-qx)^2 + wy*(cy-qy)^2 (+inf if none).
+ * Row-major layout, nx, ny <= s->n. */
+void td_edt_2d(double *dist, int32_t nx, int32_t ny, double wx, double wy, td_edt_scratch *s);
+
+#endif
