@@ -15,8 +15,7 @@
  * place; interlaced PNGs, which need the whole image in memory first, are refused.
  * libpng reports errors by longjmp: everything the error path frees lives in a context
  * struct so no local is clobbered across setjmp. IHDR sizes are checked against the
- * limits before the row buffer or grid is allocated, and libpng's own user limits are set
- * to the same bounds. */
+ * limits before the row buffer or grid is allocated. */
 #include "dempng.h"
 
 #include <errno.h>
@@ -158,7 +157,10 @@ static td_status load(png_ctx *c, const td_dem_opts *o, td_err *err)
         rc = td_err_set(err, TD_EFORMAT, "%s: corrupt or truncated PNG (libpng: %s)", path, c->msg);
         goto out;
     }
-    png_set_user_limits(c->png, (png_uint_32)o->limits.max_width, (png_uint_32)o->limits.max_height);
+    /* libpng's own size limits (default 1e6) would refuse big IHDRs as "invalid"; lift them
+       to the format's maximum so that our check below refuses them as too big, by name.
+       png_read_info allocates nothing per row or pixel. */
+    png_set_user_limits(c->png, 0x7fffffffu, 0x7fffffffu);
     png_init_io(c->png, c->f);
     png_set_sig_bytes(c->png, 8);
     png_read_info(c->png, c->info);

@@ -19,6 +19,8 @@
 
 #define TD_SIDECAR_MAX_BYTES (1u << 20) /* a sidecar is a few hundred bytes */
 
+static void name_file(const char *path, td_err *err);
+
 const char *td_demutil_basename(const char *path)
 {
     const char *slash = strrchr(path, '/');
@@ -309,6 +311,8 @@ td_status td_demutil_sidecar_read(const char *path, int required, int need_size,
         rc = side_origin(sc, root, err);
 out:
     json_decref(root);
+    if (rc != TD_OK)
+        name_file(path, err); /* the data file first, then the sidecar at fault */
     return rc;
 }
 
