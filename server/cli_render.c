@@ -1,9 +1,389 @@
-/* cli_render.c: `terrad render`. */
+/* cli_render.c: `terrad render SCENE.json -o OUT [--stats FILE] [--threads N]`: the
+ * render path of the server without HTTP. The scene is parsed by the same pure function
+ * as POST /v1/render (server/request.c), with file paths allowed.
+ *
+ * `dataset` (and `effects.drape`) are looked up as given, then beside the scene file,
+ * then under the source tree's data/ folder, where a demo id names a folder (the first
+ * file in it that the DEM loaders recognise, by name order) or a file. The acceleration
+ * the method needs is built for the whole grid (hierarchical: max-mipmaps; parametric:
+ * parameter planes; auto: both) and timed as `accel_ms`.
+ *
+ * Output: the image in the scene's format (png, depth16, depth32f), or for format pick
+ * a JSON array with the terrain point of each pixel. --stats writes JSON: rays {primary,
+ * shadow, reflection, ao}, steps, hits, curved_rays, curve_segments, stages_ms (one
+ * entry per stage that ran), load_ms, accel_ms, render_ms, total_ms, threads, bytes.
+ * Exit status: 0 ok, 1 runtime failure, 2 usage or scene error. */
 #include "cli.h"
+
+#include <dirent.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include <jansson.h>
+
+#include "accel.h"
+#include "dem.h"
+#include "render.h"
+#include "request.h"
+
+#ifndef TERRAD_SOURCE_DIR
+#define TERRAD_SOURCE_DIR "."
+#endif
+
+#define TD_SCENE_FILE_MAX (4u << 20)
+
+static void render_usage(FILE *f)
+{
+    fprintf(f, "usage: terrad render SCENE.json -o OUT [--stats FILE] [--threads N]\n"
+               "\n"
+               "Renders a scene (the JSON body of POST /v1/render) to OUT in the scene's\n"
+               "image.format: png, depth16 (16-bit PNG), depth32f (raw float32) or pick (JSON).\n"
+               "`dataset` may be a DEM file path or a demo id (a folder under %s/data).\n"
+               "  -o OUT          output file ('-' for stdout)\n"
+               "  --stats FILE    write rays by kind and per-stage timings as JSON\n"
+               "  --threads N     render threads (default: one per core)\n",
+               TERRAD_SOURCE_DIR);
+}
+
+static double now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return 1e3 * (double)ts.tv_sec + 1e-6 * (double)ts.tv_nsec;
+}
+
+static int is_file(const char *p)
+{
+    struct stat st;
+    return stat(p, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+static int is_dir(const char *p)
+{
+    struct stat st;
+    return stat(p, &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+static int cmp_str(const void *a, const void *b)
+{
+    return strcmp(*(const char *const *)a, *(const char *const *)b);
+}
+
+/* First file of dir (by name) the DEM loaders recognise, into out. */
+static int first_dem_in(const char *dir, char *out, size_t cap)
+{
+    int found = 0;
+    DIR *d = opendir(dir);
+    char *names[256];
+    size_t n = 0;
+    struct dirent *e;
+    if (!d)
+        return 0;
+    while ((e = readdir(d)) && n < 256) {
+        if (e->d_name[0] != '.')
+            names[n++] = strdup(e->d_name);
+    }
+    closedir(d);
+    qsort(names, n, sizeof names[0], cmp_str);
+    for (size_t i = 0; i < n; i++) {
+        char p[4096];
+        if (!found && names[i] && snprintf(p, sizeof p, "%s/%s", dir, names[i]) < (int)sizeof p &&
+            is_file(p) && td_dem_recognised(p)) {
+            snprintf(out, cap, "%s", p);
+            found = 1;
+        }
+        free(names[i]);
+    }
+    return found;
+}
+
+/* Resolves a dataset or drape name (see the top of the file). */
+static int resolve(const char *name, const char *scene_dir, int dem, char *out, size_t cap)
+{
+    char p[4096];
+    int ok = 0;
+    const char *bases[3] = {NULL, scene_dir, TERRAD_SOURCE_DIR "/data"};
+    for (int b = 0; b < 3 && !ok; b++) {
+        if (b == 0)
+            snprintf(p, sizeof p, "%s", name);
+        else if (name[0] == '/' || !bases[b])
+            continue;
+        else
+            snprintf(p, sizeof p, "%s/%s", bases[b], name);
+        if (is_file(p)) {
+            snprintf(out, cap, "%s", p);
+            ok = 1;
+        } else if (dem && is_dir(p)) {
+            ok = first_dem_in(p, out, cap);
+        }
+    }
+    return ok;
+}
+
+static char *read_file(const char *path, size_t *len)
+{
+    char *buf = NULL;
+    FILE *f = fopen(path, "rb");
+    if (f) {
+        buf = malloc(TD_SCENE_FILE_MAX + 1);
+        if (buf) {
+            *len = fread(buf, 1, TD_SCENE_FILE_MAX + 1, f);
+            if (ferror(f) || *len > TD_SCENE_FILE_MAX) {
+                free(buf);
+                buf = NULL;
+            }
+        }
+        fclose(f);
+    }
+    return buf;
+}
+
+static int write_out(const char *path, const void *data, size_t len)
+{
+    int ok = 0;
+    FILE *f = strcmp(path, "-") ? fopen(path, "wb") : stdout;
+    if (f) {
+        ok = fwrite(data, 1, len, f) == len;
+        if (f != stdout)
+            ok = (fclose(f) == 0) && ok;
+        else
+            ok = (fflush(f) == 0) && ok;
+    }
+    return ok;
+}
+
+static json_t *stats_json(const td_render_stats *st)
+{
+    json_t *o = json_object(), *rays = json_object(), *stages = json_object();
+    for (int k = 0; k < TD_RAY_KIND_COUNT; k++)
+        json_object_set_new(rays, td_ray_kind_name((td_ray_kind)k), json_integer((json_int_t)st->rays[k]));
+    for (int k = 0; k < TD_STAGE_COUNT; k++)
+        if (st->stage_ran[k])
+            json_object_set_new(stages, td_stage_name((td_stage)k), json_real(st->stage_ms[k]));
+    json_object_set_new(o, "rays", rays);
+    json_object_set_new(o, "stages_ms", stages);
+    json_object_set_new(o, "steps", json_integer((json_int_t)st->steps));
+    json_object_set_new(o, "hits", json_integer((json_int_t)st->hits));
+    json_object_set_new(o, "curved_rays", json_integer((json_int_t)st->curved_rays));
+    json_object_set_new(o, "curve_segments", json_integer((json_int_t)st->curve_segments));
+    json_object_set_new(o, "threads", json_integer(st->threads));
+    json_object_set_new(o, "render_ms", json_real(st->total_ms));
+    return o;
+}
+
+static json_t *pick_json(const td_grid *g, const td_pick *pk, int n)
+{
+    json_t *arr = json_array();
+    for (int i = 0; i < n; i++) {
+        json_t *o = json_pack("{s:f, s:f, s:b}", "px", pk[i].px, "py", pk[i].py, "hit", pk[i].hit);
+        if (pk[i].hit) {
+            json_object_set_new(o, "x", json_real(pk[i].p[0]));
+            json_object_set_new(o, "y", json_real(pk[i].p[1]));
+            json_object_set_new(o, "z", json_real(pk[i].p[2]));
+            json_object_set_new(o, "distance", json_real(pk[i].distance));
+            json_object_set_new(o, "cell", json_pack("[i,i]", (int)pk[i].ci, (int)pk[i].cj));
+            if (g->geo.kind == TD_GEO_LONLAT) {
+                json_object_set_new(o, "lon", json_real(g->geo.x0 + pk[i].p[0] / g->sx * g->geo.dx));
+                json_object_set_new(o, "lat", json_real(g->geo.y0 + pk[i].p[1] / g->sy * g->geo.dy));
+            }
+        }
+        json_array_append_new(arr, o);
+    }
+    return arr;
+}
 
 int td_cli_render(int argc, char **argv)
 {
-    (void)argc;
-    (void)argv;
-    return td_cli_not_landed("render", "the rendering issue");
+    int rc = 2;
+    const char *scene_path = NULL, *out_path = NULL, *stats_path = NULL;
+    int threads = 0;
+    char *body = NULL, *text = NULL;
+    size_t len = 0;
+    td_scene *scene = NULL;
+    td_request_limits lim;
+    td_request_error rerr;
+    td_err err = {""};
+    td_grid *g = NULL;
+    td_accel *acc = NULL;
+    td_render_result res;
+    td_buf buf = {0};
+    td_pick *picks = NULL;
+    json_t *stats = NULL, *pjson = NULL;
+    char dem_path[4096], drape_path[4096], scene_dir[4096];
+    double t0 = now_ms(), load_ms = 0.0, accel_ms = 0.0;
+
+    memset(&res, 0, sizeof res);
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) {
+            render_usage(stdout);
+            rc = 0;
+            goto out;
+        } else if (!strcmp(argv[i], "-o") && i + 1 < argc) {
+            out_path = argv[++i];
+        } else if (!strcmp(argv[i], "--stats") && i + 1 < argc) {
+            stats_path = argv[++i];
+        } else if (!strcmp(argv[i], "--threads") && i + 1 < argc) {
+            char *end = NULL;
+            long v = strtol(argv[++i], &end, 10);
+            if (*end || v < 1 || v > 1024) {
+                fprintf(stderr, "terrad render: --threads wants 1 .. 1024\n");
+                goto out;
+            }
+            threads = (int)v;
+        } else if (argv[i][0] == '-' && argv[i][1]) {
+            fprintf(stderr, "terrad render: unknown option '%s'\n", argv[i]);
+            render_usage(stderr);
+            goto out;
+        } else if (!scene_path) {
+            scene_path = argv[i];
+        } else {
+            fprintf(stderr, "terrad render: one scene file only\n");
+            goto out;
+        }
+    }
+    if (!scene_path || !out_path) {
+        render_usage(stderr);
+        goto out;
+    }
+    body = read_file(scene_path, &len);
+    if (!body) {
+        fprintf(stderr, "terrad render: %s: cannot read (or larger than %u bytes): %s\n", scene_path,
+                TD_SCENE_FILE_MAX, strerror(errno));
+        rc = 1;
+        goto out;
+    }
+    td_request_limits_default(&lim);
+    lim.max_width = lim.max_height = 16384;
+    lim.max_pixels = (uint64_t)16384 * 16384;
+    lim.max_samples = 8;
+    lim.max_samples_total = (uint64_t)1 << 32;
+    lim.max_ao_rays = 1024;
+    lim.max_pick = TD_SCENE_PICK_MAX;
+    lim.allow_paths = 1;
+    scene = malloc(sizeof *scene);
+    if (!scene) {
+        rc = 1;
+        goto out;
+    }
+    if (td_request_parse_scene(body, len, &lim, scene, &rerr)) {
+        fprintf(stderr, "terrad render: %s: %s%s%s\n", scene_path, rerr.field,
+                rerr.field[0] ? ": " : "", rerr.message);
+        goto out;
+    }
+    snprintf(scene_dir, sizeof scene_dir, "%s", scene_path);
+    char *slash = strrchr(scene_dir, '/');
+    if (slash)
+        *slash = 0;
+    else
+        snprintf(scene_dir, sizeof scene_dir, ".");
+
+    rc = 1;
+    if (!resolve(scene->dataset, scene_dir, 1, dem_path, sizeof dem_path)) {
+        fprintf(stderr, "terrad render: dataset: '%s' is neither a DEM file nor a demo id under %s/data\n",
+                scene->dataset, TERRAD_SOURCE_DIR);
+        goto out;
+    }
+    if (scene->effects.drape[0]) {
+        if (!resolve(scene->effects.drape, scene_dir, 0, drape_path, sizeof drape_path)) {
+            fprintf(stderr, "terrad render: effects.drape: '%s' not found\n", scene->effects.drape);
+            goto out;
+        }
+        if (strlen(drape_path) >= sizeof scene->effects.drape) {
+            fprintf(stderr, "terrad render: effects.drape: path '%s' is too long\n", drape_path);
+            goto out;
+        }
+        memcpy(scene->effects.drape, drape_path, strlen(drape_path) + 1);
+    }
+    td_dem_opts dopts;
+    td_dem_opts_default(&dopts);
+    double t = now_ms();
+    if (td_dem_load(dem_path, &dopts, &g, &err)) {
+        fprintf(stderr, "terrad render: %s\n", err.msg);
+        goto out;
+    }
+    load_ms = now_ms() - t;
+
+    td_method m = scene->quality.method;
+    td_accel_opts aopts;
+    td_accel_stats ast;
+    td_accel_opts_default(&aopts);
+    aopts.maxmip = m == TD_METHOD_HIERARCHICAL || m == TD_METHOD_AUTO;
+    aopts.planes = m == TD_METHOD_PARAMETRIC || m == TD_METHOD_AUTO;
+    aopts.threads = threads;
+    if (aopts.maxmip || aopts.planes) {
+        t = now_ms();
+        if (td_accel_build(g, &aopts, &acc, &ast, &err)) {
+            fprintf(stderr, "terrad render: %s\n", err.msg);
+            goto out;
+        }
+        accel_ms = now_ms() - t;
+    }
+    td_view view = {g, acc ? acc->tiles : NULL};
+
+    if (scene->image.format == TD_FORMAT_PICK) {
+        td_render_stats pst;
+        picks = calloc((size_t)scene->npick, sizeof *picks);
+        if (!picks || td_render_pick(&view, scene, picks, &pst, &err)) {
+            fprintf(stderr, "terrad render: %s\n", picks ? err.msg : "no memory");
+            goto out;
+        }
+        pjson = pick_json(g, picks, scene->npick);
+        text = json_dumps(pjson, JSON_INDENT(2) | JSON_REAL_PRECISION(12));
+        if (!text || !write_out(out_path, text, strlen(text))) {
+            fprintf(stderr, "terrad render: %s: cannot write\n", out_path);
+            goto out;
+        }
+        stats = stats_json(&pst);
+    } else {
+        td_render_opts ropts;
+        td_render_opts_default(&ropts);
+        ropts.threads = threads;
+        double scale = 0.0;
+        if (td_render(&view, scene, &ropts, &res, &err) ||
+            td_render_encode(&res, scene, &buf, &scale, &err)) {
+            fprintf(stderr, "terrad render: %s\n", err.msg);
+            goto out;
+        }
+        if (!write_out(out_path, buf.data, buf.len)) {
+            fprintf(stderr, "terrad render: %s: cannot write: %s\n", out_path, strerror(errno));
+            goto out;
+        }
+        stats = stats_json(&res.stats);
+        json_object_set_new(stats, "bytes", json_integer((json_int_t)buf.len));
+        if (scale > 0.0)
+            json_object_set_new(stats, "depth_scale_m", json_real(scale));
+    }
+    rc = 0;
+    if (stats_path) {
+        json_object_set_new(stats, "dataset", json_string(dem_path));
+        json_object_set_new(stats, "width", json_integer(scene->image.width));
+        json_object_set_new(stats, "height", json_integer(scene->image.height));
+        json_object_set_new(stats, "method", json_string(td_method_name(scene->quality.method)));
+        json_object_set_new(stats, "surface", json_string(td_surface_name(scene->quality.surface)));
+        json_object_set_new(stats, "samples", json_integer(scene->quality.samples));
+        json_object_set_new(stats, "load_ms", json_real(load_ms));
+        json_object_set_new(stats, "accel_ms", json_real(accel_ms));
+        json_object_set_new(stats, "total_ms", json_real(now_ms() - t0));
+        if (json_dump_file(stats, stats_path, JSON_INDENT(2) | JSON_REAL_PRECISION(6))) {
+            fprintf(stderr, "terrad render: %s: cannot write the stats\n", stats_path);
+            rc = 1;
+        }
+    }
+out:
+    json_decref(stats);
+    json_decref(pjson);
+    free(text);
+    free(picks);
+    td_buf_free(&buf);
+    td_render_result_free(&res);
+    td_accel_free(acc);
+    td_grid_free(g);
+    free(scene);
+    free(body);
+    return rc;
 }

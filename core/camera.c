@@ -1,0 +1,204 @@
+/* camera.c: pinhole, photogrammetric and orthographic cameras (see camera.h).
+ *
+ * Frame of the pinhole camera, heading H clockwise from north, pitch P up, roll R:
+ *   fwd   = (sin H cos P, cos H cos P, sin P)
+ *   right0 = (cos H, -sin H, 0)          (horizontal, to the right of fwd)
+ *   up0   = right0 x fwd
+ *   right = cos R right0 - sin R up0     (positive roll banks right: the right edge
+ *   up    = sin R right0 + cos R up0      of the image goes down)
+ * A pixel's direction is fwd*f + right*(u - W/2) - up*(v - H/2) with u = px + 0.5,
+ * v = py + 0.5 and f the focal length in pixels, normalised.
+ *
+ * The photogrammetric camera (Paglieroni and Petersen's tilt, swing, azimuth) is the
+ * same frame with heading = azimuth, pitch = tilt - 90, roll = swing - 180 and
+ * f = focal_mm / pixel_mm; its fov follows from f and the width. */
+#include "camera.h"
+
+#include <math.h>
+#include <string.h>
+
+#define TD_DEG (M_PI / 180.0)
+
+double td_camera_ground(const td_grid *g, double x, double y)
+{
+    double h = NAN;
+    double fx = x / g->sx, fy = y / g->sy;
+    if (fx >= 0.0 && fy >= 0.0 && fx <= (double)(g->w - 1) && fy <= (double)(g->h - 1)) {
+        int32_t i = (int32_t)fx, j = (int32_t)fy;
+        if (i > g->w - 2)
+            i = g->w - 2;
+        if (j > g->h - 2)
+            j = g->h - 2;
+        double u = fx - i, v = fy - j;
+        double z00 = td_grid_at(g, i, j), z10 = td_grid_at(g, i + 1, j);
+        double z01 = td_grid_at(g, i, j + 1), z11 = td_grid_at(g, i + 1, j + 1);
+        h = (1 - v) * ((1 - u) * z00 + u * z10) + v * ((1 - u) * z01 + u * z11);
+    }
+    return h;
+}
+
+static void cross(const double a[3], const double b[3], double out[3])
+{
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static td_status resolve_position(const td_scene_camera *c, const td_grid *g, double p[3],
+                                  td_err *err)
+{
+    td_status rc = TD_OK;
+    double x = c->x, y = c->y;
+
+    if (c->pos_kind == TD_POS_LONLAT_ALT || c->pos_kind == TD_POS_LONLAT_AGL) {
+        if (g->geo.kind != TD_GEO_LONLAT) {
+            rc = td_err_set(err, TD_EUNSUPPORTED,
+                            "camera.position.lon: the dataset has no lon/lat georeference; "
+                            "give x, y in the dataset frame");
+            goto out;
+        }
+        x = (c->lon - g->geo.x0) / g->geo.dx * g->sx;
+        y = (c->lat - g->geo.y0) / g->geo.dy * g->sy;
+    }
+    p[0] = x;
+    p[1] = y;
+    if (c->pos_kind == TD_POS_XYZ) {
+        p[2] = c->z;
+    } else if (c->pos_kind == TD_POS_LONLAT_ALT) {
+        p[2] = c->alt;
+    } else {
+        double ground = td_camera_ground(g, x, y);
+        if (isnan(ground)) {
+            rc = td_err_set(err, TD_ERANGE,
+                            "camera.position.agl: no ground below (%.1f, %.1f): outside the "
+                            "dataset or over a void",
+                            x, y);
+            goto out;
+        }
+        p[2] = ground + c->agl;
+    }
+    if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
+        rc = td_err_set(err, TD_ERANGE, "camera.position: not a finite point");
+out:
+    return rc;
+}
+
+td_status td_camera_setup(const td_scene_camera *c, int32_t width, int32_t height,
+                          const td_grid *g, td_camera *out, td_err *err)
+{
+    td_status rc = TD_OK;
+    memset(out, 0, sizeof *out);
+    out->projection = c->projection;
+    out->width = width;
+    out->height = height;
+    if (width < 1 || height < 1) {
+        rc = td_err_set(err, TD_ERANGE, "image: %d x %d pixels is empty", (int)width, (int)height);
+        goto out;
+    }
+    if (c->projection == TD_PROJ_ORTHOGRAPHIC) {
+        double x0 = c->extent[0], y0 = c->extent[1], x1 = c->extent[2], y1 = c->extent[3];
+        if (x0 == 0.0 && y0 == 0.0 && x1 == 0.0 && y1 == 0.0) {
+            x1 = (g->w - 1) * g->sx;
+            y1 = (g->h - 1) * g->sy;
+        }
+        if (!(x1 > x0) || !(y1 > y0) || !isfinite(x0 + x1 + y0 + y1)) {
+            rc = td_err_set(err, TD_ERANGE, "camera.extent: [%g, %g, %g, %g] is empty", x0, y0,
+                            x1, y1);
+            goto out;
+        }
+        out->x0 = x0;
+        out->y1 = y1;
+        out->dx = (x1 - x0) / width;
+        out->dy = (y1 - y0) / height;
+        out->ztop = (isfinite(g->zmax) ? (double)g->zmax : 0.0) + 100.0;
+        out->o[0] = 0.5 * (x0 + x1);
+        out->o[1] = 0.5 * (y0 + y1);
+        out->o[2] = out->ztop;
+        out->fwd[2] = -1.0;
+        out->right[0] = 1.0;
+        out->up[1] = 1.0;
+        out->pixel_angle = 0.0;
+        goto out;
+    }
+
+    double heading = c->heading, pitch = c->pitch, roll = c->roll, f;
+    if (c->photogrammetric) {
+        heading = c->azimuth;
+        pitch = c->tilt - 90.0;
+        roll = c->swing - 180.0;
+        f = c->focal_mm / c->pixel_mm;
+        if (!(f > 0.0) || !isfinite(f)) {
+            rc = td_err_set(err, TD_ERANGE, "camera.focal_mm: focal length / pixel size must be positive");
+            goto out;
+        }
+    } else {
+        if (!(c->fov > 0.0 && c->fov < 180.0)) {
+            rc = td_err_set(err, TD_ERANGE, "camera.fov: %g is outside (0, 180) degrees", c->fov);
+            goto out;
+        }
+        f = 0.5 * width / tan(0.5 * c->fov * TD_DEG);
+    }
+    rc = resolve_position(c, g, out->o, err);
+    if (rc)
+        goto out;
+    double H = heading * TD_DEG, P = pitch * TD_DEG, R = roll * TD_DEG;
+    double r0[3] = {cos(H), -sin(H), 0.0}, u0[3];
+    out->fwd[0] = sin(H) * cos(P);
+    out->fwd[1] = cos(H) * cos(P);
+    out->fwd[2] = sin(P);
+    cross(r0, out->fwd, u0);
+    for (int k = 0; k < 3; k++) {
+        out->right[k] = cos(R) * r0[k] - sin(R) * u0[k];
+        out->up[k] = sin(R) * r0[k] + cos(R) * u0[k];
+    }
+    out->focal_px = f;
+    out->pixel_angle = 1.0 / f;
+out:
+    return rc;
+}
+
+void td_camera_ray(const td_camera *cam, double px, double py, td_ray *r)
+{
+    double u = px + 0.5, v = py + 0.5;
+    if (cam->projection == TD_PROJ_ORTHOGRAPHIC) {
+        r->o[0] = cam->x0 + u * cam->dx;
+        r->o[1] = cam->y1 - v * cam->dy;
+        r->o[2] = cam->ztop;
+        r->d[0] = 0.0;
+        r->d[1] = 0.0;
+        r->d[2] = -1.0;
+    } else {
+        double a = u - 0.5 * cam->width, b = v - 0.5 * cam->height, n2 = 0.0;
+        for (int k = 0; k < 3; k++) {
+            r->o[k] = cam->o[k];
+            r->d[k] = cam->fwd[k] * cam->focal_px + cam->right[k] * a - cam->up[k] * b;
+            n2 += r->d[k] * r->d[k];
+        }
+        double inv = 1.0 / sqrt(n2);
+        for (int k = 0; k < 3; k++)
+            r->d[k] *= inv;
+    }
+    r->tmin = 0.0;
+    r->tmax = INFINITY;
+}
+
+int td_camera_project(const td_camera *cam, const double p[3], double *px, double *py)
+{
+    int ok = 1;
+    if (cam->projection == TD_PROJ_ORTHOGRAPHIC) {
+        *px = (p[0] - cam->x0) / cam->dx - 0.5;
+        *py = (cam->y1 - p[1]) / cam->dy - 0.5;
+    } else {
+        double v[3] = {p[0] - cam->o[0], p[1] - cam->o[1], p[2] - cam->o[2]};
+        double xc = v[0] * cam->right[0] + v[1] * cam->right[1] + v[2] * cam->right[2];
+        double yc = v[0] * cam->up[0] + v[1] * cam->up[1] + v[2] * cam->up[2];
+        double zc = v[0] * cam->fwd[0] + v[1] * cam->fwd[1] + v[2] * cam->fwd[2];
+        if (zc <= 0.0) {
+            ok = 0;
+        } else {
+            *px = 0.5 * cam->width + cam->focal_px * xc / zc - 0.5;
+            *py = 0.5 * cam->height - cam->focal_px * yc / zc - 0.5;
+        }
+    }
+    return ok;
+}

@@ -1,0 +1,285 @@
+/* image.c: PNG and raw encodings of rendered buffers, PNG decoding for drapes and tests
+ * (see image.h for the settings and why).
+ *
+ * Writing uses libpng's full API (the simplified png_image_write_to_memory cannot set
+ * the zlib level: its FAST flag means level 3 and no filter), with a write callback
+ * that grows a td_buf. libpng reports errors by longjmp: everything that must survive
+ * the jump lives in a struct the handler can reach, and the one exit frees it.
+ * Reading uses the simplified API (png_image_*), which converts every colour type. */
+#include "image.h"
+
+#include <png.h>
+#include <setjmp.h>
+#include <stdlib.h>
+#include <string.h>
+
+void td_buf_free(td_buf *b)
+{
+    if (b) {
+        free(b->data);
+        b->data = NULL;
+        b->len = b->cap = 0;
+    }
+}
+
+static int buf_append(td_buf *b, const uint8_t *p, size_t n)
+{
+    int ok = 1;
+    size_t need;
+    if (!td_add_size(b->len, n, &need)) {
+        ok = 0;
+    } else if (need > b->cap) {
+        size_t cap = b->cap ? b->cap : 65536;
+        while (cap < need && cap < SIZE_MAX / 2)
+            cap *= 2;
+        if (cap < need)
+            cap = need;
+        uint8_t *q = realloc(b->data, cap);
+        if (!q) {
+            ok = 0;
+        } else {
+            b->data = q;
+            b->cap = cap;
+        }
+    }
+    if (ok) {
+        memcpy(b->data + b->len, p, n);
+        b->len = need;
+    }
+    return ok;
+}
+
+typedef struct png_sink {
+    td_buf *buf;
+    int oom;
+} png_sink;
+
+static void sink_write(png_structp png, png_bytep data, png_size_t n)
+{
+    png_sink *s = png_get_io_ptr(png);
+    if (!buf_append(s->buf, data, n)) {
+        s->oom = 1;
+        png_error(png, "out of memory");
+    }
+}
+
+static void sink_flush(png_structp png) { (void)png; }
+
+static void on_png_error(png_structp png, png_const_charp msg)
+{
+    char *dst = png_get_error_ptr(png);
+    if (dst) {
+        strncpy(dst, msg, 127);
+        dst[127] = 0;
+    }
+    png_longjmp(png, 1);
+}
+
+static void on_png_warning(png_structp png, png_const_charp msg)
+{
+    (void)png;
+    (void)msg;
+}
+
+/* bit_depth 8 with 4 channels, or 16 with 1 channel. */
+static td_status encode(const void *pixels, int32_t width, int32_t height, int color_type,
+                        int bit_depth, int channels, const char *key, const char *value,
+                        td_buf *out, td_err *err)
+{
+    volatile td_status rc = TD_OK; /* set after a longjmp */
+    char msg[128] = "";
+    png_sink sink = {out, 0};
+    png_structp png = NULL;
+    png_infop info = NULL;
+    uint8_t *volatile row = NULL;
+    size_t bpp = (size_t)channels * (size_t)(bit_depth / 8), rowbytes;
+
+    memset(out, 0, sizeof *out);
+    if (width < 1 || height < 1 || !td_mul_size((size_t)width, bpp, &rowbytes)) {
+        rc = td_err_set(err, TD_ERANGE, "image: %d x %d pixels cannot be encoded", (int)width,
+                        (int)height);
+        goto out;
+    }
+    png = png_create_write_struct(PNG_LIBPNG_VER_STRING, msg, on_png_error, on_png_warning);
+    if (png)
+        info = png_create_info_struct(png);
+    if (!png || !info) {
+        rc = td_err_set(err, TD_ENOMEM, "image: cannot create the PNG encoder");
+        goto out;
+    }
+    if (bit_depth == 16 && !(row = malloc(rowbytes))) {
+        rc = td_err_set(err, TD_ENOMEM, "image: no memory for a row");
+        goto out;
+    }
+    if (setjmp(png_jmpbuf(png))) {
+        rc = td_err_set(err, sink.oom ? TD_ENOMEM : TD_EIO, "image: PNG encoding failed: %s", msg);
+        goto out;
+    }
+    png_set_write_fn(png, &sink, sink_write, sink_flush);
+    png_set_compression_level(png, 1);
+    png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_SUB);
+    png_set_IHDR(png, info, (png_uint_32)width, (png_uint_32)height, bit_depth, color_type,
+                 PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    if (key && value) {
+        png_text t;
+        memset(&t, 0, sizeof t);
+        t.compression = PNG_TEXT_COMPRESSION_NONE;
+        t.key = (png_charp)key;
+        t.text = (png_charp)value;
+        png_set_text(png, info, &t, 1);
+    }
+    png_write_info(png, info);
+    for (int32_t y = 0; y < height; y++) {
+        const uint8_t *src = (const uint8_t *)pixels + (size_t)y * rowbytes;
+        if (bit_depth == 16) {
+            /* PNG stores 16-bit samples big-endian. */
+            const uint16_t *s16 = (const uint16_t *)src;
+            for (int32_t x = 0; x < width * channels; x++) {
+                row[2 * x] = (uint8_t)(s16[x] >> 8);
+                row[2 * x + 1] = (uint8_t)(s16[x] & 0xff);
+            }
+            src = row;
+        }
+        png_write_row(png, (png_const_bytep)src);
+    }
+    png_write_end(png, NULL);
+out:
+    if (png)
+        png_destroy_write_struct(&png, info ? &info : NULL);
+    free(row);
+    if (rc)
+        td_buf_free(out);
+    return rc;
+}
+
+td_status td_image_encode_rgba(const uint8_t *rgba, int32_t width, int32_t height, td_buf *out,
+                               td_err *err)
+{
+    return encode(rgba, width, height, PNG_COLOR_TYPE_RGBA, 8, 4, NULL, NULL, out, err);
+}
+
+td_status td_image_encode_gray16(const uint16_t *v, int32_t width, int32_t height,
+                                 const char *key, const char *value, td_buf *out, td_err *err)
+{
+    return encode(v, width, height, PNG_COLOR_TYPE_GRAY, 16, 1, key, value, out, err);
+}
+
+td_status td_image_encode_f32(const float *v, int32_t width, int32_t height, td_buf *out,
+                              td_err *err)
+{
+    td_status rc = TD_OK;
+    size_t n, bytes;
+    memset(out, 0, sizeof *out);
+    if (width < 1 || height < 1 || !td_mul_size((size_t)width, (size_t)height, &n) ||
+        !td_mul_size(n, 4, &bytes)) {
+        rc = td_err_set(err, TD_ERANGE, "image: %d x %d pixels cannot be encoded", (int)width,
+                        (int)height);
+        goto out;
+    }
+    out->data = malloc(bytes);
+    if (!out->data) {
+        rc = td_err_set(err, TD_ENOMEM, "image: no memory for %zu bytes", bytes);
+        goto out;
+    }
+    for (size_t i = 0; i < n; i++) {
+        uint32_t u;
+        memcpy(&u, &v[i], 4);
+        out->data[4 * i] = (uint8_t)u;
+        out->data[4 * i + 1] = (uint8_t)(u >> 8);
+        out->data[4 * i + 2] = (uint8_t)(u >> 16);
+        out->data[4 * i + 3] = (uint8_t)(u >> 24);
+    }
+    out->len = out->cap = bytes;
+out:
+    return rc;
+}
+
+static td_status finish_decode(png_image *pi, const char *what, int channels, uint64_t max_pixels,
+                               td_image8 **out, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_image8 *img = NULL;
+    size_t n, bytes;
+
+    if (channels != 3 && channels != 4) {
+        rc = td_err_set(err, TD_EINVAL, "%s: %d channels asked (3 or 4)", what, channels);
+        goto out;
+    }
+    pi->format = channels == 4 ? PNG_FORMAT_RGBA : PNG_FORMAT_RGB;
+    if ((uint64_t)pi->width * pi->height > max_pixels || pi->width > INT32_MAX ||
+        pi->height > INT32_MAX) {
+        rc = td_err_set(err, TD_ETOOBIG, "%s: %u x %u pixels exceeds the limit of %llu", what,
+                        (unsigned)pi->width, (unsigned)pi->height, (unsigned long long)max_pixels);
+        goto out;
+    }
+    if (!td_mul_size(pi->width, pi->height, &n) || !td_mul_size(n, (size_t)channels, &bytes)) {
+        rc = td_err_set(err, TD_ETOOBIG, "%s: image too large", what);
+        goto out;
+    }
+    img = calloc(1, sizeof *img);
+    if (img)
+        img->px = malloc(bytes);
+    if (!img || !img->px) {
+        rc = td_err_set(err, TD_ENOMEM, "%s: no memory for %zu bytes", what, bytes);
+        goto out;
+    }
+    img->width = (int32_t)pi->width;
+    img->height = (int32_t)pi->height;
+    img->channels = channels;
+    if (!png_image_finish_read(pi, NULL, img->px, 0, NULL)) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: %s", what, pi->message);
+        goto out;
+    }
+out:
+    png_image_free(pi);
+    if (rc) {
+        td_image_free(img);
+        img = NULL;
+    }
+    *out = img;
+    return rc;
+}
+
+td_status td_image_load(const char *path, int channels, uint64_t max_pixels, td_image8 **out,
+                        td_err *err)
+{
+    td_status rc = TD_OK;
+    png_image pi;
+    memset(&pi, 0, sizeof pi);
+    pi.version = PNG_IMAGE_VERSION;
+    *out = NULL;
+    if (!png_image_begin_read_from_file(&pi, path)) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: not a readable PNG: %s", path, pi.message);
+        png_image_free(&pi);
+        goto out;
+    }
+    rc = finish_decode(&pi, path, channels, max_pixels, out, err);
+out:
+    return rc;
+}
+
+td_status td_image_decode(const uint8_t *data, size_t len, int channels, uint64_t max_pixels,
+                          td_image8 **out, td_err *err)
+{
+    td_status rc = TD_OK;
+    png_image pi;
+    memset(&pi, 0, sizeof pi);
+    pi.version = PNG_IMAGE_VERSION;
+    *out = NULL;
+    if (!png_image_begin_read_from_memory(&pi, data, len)) {
+        rc = td_err_set(err, TD_EFORMAT, "PNG in memory: %s", pi.message);
+        png_image_free(&pi);
+        goto out;
+    }
+    rc = finish_decode(&pi, "PNG in memory", channels, max_pixels, out, err);
+out:
+    return rc;
+}
+
+void td_image_free(td_image8 *img)
+{
+    if (img) {
+        free(img->px);
+        free(img);
+    }
+}

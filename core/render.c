@@ -1,0 +1,907 @@
+/* render.c: orchestration of a render: camera rays -> tracer -> the effects the scene
+ * asks for -> pixels (see render.h for the stages and the contract).
+ *
+ * Parallelism: the image is cut into 16 x 16 pixel blocks; every thread (the caller
+ * plus threads-1 pthreads) claims the next block with one atomic increment and runs the
+ * whole pipeline on it in its own scratch, then writes the block's pixels, which no
+ * other thread touches. No lock anywhere; counters and stage times live in the
+ * worker's own struct (padded to a cache line) and are added up after the join.
+ * Blocks rather than rows: a block's samples share tiles and cache lines for every
+ * pass, and blocks balance the load between sky (cheap) and terrain (dear) well.
+ *
+ * Per-thread scratch, allocated once per render (n = samples per axis):
+ *   smp[16*16*n*n]          ray, hit, colour of each sample            always
+ *   lit[..]  (float)        direct sunlight 0/1                        shadows only
+ *   occl[..] (float)        unoccluded fraction                        ao only
+ *   refl[..] (4 floats)     reflected colour + Fresnel weight          water only
+ * Passes over a block run stage by stage, so each stage is timed on its own and an
+ * absent effect's loop is never entered.
+ *
+ * Earth curvature and refraction: a point at horizontal distance h from the camera
+ * appears lower by a*h^2 with a = (1 - k) / 2R. Lowering the terrain by a*h^2 is the
+ * same as bending the camera ray up by a*h^2, so the ray becomes the parabola
+ * q(t) = o + t*d + (0, 0, a*(t*|d_xy|)^2), which the tracer (straight rays only) sees
+ * as a chain of chords. A chord over a horizontal run D departs from the parabola by at
+ * most a*D^2/4; the run is chosen so that this stays under a quarter of the pixel's
+ * footprint at that distance (and at least 0.5 m), so the chain is never off by more
+ * than a quarter pixel, and there are only a few chords per ray (about 2 per 50 km for
+ * a 640-pixel 60-degree view). The chords lie above the parabola, so a grazing hit can
+ * only be missed by that bound. Rays whose run over the grid is shorter than
+ * s = 2*pixel_angle/a, where the drop reaches one pixel's footprint, are traced
+ * straight; if no ray of the view can reach s, the curvature stage does not run at
+ * all. An orthographic top-down view never bends: lowering the terrain under vertical
+ * rays moves no pixel. Shadow, AO and reflection rays are short or local and stay
+ * straight.
+ *
+ * Not implemented: level of detail (coarser mip levels for far pixels); the scene
+ * parser refuses `quality.lod: true` rather than pretend. */
+#include "render.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "effects.h"
+#include "shade.h"
+
+#define TD_BLOCK 16
+#define TD_DEG (M_PI / 180.0)
+
+static const char *const td_ray_kind_names[] = {
+#define TD_X_NAME(e, name) name,
+    TD_RAY_KIND_LIST(TD_X_NAME)
+#undef TD_X_NAME
+};
+
+static const char *const td_stage_names[] = {
+#define TD_X_NAME(e, name) name,
+    TD_STAGE_LIST(TD_X_NAME)
+#undef TD_X_NAME
+};
+
+const char *td_ray_kind_name(td_ray_kind k)
+{
+    return (unsigned)k < TD_RAY_KIND_COUNT ? td_ray_kind_names[k] : "unknown";
+}
+
+const char *td_stage_name(td_stage s)
+{
+    return (unsigned)s < TD_STAGE_COUNT ? td_stage_names[s] : "unknown";
+}
+
+void td_render_opts_default(td_render_opts *o)
+{
+    memset(o, 0, sizeof *o);
+}
+
+enum { F_HIT = 1, F_WATER = 2, F_CURVE = 4 };
+
+typedef struct smp {
+    double o[3], d[3]; /* camera ray, unit direction */
+    double t;          /* distance to the terrain, +inf */
+    double tw;         /* distance to the water surface, +inf */
+    double p[3];       /* terrain hit */
+    float n[3];        /* surface normal at the hit */
+    float rgb[3], alpha;
+    int32_t ci, cj;
+    uint32_t flags;
+} smp;
+
+typedef struct ctx ctx;
+
+typedef struct worker {
+    ctx *c;
+    pthread_t th;
+    smp *s;
+    float *lit, *occl, *refl;
+    uint64_t rays[TD_RAY_KIND_COUNT], steps, hits, curved, segs;
+    double stage_s[TD_STAGE_COUNT];
+    int ran[TD_STAGE_COUNT];
+    int cancelled;
+    char pad[64];
+} worker;
+
+struct ctx {
+    const td_view *v;
+    const td_scene *s;
+    td_camera cam;
+    int n;           /* samples per axis */
+    int32_t bx, by;  /* blocks across and down */
+    int nblocks;
+    atomic_int next;
+    const atomic_int *cancel;
+    int depth_only;
+    double sun[3];
+    double eps;      /* origin offset along the normal for secondary rays */
+    double zlo, zspan;
+    const td_image8 *drape;
+    double beta0, zref; /* haze */
+    int curv;
+    double curv_a, curv_smin;
+    double gx1, gy1; /* grid extent */
+    double zmax;
+    double ao_radius;
+    uint8_t *rgba;
+    float *depth;
+};
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Enter/exit of the ray's xy line over the grid rectangle; 0 if it never crosses it. */
+static int clip_xy(const ctx *c, const double o[3], const double d[3], double *t0, double *t1)
+{
+    double lo = 0.0, hi = INFINITY;
+    double ext[2] = {c->gx1, c->gy1};
+    int ok = 1;
+    for (int k = 0; k < 2 && ok; k++) {
+        if (fabs(d[k]) < 1e-300) {
+            if (o[k] < 0.0 || o[k] > ext[k])
+                ok = 0;
+        } else {
+            double ta = (0.0 - o[k]) / d[k], tb = (ext[k] - o[k]) / d[k];
+            if (ta > tb) {
+                double tmp = ta;
+                ta = tb;
+                tb = tmp;
+            }
+            lo = fmax(lo, ta);
+            hi = fmin(hi, tb);
+        }
+    }
+    if (ok && !(lo <= hi))
+        ok = 0;
+    *t0 = lo;
+    *t1 = hi;
+    return ok;
+}
+
+/* Does this camera ray need bending (see the top of the file)? */
+static int needs_curve(const ctx *c, const double o[3], const double d[3])
+{
+    int need = 0;
+    double t0, t1;
+    if (c->curv && clip_xy(c, o, d, &t0, &t1)) {
+        double dxy = hypot(d[0], d[1]);
+        double hx = o[0] + t1 * d[0] - c->cam.o[0], hy = o[1] + t1 * d[1] - c->cam.o[1];
+        need = dxy > 0.0 && hypot(hx, hy) >= c->curv_smin;
+    }
+    return need;
+}
+
+/* The bent camera ray as a chain of straight chords (see the top of the file). On a
+ * hit, hit->t is the distance along the unbent ray's parameter, hit->p the terrain
+ * point. */
+static void trace_curved(const ctx *c, const td_ray *r, td_hit *hit, uint64_t *steps,
+                         uint64_t *segs)
+{
+    const td_scene *s = c->s;
+    double t0, t1, a = c->curv_a, dxy = hypot(r->d[0], r->d[1]);
+    hit->t = INFINITY;
+    if (!clip_xy(c, r->o, r->d, &t0, &t1) || !(dxy > 0.0))
+        return;
+    double tc = t0;
+    double qc[3];
+    for (int k = 0; k < 3; k++)
+        qc[k] = r->o[k] + tc * r->d[k];
+    qc[2] += a * (tc * dxy) * (tc * dxy);
+    while (tc < t1) {
+        double eps = fmax(0.5, 0.25 * c->cam.pixel_angle * tc);
+        double run = sqrt(4.0 * eps / a); /* horizontal */
+        double tn = fmin(t1, tc + run / dxy);
+        double qn[3];
+        for (int k = 0; k < 3; k++)
+            qn[k] = r->o[k] + tn * r->d[k];
+        qn[2] += a * (tn * dxy) * (tn * dxy);
+        td_ray seg;
+        for (int k = 0; k < 3; k++) {
+            seg.o[k] = qc[k];
+            seg.d[k] = qn[k] - qc[k];
+        }
+        seg.tmin = 0.0;
+        seg.tmax = 1.0;
+        td_trace(c->v, s->quality.method, s->quality.surface, &seg, hit);
+        *steps += hit->steps;
+        *segs += 1;
+        if (hit->t <= 1.0) {
+            hit->t = tc + hit->t * (tn - tc);
+            return;
+        }
+        hit->t = INFINITY;
+        /* above every height and climbing: the parabola only climbs faster */
+        if (qn[2] > c->zmax && r->d[2] + 2.0 * a * dxy * dxy * tn > 0.0)
+            return;
+        tc = tn;
+        memcpy(qc, qn, sizeof qc);
+    }
+}
+
+/* Distance to the water plane along the (possibly bent) camera ray, inside the grid;
+ * +inf if none. */
+static double water_distance(const ctx *c, const smp *q)
+{
+    double L = c->s->effects.water_level, tw = INFINITY;
+    double oz = q->o[2] - L, dz = q->d[2];
+    if (oz > 0.0) {
+        if (q->flags & F_CURVE) {
+            /* a*dxy^2 t^2 + dz t + oz = 0, smallest positive root */
+            double A = c->curv_a * (q->d[0] * q->d[0] + q->d[1] * q->d[1]);
+            double disc = dz * dz - 4.0 * A * oz;
+            if (dz < 0.0 && disc >= 0.0)
+                tw = (2.0 * oz) / (-dz + sqrt(disc));
+        } else if (dz < 0.0) {
+            tw = oz / -dz;
+        }
+        if (isfinite(tw)) {
+            double x = q->o[0] + tw * q->d[0], y = q->o[1] + tw * q->d[1];
+            if (x < 0.0 || y < 0.0 || x > c->gx1 || y > c->gy1)
+                tw = INFINITY;
+        }
+    }
+    return tw;
+}
+
+static void albedo_of(const ctx *c, const double p[3], float rgb[3])
+{
+    if (c->drape)
+        td_shade_drape(c->drape, c->v->grid, p[0], p[1], rgb);
+    else
+        td_shade_hypsometric((p[2] - c->zlo) / c->zspan, rgb);
+}
+
+static void normal_of(const ctx *c, const td_hit *h, float n[3])
+{
+    if (c->s->quality.smooth_normals)
+        td_shade_smooth_normal(c->v->grid, h->ci, h->cj, h->p[0], h->p[1], n);
+    else
+        memcpy(n, h->n, sizeof h->n);
+}
+
+static void shade_plain(const ctx *c, const td_hit *h, float rgb[3])
+{
+    float alb[3], n[3];
+    albedo_of(c, h->p, alb);
+    normal_of(c, h, n);
+    td_shade_light(alb, n, c->sun, c->s->effects.ambient, 1.0, 1.0, rgb);
+}
+
+static void offset_origin(const ctx *c, const double p[3], const float n[3], double o[3])
+{
+    for (int k = 0; k < 3; k++)
+        o[k] = p[k] + c->eps * (double)n[k];
+}
+
+static void run_block(worker *w, int b)
+{
+    ctx *c = w->c;
+    const td_scene *s = c->s;
+    const int n = c->n;
+    int32_t bx = b % c->bx, by = b / c->bx;
+    int32_t x0 = bx * TD_BLOCK, y0 = by * TD_BLOCK;
+    int32_t x1 = x0 + TD_BLOCK < c->cam.width ? x0 + TD_BLOCK : c->cam.width;
+    int32_t y1 = y0 + TD_BLOCK < c->cam.height ? y0 + TD_BLOCK : c->cam.height;
+    int32_t bw = x1 - x0;
+    int ns = (int)(bw * (y1 - y0) * n * n);
+    double t;
+    td_hit hit;
+    td_ray r;
+
+    /* primary */
+    t = now_s();
+    for (int i = 0; i < ns; i++) {
+        smp *q = &w->s[i];
+        int pix = i / (n * n), sub = i % (n * n);
+        double px = x0 + pix % bw + ((sub % n) + 0.5) / n - 0.5;
+        double py = y0 + pix / bw + ((sub / n) + 0.5) / n - 0.5;
+        td_camera_ray(&c->cam, px, py, &r);
+        memcpy(q->o, r.o, sizeof q->o);
+        memcpy(q->d, r.d, sizeof q->d);
+        q->flags = 0;
+        q->t = INFINITY;
+        q->tw = INFINITY;
+        q->alpha = 0.0f;
+        w->rays[TD_RAY_PRIMARY]++;
+        if (needs_curve(c, r.o, r.d)) {
+            q->flags = F_CURVE;
+            continue;
+        }
+        td_trace(c->v, s->quality.method, s->quality.surface, &r, &hit);
+        w->steps += hit.steps;
+        if (hit.t < INFINITY) {
+            q->flags = F_HIT;
+            q->t = hit.t;
+            memcpy(q->p, hit.p, sizeof q->p);
+            memcpy(q->n, hit.n, sizeof q->n);
+            q->ci = hit.ci;
+            q->cj = hit.cj;
+        }
+    }
+    w->stage_s[TD_STAGE_PRIMARY] += now_s() - t;
+    w->ran[TD_STAGE_PRIMARY] = 1;
+
+    if (c->curv) {
+        t = now_s();
+        for (int i = 0; i < ns; i++) {
+            smp *q = &w->s[i];
+            if (!(q->flags & F_CURVE))
+                continue;
+            memcpy(r.o, q->o, sizeof r.o);
+            memcpy(r.d, q->d, sizeof r.d);
+            r.tmin = 0.0;
+            r.tmax = INFINITY;
+            trace_curved(c, &r, &hit, &w->steps, &w->segs);
+            w->curved++;
+            if (hit.t < INFINITY) {
+                q->flags |= F_HIT;
+                q->t = hit.t;
+                memcpy(q->p, hit.p, sizeof q->p);
+                memcpy(q->n, hit.n, sizeof q->n);
+                q->ci = hit.ci;
+                q->cj = hit.cj;
+            }
+        }
+        w->stage_s[TD_STAGE_CURVATURE] += now_s() - t;
+        w->ran[TD_STAGE_CURVATURE] = 1;
+    }
+
+    if (!c->depth_only && s->effects.water) {
+        t = now_s();
+        for (int i = 0; i < ns; i++) {
+            smp *q = &w->s[i];
+            double tw = water_distance(c, q);
+            if (!(tw < q->t))
+                continue;
+            q->flags |= F_WATER;
+            q->tw = tw;
+            /* reflection: from the water point, the ray mirrored in the plane */
+            double wp[3];
+            for (int k = 0; k < 3; k++)
+                wp[k] = q->o[k] + tw * q->d[k];
+            wp[2] = s->effects.water_level + 0.01;
+            memcpy(r.o, wp, sizeof r.o);
+            r.d[0] = q->d[0];
+            r.d[1] = q->d[1];
+            r.d[2] = fabs(q->d[2]);
+            r.tmin = 0.0;
+            r.tmax = INFINITY;
+            td_trace(c->v, s->quality.method, s->quality.surface, &r, &hit);
+            w->rays[TD_RAY_REFLECTION]++;
+            w->steps += hit.steps;
+            float *rf = &w->refl[4 * i];
+            if (hit.t < INFINITY)
+                shade_plain(c, &hit, rf);
+            else
+                td_sky_color(r.d, c->sun, 1, rf);
+            rf[3] = (float)td_water_fresnel(fabs(q->d[2]));
+        }
+        w->stage_s[TD_STAGE_WATER] += now_s() - t;
+        w->ran[TD_STAGE_WATER] = 1;
+    }
+
+    if (!c->depth_only && s->effects.shadows) {
+        t = now_s();
+        for (int i = 0; i < ns; i++) {
+            smp *q = &w->s[i];
+            w->lit[i] = 0.0f;
+            if ((q->flags & (F_HIT | F_WATER)) != F_HIT || c->sun[2] <= 0.0)
+                continue;
+            float nn[3];
+            memcpy(nn, q->n, sizeof nn);
+            /* a face turned away from the sun is dark whatever lies between */
+            if (nn[0] * c->sun[0] + nn[1] * c->sun[1] + nn[2] * c->sun[2] <= 0.0)
+                continue;
+            offset_origin(c, q->p, nn, r.o);
+            memcpy(r.d, c->sun, sizeof r.d);
+            r.tmin = 0.0;
+            r.tmax = INFINITY;
+            td_trace(c->v, s->quality.method, s->quality.surface, &r, &hit);
+            w->rays[TD_RAY_SHADOW]++;
+            w->steps += hit.steps;
+            w->lit[i] = hit.t < INFINITY ? 0.0f : 1.0f;
+        }
+        w->stage_s[TD_STAGE_SHADOWS] += now_s() - t;
+        w->ran[TD_STAGE_SHADOWS] = 1;
+    }
+
+    if (!c->depth_only && s->effects.ambient_occlusion > 0) {
+        int na = s->effects.ambient_occlusion;
+        t = now_s();
+        for (int i = 0; i < ns; i++) {
+            smp *q = &w->s[i];
+            w->occl[i] = 1.0f;
+            if ((q->flags & (F_HIT | F_WATER)) != F_HIT)
+                continue;
+            int pix = i / (n * n), sub = i % (n * n);
+            uint32_t gx = (uint32_t)(x0 + pix % bw), gy = (uint32_t)(y0 + pix / bw);
+            uint32_t seed = td_hash32(gx * 73856093u ^ gy * 19349663u ^ (uint32_t)sub * 83492791u);
+            int open = 0;
+            offset_origin(c, q->p, q->n, r.o);
+            for (int k = 0; k < na; k++) {
+                td_ao_direction(q->n, k, na, seed, r.d);
+                r.tmin = 0.0;
+                r.tmax = c->ao_radius;
+                td_trace(c->v, s->quality.method, s->quality.surface, &r, &hit);
+                w->steps += hit.steps;
+                open += !(hit.t <= c->ao_radius);
+            }
+            w->rays[TD_RAY_AO] += (uint64_t)na;
+            w->occl[i] = (float)open / (float)na;
+        }
+        w->stage_s[TD_STAGE_AO] += now_s() - t;
+        w->ran[TD_STAGE_AO] = 1;
+    }
+
+    if (!c->depth_only) {
+        t = now_s();
+        for (int i = 0; i < ns; i++) {
+            smp *q = &w->s[i];
+            if (!(q->flags & (F_HIT | F_WATER)))
+                continue;
+            float col[3] = {0.0f, 0.0f, 0.0f};
+            if (q->flags & F_HIT) {
+                td_hit h;
+                memcpy(h.p, q->p, sizeof h.p);
+                memcpy(h.n, q->n, sizeof h.n);
+                h.ci = q->ci;
+                h.cj = q->cj;
+                float alb[3], nn[3];
+                albedo_of(c, h.p, alb);
+                normal_of(c, &h, nn);
+                /* the floor under water is not shadowed or occluded (no rays for it) */
+                int dry = !(q->flags & F_WATER);
+                double lit = w->lit && dry ? w->lit[i] : 1.0;
+                double occ = w->occl && dry ? w->occl[i] : 1.0;
+                td_shade_light(alb, nn, c->sun, s->effects.ambient, occ, lit, col);
+            }
+            if (q->flags & F_WATER) {
+                float under[3];
+                double path = (q->flags & F_HIT) ? q->t - q->tw : 1e4;
+                td_water_tint(col, path, under);
+                const float *rf = &w->refl[4 * i];
+                for (int k = 0; k < 3; k++)
+                    col[k] = rf[3] * rf[k] + (1.0f - rf[3]) * under[k];
+            }
+            memcpy(q->rgb, col, sizeof col);
+            q->alpha = 1.0f;
+        }
+        w->stage_s[TD_STAGE_SHADE] += now_s() - t;
+        w->ran[TD_STAGE_SHADE] = 1;
+    }
+
+    if (!c->depth_only && s->effects.haze) {
+        t = now_s();
+        for (int i = 0; i < ns; i++) {
+            smp *q = &w->s[i];
+            if (!(q->flags & (F_HIT | F_WATER)))
+                continue;
+            double dist = (q->flags & F_WATER) ? q->tw : q->t;
+            double zend = (q->flags & F_WATER) ? s->effects.water_level : q->p[2];
+            double tr = td_haze_transmittance(c->beta0, q->o[2] - c->zref, zend - c->zref, dist);
+            double hd[3] = {q->d[0], q->d[1], 0.0};
+            float hc[3];
+            td_sky_color(hd, c->sun, 0, hc);
+            for (int k = 0; k < 3; k++)
+                q->rgb[k] = (float)(q->rgb[k] * tr + hc[k] * (1.0 - tr));
+        }
+        w->stage_s[TD_STAGE_HAZE] += now_s() - t;
+        w->ran[TD_STAGE_HAZE] = 1;
+    }
+
+    if (!c->depth_only && s->effects.sky) {
+        t = now_s();
+        for (int i = 0; i < ns; i++) {
+            smp *q = &w->s[i];
+            if (q->flags & (F_HIT | F_WATER))
+                continue;
+            td_sky_color(q->d, c->sun, 1, q->rgb);
+            q->alpha = 1.0f;
+        }
+        w->stage_s[TD_STAGE_SKY] += now_s() - t;
+        w->ran[TD_STAGE_SKY] = 1;
+    }
+
+    /* resolve */
+    t = now_s();
+    for (int32_t y = y0; y < y1; y++) {
+        for (int32_t x = x0; x < x1; x++) {
+            int pix = (int)((y - y0) * bw + (x - x0));
+            const smp *q = &w->s[pix * n * n];
+            size_t o = (size_t)y * (size_t)c->cam.width + (size_t)x;
+            if (c->depth_only) {
+                double best = INFINITY;
+                for (int k = 0; k < n * n; k++)
+                    if ((q[k].flags & F_HIT) && q[k].t < best)
+                        best = q[k].t;
+                c->depth[o] = (float)best;
+            } else {
+                double acc[3] = {0.0, 0.0, 0.0}, a = 0.0;
+                for (int k = 0; k < n * n; k++) {
+                    a += q[k].alpha;
+                    for (int ch = 0; ch < 3; ch++)
+                        acc[ch] += q[k].alpha * q[k].rgb[ch];
+                }
+                uint8_t *dst = c->rgba + 4 * o;
+                for (int ch = 0; ch < 3; ch++) {
+                    double v = a > 0.0 ? sqrt(fmax(acc[ch] / a, 0.0)) : 0.0;
+                    dst[ch] = (uint8_t)(fmin(v, 1.0) * 255.0 + 0.5);
+                }
+                dst[3] = (uint8_t)(a / (n * n) * 255.0 + 0.5);
+            }
+        }
+    }
+    for (int i = 0; i < ns; i++)
+        w->hits += (w->s[i].flags & F_HIT) != 0;
+    w->stage_s[TD_STAGE_RESOLVE] += now_s() - t;
+    w->ran[TD_STAGE_RESOLVE] = 1;
+}
+
+static void *work(void *arg)
+{
+    worker *w = arg;
+    ctx *c = w->c;
+    for (;;) {
+        if (c->cancel && atomic_load_explicit(c->cancel, memory_order_relaxed)) {
+            w->cancelled = 1;
+            break;
+        }
+        int b = atomic_fetch_add_explicit(&c->next, 1, memory_order_relaxed);
+        if (b >= c->nblocks)
+            break;
+        run_block(w, b);
+    }
+    return NULL;
+}
+
+static int cpu_count(void)
+{
+    long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n < 1 ? 1 : (n > 256 ? 256 : (int)n);
+}
+
+/* Checks the fields core relies on (the request parser checks them too, with limits;
+ * this keeps td_render safe for any caller). */
+static td_status check_scene(const td_scene *s, td_err *err)
+{
+    td_status rc = TD_OK;
+    const td_scene_effects *e = &s->effects;
+    if (s->image.width < 1 || s->image.height < 1 || s->image.width > 65536 ||
+        s->image.height > 65536)
+        rc = td_err_set(err, TD_ERANGE, "image.width: %d x %d is outside 1 .. 65536",
+                        (int)s->image.width, (int)s->image.height);
+    else if (s->quality.samples < 1 || s->quality.samples > 8)
+        rc = td_err_set(err, TD_ERANGE, "quality.samples: %d is outside 1 .. 8", s->quality.samples);
+    else if (s->quality.lod)
+        rc = td_err_set(err, TD_EUNSUPPORTED, "quality.lod: level of detail is not implemented");
+    else if ((unsigned)s->quality.method >= TD_METHOD_COUNT ||
+             (unsigned)s->quality.surface >= TD_SURFACE_COUNT)
+        rc = td_err_set(err, TD_EINVAL, "quality.method: unknown method or surface");
+    else if (s->image.format == TD_FORMAT_PICK)
+        rc = td_err_set(err, TD_EINVAL, "image.format: pick is answered by td_render_pick");
+    else if (e->ambient_occlusion < 0 || e->ambient_occlusion > 1024)
+        rc = td_err_set(err, TD_ERANGE, "effects.ambient_occlusion: %d is outside 0 .. 1024",
+                        e->ambient_occlusion);
+    else if (e->haze && !(e->haze_visibility_km > 0.0 && isfinite(e->haze_visibility_km)))
+        rc = td_err_set(err, TD_ERANGE, "effects.haze.visibility_km: must be positive");
+    else if (!(e->ambient >= 0.0 && e->ambient <= 1.0))
+        rc = td_err_set(err, TD_ERANGE, "effects.ambient: %g is outside 0 .. 1", e->ambient);
+    else if (!isfinite(e->sun_azimuth) || !(e->sun_elevation >= -90.0 && e->sun_elevation <= 90.0))
+        rc = td_err_set(err, TD_ERANGE, "effects.sun.elevation: outside -90 .. 90");
+    else if (e->curvature && !(e->curvature_k > -1.0 && e->curvature_k < 1.0))
+        rc = td_err_set(err, TD_ERANGE, "effects.curvature.k: %g is outside (-1, 1)", e->curvature_k);
+    return rc;
+}
+
+/* Shared setup of render and pick: camera, sun, curvature. */
+static td_status setup_ctx(ctx *c, const td_view *v, const td_scene *s, td_err *err)
+{
+    td_status rc;
+    const td_grid *g = v->grid;
+    memset(c, 0, sizeof *c);
+    c->v = v;
+    c->s = s;
+    c->n = s->quality.samples < 1 ? 1 : s->quality.samples;
+    rc = td_camera_setup(&s->camera, s->image.width, s->image.height, g, &c->cam, err);
+    if (rc)
+        goto out;
+    td_shade_sun_dir(s->effects.sun_azimuth, s->effects.sun_elevation, c->sun);
+    c->gx1 = (g->w - 1) * g->sx;
+    c->gy1 = (g->h - 1) * g->sy;
+    c->zlo = isfinite(g->zmin) ? g->zmin : 0.0;
+    c->zmax = isfinite(g->zmax) ? g->zmax : 0.0;
+    c->zspan = c->zmax > c->zlo ? c->zmax - c->zlo : 1.0;
+    c->eps = 0.02 * fmin(g->sx, g->sy);
+    if (s->effects.water && c->cam.projection == TD_PROJ_ORTHOGRAPHIC &&
+        s->effects.water_level + 100.0 > c->cam.ztop)
+        c->cam.ztop = s->effects.water_level + 100.0;
+    if (s->effects.curvature && c->cam.projection == TD_PROJ_PERSPECTIVE) {
+        c->curv_a = (1.0 - s->effects.curvature_k) / (2.0 * TD_EARTH_RADIUS_M);
+        c->curv_smin = 2.0 * c->cam.pixel_angle / c->curv_a;
+        /* the farthest the view can reach over the grid: its farthest corner */
+        double far = 0.0;
+        for (int k = 0; k < 4; k++) {
+            double cx = (k & 1) ? c->gx1 : 0.0, cy = (k & 2) ? c->gy1 : 0.0;
+            far = fmax(far, hypot(cx - c->cam.o[0], cy - c->cam.o[1]));
+        }
+        c->curv = far >= c->curv_smin;
+    }
+out:
+    return rc;
+}
+
+td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o,
+                    td_render_result *res, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_render_opts dflt;
+    ctx *c = NULL;
+    worker *ws = NULL;
+    td_image8 *drape = NULL;
+    int nthreads = 0, started = 0;
+    size_t npix = 0, nsmp = 0, bytes;
+    double t_start = now_s();
+
+    memset(res, 0, sizeof *res);
+    if (!o) {
+        td_render_opts_default(&dflt);
+        o = &dflt;
+    }
+    rc = check_scene(s, err);
+    if (rc)
+        goto out;
+    c = calloc(1, sizeof *c);
+    if (!c) {
+        rc = td_err_set(err, TD_ENOMEM, "render: no memory");
+        goto out;
+    }
+    rc = setup_ctx(c, v, s, err);
+    if (rc)
+        goto out;
+    c->cancel = o->cancel;
+    c->depth_only = s->image.format == TD_FORMAT_DEPTH16 || s->image.format == TD_FORMAT_DEPTH32F;
+    c->bx = (s->image.width + TD_BLOCK - 1) / TD_BLOCK;
+    c->by = (s->image.height + TD_BLOCK - 1) / TD_BLOCK;
+    c->nblocks = (int)(c->bx * c->by);
+    atomic_init(&c->next, 0);
+    npix = (size_t)s->image.width * (size_t)s->image.height;
+    nsmp = (size_t)TD_BLOCK * TD_BLOCK * (size_t)(c->n * c->n);
+
+    if (!c->depth_only && s->effects.drape[0]) {
+        if (o->drape) {
+            c->drape = o->drape;
+        } else {
+            rc = td_image_load(s->effects.drape, 3,
+                               o->drape_max_pixels ? o->drape_max_pixels : 64u << 20, &drape, err);
+            if (rc)
+                goto out;
+            c->drape = drape;
+        }
+    }
+    if (!c->depth_only && s->effects.haze) {
+        c->beta0 = td_haze_beta(s->effects.haze_visibility_km);
+        c->zref = c->zlo;
+    }
+    if (s->effects.ambient_occlusion > 0)
+        c->ao_radius = s->effects.ao_radius > 0.0 ? s->effects.ao_radius
+                                                  : 16.0 * fmax(v->grid->sx, v->grid->sy);
+
+    if (c->depth_only) {
+        if (!td_mul_size(npix, sizeof(float), &bytes) || !(res->depth = malloc(bytes))) {
+            rc = td_err_set(err, TD_ENOMEM, "render: no memory for a %d x %d depth image",
+                            (int)s->image.width, (int)s->image.height);
+            goto out;
+        }
+    } else {
+        if (!td_mul_size(npix, 4, &bytes) || !(res->rgba = malloc(bytes))) {
+            rc = td_err_set(err, TD_ENOMEM, "render: no memory for a %d x %d image",
+                            (int)s->image.width, (int)s->image.height);
+            goto out;
+        }
+    }
+    c->rgba = res->rgba;
+    c->depth = res->depth;
+    res->width = s->image.width;
+    res->height = s->image.height;
+
+    nthreads = o->threads > 0 ? o->threads : cpu_count();
+    if (nthreads > c->nblocks)
+        nthreads = c->nblocks;
+    ws = calloc((size_t)nthreads, sizeof *ws);
+    if (!ws) {
+        rc = td_err_set(err, TD_ENOMEM, "render: no memory for %d workers", nthreads);
+        goto out;
+    }
+    for (int i = 0; i < nthreads; i++) {
+        worker *w = &ws[i];
+        w->c = c;
+        w->s = malloc(nsmp * sizeof *w->s);
+        int ok = w->s != NULL;
+        if (ok && !c->depth_only && s->effects.shadows)
+            ok = (w->lit = malloc(nsmp * sizeof *w->lit)) != NULL;
+        if (ok && !c->depth_only && s->effects.ambient_occlusion > 0)
+            ok = (w->occl = malloc(nsmp * sizeof *w->occl)) != NULL;
+        if (ok && !c->depth_only && s->effects.water)
+            ok = (w->refl = malloc(4 * nsmp * sizeof *w->refl)) != NULL;
+        if (!ok) {
+            rc = td_err_set(err, TD_ENOMEM, "render: no memory for per-thread scratch");
+            goto out;
+        }
+    }
+    for (started = 1; started < nthreads; started++) {
+        if (pthread_create(&ws[started].th, NULL, work, &ws[started]) != 0)
+            break; /* run with the threads we got */
+    }
+    work(&ws[0]);
+    for (int i = 1; i < started; i++)
+        pthread_join(ws[i].th, NULL);
+
+    td_render_stats *st = &res->stats;
+    st->threads = started;
+    for (int i = 0; i < started; i++) {
+        worker *w = &ws[i];
+        for (int k = 0; k < TD_RAY_KIND_COUNT; k++)
+            st->rays[k] += w->rays[k];
+        st->steps += w->steps;
+        st->hits += w->hits;
+        st->curved_rays += w->curved;
+        st->curve_segments += w->segs;
+        for (int k = 0; k < TD_STAGE_COUNT; k++) {
+            st->stage_ms[k] += 1000.0 * w->stage_s[k] / started;
+            st->stage_ran[k] |= w->ran[k];
+        }
+        if (w->cancelled)
+            rc = td_err_set(err, TD_ECANCELED, "render: cancelled");
+    }
+    st->total_ms = 1000.0 * (now_s() - t_start);
+out:
+    if (ws) {
+        for (int i = 0; i < nthreads; i++) {
+            free(ws[i].s);
+            free(ws[i].lit);
+            free(ws[i].occl);
+            free(ws[i].refl);
+        }
+        free(ws);
+    }
+    td_image_free(drape);
+    free(c);
+    if (rc)
+        td_render_result_free(res);
+    return rc;
+}
+
+td_status td_render_encode(td_render_result *res, const td_scene *s, td_buf *out,
+                           double *depth_scale_out, td_err *err)
+{
+    td_status rc = TD_OK;
+    uint16_t *u16 = NULL;
+    double t = now_s();
+    size_t npix = (size_t)res->width * (size_t)res->height;
+
+    memset(out, 0, sizeof *out);
+    if (s->image.format == TD_FORMAT_PNG) {
+        if (!res->rgba) {
+            rc = td_err_set(err, TD_EINVAL, "image.format: the render holds no colour image");
+            goto out;
+        }
+        rc = td_image_encode_rgba(res->rgba, res->width, res->height, out, err);
+    } else if (s->image.format == TD_FORMAT_DEPTH32F || s->image.format == TD_FORMAT_DEPTH16) {
+        if (!res->depth) {
+            rc = td_err_set(err, TD_EINVAL, "image.format: the render holds no depth image");
+            goto out;
+        }
+        if (s->image.format == TD_FORMAT_DEPTH32F) {
+            rc = td_image_encode_f32(res->depth, res->width, res->height, out, err);
+            goto out;
+        }
+        double scale = s->image.depth_scale, far = 0.0;
+        if (!(scale > 0.0)) {
+            for (size_t i = 0; i < npix; i++)
+                if (isfinite(res->depth[i]) && res->depth[i] > far)
+                    far = res->depth[i];
+            scale = far > 0.0 ? far / 65534.0 : 1.0;
+        }
+        u16 = malloc(npix * sizeof *u16);
+        if (!u16) {
+            rc = td_err_set(err, TD_ENOMEM, "render: no memory for the depth image");
+            goto out;
+        }
+        for (size_t i = 0; i < npix; i++) {
+            double q = res->depth[i] / scale;
+            u16[i] = isfinite(res->depth[i]) ? (uint16_t)fmin(65534.0, floor(q + 0.5)) : 65535;
+        }
+        char val[64];
+        snprintf(val, sizeof val, "%.17g", scale);
+        if (depth_scale_out)
+            *depth_scale_out = scale;
+        rc = td_image_encode_gray16(u16, res->width, res->height, "depth_scale_m", val, out, err);
+    } else {
+        rc = td_err_set(err, TD_EINVAL, "image.format: %s is not an image encoding",
+                        td_format_name(s->image.format));
+    }
+out:
+    free(u16);
+    if (!rc) {
+        res->stats.stage_ms[TD_STAGE_ENCODE] += 1000.0 * (now_s() - t);
+        res->stats.stage_ran[TD_STAGE_ENCODE] = 1;
+    }
+    return rc;
+}
+
+void td_render_result_free(td_render_result *res)
+{
+    if (res) {
+        free(res->rgba);
+        free(res->depth);
+        res->rgba = NULL;
+        res->depth = NULL;
+    }
+}
+
+td_status td_render_pick(const td_view *v, const td_scene *s, td_pick *out,
+                         td_render_stats *stats, td_err *err)
+{
+    td_status rc = TD_OK;
+    ctx c;
+    double t = now_s();
+
+    if (stats)
+        memset(stats, 0, sizeof *stats);
+    if (s->npick < 0 || s->npick > TD_SCENE_PICK_MAX) {
+        rc = td_err_set(err, TD_ERANGE, "pick: %d pixels is outside 0 .. %d", s->npick,
+                        TD_SCENE_PICK_MAX);
+        goto out;
+    }
+    rc = setup_ctx(&c, v, s, err);
+    if (rc)
+        goto out;
+    for (int i = 0; i < s->npick; i++) {
+        td_ray r;
+        td_hit hit;
+        td_pick *pk = &out[i];
+        uint64_t steps = 0, segs = 0;
+        memset(pk, 0, sizeof *pk);
+        pk->px = s->pick[i][0];
+        pk->py = s->pick[i][1];
+        td_camera_ray(&c.cam, pk->px, pk->py, &r);
+        if (needs_curve(&c, r.o, r.d)) {
+            trace_curved(&c, &r, &hit, &steps, &segs);
+            if (stats) {
+                stats->curved_rays++;
+                stats->curve_segments += segs;
+            }
+        } else {
+            td_trace(v, s->quality.method, s->quality.surface, &r, &hit);
+            steps = hit.steps;
+        }
+        if (stats) {
+            stats->rays[TD_RAY_PRIMARY]++;
+            stats->steps += steps;
+        }
+        pk->distance = INFINITY;
+        if (hit.t < INFINITY) {
+            pk->hit = 1;
+            memcpy(pk->p, hit.p, sizeof pk->p);
+            pk->distance = hit.t;
+            pk->ci = hit.ci;
+            pk->cj = hit.cj;
+            if (stats)
+                stats->hits++;
+        }
+    }
+    if (stats) {
+        stats->threads = 1;
+        stats->stage_ran[TD_STAGE_PRIMARY] = 1;
+        stats->stage_ms[TD_STAGE_PRIMARY] = 1000.0 * (now_s() - t);
+        stats->total_ms = stats->stage_ms[TD_STAGE_PRIMARY];
+    }
+out:
+    return rc;
+}

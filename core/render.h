@@ -1,0 +1,124 @@
+/* render.h: one scene, one view of the terrain -> an RGBA8 image or a depth buffer,
+ * with counts of every ray traced and the time of every stage that ran.
+ *
+ * Callers: `terrad render` (server/cli_render.c), the HTTP render, tile and pick
+ * routes. The view (grid + resident acceleration) is shared read-only; the scene says
+ * what to draw. An effect the scene does not ask for traces no ray, runs no pass and
+ * allocates nothing; the stats prove it (rays by kind, stage_ran).
+ *
+ * Stages (one X-macro table, also the names of `stages_ms` and of Server-Timing):
+ *   primary    camera rays traced straight
+ *   curvature  camera rays that reach far enough for the earth's curvature to move a
+ *              pixel, traced bent (see render.c)
+ *   water      water plane, Fresnel reflection rays
+ *   shadows    one ray per lit hit toward the sun
+ *   ao         N hemisphere rays per hit
+ *   shade      normals, colour, Lambert + ambient (not for depth formats)
+ *   haze       aerial perspective
+ *   sky        background gradient and sun disc
+ *   resolve    n x n samples -> pixel, 8-bit conversion / depth
+ *   encode     PNG or raw encoding (td_render_encode)
+ * A stage's time is the sum over threads of the time spent in it, divided by the number
+ * of threads: the stages add up to the wall time of the render. */
+#ifndef TD_RENDER_H
+#define TD_RENDER_H
+
+#include <stdatomic.h>
+
+#include "camera.h"
+#include "image.h"
+#include "scene.h"
+
+#define TD_RAY_KIND_LIST(X)                                                    \
+    X(TD_RAY_PRIMARY, "primary")                                               \
+    X(TD_RAY_SHADOW, "shadow")                                                 \
+    X(TD_RAY_REFLECTION, "reflection")                                         \
+    X(TD_RAY_AO, "ao")
+
+#define TD_STAGE_LIST(X)                                                       \
+    X(TD_STAGE_PRIMARY, "primary")                                             \
+    X(TD_STAGE_CURVATURE, "curvature")                                         \
+    X(TD_STAGE_WATER, "water")                                                 \
+    X(TD_STAGE_SHADOWS, "shadows")                                             \
+    X(TD_STAGE_AO, "ao")                                                       \
+    X(TD_STAGE_SHADE, "shade")                                                 \
+    X(TD_STAGE_HAZE, "haze")                                                   \
+    X(TD_STAGE_SKY, "sky")                                                     \
+    X(TD_STAGE_RESOLVE, "resolve")                                             \
+    X(TD_STAGE_ENCODE, "encode")
+
+typedef enum td_ray_kind {
+#define TD_X_ENUM(e, name) e,
+    TD_RAY_KIND_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_RAY_KIND_COUNT
+} td_ray_kind;
+
+typedef enum td_stage {
+#define TD_X_ENUM(e, name) e,
+    TD_STAGE_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_STAGE_COUNT
+} td_stage;
+
+const char *td_ray_kind_name(td_ray_kind k);
+const char *td_stage_name(td_stage s);
+
+typedef struct td_render_stats {
+    uint64_t rays[TD_RAY_KIND_COUNT];
+    uint64_t steps;            /* tracer steps over all rays */
+    uint64_t hits;             /* camera samples that hit the terrain */
+    uint64_t curved_rays;      /* camera rays traced bent */
+    uint64_t curve_segments;   /* straight pieces those were traced as */
+    int stage_ran[TD_STAGE_COUNT];
+    double stage_ms[TD_STAGE_COUNT];
+    double total_ms;           /* wall time of td_render */
+    int threads;
+} td_render_stats;
+
+typedef struct td_render_opts {
+    int threads;               /* <= 0: one per core */
+    const td_image8 *drape;    /* preloaded drape; NULL: loaded from the scene's path */
+    uint64_t drape_max_pixels; /* when loading it (0: 64 Mpx) */
+    const atomic_int *cancel;  /* polled per block; non-zero -> TD_ECANCELED */
+} td_render_opts;
+
+typedef struct td_render_result {
+    int32_t width, height;
+    uint8_t *rgba;  /* width*height*4 (format png), rows top to bottom, else NULL */
+    float *depth;   /* width*height distance from the camera in metres, +inf = nothing
+                       (depth formats), else NULL */
+    td_render_stats stats;
+} td_render_result;
+
+void td_render_opts_default(td_render_opts *o);
+
+/* Renders the scene. On success the caller owns res's buffers (td_render_result_free).
+ * Errors name the scene field at fault. */
+td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o,
+                    td_render_result *res, td_err *err);
+
+/* Encodes the result in the scene's format (png, depth16, depth32f) and records the
+ * encode stage in res->stats. depth16 stores round(distance / scale) with 65535 for
+ * nothing; the scale (metres per unit) goes in a tEXt chunk `depth_scale_m` and in
+ * *depth_scale_out (may be NULL). */
+td_status td_render_encode(td_render_result *res, const td_scene *s, td_buf *out,
+                           double *depth_scale_out, td_err *err);
+
+void td_render_result_free(td_render_result *res);
+
+/* One picked pixel. */
+typedef struct td_pick {
+    double px, py;    /* as asked */
+    int hit;
+    double p[3];      /* terrain point, dataset frame */
+    double distance;  /* metres from the camera (orthographic: from the top plane) */
+    int32_t ci, cj;
+} td_pick;
+
+/* Traces one camera ray per pixel of s->pick (integers are pixel centres), with the
+ * scene's camera, method, surface and curvature; fills out[0 .. s->npick). */
+td_status td_render_pick(const td_view *v, const td_scene *s, td_pick *out,
+                         td_render_stats *stats, td_err *err);
+
+#endif
