@@ -331,7 +331,9 @@ static int plane_hit(const walk *w, const double c[4], double ta, double tb, int
         *wall = za < top && (entry == ENTRY_U || entry == ENTRY_V) ? entry : 0;
         hit = 1;
     } else if (zb <= top) {
-        *t = ta + (tb - ta) * ((za - top) / (za - zb));
+        /* descending (zb < za): the time the ray comes down to the top */
+        double th = ta + (za - top) / -w->dz;
+        *t = th < ta ? ta : (th > tb ? tb : th);
         *wall = 0;
         hit = 1;
     }

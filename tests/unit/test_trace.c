@@ -1,0 +1,497 @@
+/* test_trace.c: unit tests of the tracers and their acceleration structures: analytic
+ * hits on flat and single-cell terrain, every method against a brute-force
+ * double-precision triangle reference, methods agreeing with one another on every
+ * surface, the cone bound of every parameter plane checked cell against cell, the
+ * max-mipmap and EDT against brute force, holes, and ray validation. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "accel.h"
+#include "edt.h"
+#include "maxmip.h"
+#include "planes.h"
+#include "terrain.h"
+#include "trace.h"
+
+static void _fail_msg_near(double a, double b, double eps, const char *what, const char *file, int line)
+{
+    print_error("%s:%d: %s = %.17g, expected %.17g within %g\n", file, line, what, a, b, eps);
+    _fail(file, line);
+}
+
+/* cmocka 1.1.5 (Debian 12) has no assert_double_equal. */
+#define assert_double_equal(a, b, eps) assert_near_impl((a), (b), (eps), #a, __FILE__, __LINE__)
+static void assert_near_impl(double a, double b, double eps, const char *what, const char *file, int line)
+{
+    if (!(fabs(a - b) <= eps))
+        _fail_msg_near(a, b, eps, what, file, line);
+}
+
+static double rnd(uint64_t *s)
+{
+    *s = *s * 6364136223846793005ull + 1442695040888963407ull;
+    return (double)(*s >> 11) / 9007199254740992.0;
+}
+
+static td_grid *make_grid(int32_t w, int32_t h, double sx, double sy, int tile_log2)
+{
+    td_grid *g = NULL;
+    assert_int_equal(td_grid_create(w, h, sx, sy, tile_log2, NULL, &g, NULL), TD_OK);
+    return g;
+}
+
+static td_accel *build_all(const td_grid *g, int k)
+{
+    td_accel *a = NULL;
+    td_accel_opts o;
+    td_accel_opts_default(&o);
+    o.planes_k = k;
+    o.threads = 2;
+    assert_int_equal(td_accel_build(g, &o, &a, NULL, NULL), TD_OK);
+    return a;
+}
+
+static td_grid *procedural(int32_t w, int32_t h, uint64_t seed, int tile_log2)
+{
+    td_terrain_params p;
+    td_grid *g = NULL;
+    td_terrain_params_default(&p);
+    p.width = w;
+    p.height = h;
+    p.seed = seed;
+    p.spacing = 25.0;
+    assert_int_equal(td_terrain_generate(&p, tile_log2, &g, NULL), TD_OK);
+    return g;
+}
+
+/* Double-precision Moller-Trumbore, inclusive edges. */
+static double tri_ref(const double o[3], const double d[3], const double a[3], const double b[3],
+                      const double c[3])
+{
+    double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double pv[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
+    double det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+    double t = INFINITY;
+    if (det != 0.0) {
+        double inv = 1.0 / det, tv[3] = {o[0] - a[0], o[1] - a[1], o[2] - a[2]};
+        double u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) * inv;
+        double q[3] = {tv[1] * e1[2] - tv[2] * e1[1], tv[2] * e1[0] - tv[0] * e1[2], tv[0] * e1[1] - tv[1] * e1[0]};
+        double v = (d[0] * q[0] + d[1] * q[1] + d[2] * q[2]) * inv;
+        double tt = (e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) * inv;
+        if (u >= -1e-9 && v >= -1e-9 && u + v <= 1.0 + 1e-9 && tt >= 0.0)
+            t = tt;
+    }
+    return t;
+}
+
+/* Every cell of the grid, both triangles (small grids only). */
+static double brute_triangle(const td_grid *g, const td_ray *r)
+{
+    double best = INFINITY;
+    for (int32_t j = 0; j + 1 < g->h; j++) {
+        for (int32_t i = 0; i + 1 < g->w; i++) {
+            double z00 = td_grid_at(g, i, j), z10 = td_grid_at(g, i + 1, j);
+            double z01 = td_grid_at(g, i, j + 1), z11 = td_grid_at(g, i + 1, j + 1);
+            if (isnan(z00) || isnan(z10) || isnan(z01) || isnan(z11))
+                continue;
+            double A[3] = {i * g->sx, j * g->sy, z00}, B[3] = {(i + 1) * g->sx, j * g->sy, z10};
+            double C[3] = {i * g->sx, (j + 1) * g->sy, z01}, D[3] = {(i + 1) * g->sx, (j + 1) * g->sy, z11};
+            best = fmin(best, fmin(tri_ref(r->o, r->d, A, B, C), tri_ref(r->o, r->d, B, D, C)));
+        }
+    }
+    return best;
+}
+
+/* A ray aimed at a random point of the relief's box, from a random origin: grazing,
+ * steep, oblique or looking up. */
+static void random_ray(const td_grid *g, uint64_t *s, td_ray *r)
+{
+    double W = (g->w - 1) * g->sx, H = (g->h - 1) * g->sy, Z = g->zmax - g->zmin;
+    double target[3] = {W * rnd(s), H * rnd(s), g->zmin + Z * rnd(s)};
+    int kind = (int)(rnd(s) * 4.0);
+    r->o[0] = -0.2 * W + 1.4 * W * rnd(s);
+    r->o[1] = -0.2 * H + 1.4 * H * rnd(s);
+    if (kind == 0) /* grazing: nearly level with the target */
+        r->o[2] = target[2] + 0.01 * Z * (rnd(s) - 0.3);
+    else if (kind == 1) /* from high above */
+        r->o[2] = g->zmax + 3.0 * Z * rnd(s);
+    else if (kind == 2) /* oblique */
+        r->o[2] = g->zmax + 0.3 * Z * rnd(s);
+    else /* from low down, looking up */
+        r->o[2] = g->zmin + 0.5 * Z * rnd(s);
+    for (int i = 0; i < 3; i++)
+        r->d[i] = target[i] - r->o[i];
+    if (r->d[0] == 0.0 && r->d[1] == 0.0 && r->d[2] == 0.0)
+        r->d[2] = -1.0;
+    r->tmin = 0.0;
+    r->tmax = INFINITY;
+}
+
+static int same_t(double a, double b, double len)
+{
+    return (isinf(a) && isinf(b)) || fabs(a - b) <= 1e-6 * (1.0 + len + fabs(a));
+}
+
+static void test_flat_analytic(void **state)
+{
+    (void)state;
+    td_grid *g = make_grid(9, 7, 10.0, 20.0, 2);
+    for (int k = 0; k < 63; k++)
+        g->z[k] = 100.0f;
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel *a = build_all(g, 4);
+    td_view v = {g, a->tiles};
+    for (int m = 0; m < TD_METHOD_COUNT; m++) {
+        for (int s = 0; s < TD_SURFACE_COUNT; s++) {
+            td_hit h;
+            td_ray down = {{33.0, 47.0, 250.0}, {0.0, 0.0, -2.0}, 0.0, INFINITY};
+            td_trace(&v, (td_method)m, (td_surface)s, &down, &h);
+            assert_double_equal(h.t, 75.0, 1e-9);
+            assert_double_equal(h.n[2], 1.0, 1e-6);
+            assert_int_equal(h.ci, 3);
+            assert_int_equal(h.cj, 2);
+            /* 45 degrees toward north-east from above the south-west corner */
+            td_ray diag = {{0.0, 0.0, 130.0}, {3.0, 4.0, -5.0}, 0.0, INFINITY};
+            td_trace(&v, (td_method)m, (td_surface)s, &diag, &h);
+            assert_double_equal(h.t, 6.0, 1e-9);
+            assert_double_equal(h.p[2], 100.0, 1e-9);
+            /* up-going ray misses, horizontal ray above misses */
+            td_ray up = {{40.0, 40.0, 120.0}, {1.0, 0.5, 0.1}, 0.0, INFINITY};
+            td_trace(&v, (td_method)m, (td_surface)s, &up, &h);
+            assert_true(isinf(h.t));
+            /* tmax before the surface: miss */
+            down.tmax = 70.0;
+            td_trace(&v, (td_method)m, (td_surface)s, &down, &h);
+            assert_true(isinf(h.t));
+        }
+    }
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
+/* One cell with a twisted bilinear patch: the hit must solve the quadratic exactly. */
+static void test_single_cell_bilinear(void **state)
+{
+    (void)state;
+    td_grid *g = make_grid(2, 2, 1.0, 1.0, 1);
+    g->z[0] = 0.0f; /* z00 */
+    g->z[1] = 1.0f; /* z10 */
+    g->z[2] = 1.0f; /* z01 */
+    g->z[3] = 0.0f; /* z11: saddle z = a + b - 2ab */
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel *a = build_all(g, 3);
+    td_view v = {g, a->tiles};
+    uint64_t seed = 5;
+    for (int n = 0; n < 2000; n++) {
+        td_ray r = {{rnd(&seed), rnd(&seed), 2.0}, {rnd(&seed) - 0.5, rnd(&seed) - 0.5, -1.0}, 0.0, INFINITY};
+        /* reference: dense bracketing then bisection in double */
+        double tref = INFINITY, prev = NAN, tp = 0.0;
+        for (int k = 0; k <= 20000; k++) {
+            double t = 3.0 * k / 20000.0;
+            double x = r.o[0] + t * r.d[0], y = r.o[1] + t * r.d[1], z = r.o[2] + t * r.d[2];
+            if (x < 0 || y < 0 || x > 1 || y > 1)
+                continue;
+            double f = z - (x + y - 2 * x * y);
+            if (!isnan(prev) && prev > 0 && f <= 0) {
+                double lo = tp, hi = t;
+                for (int it = 0; it < 200; it++) {
+                    double mid = 0.5 * (lo + hi);
+                    double xm = r.o[0] + mid * r.d[0], ym = r.o[1] + mid * r.d[1];
+                    double fm = r.o[2] + mid * r.d[2] - (xm + ym - 2 * xm * ym);
+                    if (fm > 0) lo = mid; else hi = mid;
+                }
+                tref = 0.5 * (lo + hi);
+                break;
+            }
+            prev = f;
+            tp = t;
+        }
+        for (int m = 0; m < TD_METHOD_COUNT; m++) {
+            td_hit h;
+            td_trace(&v, (td_method)m, TD_SURFACE_BILINEAR, &r, &h);
+            if (isinf(tref)) {
+                assert_true(isinf(h.t));
+            } else {
+                assert_double_equal(h.t, tref, 1e-9);
+                double x = h.p[0], y = h.p[1];
+                assert_double_equal(h.p[2], x + y - 2 * x * y, 1e-9);
+            }
+        }
+    }
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
+/* All methods against a brute-force double triangle reference; all surfaces across
+ * methods. Tiles of 8 cells so seams are crossed constantly. */
+static void test_methods_vs_reference(void **state)
+{
+    (void)state;
+    td_grid *g = procedural(61, 45, 11, 3);
+    /* punch holes: a block and a row */
+    for (int32_t j = 10; j < 16; j++)
+        for (int32_t i = 20; i < 27; i++)
+            g->z[(size_t)j * 61 + (size_t)i] = NAN;
+    for (int32_t i = 0; i < 61; i++)
+        g->z[(size_t)30 * 61 + (size_t)i] = (i % 3) ? g->z[(size_t)30 * 61 + (size_t)i] : NAN;
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel *a = build_all(g, 8);
+    td_view v = {g, a->tiles};
+    uint64_t seed = 99;
+    long hits = 0, bad = 0;
+    for (int n = 0; n < 3000; n++) {
+        td_ray r;
+        random_ray(g, &seed, &r);
+        double tref = brute_triangle(g, &r);
+        double len = 1e4;
+        hits += isfinite(tref);
+        for (int m = 0; m < TD_METHOD_COUNT; m++) {
+            td_hit h;
+            td_trace(&v, (td_method)m, TD_SURFACE_TRIANGLE, &r, &h);
+            if (!same_t(h.t, tref, len)) {
+                print_message("ray %d method %s: got %.17g want %.17g\n", n, td_method_name(m), h.t, tref);
+                bad++;
+            }
+        }
+        for (int s = 0; s < TD_SURFACE_COUNT; s++) {
+            td_hit h0, h;
+            td_trace(&v, TD_METHOD_INCREMENTAL, (td_surface)s, &r, &h0);
+            for (int m = 1; m < TD_METHOD_COUNT; m++) {
+                td_trace(&v, (td_method)m, (td_surface)s, &r, &h);
+                if (!same_t(h.t, h0.t, len)) {
+                    print_message("ray %d %s/%s: got %.17g incremental %.17g\n", n, td_method_name(m),
+                                  td_surface_name(s), h.t, h0.t);
+                    bad++;
+                }
+            }
+        }
+    }
+    print_message("%ld of 3000 rays hit\n", hits);
+    assert_true(hits > 1000);
+    assert_int_equal(bad, 0);
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
+/* The cone of every cell bounds every other cell of the tile by the footprint gap. */
+static void test_planes_bound(void **state)
+{
+    (void)state;
+    const int ks[] = {1, 2, 5, 16, 64};
+    td_grid *g = procedural(33, 33, 3, 5);
+    g->sy = 37.0; /* non-square cells */
+    g->z[(size_t)7 * 33 + 9] = NAN;
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    const td_tile *t = &g->tiles[0];
+    float *H = malloc(sizeof(float) * (size_t)t->nx * (size_t)t->ny);
+    td_grid_cell_max(g, t, H);
+    for (size_t ki = 0; ki < sizeof ks / sizeof ks[0]; ki++) {
+        td_planes *p = NULL;
+        assert_int_equal(td_planes_build(g, 0, ks[ki], &p, NULL), TD_OK);
+        long violations = 0;
+        double mean_slope = 0.0;
+        for (int32_t cj = 0; cj < t->ny; cj++) {
+            for (int32_t ci = 0; ci < t->nx; ci++) {
+                size_t c = (size_t)cj * (size_t)t->nx + (size_t)ci;
+                mean_slope += p->sp[c];
+                for (int32_t qj = 0; qj < t->ny; qj++) {
+                    for (int32_t qi = 0; qi < t->nx; qi++) {
+                        double gx = fmax(abs(qi - ci) - 1, 0) * g->sx, gy = fmax(abs(qj - cj) - 1, 0) * g->sy;
+                        double bound = (double)p->zp[c] + (double)p->sp[c] * sqrt(gx * gx + gy * gy);
+                        if ((double)H[(size_t)qj * (size_t)t->nx + (size_t)qi] > bound)
+                            violations++;
+                    }
+                }
+            }
+        }
+        assert_int_equal(violations, 0);
+        assert_true(isfinite(mean_slope));
+        td_planes_free(p);
+    }
+    free(H);
+    td_grid_free(g);
+}
+
+/* Flat terrain: zmin == zmax, slice spacing 0; all-void tile: nothing to hit. */
+static void test_planes_degenerate(void **state)
+{
+    (void)state;
+    td_grid *g = make_grid(17, 9, 5.0, 5.0, 3);
+    for (int k = 0; k < 17 * 9; k++)
+        g->z[k] = (k % 17) >= 9 ? NAN : 42.0f;
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_planes *p = NULL;
+    assert_int_equal(td_planes_build(g, 0, 16, &p, NULL), TD_OK);
+    for (int c = 0; c < 64; c++) {
+        assert_true(p->zp[c] >= 42.0f);
+        assert_true(isfinite(p->sp[c]) && p->sp[c] >= 0.0f);
+    }
+    td_planes_free(p);
+    assert_int_equal(td_planes_build(g, 1, 16, &p, NULL), TD_OK); /* cells 8..15: holes */
+    for (int c = 0; c < 64; c++)
+        assert_true(p->zp[c] == -INFINITY);
+    td_planes_free(p);
+    td_accel *a = build_all(g, 16);
+    td_view v = {g, a->tiles};
+    for (int m = 0; m < TD_METHOD_COUNT; m++) {
+        td_hit h;
+        td_ray r = {{0.0, 20.0, 45.0}, {1.0, 0.0, -0.1}, 0.0, INFINITY}; /* meets z=42 at x=30 */
+        td_trace(&v, (td_method)m, TD_SURFACE_BILINEAR, &r, &h);
+        assert_double_equal(h.t, 30.0, 1e-9);
+        td_ray r2 = {{41.0, 20.0, 50.0}, {1.0, 0.0, -0.1}, 0.0, INFINITY}; /* over the holes */
+        td_trace(&v, (td_method)m, TD_SURFACE_TRIANGLE, &r2, &h);
+        assert_true(isinf(h.t));
+    }
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
+static void test_maxmip_and_edt(void **state)
+{
+    (void)state;
+    td_grid *g = procedural(40, 23, 8, 4); /* partial edge tiles */
+    td_maxmip *m = NULL;
+    size_t tile = 2; /* the east tile of the first row: 7 x 16 cells */
+    assert_int_equal(td_maxmip_build(g, tile, &m, NULL), TD_OK);
+    const td_tile *t = &g->tiles[tile];
+    float *H = malloc(sizeof(float) * (size_t)t->nx * (size_t)t->ny);
+    td_grid_cell_max(g, t, H);
+    for (int L = 1; L <= m->levels; L++) {
+        for (int32_t bj = 0; bj < m->dim[L]; bj++) {
+            for (int32_t bi = 0; bi < m->dim[L]; bi++) {
+                float want = -INFINITY;
+                for (int32_t cj = bj << L; cj < ((bj + 1) << L) && cj < t->ny; cj++)
+                    for (int32_t ci = bi << L; ci < ((bi + 1) << L) && ci < t->nx; ci++)
+                        want = fmaxf(want, H[(size_t)cj * (size_t)t->nx + (size_t)ci]);
+                assert_true(m->max[m->offset[L] + (size_t)bj * (size_t)m->dim[L] + (size_t)bi] == want);
+            }
+        }
+    }
+    free(H);
+    td_maxmip_free(m);
+    td_grid_free(g);
+
+    /* EDT against brute force, anisotropic weights */
+    enum { NX = 23, NY = 17 };
+    double dist[NX * NY];
+    uint64_t seed = 4;
+    int feat[NX * NY];
+    for (int c = 0; c < NX * NY; c++) {
+        feat[c] = rnd(&seed) < 0.05;
+        dist[c] = feat[c] ? 0.0 : INFINITY;
+    }
+    td_edt_scratch s;
+    assert_true(td_edt_scratch_init(&s, NX));
+    td_edt_2d(dist, NX, NY, 4.0, 9.0, &s);
+    for (int y = 0; y < NY; y++) {
+        for (int x = 0; x < NX; x++) {
+            double best = INFINITY;
+            for (int q = 0; q < NX * NY; q++)
+                if (feat[q]) {
+                    double dx = x - q % NX, dy = y - q / NX;
+                    best = fmin(best, 4.0 * dx * dx + 9.0 * dy * dy);
+                }
+            assert_double_equal(dist[y * NX + x], best, 1e-9);
+        }
+    }
+    td_edt_scratch_free(&s);
+}
+
+/* Plane surface: a wall hit has a horizontal normal facing the ray. */
+static void test_plane_walls(void **state)
+{
+    (void)state;
+    td_grid *g = make_grid(5, 2, 10.0, 10.0, 2);
+    float z[10] = {0, 0, 50, 50, 0, 0, 0, 50, 50, 0};
+    for (int k = 0; k < 10; k++)
+        g->z[k] = z[k];
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel *a = build_all(g, 4);
+    td_view v = {g, a->tiles};
+    for (int m = 0; m < TD_METHOD_COUNT; m++) {
+        td_hit h;
+        td_ray r = {{0.0, 5.0, 10.0}, {1.0, 0.0, 0.0}, 0.0, INFINITY};
+        td_trace(&v, (td_method)m, TD_SURFACE_PLANE, &r, &h);
+        /* cell 0 has top 0; cell 1 has top 50: wall at x = 10 */
+        assert_double_equal(h.t, 10.0, 1e-12);
+        assert_double_equal(h.n[0], -1.0, 1e-6);
+        assert_double_equal(h.n[2], 0.0, 1e-6);
+    }
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
+static void test_validate(void **state)
+{
+    (void)state;
+    td_err err;
+    td_ray ok = {{0, 0, 0}, {1, 0, 0}, 0.0, INFINITY};
+    assert_int_equal(td_ray_validate(&ok, &err), TD_OK);
+    td_ray r = ok;
+    r.d[1] = NAN;
+    assert_int_equal(td_ray_validate(&r, &err), TD_ERANGE);
+    assert_non_null(strstr(err.msg, "dy"));
+    r = ok;
+    r.o[2] = INFINITY;
+    assert_int_equal(td_ray_validate(&r, &err), TD_ERANGE);
+    assert_non_null(strstr(err.msg, "oz"));
+    r = ok;
+    r.d[0] = 0.0;
+    assert_int_equal(td_ray_validate(&r, &err), TD_ERANGE);
+    r = ok;
+    r.tmax = NAN;
+    assert_int_equal(td_ray_validate(&r, &err), TD_ERANGE);
+    td_method m;
+    td_surface s;
+    assert_int_equal(td_method_parse("parametric", &m), TD_OK);
+    assert_int_equal(m, TD_METHOD_PARAMETRIC);
+    assert_int_equal(td_surface_parse("bilinear", &s), TD_OK);
+    assert_int_equal(s, TD_SURFACE_BILINEAR);
+    assert_int_equal(td_method_parse("fast", &m), TD_EINVAL);
+}
+
+/* The accelerated methods take fewer steps than the walk over an oblique view. */
+static void test_steps_fewer(void **state)
+{
+    (void)state;
+    td_grid *g = procedural(257, 257, 21, 6);
+    td_accel *a = build_all(g, 16);
+    td_view v = {g, a->tiles};
+    double steps[TD_METHOD_COUNT] = {0};
+    for (int py = 0; py < 32; py++) {
+        for (int px = 0; px < 32; px++) {
+            td_ray r = {{-100.0, -100.0, g->zmax + 300.0},
+                        {1.0 + (px - 16) / 40.0, 1.0 - (px - 16) / 40.0, -0.05 - py / 200.0}, 0.0, INFINITY};
+            for (int m = 0; m < TD_METHOD_COUNT; m++) {
+                td_hit h;
+                td_trace(&v, (td_method)m, TD_SURFACE_TRIANGLE, &r, &h);
+                steps[m] += h.steps;
+            }
+        }
+    }
+    print_message("steps/ray: incremental %.1f hierarchical %.1f parametric %.1f auto %.1f\n",
+                  steps[0] / 1024, steps[1] / 1024, steps[2] / 1024, steps[3] / 1024);
+    assert_true(steps[TD_METHOD_HIERARCHICAL] < 0.5 * steps[TD_METHOD_INCREMENTAL]);
+    assert_true(steps[TD_METHOD_PARAMETRIC] < 0.5 * steps[TD_METHOD_INCREMENTAL]);
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_flat_analytic),       cmocka_unit_test(test_single_cell_bilinear),
+        cmocka_unit_test(test_methods_vs_reference), cmocka_unit_test(test_planes_bound),
+        cmocka_unit_test(test_planes_degenerate),   cmocka_unit_test(test_maxmip_and_edt),
+        cmocka_unit_test(test_plane_walls),         cmocka_unit_test(test_validate),
+        cmocka_unit_test(test_steps_fewer),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
