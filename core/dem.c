@@ -97,6 +97,7 @@ td_status td_dem_load(const char *path, const td_dem_opts *opts, td_grid **out, 
     td_dem_opts dflt;
     td_dem_loader fn;
     struct stat st;
+    char ext[16];
 
     *out = NULL;
     if (!opts) {
@@ -116,14 +117,16 @@ td_status td_dem_load(const char *path, const td_dem_opts *opts, td_grid **out, 
         goto out;
     }
     fn = find_loader(path);
-    if (fn) {
+    td_demutil_ext(path, ext, sizeof ext);
+    if (!strcmp(ext, "json")) {
+        rc = td_err_set(err, TD_EINVAL,
+                        "%s: a JSON sidecar, not a DEM: load the .f32 or .png file beside it", path);
+    } else if (fn) {
         rc = fn(path, opts, out, err);
     } else if (td_dem_have_gdal() || td_demgdal_recognised(path)) {
         /* with GDAL: anything else is GDAL's to identify; without: a clear refusal */
         rc = td_demgdal_load(path, opts, out, err);
     } else {
-        char ext[16];
-        td_demutil_ext(path, ext, sizeof ext);
         rc = td_err_set(err, TD_EUNSUPPORTED,
                         "%s: unsupported format '.%s' (terrad reads .f32 + .json, .asc, .hgt, .png%s)",
                         path, ext, td_dem_have_gdal() ? " and what GDAL reads" : "");

@@ -57,7 +57,7 @@ static void gdal_init(void) { GDALAllRegister(); }
 static const char *gdal_msg(void)
 {
     const char *m = CPLGetLastErrorMsg();
-    return m && *m ? m : "no reason given";
+    return m && *m ? m : "not a raster format GDAL recognises";
 }
 
 static td_status gdal_georef(const char *path, const td_dem_opts *o, GDALDatasetH ds, int32_t w,
