@@ -260,6 +260,13 @@ static void test_asc_variants(void **state)
     assert_true(g->geo.x0 == 500000.0 && g->geo.y0 == 4100000.0);
     td_grid_free(g);
 
+    /* CRLF line ends, a trailing newline-less last value */
+    tmpfile_path("crlf.asc", p, sizeof p);
+    spit_text(p, "ncols 2\r\nnrows 2\r\nxllcorner 0\r\nyllcorner 0\r\ncellsize 5\r\n1 2\r\n3 4");
+    g = load_ok(p, NULL);
+    assert_true(at_file_row(g, 1, 1) == 4.0f && at_file_row(g, 0, 0) == 1.0f);
+    td_grid_free(g);
+
     /* a .prj beside the file decides geographic vs projected */
     tmpfile_path("tiny.asc", p, sizeof p);
     spit_text(p, "ncols 2\nnrows 2\nxllcorner 0\nyllcorner 0\ncellsize 0.05\n1 2\n3 4\n");
@@ -450,6 +457,31 @@ static void test_hgt_refusals(void **state)
     spit(p, buf, len);
     refused(p, NULL, TD_EFORMAT);
     free(buf);
+
+    /* SRTM-1: 3601 x 3601, south/east names; all voids but one sample */
+    {
+        size_t n1 = 3601u * 3601u * 2u;
+        unsigned char *b1 = malloc(n1);
+        assert_non_null(b1);
+        for (size_t k = 0; k < n1; k += 2) {
+            b1[k] = 0x80;
+            b1[k + 1] = 0x00;
+        }
+        b1[2 * (3601 * 3600 + 3600)] = 0x01; /* south-east sample: 256 + 2 m */
+        b1[2 * (3601 * 3600 + 3600) + 1] = 0x02;
+        tmpfile_path("s12e130.hgt", p, sizeof p);
+        spit(p, b1, n1);
+        free(b1);
+        g = load_ok(p, NULL);
+        assert_int_equal(g->w, 3601);
+        assert_int_equal(g->voids, (int64_t)3601 * 3601 - 1);
+        assert_true(g->zmin == 258.0f && g->zmax == 258.0f);
+        assert_true(td_grid_at(g, 3600, 0) == 258.0f);
+        assert_true(g->geo.x0 == 130.0 && g->geo.y0 == -12.0);
+        assert_true(fabs(g->geo.dx - 1.0 / 3600.0) < 1e-15);
+        assert_true(fabs(g->sx - 30.0) < 0.5 && fabs(g->sy - 30.7) < 0.2); /* 1" at 11.5 S */
+        td_grid_free(g);
+    }
 
     /* limits: a 1201 tile refused by a smaller configured limit */
     td_dem_opts_default(&o);
