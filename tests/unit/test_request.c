@@ -1,0 +1,283 @@
+/* test_request.c: scene JSON and query parameters -> struct td_scene
+ * (server/request.c): a full scene reads every field; defaults fill the rest; each kind
+ * of bad input (malformed, duplicate key, unknown key, wrong type, NaN/inf/overflow,
+ * out of range, oversize image, bad id) is refused with the right status and the
+ * field's path; the query form agrees with the JSON form. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "request.h"
+
+static td_scene scene; /* large (pick list): keep it off the stack */
+
+static td_status parse(const char *json, td_request_error *e)
+{
+    td_request_limits lim;
+    td_request_limits_default(&lim);
+    memset(e, 0, sizeof *e);
+    return td_request_parse_scene(json, strlen(json), &lim, &scene, e);
+}
+
+static void test_full_scene(void **state)
+{
+    td_request_error e;
+    (void)state;
+    const char *j =
+        "{\"dataset\": \"trinidad\","
+        " \"camera\": {\"position\": {\"x\": 52000, \"y\": 31000, \"z\": 4100},"
+        "   \"heading\": 54.6, \"pitch\": -5, \"roll\": 1.5, \"fov\": 60, \"projection\": \"perspective\"},"
+        " \"image\": {\"width\": 640, \"height\": 480, \"format\": \"png\"},"
+        " \"quality\": {\"method\": \"parametric\", \"surface\": \"triangle\", \"samples\": 2,"
+        "   \"lod\": false, \"smooth_normals\": true},"
+        " \"effects\": {\"sun\": {\"azimuth\": 315, \"elevation\": 35}, \"shadows\": true,"
+        "   \"haze\": {\"visibility_km\": 80}, \"sky\": true, \"water\": {\"level\": 1500},"
+        "   \"ambient_occlusion\": {\"rays\": 12, \"radius\": 300}, \"curvature\": {\"k\": 0.2},"
+        "   \"ambient\": 0.3, \"drape\": \"levi-ortho\"}}";
+    assert_int_equal(parse(j, &e), TD_OK);
+    assert_string_equal(scene.dataset, "trinidad");
+    assert_int_equal(scene.camera.pos_kind, TD_POS_XYZ);
+    assert_float_equal(scene.camera.x, 52000, 0);
+    assert_float_equal(scene.camera.z, 4100, 0);
+    assert_float_equal(scene.camera.heading, 54.6, 0);
+    assert_float_equal(scene.camera.pitch, -5, 0);
+    assert_float_equal(scene.camera.roll, 1.5, 0);
+    assert_int_equal(scene.camera.photogrammetric, 0);
+    assert_int_equal(scene.image.width, 640);
+    assert_int_equal(scene.quality.method, TD_METHOD_PARAMETRIC);
+    assert_int_equal(scene.quality.surface, TD_SURFACE_TRIANGLE);
+    assert_int_equal(scene.quality.samples, 2);
+    assert_int_equal(scene.quality.smooth_normals, 1);
+    assert_true(scene.effects.shadows && scene.effects.haze && scene.effects.sky);
+    assert_float_equal(scene.effects.haze_visibility_km, 80, 0);
+    assert_int_equal(scene.effects.water, 1);
+    assert_float_equal(scene.effects.water_level, 1500, 0);
+    assert_int_equal(scene.effects.ambient_occlusion, 12);
+    assert_float_equal(scene.effects.ao_radius, 300, 0);
+    assert_int_equal(scene.effects.curvature, 1);
+    assert_float_equal(scene.effects.curvature_k, 0.2, 0);
+    assert_float_equal(scene.effects.ambient, 0.3, 0);
+    assert_string_equal(scene.effects.drape, "levi-ortho");
+}
+
+static void test_defaults_and_variants(void **state)
+{
+    td_request_error e;
+    (void)state;
+    assert_int_equal(parse("{\"dataset\":\"levi\",\"camera\":{\"position\":{\"lon\":-105.5,\"lat\":37.6,\"agl\":300}}}", &e), TD_OK);
+    assert_int_equal(scene.camera.pos_kind, TD_POS_LONLAT_AGL);
+    assert_float_equal(scene.camera.fov, 60, 0);
+    assert_int_equal(scene.image.width, 640);
+    assert_int_equal(scene.image.height, 480);
+    assert_int_equal(scene.image.format, TD_FORMAT_PNG);
+    assert_int_equal(scene.quality.method, TD_METHOD_AUTO);
+    assert_int_equal(scene.quality.surface, TD_SURFACE_BILINEAR);
+    assert_int_equal(scene.quality.samples, 1);
+    assert_false(scene.effects.shadows || scene.effects.haze || scene.effects.sky ||
+                 scene.effects.water || scene.effects.curvature);
+    assert_int_equal(scene.effects.ambient_occlusion, 0);
+    assert_float_equal(scene.effects.curvature_k, 0.13, 0);
+    /* curvature: true keeps the default k; haze: true the default visibility */
+    assert_int_equal(parse("{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"agl\":3}},"
+                           "\"effects\":{\"curvature\":true,\"haze\":true,\"ambient_occlusion\":6}}", &e), TD_OK);
+    assert_int_equal(scene.camera.pos_kind, TD_POS_XY_AGL);
+    assert_true(scene.effects.curvature && scene.effects.haze);
+    assert_float_equal(scene.effects.curvature_k, 0.13, 0);
+    assert_float_equal(scene.effects.haze_visibility_km, 80, 0);
+    assert_int_equal(scene.effects.ambient_occlusion, 6);
+    /* photogrammetric camera */
+    assert_int_equal(parse("{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3},"
+                           "\"tilt\":60,\"swing\":180,\"azimuth\":30,\"focal_mm\":150,\"pixel_mm\":0.02}}", &e), TD_OK);
+    assert_int_equal(scene.camera.photogrammetric, 1);
+    assert_float_equal(scene.camera.tilt, 60, 0);
+    assert_float_equal(scene.camera.focal_mm, 150, 0);
+    /* orthographic needs no position */
+    assert_int_equal(parse("{\"dataset\":\"levi\",\"camera\":{\"projection\":\"orthographic\","
+                           "\"extent\":[0,0,100,50]},\"image\":{\"width\":256,\"height\":256}}", &e), TD_OK);
+    assert_int_equal(scene.camera.projection, TD_PROJ_ORTHOGRAPHIC);
+    assert_float_equal(scene.camera.extent[2], 100, 0);
+    /* pick */
+    assert_int_equal(parse("{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3}},"
+                           "\"image\":{\"format\":\"pick\"},\"pick\":[[10,20],[639,479.5]]}", &e), TD_OK);
+    assert_int_equal(scene.npick, 2);
+    assert_float_equal(scene.pick[1][1], 479.5, 0);
+}
+
+static void expect(const char *json, td_status st, const char *field, const char *msg_part)
+{
+    td_request_error e;
+    td_status got = parse(json, &e);
+    if (got != st || strcmp(e.field, field) || (msg_part && !strstr(e.message, msg_part)))
+        print_error("for %s\n got %d field '%s' message '%s'\n", json, (int)got, e.field, e.message);
+    assert_int_equal(got, st);
+    assert_string_equal(e.field, field);
+    if (msg_part)
+        assert_non_null(strstr(e.message, msg_part));
+}
+
+#define CAM "\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3}}"
+
+static void test_refusals(void **state)
+{
+    (void)state;
+    expect("{\"dataset\":\"a\",", TD_EFORMAT, "", NULL);
+    expect("[1,2]", TD_EINVAL, "", "object");
+    expect("{" CAM "}", TD_EINVAL, "dataset", "required");
+    expect("{\"dataset\":\"a\"}", TD_EINVAL, "camera", "required");
+    expect("{\"dataset\":\"a\",\"camera\":{}}", TD_EINVAL, "camera.position", "required");
+    /* duplicate keys, named by their path */
+    expect("{\"dataset\":\"a\",\"camera\":{\"fov\":50,\"fov\":60,\"position\":{\"x\":1,\"y\":2,\"z\":3}}}",
+           TD_EINVAL, "camera.fov", "duplicate");
+    expect("{\"dataset\":\"a\",\"dataset\":\"b\"," CAM "}", TD_EINVAL, "dataset", "duplicate");
+    /* unknown keys */
+    expect("{\"dataset\":\"a\"," CAM ",\"colour\":1}", TD_EINVAL, "colour", "unknown");
+    expect("{\"dataset\":\"a\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3},\"zoom\":2}}", TD_EINVAL,
+           "camera.zoom", "unknown");
+    expect("{\"dataset\":\"a\"," CAM ",\"effects\":{\"haze\":{\"visibility\":3}}}", TD_EINVAL,
+           "effects.haze.visibility", "unknown");
+    /* wrong types */
+    expect("{\"dataset\":\"a\"," CAM ",\"image\":{\"width\":\"640\"}}", TD_EINVAL, "image.width", "integer");
+    expect("{\"dataset\":\"a\"," CAM ",\"image\":{\"width\":640.5}}", TD_EINVAL, "image.width", "integer");
+    expect("{\"dataset\":\"a\"," CAM ",\"effects\":{\"shadows\":1}}", TD_EINVAL, "effects.shadows", "boolean");
+    expect("{\"dataset\":7," CAM "}", TD_EINVAL, "dataset", "string");
+    expect("{\"dataset\":\"a\",\"camera\":{\"position\":{\"x\":\"1\",\"y\":2,\"z\":3}}}", TD_EINVAL,
+           "camera.position.x", "number");
+    /* NaN, infinity, overflow: not JSON; the path of the field is still named */
+    expect("{\"dataset\":\"a\",\"camera\":{\"fov\":NaN," "\"position\":{\"x\":1,\"y\":2,\"z\":3}}}",
+           TD_EFORMAT, "camera.fov", NULL);
+    expect("{\"dataset\":\"a\",\"camera\":{\"position\":{\"x\":1e999,\"y\":2,\"z\":3}}}", TD_EFORMAT,
+           "camera.position.x", NULL);
+    /* out of range */
+    expect("{\"dataset\":\"a\",\"camera\":{\"fov\":200,\"position\":{\"x\":1,\"y\":2,\"z\":3}}}", TD_ERANGE,
+           "camera.fov", "outside");
+    expect("{\"dataset\":\"a\",\"camera\":{\"pitch\":-91,\"position\":{\"x\":1,\"y\":2,\"z\":3}}}", TD_ERANGE,
+           "camera.pitch", NULL);
+    expect("{\"dataset\":\"a\"," CAM ",\"quality\":{\"samples\":9}}", TD_ERANGE, "quality.samples", NULL);
+    expect("{\"dataset\":\"a\"," CAM ",\"effects\":{\"sun\":{\"elevation\":95}}}", TD_ERANGE,
+           "effects.sun.elevation", NULL);
+    expect("{\"dataset\":\"a\"," CAM ",\"effects\":{\"ambient_occlusion\":1000}}", TD_ERANGE,
+           "effects.ambient_occlusion", NULL);
+    expect("{\"dataset\":\"a\"," CAM ",\"image\":{\"width\":0}}", TD_ERANGE, "image.width", NULL);
+    expect("{\"dataset\":\"a\",\"camera\":{\"position\":{\"lon\":1,\"lat\":95,\"alt\":3}}}", TD_ERANGE,
+           "camera.position.lat", NULL);
+    /* names */
+    expect("{\"dataset\":\"a\"," CAM ",\"quality\":{\"method\":\"magic\"}}", TD_EINVAL, "quality.method", "magic");
+    expect("{\"dataset\":\"a\"," CAM ",\"image\":{\"format\":\"jpeg\"}}", TD_EINVAL, "image.format", NULL);
+    /* oversize image: each side within limits, the product over */
+    expect("{\"dataset\":\"a\"," CAM ",\"image\":{\"width\":4096,\"height\":4096,\"format\":\"png\"}," 
+           "\"quality\":{\"samples\":1}}", TD_OK, "", NULL);
+    expect("{\"dataset\":\"a\"," CAM ",\"image\":{\"width\":4096,\"height\":4097}}", TD_ERANGE,
+           "image.height", NULL);
+    expect("{\"dataset\":\"a\"," CAM ",\"image\":{\"width\":4096,\"height\":4096},\"quality\":{\"samples\":3}}",
+           TD_ETOOBIG, "quality.samples", "exceeds");
+    /* inconsistent camera */
+    expect("{\"dataset\":\"a\",\"camera\":{\"position\":{\"x\":1,\"y\":2}}}", TD_EINVAL,
+           "camera.position", "height");
+    expect("{\"dataset\":\"a\",\"camera\":{\"position\":{\"x\":1,\"lat\":2,\"z\":3}}}", TD_EINVAL,
+           "camera.position", NULL);
+    expect("{\"dataset\":\"a\",\"camera\":{\"fov\":50,\"tilt\":30,\"position\":{\"x\":1,\"y\":2,\"z\":3}}}",
+           TD_EINVAL, "camera", "one");
+    expect("{\"dataset\":\"a\",\"camera\":{\"extent\":[0,0,1,1],\"position\":{\"x\":1,\"y\":2,\"z\":3}}}",
+           TD_EINVAL, "camera.extent", "orthographic");
+    expect("{\"dataset\":\"a\",\"camera\":{\"projection\":\"orthographic\",\"extent\":[5,0,1,1]}}",
+           TD_ERANGE, "camera.extent", NULL);
+    /* level of detail is refused rather than faked */
+    expect("{\"dataset\":\"a\"," CAM ",\"quality\":{\"lod\":true}}", TD_EUNSUPPORTED, "quality.lod", NULL);
+    /* ids: no paths from the network */
+    expect("{\"dataset\":\"../etc/passwd\"," CAM "}", TD_EINVAL, "dataset", "id");
+    expect("{\"dataset\":\"a\"," CAM ",\"effects\":{\"drape\":\"/etc/x.png\"}}", TD_EINVAL, "effects.drape", NULL);
+    /* pick */
+    expect("{\"dataset\":\"a\"," CAM ",\"image\":{\"format\":\"pick\"},\"pick\":[[1,2],[700,3]]}", TD_ERANGE,
+           "pick[1]", "outside");
+    expect("{\"dataset\":\"a\"," CAM ",\"image\":{\"format\":\"pick\"},\"pick\":[[1,\"x\"]]}", TD_EINVAL,
+           "pick[0][1]", NULL);
+    expect("{\"dataset\":\"a\"," CAM ",\"image\":{\"format\":\"pick\"}}", TD_EINVAL, "pick", NULL);
+    expect("{\"dataset\":\"a\"," CAM ",\"pick\":[[1,2]]}", TD_EINVAL, "pick", "format");
+}
+
+static void test_paths_allowed_for_cli(void **state)
+{
+    td_request_limits lim;
+    td_request_error e;
+    const char *j = "{\"dataset\":\"../data/x.f32\"," CAM "}";
+    (void)state;
+    td_request_limits_default(&lim);
+    lim.allow_paths = 1;
+    assert_int_equal(td_request_parse_scene(j, strlen(j), &lim, &scene, &e), TD_OK);
+    assert_string_equal(scene.dataset, "../data/x.f32");
+}
+
+static td_status query(const char *const *kv, size_t n, td_request_error *e)
+{
+    const char *k[32], *v[32];
+    for (size_t i = 0; i < n; i++) {
+        k[i] = kv[2 * i];
+        v[i] = kv[2 * i + 1];
+    }
+    memset(e, 0, sizeof *e);
+    return td_request_parse_query(k, v, n, NULL, &scene, e);
+}
+
+static void test_query(void **state)
+{
+    td_request_error e;
+    (void)state;
+    const char *ok[] = {"dataset", "trinidad", "camera.position.x", "52000", "camera.position.y",
+                        "31000", "camera.position.z", "4100", "camera.heading", "54.6",
+                        "image.width", "320", "effects.shadows", "true",
+                        "effects.haze.visibility_km", "40", "quality.surface", "triangle"};
+    assert_int_equal(query(ok, 9, &e), TD_OK);
+    assert_string_equal(scene.dataset, "trinidad");
+    assert_float_equal(scene.camera.x, 52000, 0);
+    assert_float_equal(scene.camera.heading, 54.6, 0);
+    assert_int_equal(scene.image.width, 320);
+    assert_int_equal(scene.effects.shadows, 1);
+    assert_int_equal(scene.effects.haze, 1);
+    assert_float_equal(scene.effects.haze_visibility_km, 40, 0);
+    assert_int_equal(scene.quality.surface, TD_SURFACE_TRIANGLE);
+
+    const char *ortho[] = {"dataset", "levi", "camera.projection", "orthographic",
+                           "camera.extent", "0,0,8000,8000"};
+    assert_int_equal(query(ortho, 3, &e), TD_OK);
+    assert_float_equal(scene.camera.extent[3], 8000, 0);
+
+    const char *dup[] = {"dataset", "a", "camera.position.x", "1", "camera.position.x", "2"};
+    assert_int_equal(query(dup, 3, &e), TD_EINVAL);
+    assert_string_equal(e.field, "camera.position.x");
+
+    const char *nan[] = {"dataset", "a", "camera.position.x", "1", "camera.position.y", "2",
+                         "camera.position.z", "3", "camera.fov", "nan"};
+    assert_int_equal(query(nan, 5, &e), TD_ERANGE);
+    assert_string_equal(e.field, "camera.fov");
+
+    const char *bad[] = {"dataset", "a", "camera.position.x", "1", "camera.position.y", "2",
+                         "camera.position.z", "3", "image.width", "64x"};
+    assert_int_equal(query(bad, 5, &e), TD_EFORMAT);
+    assert_string_equal(e.field, "image.width");
+
+    const char *unk[] = {"dataset", "a", "camera.position.x", "1", "camera.position.y", "2",
+                         "camera.position.z", "3", "effects.glitter", "true"};
+    assert_int_equal(query(unk, 5, &e), TD_EINVAL);
+    assert_string_equal(e.field, "effects.glitter");
+
+    const char *mixed[] = {"dataset", "a", "effects.haze", "true", "effects.haze.visibility_km", "3"};
+    assert_int_equal(query(mixed, 3, &e), TD_EINVAL);
+    assert_string_equal(e.field, "effects.haze.visibility_km");
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_full_scene),
+        cmocka_unit_test(test_defaults_and_variants),
+        cmocka_unit_test(test_refusals),
+        cmocka_unit_test(test_paths_allowed_for_cli),
+        cmocka_unit_test(test_query),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
