@@ -107,15 +107,14 @@ static int asc_prj_says(const char *path)
     char prj[4096], text[TD_ASC_PRJ_MAX];
     int res = -1;
     size_t n;
-    FILE *f;
-    char *dot;
-    if (snprintf(prj, sizeof prj, "%s", path) >= (int)sizeof prj)
-        return -1;
-    dot = strrchr(prj, '.');
-    if (!dot || strchr(dot, '/') || (size_t)(dot - prj) + 5 > sizeof prj)
-        return -1;
-    strcpy(dot, ".prj");
-    f = fopen(prj, "rb");
+    FILE *f = NULL;
+    char *dot = NULL;
+    if (snprintf(prj, sizeof prj, "%s", path) < (int)sizeof prj - 4)
+        dot = strrchr(prj, '.');
+    if (dot && !strchr(dot, '/')) {
+        strcpy(dot, ".prj"); /* fits: the path had room for 4 more bytes */
+        f = fopen(prj, "rb");
+    }
     if (f) {
         n = fread(text, 1, sizeof text - 1, f);
         text[n] = '\0';

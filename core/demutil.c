@@ -32,13 +32,13 @@ void td_demutil_ext(const char *path, char *out, size_t outsz)
     const char *base = td_demutil_basename(path);
     const char *dot = strrchr(base, '.');
     size_t k = 0;
-    if (outsz == 0)
-        return;
-    if (dot && dot != base) {
-        for (const char *p = dot + 1; *p && k + 1 < outsz; p++)
-            out[k++] = (char)tolower((unsigned char)*p);
+    if (outsz > 0) {
+        if (dot && dot != base) {
+            for (const char *p = dot + 1; *p && k + 1 < outsz; p++)
+                out[k++] = (char)tolower((unsigned char)*p);
+        }
+        out[k] = '\0';
     }
-    out[k] = '\0';
 }
 
 int td_demutil_sidecar_path(const char *path, char *out, size_t outsz)

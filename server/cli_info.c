@@ -41,12 +41,13 @@ static int parse_num(const char *s, double *out)
 {
     char *end = NULL;
     double v;
+    int ok;
     errno = 0;
     v = strtod(s, &end);
-    if (end == s || *end != '\0' || errno == ERANGE || !isfinite(v))
-        return 0;
-    *out = v;
-    return 1;
+    ok = end != s && *end == '\0' && errno != ERANGE && isfinite(v);
+    if (ok)
+        *out = v;
+    return ok;
 }
 
 static int parse_spacing(const char *s, double sp[2])
@@ -135,7 +136,7 @@ static void print_text(const char *path, const td_grid *g)
 
 int td_cli_info(int argc, char **argv)
 {
-    int rc = 0, json = 0;
+    int rc = 0, json = 0, help = 0;
     const char *path = NULL;
     td_dem_opts opts;
     td_grid *g = NULL;
@@ -152,8 +153,7 @@ int td_cli_info(int argc, char **argv)
             fprintf(stderr, "terrad info: %s needs a value\n", a);
             rc = 2;
         } else if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
-            info_usage(stdout);
-            return 0;
+            help = 1;
         } else if (!strcmp(a, "--json")) {
             json = 1;
         } else if (!strcmp(a, "--encoding")) {
@@ -188,6 +188,10 @@ int td_cli_info(int argc, char **argv)
             fprintf(stderr, "terrad info: bad value '%s' for %s\n", v, a);
         if (takes)
             k++;
+    }
+    if (rc == 0 && help) {
+        info_usage(stdout);
+        goto out;
     }
     if (rc == 0 && !path) {
         fprintf(stderr, "terrad info: no FILE given\n");
