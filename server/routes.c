@@ -1,0 +1,1274 @@
+/* routes.c: the HTTP API (see routes.h and docs/api.md).
+ *
+ * Dispatch: the path is matched against the route table; a known path with the wrong
+ * method gets 405 and an Allow header; admin routes check the bearer token (constant
+ * time) before anything else, and are 404 `admin_disabled` when no token is configured.
+ * POST bodies must be application/json (415) and fit the cap (413). Errors are JSON
+ * {"error": {"code", "field", "message"}}; bad input is always a 4xx, never a 500.
+ *
+ * Renders, picks and map tiles run on the HTTP layer's bounded worker queue
+ * (td_http_defer): the handler parses and validates on the HTTP thread (so a bad
+ * request never takes a queue slot), a full queue answers 503 with Retry-After, and the
+ * worker takes a tile-store snapshot, renders, encodes and fills the response with
+ * Server-Timing (parse, queue, every render stage that ran, encode). A watchdog thread
+ * raises a render's cancel flag at its deadline (--render-timeout) and at shutdown. */
+#include "routes.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <jansson.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <stddef.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include "log.h"
+#include "render.h"
+#include "request.h"
+
+const char *const td_route_names[TD_ROUTE_COUNT] = {
+#define TD_X_NAME(e, name) name,
+    TD_ROUTE_LIST(TD_X_NAME)
+#undef TD_X_NAME
+};
+
+/* X(enum, status, code): the error codes of the JSON error body. */
+#define TD_APIERR_LIST(X)                                                      \
+    X(TD_AE_BAD_REQUEST, 400, "bad_request")                                   \
+    X(TD_AE_UNAUTHORIZED, 401, "unauthorized")                                 \
+    X(TD_AE_NOT_FOUND, 404, "not_found")                                       \
+    X(TD_AE_UNKNOWN_DATASET, 404, "unknown_dataset")                           \
+    X(TD_AE_UNKNOWN_JOB, 404, "unknown_job")                                   \
+    X(TD_AE_ADMIN_DISABLED, 404, "admin_disabled")                             \
+    X(TD_AE_METHOD, 405, "method_not_allowed")                                 \
+    X(TD_AE_TOO_LARGE, 413, "body_too_large")                                  \
+    X(TD_AE_MEDIA_TYPE, 415, "unsupported_media_type")                         \
+    X(TD_AE_INTERNAL, 500, "internal")                                         \
+    X(TD_AE_BUSY, 503, "busy")                                                 \
+    X(TD_AE_STOPPING, 503, "stopping")                                         \
+    X(TD_AE_TIMEOUT, 503, "render_timeout")
+
+typedef enum td_apierr {
+#define TD_X_ENUM(e, st, code) e,
+    TD_APIERR_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_AE_COUNT
+} td_apierr;
+
+static const struct {
+    int status;
+    const char *code;
+} td_apierrs[] = {
+#define TD_X_ERR(e, st, code) {st, code},
+    TD_APIERR_LIST(TD_X_ERR)
+#undef TD_X_ERR
+};
+
+/* --- response helpers ---------------------------------------------------------------- */
+
+static void send_json(td_http_resp *r, int status, json_t *j)
+{
+    char *text = j ? json_dumps(j, JSON_COMPACT | JSON_REAL_PRECISION(10)) : NULL;
+    json_decref(j);
+    r->status = status;
+    if (text) {
+        size_t n = strlen(text);
+        text[n] = '\0';
+        td_http_resp_take(r, text, n, "application/json");
+    } else {
+        /* Out of memory while building JSON: a fixed body, still JSON. */
+        static const char oom[] = "{\"error\":{\"code\":\"internal\",\"field\":null,"
+                                  "\"message\":\"out of memory\"}}";
+        r->status = 500;
+        td_http_resp_copy(r, oom, sizeof oom - 1, "application/json");
+    }
+}
+
+static void api_error(td_http_resp *r, td_apierr e, const char *field, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+static void api_error(td_http_resp *r, td_apierr e, const char *field, const char *fmt, ...)
+{
+    char msg[600];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    send_json(r, td_apierrs[e].status,
+              json_pack("{s:{s:s,s:s?,s:s}}", "error", "code", td_apierrs[e].code, "field", field,
+                        "message", msg));
+}
+
+static void method_not_allowed(td_http_resp *r, const char *allow, const char *method)
+{
+    td_http_resp_header(r, "Allow", "%s", allow);
+    api_error(r, TD_AE_METHOD, NULL, "method %s is not allowed here (allowed: %s)", method, allow);
+}
+
+int td_routes_token_equal(const char *given, const char *want)
+{
+    size_t gl = strlen(given), wl = strlen(want);
+    unsigned char diff = (unsigned char)(gl != wl);
+    /* Walk the configured token's length whatever was given: time depends on it only. */
+    for (size_t i = 0; i < wl; i++)
+        diff |= (unsigned char)(want[i] ^ (i < gl ? given[i] : 0));
+    return diff == 0;
+}
+
+/* 0 when the request may use admin routes; else the response is filled. */
+static int admin_check(td_app *app, td_http_req *q, td_http_resp *r)
+{
+    int rc = -1;
+    const char *auth = td_http_req_header(q, "Authorization");
+    if (!app->cfg->admin_token) {
+        api_error(r, TD_AE_ADMIN_DISABLED, NULL,
+                  "admin routes are off: set TERRAD_ADMIN_TOKEN or --admin-token-file");
+        goto out;
+    }
+    if (!auth || strncasecmp(auth, "Bearer ", 7)) {
+        td_http_resp_header(r, "WWW-Authenticate", "Bearer realm=\"terrad admin\"");
+        api_error(r, TD_AE_UNAUTHORIZED, NULL, "missing bearer token (Authorization: Bearer ...)");
+        goto out;
+    }
+    if (!td_routes_token_equal(auth + 7, app->cfg->admin_token)) {
+        td_http_resp_header(r, "WWW-Authenticate", "Bearer realm=\"terrad admin\", error=\"invalid_token\"");
+        api_error(r, TD_AE_UNAUTHORIZED, NULL, "wrong bearer token");
+        goto out;
+    }
+    rc = 0;
+out:
+    return rc;
+}
+
+/* 0 when the body is JSON; else the response (415) is filled. */
+static int json_body_check(td_http_req *q, td_http_resp *r)
+{
+    const char *ct = td_http_req_header(q, "Content-Type");
+    size_t n = strlen("application/json");
+    if (ct && !strncasecmp(ct, "application/json", n) && (ct[n] == '\0' || ct[n] == ';' || ct[n] == ' '))
+        return 0;
+    api_error(r, TD_AE_MEDIA_TYPE, NULL, "the body must be application/json (got %s)",
+              ct ? ct : "no Content-Type");
+    return -1;
+}
+
+/* --- datasets ---------------------------------------------------------------------- */
+
+static json_t *dataset_json(td_app *app, size_t idx)
+{
+    td_dataset_info di;
+    const td_grid *g;
+    json_t *geo = json_null();
+    td_store_info(app->store, idx, &di);
+    g = di.grid;
+    if (g->geo.kind != TD_GEO_NONE) {
+        const td_georef *r = &g->geo;
+        geo = json_pack("{s:s,s:[f,f],s:[f,f],s:[f,f,f,f],s:s}", "kind",
+                        r->kind == TD_GEO_LONLAT ? "lonlat" : "projected", "origin", r->x0, r->y0,
+                        "step", r->dx, r->dy, "bounds", r->x0, r->y0,
+                        r->x0 + r->dx * (g->w - 1), r->y0 + r->dy * (g->h - 1), "crs", r->crs);
+    }
+    return json_pack(
+        "{s:s,s:s,s:s,s:{s:i,s:i},s:[f,f],s:{s:[f,f],s:[f,f],s:[f,f]},s:I,s:o,"
+        "s:{s:i,s:i,s:i,s:I},s:{s:I,s:I,s:I,s:I,s:I,s:I}}",
+        "id", di.id, "file", di.file, "origin", di.origin,
+        "size", "width", (int)g->w, "height", (int)g->h,
+        "spacing", g->sx, g->sy,
+        "extent", "x", 0.0, g->sx * (g->w - 1), "y", 0.0, g->sy * (g->h - 1),
+        "z", isfinite(g->zmin) ? (double)g->zmin : 0.0, isfinite(g->zmax) ? (double)g->zmax : 0.0,
+        "voids", (json_int_t)g->voids,
+        "georeference", geo,
+        "tiles", "size", (int)td_grid_tile_size(g), "x", (int)g->tiles_x, "y", (int)g->tiles_y,
+        "total", (json_int_t)di.ntiles,
+        "residency", "tiles", (json_int_t)di.resident_tiles, "maxmip", (json_int_t)di.maxmip_tiles,
+        "planes", (json_int_t)di.planes_tiles, "pinned", (json_int_t)di.pinned_tiles,
+        "grid_bytes", (json_int_t)di.grid_bytes, "accel_bytes", (json_int_t)di.accel_bytes);
+}
+
+static void h_datasets(td_app *app, td_http_resp *r)
+{
+    json_t *arr = json_array();
+    for (size_t i = 0; arr && i < td_store_count(app->store); i++)
+        json_array_append_new(arr, dataset_json(app, i));
+    send_json(r, 200, arr);
+}
+
+static void h_dataset(td_app *app, const char *id, td_http_resp *r)
+{
+    long idx = td_store_find(app->store, id);
+    if (idx < 0)
+        api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", id);
+    else
+        send_json(r, 200, dataset_json(app, (size_t)idx));
+}
+
+/* --- health, metrics ------------------------------------------------------------------- */
+
+static void h_metrics(td_app *app, td_http_resp *r)
+{
+    td_metrics_ext e;
+    td_store_stats st;
+    size_t jc[TD_JOB_STATE_COUNT], len = 0;
+    char *text;
+    memset(&e, 0, sizeof e);
+    td_store_stats_get(app->store, &st);
+    td_jobs_counts(app->jobs, jc);
+    e.queue_depth = app->http ? td_http_queue_depth(app->http) : 0;
+    e.queue_capacity = (int)(app->cfg->render_workers + app->cfg->queue);
+    e.datasets = (int)st.datasets;
+    e.resident_tiles = st.resident_tiles;
+    e.total_tiles = st.total_tiles;
+    e.resident_bytes = st.resident_bytes;
+    e.budget_bytes = st.budget_bytes;
+    e.tiles_built = st.tiles_built;
+    e.tiles_evicted = st.tiles_evicted;
+    e.cache_hits = st.cache_hits;
+    e.cache_misses = st.cache_misses;
+    e.jobs_queued = jc[TD_JOB_QUEUED];
+    e.jobs_running = jc[TD_JOB_RUNNING];
+    e.jobs_done = jc[TD_JOB_DONE];
+    e.jobs_failed = jc[TD_JOB_FAILED];
+    text = td_metrics_format(app->metrics, &e, &len);
+    if (!text) {
+        api_error(r, TD_AE_INTERNAL, NULL, "out of memory");
+        return;
+    }
+    r->status = 200;
+    td_http_resp_take(r, text, len, "text/plain; version=0.0.4; charset=utf-8");
+}
+
+static void h_readyz(td_app *app, td_http_resp *r)
+{
+    if (atomic_load(&app->ready))
+        send_json(r, 200, json_pack("{s:s,s:I}", "status", "ready", "datasets",
+                                    (json_int_t)td_store_count(app->store)));
+    else
+        api_error(r, TD_AE_STOPPING, NULL, "not ready (starting or stopping)");
+}
+
+/* --- admin --------------------------------------------------------------------------- */
+
+static const char *const preload_keys[] = {"dataset", "tiles", "bbox", "bbox_lonlat", "build",
+                                           "pin", "rebuild", NULL};
+
+static int key_allowed(const char *k, const char *const *allowed)
+{
+    for (size_t i = 0; allowed[i]; i++)
+        if (!strcmp(k, allowed[i]))
+            return 1;
+    return 0;
+}
+
+static int read_box(json_t *v, double box[4])
+{
+    int ok = json_is_array(v) && json_array_size(v) == 4;
+    for (size_t i = 0; ok && i < 4; i++) {
+        ok = json_is_number(json_array_get(v, i));
+        if (ok)
+            box[i] = json_number_value(json_array_get(v, i));
+    }
+    return ok;
+}
+
+static void job_json_send(td_http_resp *r, int status, const td_job_info *ji)
+{
+    json_t *build = json_array();
+    json_t *err = json_null();
+    if (ji->maxmip)
+        json_array_append_new(build, json_string("maxmip"));
+    if (ji->planes)
+        json_array_append_new(build, json_string("planes"));
+    if (ji->state == TD_JOB_FAILED)
+        err = json_pack("{s:s,s:s}", "code", td_status_json((td_status)ji->error_status), "message",
+                        ji->error);
+    send_json(r, status,
+              json_pack("{s:I,s:s,s:s,s:s,s:{s:I,s:I,s:I,s:I},s:o,s:b,s:b,s:f,s:o,s:o,s:s}",
+                        "id", (json_int_t)ji->id, "dataset", ji->dataset, "state",
+                        td_job_state_name(ji->state), "phase", ji->phase, "tiles", "done",
+                        (json_int_t)ji->done, "total", (json_int_t)ji->total, "requested",
+                        (json_int_t)ji->requested, "built", (json_int_t)ji->built, "build", build,
+                        "pin", ji->pin, "rebuild", ji->rebuild, "elapsed_s", ji->elapsed_s,
+                        "estimate_s", ji->estimate_s >= 0 ? json_real(ji->estimate_s) : json_null(),
+                        "error", err, "location", ""));
+}
+
+static void h_preload(td_app *app, td_http_req *q, td_http_resp *r)
+{
+    json_error_t je;
+    json_t *root = NULL, *v;
+    const char *key;
+    size_t len, *tiles = NULL, ntiles = 0;
+    const char *body = td_http_req_body(q, &len);
+    td_preload_spec spec;
+    long idx;
+    unsigned id = 0;
+    td_err e = {{0}};
+    td_job_info ji;
+    char field[64];
+
+    memset(&spec, 0, sizeof spec);
+    root = json_loadb(body, len, JSON_REJECT_DUPLICATES, &je);
+    if (!root || !json_is_object(root)) {
+        api_error(r, TD_AE_BAD_REQUEST, "", "the body is not a JSON object%s%s", root ? "" : ": ",
+                  root ? "" : je.text);
+        goto out;
+    }
+    json_object_foreach(root, key, v)
+    {
+        if (!key_allowed(key, preload_keys)) {
+            api_error(r, TD_AE_BAD_REQUEST, key, "unknown key '%s'", key);
+            goto out;
+        }
+    }
+    v = json_object_get(root, "dataset");
+    if (!json_is_string(v)) {
+        api_error(r, TD_AE_BAD_REQUEST, "dataset", "dataset: a string id is required");
+        goto out;
+    }
+    idx = td_store_find(app->store, json_string_value(v));
+    if (idx < 0) {
+        api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", json_string_value(v));
+        goto out;
+    }
+    spec.dataset = (size_t)idx;
+    spec.maxmip = spec.planes = 1;
+    if ((v = json_object_get(root, "build"))) {
+        size_t i;
+        json_t *b;
+        if (!json_is_array(v) || !json_array_size(v)) {
+            api_error(r, TD_AE_BAD_REQUEST, "build", "build: a non-empty list of \"maxmip\", \"planes\"");
+            goto out;
+        }
+        spec.maxmip = spec.planes = 0;
+        json_array_foreach(v, i, b)
+        {
+            const char *s = json_string_value(b);
+            snprintf(field, sizeof field, "build[%zu]", i);
+            if (s && !strcmp(s, "maxmip"))
+                spec.maxmip = 1;
+            else if (s && !strcmp(s, "planes"))
+                spec.planes = 1;
+            else {
+                api_error(r, TD_AE_BAD_REQUEST, field, "%s: expected \"maxmip\" or \"planes\"", field);
+                goto out;
+            }
+        }
+    }
+    if ((v = json_object_get(root, "pin")) && !json_is_boolean(v)) {
+        api_error(r, TD_AE_BAD_REQUEST, "pin", "pin: expected true or false");
+        goto out;
+    }
+    spec.pin = json_is_true(v);
+    if ((v = json_object_get(root, "rebuild")) && !json_is_boolean(v)) {
+        api_error(r, TD_AE_BAD_REQUEST, "rebuild", "rebuild: expected true or false");
+        goto out;
+    }
+    spec.rebuild = json_is_true(v);
+    {
+        int nsel = !!json_object_get(root, "tiles") + !!json_object_get(root, "bbox") +
+                   !!json_object_get(root, "bbox_lonlat");
+        if (nsel > 1) {
+            api_error(r, TD_AE_BAD_REQUEST, "tiles", "give one of tiles, bbox, bbox_lonlat");
+            goto out;
+        }
+    }
+    if ((v = json_object_get(root, "tiles"))) {
+        td_dataset_info di;
+        td_store_info(app->store, spec.dataset, &di);
+        if (json_is_string(v) && !strcmp(json_string_value(v), "all")) {
+            /* all: spec.tiles stays NULL */
+        } else if (json_is_array(v) && json_array_size(v) > 0 && json_array_size(v) <= di.ntiles * 4) {
+            size_t i;
+            json_t *t;
+            ntiles = json_array_size(v);
+            tiles = malloc(ntiles * sizeof *tiles);
+            if (!tiles) {
+                api_error(r, TD_AE_INTERNAL, NULL, "out of memory");
+                goto out;
+            }
+            json_array_foreach(v, i, t)
+            {
+                json_t *tx = json_array_get(t, 0), *ty = json_array_get(t, 1);
+                snprintf(field, sizeof field, "tiles[%zu]", i);
+                if (!json_is_array(t) || json_array_size(t) != 2 || !json_is_integer(tx) ||
+                    !json_is_integer(ty)) {
+                    api_error(r, TD_AE_BAD_REQUEST, field, "%s: expected [tx, ty] (integers)", field);
+                    goto out;
+                }
+                if (json_integer_value(tx) < 0 || json_integer_value(tx) >= di.grid->tiles_x ||
+                    json_integer_value(ty) < 0 || json_integer_value(ty) >= di.grid->tiles_y) {
+                    api_error(r, TD_AE_BAD_REQUEST, field,
+                              "%s: tile [%lld, %lld] is outside the %d x %d tiles of '%s'", field,
+                              (long long)json_integer_value(tx), (long long)json_integer_value(ty),
+                              (int)di.grid->tiles_x, (int)di.grid->tiles_y, di.id);
+                    goto out;
+                }
+                tiles[i] = (size_t)json_integer_value(ty) * (size_t)di.grid->tiles_x +
+                           (size_t)json_integer_value(tx);
+            }
+        } else {
+            api_error(r, TD_AE_BAD_REQUEST, "tiles",
+                      "tiles: \"all\" or a non-empty list of [tx, ty] (at most 4x the tile count)");
+            goto out;
+        }
+    } else if ((v = json_object_get(root, "bbox")) || (v = json_object_get(root, "bbox_lonlat"))) {
+        int lonlat = !!json_object_get(root, "bbox_lonlat");
+        const char *f = lonlat ? "bbox_lonlat" : "bbox";
+        double box[4];
+        td_dataset_info di;
+        td_store_info(app->store, spec.dataset, &di);
+        if (!read_box(v, box)) {
+            api_error(r, TD_AE_BAD_REQUEST, f, "%s: expected [xmin, ymin, xmax, ymax] (numbers)", f);
+            goto out;
+        }
+        if (lonlat) {
+            const td_georef *g = &di.grid->geo;
+            if (g->kind != TD_GEO_LONLAT) {
+                api_error(r, TD_AE_BAD_REQUEST, f, "%s: dataset '%s' is not in lon/lat", f, di.id);
+                goto out;
+            }
+            box[0] = (box[0] - g->x0) / g->dx * di.grid->sx;
+            box[2] = (box[2] - g->x0) / g->dx * di.grid->sx;
+            box[1] = (box[1] - g->y0) / g->dy * di.grid->sy;
+            box[3] = (box[3] - g->y0) / g->dy * di.grid->sy;
+        }
+        if (td_store_tiles_in_box(app->store, spec.dataset, box, &tiles, &ntiles, &e)) {
+            api_error(r, TD_AE_BAD_REQUEST, f, "%s: %s", f, e.msg);
+            goto out;
+        }
+        if (!ntiles) {
+            api_error(r, TD_AE_BAD_REQUEST, f, "%s: the box meets no tile of '%s'", f, di.id);
+            goto out;
+        }
+    }
+    spec.tiles = tiles;
+    spec.ntiles = ntiles;
+    if (td_jobs_submit(app->jobs, &spec, &id, &e)) {
+        td_http_resp_header(r, "Retry-After", "5");
+        api_error(r, TD_AE_BUSY, NULL, "%s", e.msg);
+        goto out;
+    }
+    if (!td_jobs_get(app->jobs, id, &ji)) {
+        api_error(r, TD_AE_INTERNAL, NULL, "job %u vanished", id);
+        goto out;
+    }
+    td_http_resp_header(r, "Location", "/v1/admin/jobs/%u", id);
+    job_json_send(r, 202, &ji);
+out:
+    free(tiles);
+    json_decref(root);
+}
+
+static void h_job(td_app *app, const char *ids, td_http_resp *r)
+{
+    char *end = NULL;
+    unsigned long id;
+    td_job_info ji;
+    errno = 0;
+    id = strtoul(ids, &end, 10);
+    if (!*ids || !isdigit((unsigned char)ids[0]) || errno || *end || id > 0xffffffffUL ||
+        !td_jobs_get(app->jobs, (unsigned)id, &ji))
+        api_error(r, TD_AE_UNKNOWN_JOB, NULL, "unknown job '%s'", ids);
+    else
+        job_json_send(r, 200, &ji);
+}
+
+static void h_evict(td_app *app, const char *id, td_http_resp *r)
+{
+    long idx = td_store_find(app->store, id);
+    size_t n = 0;
+    if (idx < 0) {
+        api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", id);
+        return;
+    }
+    td_store_evict_dataset(app->store, (size_t)idx, &n);
+    td_log(TD_LOG_INFO, "tiles_evicted", "dataset=%s tiles=%zu", id, n);
+    send_json(r, 200, json_pack("{s:s,s:I}", "dataset", id, "evicted", (json_int_t)n));
+}
+
+/* --- static files -------------------------------------------------------------------- */
+
+#define TD_MIME_LIST(X)                                                        \
+    X("html", "text/html; charset=utf-8")                                      \
+    X("htm", "text/html; charset=utf-8")                                       \
+    X("js", "text/javascript; charset=utf-8")                                  \
+    X("mjs", "text/javascript; charset=utf-8")                                 \
+    X("css", "text/css; charset=utf-8")                                        \
+    X("json", "application/json")                                              \
+    X("map", "application/json")                                               \
+    X("txt", "text/plain; charset=utf-8")                                      \
+    X("md", "text/markdown; charset=utf-8")                                    \
+    X("png", "image/png")                                                      \
+    X("jpg", "image/jpeg")                                                     \
+    X("jpeg", "image/jpeg")                                                    \
+    X("gif", "image/gif")                                                      \
+    X("svg", "image/svg+xml")                                                  \
+    X("ico", "image/x-icon")                                                   \
+    X("webp", "image/webp")                                                    \
+    X("woff", "font/woff")                                                     \
+    X("woff2", "font/woff2")                                                   \
+    X("wasm", "application/wasm")
+
+static const char *mime_of(const char *path)
+{
+    static const struct {
+        const char *ext, *type;
+    } types[] = {
+#define TD_X_MIME(ext, type) {ext, type},
+        TD_MIME_LIST(TD_X_MIME)
+#undef TD_X_MIME
+    };
+    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
+    const char *type = "application/octet-stream";
+    if (dot && (!slash || dot > slash))
+        for (size_t i = 0; i < sizeof types / sizeof types[0]; i++)
+            if (!strcasecmp(dot + 1, types[i].ext))
+                type = types[i].type;
+    return type;
+}
+
+/* Serves root/rel, where rel is what follows the route prefix. Refuses empty, `.` and
+ * `..` segments, hidden files, and anything whose real path leaves root. */
+static void serve_file(const char *root, const char *rel, int vendor, td_http_resp *r)
+{
+    char path[PATH_MAX], real[PATH_MAX];
+    struct stat st;
+    FILE *f = NULL;
+    char *buf = NULL;
+    size_t rl = strlen(root);
+    const char *seg = rel;
+
+    if (!root[0]) {
+        api_error(r, TD_AE_NOT_FOUND, NULL, "the web page is not installed (no web/ directory)");
+        goto out;
+    }
+    while (*seg) {
+        const char *next = strchr(seg, '/');
+        size_t n = next ? (size_t)(next - seg) : strlen(seg);
+        if ((n == 0 && next) || seg[0] == '.' || memchr(seg, '\\', n)) {
+            api_error(r, TD_AE_NOT_FOUND, NULL, "no such file");
+            goto out;
+        }
+        seg += n + (next ? 1 : 0);
+    }
+    if ((size_t)snprintf(path, sizeof path, "%s/%s", root, *rel ? rel : "index.html") >= sizeof path ||
+        !realpath(path, real) || strncmp(real, root, rl) || real[rl] != '/' || stat(real, &st)) {
+        api_error(r, TD_AE_NOT_FOUND, NULL, "no such file");
+        goto out;
+    }
+    if (S_ISDIR(st.st_mode)) {
+        if ((size_t)snprintf(path, sizeof path, "%s/index.html", real) >= sizeof path ||
+            stat(path, &st) || !S_ISREG(st.st_mode)) {
+            api_error(r, TD_AE_NOT_FOUND, NULL, "no such file");
+            goto out;
+        }
+        snprintf(real, sizeof real, "%s", path);
+    }
+    if (!S_ISREG(st.st_mode) || st.st_size > (64 << 20)) {
+        api_error(r, TD_AE_NOT_FOUND, NULL, "no such file");
+        goto out;
+    }
+    buf = malloc((size_t)st.st_size + 1);
+    f = fopen(real, "rb");
+    if (!buf || !f || fread(buf, 1, (size_t)st.st_size, f) != (size_t)st.st_size) {
+        api_error(r, TD_AE_INTERNAL, NULL, "cannot read the file");
+        goto out;
+    }
+    r->status = 200;
+    td_http_resp_take(r, buf, (size_t)st.st_size, mime_of(real));
+    buf = NULL;
+    td_http_resp_header(r, "Cache-Control", vendor ? "public, max-age=86400" : "no-cache");
+    td_http_resp_header(r, "X-Content-Type-Options", "nosniff");
+out:
+    if (f)
+        fclose(f);
+    free(buf);
+}
+
+/* --- dispatch ------------------------------------------------------------------------ */
+
+/* Splits "a/b/c" after a prefix into at most max segments (copied into buf). */
+static int split_path(const char *rest, char *buf, size_t cap, char **seg, int max)
+{
+    int n = 0;
+    char *p;
+    if (strlen(rest) >= cap)
+        return -1;
+    strcpy(buf, rest);
+    p = buf;
+    while (n < max) {
+        char *slash = strchr(p, '/');
+        seg[n++] = p;
+        if (!slash)
+            break;
+        *slash = '\0';
+        p = slash + 1;
+    }
+    return strchr(p, '/') && n == max ? -1 : n;
+}
+
+/* --- render deadlines ------------------------------------------------------------------ */
+
+#define TD_WATCH_SLOTS 256
+
+typedef struct td_watch_slot {
+    atomic_int cancel;
+    double deadline;
+    int used;
+} td_watch_slot;
+
+struct td_watch {
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    pthread_t thread;
+    int quit;
+    td_watch_slot slot[TD_WATCH_SLOTS];
+};
+
+static void *watch_main(void *arg)
+{
+    struct td_watch *w = arg;
+    pthread_mutex_lock(&w->mu);
+    while (!w->quit) {
+        struct timespec ts;
+        double now = td_http_now();
+        for (int i = 0; i < TD_WATCH_SLOTS; i++)
+            if (w->slot[i].used && now > w->slot[i].deadline)
+                atomic_store(&w->slot[i].cancel, 1);
+        clock_gettime(CLOCK_REALTIME, &ts);
+        ts.tv_nsec += 50 * 1000 * 1000;
+        if (ts.tv_nsec >= 1000000000L) {
+            ts.tv_sec++;
+            ts.tv_nsec -= 1000000000L;
+        }
+        pthread_cond_timedwait(&w->cv, &w->mu, &ts);
+    }
+    pthread_mutex_unlock(&w->mu);
+    return NULL;
+}
+
+td_status td_routes_start(td_app *app, td_err *err)
+{
+    td_status rc = TD_OK;
+    struct td_watch *w = calloc(1, sizeof *w);
+    if (!w) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for the render watchdog");
+        goto out;
+    }
+    pthread_mutex_init(&w->mu, NULL);
+    pthread_cond_init(&w->cv, NULL);
+    for (int i = 0; i < TD_WATCH_SLOTS; i++)
+        atomic_init(&w->slot[i].cancel, 0);
+    if (pthread_create(&w->thread, NULL, watch_main, w)) {
+        pthread_mutex_destroy(&w->mu);
+        pthread_cond_destroy(&w->cv);
+        free(w);
+        rc = td_err_set(err, TD_ENOMEM, "cannot start the render watchdog");
+        goto out;
+    }
+    app->watch = w;
+out:
+    return rc;
+}
+
+void td_routes_stop(td_app *app)
+{
+    struct td_watch *w = app->watch;
+    if (!w)
+        return;
+    pthread_mutex_lock(&w->mu);
+    w->quit = 1;
+    pthread_cond_signal(&w->cv);
+    pthread_mutex_unlock(&w->mu);
+    pthread_join(w->thread, NULL);
+    pthread_mutex_destroy(&w->mu);
+    pthread_cond_destroy(&w->cv);
+    free(w);
+    app->watch = NULL;
+}
+
+void td_routes_cancel_all(td_app *app)
+{
+    struct td_watch *w = app->watch;
+    if (!w)
+        return;
+    pthread_mutex_lock(&w->mu);
+    for (int i = 0; i < TD_WATCH_SLOTS; i++)
+        if (w->slot[i].used)
+            atomic_store(&w->slot[i].cancel, 1);
+    pthread_mutex_unlock(&w->mu);
+}
+
+/* A slot whose cancel flag the render polls; NULL when all are taken (no deadline). */
+static td_watch_slot *watch_begin(td_app *app, double seconds)
+{
+    struct td_watch *w = app->watch;
+    td_watch_slot *s = NULL;
+    if (!w)
+        return NULL;
+    pthread_mutex_lock(&w->mu);
+    for (int i = 0; i < TD_WATCH_SLOTS && !s; i++)
+        if (!w->slot[i].used) {
+            s = &w->slot[i];
+            s->used = 1;
+            s->deadline = td_http_now() + seconds;
+            atomic_store(&s->cancel, 0);
+        }
+    pthread_mutex_unlock(&w->mu);
+    return s;
+}
+
+static void watch_end(td_app *app, td_watch_slot *s)
+{
+    if (!s)
+        return;
+    pthread_mutex_lock(&app->watch->mu);
+    s->used = 0;
+    pthread_mutex_unlock(&app->watch->mu);
+}
+
+/* --- renders, picks and map tiles -------------------------------------------------------- */
+
+typedef enum td_rkind { TD_RK_RENDER, TD_RK_PICK, TD_RK_TILE } td_rkind;
+
+typedef struct td_rjob {
+    td_app *app;
+    td_rkind kind;
+    int get;           /* GET: ETag and Cache-Control */
+    double parse_ms;
+    char etag[40];
+    td_scene scene;    /* large (the pick list): the job is heap-allocated */
+} td_rjob;
+
+static void request_limits(const td_app *app, td_request_limits *lim)
+{
+    td_request_limits_default(lim);
+    lim->max_pixels = (uint64_t)app->cfg->max_pixels;
+    if (lim->max_samples > app->cfg->max_samples)
+        lim->max_samples = (int)app->cfg->max_samples;
+    lim->allow_paths = 0;
+}
+
+static void scene_etag(const td_scene *s, const td_grid *g, char *out, size_t n)
+{
+    size_t bytes = offsetof(td_scene, pick) + (size_t)s->npick * sizeof s->pick[0];
+    uint64_t h = 14695981039346656037ULL;
+    const unsigned char *p = (const unsigned char *)s;
+    for (size_t i = 0; i < bytes; i++) {
+        h ^= p[i];
+        h *= 1099511628211ULL;
+    }
+    /* The dataset too: same scene over different heights is a different picture. */
+    h ^= (uint64_t)g->w * 2654435761u ^ (uint64_t)g->h ^ (uint64_t)(g->zmax * 1000.0);
+    h *= 1099511628211ULL;
+    snprintf(out, n, "\"%016llx\"", (unsigned long long)h);
+}
+
+static int etag_matches(td_http_req *q, const char *etag)
+{
+    const char *inm = td_http_req_header(q, "If-None-Match");
+    return inm && (strstr(inm, etag) || !strcmp(inm, "*"));
+}
+
+/* The resolved method label: what the tracer can actually use with what is resident. */
+static const char *method_label(td_method m, size_t nmm, size_t npl, size_t nt)
+{
+    const char *label = td_method_name(m);
+    if (m == TD_METHOD_HIERARCHICAL)
+        label = nmm == nt ? "hierarchical" : nmm == 0 ? "incremental" : "hierarchical+incremental";
+    else if (m == TD_METHOD_PARAMETRIC)
+        label = npl == nt ? "parametric" : npl == 0 ? "incremental" : "parametric+incremental";
+    else if (m == TD_METHOD_AUTO)
+        label = npl == nt ? "auto:parametric" : nmm == nt ? "auto:hierarchical"
+                : npl + nmm == 0 ? "auto:incremental" : "auto:mixed";
+    return label;
+}
+
+static void timing_header(td_http_resp *r, const td_rjob *j, double queue_ms,
+                          const td_render_stats *st)
+{
+    char v[512];
+    size_t n = 0;
+    int w;
+    w = snprintf(v, sizeof v, "parse;dur=%.3f, queue;dur=%.3f", j->parse_ms, queue_ms);
+    n = w > 0 ? (size_t)w : 0;
+    if (st) {
+        w = snprintf(v + n, sizeof v - n, ", trace;dur=%.3f",
+                     st->stage_ms[TD_STAGE_PRIMARY] + st->stage_ms[TD_STAGE_CURVATURE]);
+        if (w > 0 && (size_t)w < sizeof v - n)
+            n += (size_t)w;
+        for (int k = 0; k < TD_STAGE_COUNT; k++) {
+            if (!st->stage_ran[k] || k == TD_STAGE_PRIMARY || k == TD_STAGE_CURVATURE)
+                continue;
+            w = snprintf(v + n, sizeof v - n, ", %s;dur=%.3f", td_stage_name((td_stage)k),
+                         st->stage_ms[k]);
+            if (w > 0 && (size_t)w < sizeof v - n)
+                n += (size_t)w;
+        }
+    }
+    td_http_resp_header(r, "Server-Timing", "%s", v);
+}
+
+/* A core error: input at fault (400, with the field named before ": ") or not. */
+static void render_error(td_http_resp *r, td_status rc, const char *msg)
+{
+    char field[128] = "";
+    const char *colon = strstr(msg, ": ");
+    if (colon && (size_t)(colon - msg) < sizeof field && !memchr(msg, ' ', (size_t)(colon - msg))) {
+        memcpy(field, msg, (size_t)(colon - msg));
+        field[colon - msg] = '\0';
+    }
+    if (rc == TD_ECANCELED)
+        api_error(r, TD_AE_TIMEOUT, NULL, "the render did not finish within --render-timeout");
+    else if (rc == TD_ENOMEM || rc == TD_EIO)
+        api_error(r, TD_AE_INTERNAL, NULL, "%s", msg);
+    else
+        api_error(r, TD_AE_BAD_REQUEST, field[0] ? field : NULL, "%s", msg);
+}
+
+static json_t *picks_json(const td_scene *s, const td_grid *g, const td_pick *pk, int n)
+{
+    json_t *arr = json_array();
+    for (int i = 0; arr && i < n; i++) {
+        json_t *o;
+        if (!pk[i].hit) {
+            o = json_pack("{s:[f,f],s:b}", "pixel", pk[i].px, pk[i].py, "hit", 0);
+        } else {
+            o = json_pack("{s:[f,f],s:b,s:{s:f,s:f,s:f},s:f,s:[i,i]}", "pixel", pk[i].px, pk[i].py,
+                          "hit", 1, "point", "x", pk[i].p[0], "y", pk[i].p[1], "z", pk[i].p[2],
+                          "distance", pk[i].distance, "cell", (int)pk[i].ci, (int)pk[i].cj);
+            if (o && g->geo.kind != TD_GEO_NONE) {
+                double gx = g->geo.x0 + pk[i].p[0] / g->sx * g->geo.dx;
+                double gy = g->geo.y0 + pk[i].p[1] / g->sy * g->geo.dy;
+                json_object_set_new(o, g->geo.kind == TD_GEO_LONLAT ? "lonlat" : "projected",
+                                    json_pack("[f,f]", gx, gy));
+            }
+        }
+        json_array_append_new(arr, o);
+    }
+    return json_pack("{s:s,s:o}", "dataset", s->dataset, "picks", arr);
+}
+
+static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelled)
+{
+    td_rjob *j = cls;
+    td_app *app = j->app;
+    td_snapshot *snap = NULL;
+    td_watch_slot *ws = NULL;
+    td_render_opts o;
+    td_render_result res;
+    td_render_stats pst;
+    td_pick *picks = NULL;
+    td_buf buf = {0};
+    td_err e = {{0}};
+    td_status rc;
+    const td_view *v;
+    size_t nt, nmm, npl;
+    double queue_ms = td_http_req_queue_wait(q) * 1e3, depth_scale = 0, t0 = td_http_now();
+    const td_render_stats *st = NULL;
+
+    memset(&res, 0, sizeof res);
+    memset(&pst, 0, sizeof pst);
+    if (cancelled) {
+        td_http_resp_header(r, "Retry-After", "1");
+        api_error(r, TD_AE_STOPPING, NULL, "the server is stopping");
+        goto out;
+    }
+    rc = td_store_acquire(app->store, j->scene.dataset, &snap, &e);
+    if (rc) {
+        api_error(r, rc == TD_ENOTFOUND ? TD_AE_UNKNOWN_DATASET : TD_AE_INTERNAL, "dataset", "%s", e.msg);
+        goto out;
+    }
+    v = td_snapshot_view(snap);
+    nt = (size_t)v->grid->tiles_x * (size_t)v->grid->tiles_y;
+    nmm = td_snapshot_count(snap, 0);
+    npl = td_snapshot_count(snap, 1);
+    ws = watch_begin(app, app->cfg->render_timeout_s);
+    if (j->kind == TD_RK_PICK) {
+        picks = calloc((size_t)(j->scene.npick ? j->scene.npick : 1), sizeof *picks);
+        if (!picks) {
+            api_error(r, TD_AE_INTERNAL, NULL, "out of memory");
+            goto out;
+        }
+        rc = td_render_pick(v, &j->scene, picks, &pst, &e);
+        if (rc) {
+            render_error(r, rc, e.msg);
+            goto out;
+        }
+        st = &pst;
+        send_json(r, 200, picks_json(&j->scene, v->grid, picks, j->scene.npick));
+    } else {
+        td_render_opts_default(&o);
+        o.threads = 1; /* one render per worker; the workers use the cores */
+        o.cancel = ws ? &ws->cancel : NULL;
+        rc = td_render(v, &j->scene, &o, &res, &e);
+        if (rc == TD_OK)
+            rc = td_render_encode(&res, &j->scene, &buf, &depth_scale, &e);
+        if (rc) {
+            render_error(r, rc, e.msg);
+            goto out;
+        }
+        st = &res.stats;
+        r->status = 200;
+        td_http_resp_take(r, buf.data, buf.len,
+                          j->scene.image.format == TD_FORMAT_DEPTH32F ? "application/octet-stream"
+                                                                       : "image/png");
+        buf.data = NULL;
+        if (j->scene.image.format == TD_FORMAT_DEPTH16)
+            td_http_resp_header(r, "X-Terrad-Depth-Scale", "%.9g", depth_scale);
+        if (j->scene.image.format == TD_FORMAT_DEPTH32F)
+            td_http_resp_header(r, "X-Terrad-Size", "%dx%d", (int)res.width, (int)res.height);
+    }
+    td_http_resp_header(r, "X-Terrad-Method", "%s",
+                        method_label(j->scene.quality.method, nmm, npl, nt));
+    td_http_resp_header(r, "X-Terrad-Surface", "%s", td_surface_name(j->scene.quality.surface));
+    td_http_resp_header(r, "X-Terrad-Rays", "%llu", (unsigned long long)(st->rays[TD_RAY_PRIMARY] +
+                        st->rays[TD_RAY_SHADOW] + st->rays[TD_RAY_REFLECTION] + st->rays[TD_RAY_AO]));
+    td_http_resp_header(r, "X-Terrad-Steps", "%llu", (unsigned long long)st->steps);
+    if (j->get) {
+        td_http_resp_header(r, "ETag", "%s", j->etag);
+        td_http_resp_header(r, "Cache-Control", "public, max-age=%d", j->kind == TD_RK_TILE ? 86400 : 3600);
+    } else {
+        td_http_resp_header(r, "Cache-Control", "no-store");
+    }
+    {
+        uint64_t rays = 0;
+        for (int k = 0; k < TD_RAY_KIND_COUNT; k++)
+            rays += st->rays[k];
+        td_metrics_render(app->metrics, j->scene.quality.method, td_http_now() - t0, rays, st->steps);
+    }
+out:
+    timing_header(r, j, queue_ms, st);
+    watch_end(app, ws);
+    td_render_result_free(&res);
+    td_buf_free(&buf);
+    free(picks);
+    td_snapshot_release(snap);
+    free(j);
+}
+
+/* Queues a job, or answers 503 with Retry-After when the queue is full. */
+static void render_defer(td_app *app, td_http_req *q, td_http_resp *r, td_rjob *j)
+{
+    const td_grid *g = NULL;
+    long idx = td_store_find(app->store, j->scene.dataset);
+    if (idx < 0) {
+        api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", j->scene.dataset);
+        free(j);
+        return;
+    }
+    {
+        td_dataset_info di;
+        td_store_info(app->store, (size_t)idx, &di);
+        g = di.grid;
+        if (j->scene.effects.drape[0]) {
+            /* A drape is an id: a PNG beside the dataset's file, never a path. */
+            char path[PATH_MAX];
+            struct stat st;
+            if ((size_t)snprintf(path, sizeof path, "%s/%s.png", di.dir, j->scene.effects.drape) >=
+                    sizeof path || sizeof j->scene.effects.drape <= strlen(path) || stat(path, &st) ||
+                !S_ISREG(st.st_mode)) {
+                api_error(r, TD_AE_BAD_REQUEST, "effects.drape",
+                          "effects.drape: dataset '%s' has no drape '%s'", di.id, j->scene.effects.drape);
+                free(j);
+                return;
+            }
+            snprintf(j->scene.effects.drape, sizeof j->scene.effects.drape, "%s", path);
+        }
+    }
+    if (j->get) {
+        if (j->kind != TD_RK_TILE)
+            scene_etag(&j->scene, g, j->etag, sizeof j->etag);
+        if (etag_matches(q, j->etag)) {
+            r->status = 304;
+            td_http_resp_header(r, "ETag", "%s", j->etag);
+            td_http_resp_header(r, "Cache-Control", "public, max-age=%d", j->kind == TD_RK_TILE ? 86400 : 3600);
+            free(j);
+            return;
+        }
+    }
+    j->app = app;
+    if (td_http_defer(q, render_work, j)) {
+        td_http_resp_header(r, "Retry-After", "1");
+        api_error(r, TD_AE_BUSY, NULL, "the render queue is full (%ld running, %ld waiting); retry later",
+                  app->cfg->render_workers, app->cfg->queue);
+        free(j);
+    }
+}
+
+typedef struct td_qargs {
+    const char *keys[128], *values[128];
+    size_t n;
+    int overflow;
+} td_qargs;
+
+static int collect_arg(void *cls, const char *key, const char *value)
+{
+    td_qargs *a = cls;
+    if (a->n >= 128) {
+        a->overflow = 1;
+        return 1;
+    }
+    a->keys[a->n] = key;
+    a->values[a->n++] = value;
+    return 0;
+}
+
+static void h_render(td_app *app, td_http_req *q, td_http_resp *r, int post, int pick)
+{
+    td_rjob *j = calloc(1, sizeof *j);
+    td_request_limits lim;
+    td_request_error re;
+    td_status rc;
+    double t0 = td_http_now();
+
+    memset(&re, 0, sizeof re);
+    if (!j) {
+        api_error(r, TD_AE_INTERNAL, NULL, "out of memory");
+        return;
+    }
+    request_limits(app, &lim);
+    if (post) {
+        size_t len;
+        const char *body;
+        if (json_body_check(q, r)) {
+            free(j);
+            return;
+        }
+        body = td_http_req_body(q, &len);
+        rc = td_request_parse_scene(body, len, &lim, &j->scene, &re);
+    } else {
+        td_qargs a;
+        memset(&a, 0, sizeof a);
+        td_http_req_query_each(q, collect_arg, &a);
+        if (a.overflow) {
+            api_error(r, TD_AE_BAD_REQUEST, NULL, "more than 128 query parameters");
+            free(j);
+            return;
+        }
+        rc = td_request_parse_query(a.keys, a.values, a.n, &lim, &j->scene, &re);
+        j->get = 1;
+    }
+    if (rc) {
+        api_error(r, TD_AE_BAD_REQUEST, re.field, "%s", re.message);
+        free(j);
+        return;
+    }
+    if (pick && j->scene.npick == 0) {
+        api_error(r, TD_AE_BAD_REQUEST, "pick", "pick: give the pixels to pick, [[x, y], ...]");
+        free(j);
+        return;
+    }
+    j->kind = pick || j->scene.image.format == TD_FORMAT_PICK ? TD_RK_PICK : TD_RK_RENDER;
+    j->parse_ms = (td_http_now() - t0) * 1e3;
+    render_defer(app, q, r, j);
+}
+
+static int parse_uint(const char *s, long max, long *out)
+{
+    char *end = NULL;
+    long v;
+    if (!isdigit((unsigned char)s[0]))
+        return 0;
+    errno = 0;
+    v = strtol(s, &end, 10);
+    if (errno || *end || v < 0 || v > max)
+        return 0;
+    *out = v;
+    return 1;
+}
+
+/* GET /v1/tiles/{dataset}/{z}/{x}/{y}.png: a 256 x 256 top-down view for Leaflet's
+ * CRS.Simple. z = 0 is the whole dataset in one tile: its north-west corner at the
+ * dataset's north-west corner, side = max(width, height) in metres; each zoom halves it. */
+static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
+{
+    long z, x, y, idx;
+    size_t yl = strlen(seg[3]);
+    td_rjob *j;
+    td_dataset_info di;
+    double wm, hm, side, t;
+
+    if (yl < 5 || strcmp(seg[3] + yl - 4, ".png")) {
+        api_error(r, TD_AE_NOT_FOUND, NULL, "tile paths end in {y}.png");
+        return;
+    }
+    seg[3][yl - 4] = '\0';
+    idx = td_store_find(app->store, seg[0]);
+    if (idx < 0) {
+        api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", seg[0]);
+        return;
+    }
+    if (!parse_uint(seg[1], 24, &z)) {
+        api_error(r, TD_AE_BAD_REQUEST, "z", "z: an integer zoom in [0, 24]");
+        return;
+    }
+    if (!parse_uint(seg[2], (1L << z) - 1, &x) || !parse_uint(seg[3], (1L << z) - 1, &y)) {
+        api_error(r, TD_AE_NOT_FOUND, NULL, "no tile %s/%s at zoom %ld (x and y in [0, %ld])", seg[2],
+                  seg[3], z, (1L << z) - 1);
+        return;
+    }
+    td_store_info(app->store, (size_t)idx, &di);
+    wm = di.grid->sx * (di.grid->w - 1);
+    hm = di.grid->sy * (di.grid->h - 1);
+    side = wm > hm ? wm : hm;
+    t = side / (double)(1L << z);
+    if (x * t >= wm || y * t >= hm) {
+        api_error(r, TD_AE_NOT_FOUND, NULL, "tile %ld/%ld/%ld is outside dataset '%s'", z, x, y, di.id);
+        return;
+    }
+    j = calloc(1, sizeof *j);
+    if (!j) {
+        api_error(r, TD_AE_INTERNAL, NULL, "out of memory");
+        return;
+    }
+    td_scene_defaults(&j->scene);
+    snprintf(j->scene.dataset, sizeof j->scene.dataset, "%s", di.id);
+    j->scene.camera.projection = TD_PROJ_ORTHOGRAPHIC;
+    j->scene.camera.extent[0] = (double)x * t;
+    j->scene.camera.extent[2] = (double)(x + 1) * t;
+    j->scene.camera.extent[3] = hm - (double)y * t;
+    j->scene.camera.extent[1] = hm - (double)(y + 1) * t;
+    j->scene.image.width = 256;
+    j->scene.image.height = 256;
+    j->scene.image.format = TD_FORMAT_PNG;
+    j->kind = TD_RK_TILE;
+    j->get = 1;
+    snprintf(j->etag, sizeof j->etag, "\"t%lx-%ld-%ld-%ld\"",
+             (unsigned long)(di.grid->w * 31 + di.grid->h), z, x, y);
+    render_defer(app, q, r, j);
+}
+
+static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
+{
+    const char *m = td_http_req_method(q), *path = td_http_req_path(q);
+    int get = !strcmp(m, "GET") || !strcmp(m, "HEAD");
+    int post = !strcmp(m, "POST");
+    char buf[512], *seg[8];
+    int n;
+
+    if (!strcmp(path, "/healthz")) {
+        td_http_req_set_route(q, TD_ROUTE_HEALTHZ);
+        if (get)
+            send_json(r, 200, json_pack("{s:s}", "status", "ok"));
+        else
+            method_not_allowed(r, "GET, HEAD", m);
+    } else if (!strcmp(path, "/readyz")) {
+        td_http_req_set_route(q, TD_ROUTE_READYZ);
+        if (get)
+            h_readyz(app, r);
+        else
+            method_not_allowed(r, "GET, HEAD", m);
+    } else if (!strcmp(path, "/metrics")) {
+        td_http_req_set_route(q, TD_ROUTE_METRICS);
+        if (get)
+            h_metrics(app, r);
+        else
+            method_not_allowed(r, "GET, HEAD", m);
+    } else if (!strcmp(path, "/v1/render")) {
+        td_http_req_set_route(q, TD_ROUTE_RENDER);
+        if (get || post)
+            h_render(app, q, r, post, 0);
+        else
+            method_not_allowed(r, "GET, HEAD, POST", m);
+    } else if (!strcmp(path, "/v1/pick")) {
+        td_http_req_set_route(q, TD_ROUTE_PICK);
+        if (post)
+            h_render(app, q, r, 1, 1);
+        else
+            method_not_allowed(r, "POST", m);
+    } else if (!strncmp(path, "/v1/tiles/", 10)) {
+        td_http_req_set_route(q, TD_ROUTE_TILES);
+        n = split_path(path + 10, buf, sizeof buf, seg, 4);
+        if (n != 4)
+            api_error(r, TD_AE_NOT_FOUND, NULL, "tile paths are /v1/tiles/{dataset}/{z}/{x}/{y}.png");
+        else if (!get)
+            method_not_allowed(r, "GET, HEAD", m);
+        else
+            h_tile(app, q, r, seg);
+    } else if (!strcmp(path, "/v1/datasets") || !strcmp(path, "/v1/datasets/")) {
+        td_http_req_set_route(q, TD_ROUTE_DATASETS);
+        if (get)
+            h_datasets(app, r);
+        else
+            method_not_allowed(r, "GET, HEAD", m);
+    } else if (!strncmp(path, "/v1/datasets/", 13)) {
+        td_http_req_set_route(q, TD_ROUTE_DATASET);
+        n = split_path(path + 13, buf, sizeof buf, seg, 1);
+        if (n != 1)
+            api_error(r, TD_AE_NOT_FOUND, NULL, "no such route");
+        else if (!get)
+            method_not_allowed(r, "GET, HEAD", m);
+        else
+            h_dataset(app, seg[0], r);
+    } else if (!strncmp(path, "/v1/admin/", 10)) {
+        const char *rest = path + 10;
+        if (!strcmp(rest, "preload"))
+            td_http_req_set_route(q, TD_ROUTE_PRELOAD);
+        else if (!strncmp(rest, "jobs/", 5))
+            td_http_req_set_route(q, TD_ROUTE_JOB);
+        else
+            td_http_req_set_route(q, TD_ROUTE_EVICT);
+        if (admin_check(app, q, r))
+            return;
+        n = split_path(rest, buf, sizeof buf, seg, 4);
+        if (n == 1 && !strcmp(seg[0], "preload")) {
+            if (!post)
+                method_not_allowed(r, "POST", m);
+            else if (!json_body_check(q, r))
+                h_preload(app, q, r);
+        } else if (n == 2 && !strcmp(seg[0], "jobs")) {
+            if (!get)
+                method_not_allowed(r, "GET, HEAD", m);
+            else
+                h_job(app, seg[1], r);
+        } else if (n == 3 && !strcmp(seg[0], "datasets") && !strcmp(seg[2], "tiles")) {
+            if (strcmp(m, "DELETE"))
+                method_not_allowed(r, "DELETE", m);
+            else
+                h_evict(app, seg[1], r);
+        } else {
+            api_error(r, TD_AE_NOT_FOUND, NULL, "no such admin route");
+        }
+    } else if (!strncmp(path, "/vendor/leaflet/", 16)) {
+        td_http_req_set_route(q, TD_ROUTE_WEB);
+        if (get)
+            serve_file(app->leaflet_dir, path + 16, 1, r);
+        else
+            method_not_allowed(r, "GET, HEAD", m);
+    } else if (!strncmp(path, "/v1/", 4) || !strcmp(path, "/v1")) {
+        td_http_req_set_route(q, TD_ROUTE_UNKNOWN);
+        api_error(r, TD_AE_NOT_FOUND, NULL, "no such route: %s", path);
+    } else {
+        td_http_req_set_route(q, TD_ROUTE_WEB);
+        if (get)
+            serve_file(app->web_dir, path + 1, 0, r);
+        else
+            method_not_allowed(r, "GET, HEAD", m);
+    }
+}
+
+void td_routes_handle(void *cls, td_http_req *q, td_http_resp *r)
+{
+    td_app *app = cls;
+    if (td_http_req_too_big(q)) {
+        td_http_req_set_route(q, TD_ROUTE_UNKNOWN);
+        api_error(r, TD_AE_TOO_LARGE, NULL, "the body is over the limit of %ld KiB (--max-body-kb)",
+                  app->cfg->max_body_kb);
+        td_http_resp_header(r, "Connection", "close");
+        return;
+    }
+    dispatch(app, q, r);
+}
+
+void td_routes_done(void *cls, int route, int status, size_t bytes, double seconds)
+{
+    td_app *app = cls;
+    (void)bytes;
+    (void)seconds;
+    td_metrics_request(app->metrics, route, status);
+}

@@ -1,0 +1,68 @@
+/* routes.h: the HTTP API of `terrad serve` (DESIGN.md, docs/api.md): dispatch by path
+ * and method, JSON errors, authentication of admin routes, static files of the web
+ * page, and the handlers that call the tile store, the job queue and the renderer.
+ *
+ * Routes are one X-macro table (enum, label for metrics and the access log). */
+#ifndef TD_ROUTES_H
+#define TD_ROUTES_H
+
+#include <limits.h>
+#include <stdatomic.h>
+
+#include "config.h"
+#include "http.h"
+#include "jobs.h"
+#include "metrics.h"
+#include "tilestore.h"
+
+#define TD_ROUTE_LIST(X)                                                       \
+    X(TD_ROUTE_RENDER, "render")                                               \
+    X(TD_ROUTE_TILES, "tiles")                                                 \
+    X(TD_ROUTE_PICK, "pick")                                                   \
+    X(TD_ROUTE_DATASETS, "datasets")                                           \
+    X(TD_ROUTE_DATASET, "dataset")                                             \
+    X(TD_ROUTE_PRELOAD, "admin_preload")                                       \
+    X(TD_ROUTE_JOB, "admin_job")                                               \
+    X(TD_ROUTE_EVICT, "admin_evict")                                           \
+    X(TD_ROUTE_HEALTHZ, "healthz")                                             \
+    X(TD_ROUTE_READYZ, "readyz")                                               \
+    X(TD_ROUTE_METRICS, "metrics")                                             \
+    X(TD_ROUTE_WEB, "web")                                                     \
+    X(TD_ROUTE_UNKNOWN, "unknown")
+
+typedef enum td_route {
+#define TD_X_ENUM(e, name) e,
+    TD_ROUTE_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_ROUTE_COUNT
+} td_route;
+
+extern const char *const td_route_names[TD_ROUTE_COUNT];
+
+/* Everything a handler needs; owned by cli_serve.c. */
+typedef struct td_app {
+    const td_config *cfg;
+    td_store *store;
+    td_jobs *jobs;
+    td_metrics *metrics;
+    td_http *http;     /* set once the server runs (queue depth for /metrics) */
+    atomic_int ready;  /* /readyz: 1 once serving, 0 again when stopping */
+    char web_dir[PATH_MAX];     /* realpath, or "" when absent */
+    char leaflet_dir[PATH_MAX]; /* realpath of web/node_modules/leaflet/dist, or "" */
+    struct td_watch *watch;     /* render deadlines (routes.c) */
+} td_app;
+
+/* Starts / stops the watchdog that cancels renders past --render-timeout. */
+td_status td_routes_start(td_app *app, td_err *err);
+void td_routes_stop(td_app *app);
+/* Cancels every render running now (shutdown past its deadline). */
+void td_routes_cancel_all(td_app *app);
+
+/* td_http_handler and td_http_done_fn for td_http_start (cls: the td_app). */
+void td_routes_handle(void *cls, td_http_req *q, td_http_resp *resp);
+void td_routes_done(void *cls, int route, int status, size_t bytes, double seconds);
+
+/* Constant-time comparison of a presented token with the configured one. */
+int td_routes_token_equal(const char *given, const char *want);
+
+#endif

@@ -1,0 +1,125 @@
+/* tilestore.h: the datasets terrad serves and the per-tile acceleration it keeps
+ * resident (max-mipmaps, parameter planes), shared by concurrent renders.
+ *
+ * Datasets are loaded before the server starts (td_store_add_dir, td_store_add_grid)
+ * and then never change: their heights stay resident and their list can be read
+ * without a lock. What changes at run time is, per tile, which acceleration is
+ * resident. Each built structure is immutable and reference-counted (C11 atomics):
+ *
+ *   store --(1 ref)--> part {refs, maxmip | planes, bytes} <--(1 ref each)-- snapshots
+ *
+ * A render takes a snapshot (td_store_acquire): the td_view it traces plus one
+ * reference to every part resident at that instant. A preload that replaces a tile, or
+ * an eviction, only swaps the store's pointer under the store lock and drops the
+ * store's reference; the part is freed by whoever drops the last one, so a render never
+ * sees a structure change or vanish under it.
+ *
+ * Memory: heights count against the budget from load; acceleration is evicted least
+ * recently used first (a snapshot marks every tile of its dataset used), pinned tiles
+ * never. A preload builds one tile at a time (one builder thread), evicting before it
+ * builds, so the budget is never exceeded by more than the tile being built. A preload
+ * is checked up front (tiles, budget against heights + pinned + kept tiles), builds into
+ * a staging list, and publishes every tile at once under the lock; if a build fails the
+ * staging list is dropped and the resident tiles stay as they were (apart from LRU
+ * evictions made to fit the budget, which only lose cached work).
+ *
+ * With a cache directory, built parts are also written to disk (header with magic,
+ * version, kind, dataset fingerprint, tile and shape, payload size and an FNV-1a
+ * checksum) and read back instead of rebuilt when every field checks out. */
+#ifndef TD_TILESTORE_H
+#define TD_TILESTORE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "trace.h"
+
+#define TD_STORE_ID_MAX 64
+
+typedef struct td_store td_store;
+typedef struct td_snapshot td_snapshot;
+
+typedef struct td_store_opts {
+    uint64_t budget_bytes; /* heights + acceleration */
+    int tile_log2;
+    int planes_k;
+    const char *cache_dir; /* NULL or "": no disk cache */
+} td_store_opts;
+
+typedef struct td_dataset_info {
+    const char *id;
+    const char *file;       /* file name of the source (no directory) */
+    const char *dir;        /* its directory (server side only; never sent to clients) */
+    const char *origin;     /* "demo", "data" or "api" */
+    const td_grid *grid;
+    size_t ntiles;
+    size_t resident_tiles;  /* with any acceleration */
+    size_t maxmip_tiles, planes_tiles, pinned_tiles;
+    uint64_t grid_bytes, accel_bytes;
+} td_dataset_info;
+
+typedef struct td_store_stats {
+    size_t datasets;
+    uint64_t total_tiles, resident_tiles, resident_bytes, budget_bytes;
+    uint64_t tiles_built, tiles_evicted, cache_hits, cache_misses;
+} td_store_stats;
+
+td_status td_store_create(const td_store_opts *o, td_store **out, td_err *err);
+/* Call only when no snapshot is held any more. */
+void td_store_free(td_store *s);
+
+/* Non-zero for an id made of [A-Za-z0-9_.-], 1..64 characters, not starting with '.'. */
+int td_store_id_valid(const char *id);
+
+/* Makes a dataset of every file td_dem_recognised accepts in `dir` (id: its name without
+ * extension) and of every folder holding such files (id: the folder's name; with several
+ * files, folder-file). Nothing outside `dir` can be named: symbolic links that resolve
+ * outside it are skipped. A file that fails to load is logged and skipped. Not
+ * thread-safe: call before serving. *loaded counts the datasets added. */
+td_status td_store_add_dir(td_store *s, const char *dir, const char *origin, int *loaded,
+                           td_err *err);
+/* Adds a finished grid under `id` (the store takes it, also on failure). */
+td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_grid *g,
+                            td_err *err);
+
+size_t td_store_count(const td_store *s);
+/* Index of a dataset, or -1. */
+long td_store_find(const td_store *s, const char *id);
+void td_store_info(td_store *s, size_t idx, td_dataset_info *out);
+void td_store_stats_get(td_store *s, td_store_stats *st);
+
+/* The dataset's grid and every acceleration part resident now, held until release. */
+td_status td_store_acquire(td_store *s, const char *id, td_snapshot **out, td_err *err);
+const td_view *td_snapshot_view(const td_snapshot *snap);
+/* Tiles of the snapshot with maxmip / planes. */
+size_t td_snapshot_count(const td_snapshot *snap, int planes);
+void td_snapshot_release(td_snapshot *snap);
+
+typedef struct td_preload_spec {
+    size_t dataset;       /* index */
+    const size_t *tiles;  /* tile indices, or NULL for all */
+    size_t ntiles;
+    int maxmip, planes;   /* what to build (at least one) */
+    int pin;              /* pinned tiles are never evicted by LRU */
+    int rebuild;          /* replace resident parts instead of keeping them */
+} td_preload_spec;
+
+/* phase: "checking", "maxmip", "planes", "publishing"; done of total tiles. A non-zero
+ * return cancels the preload (TD_ECANCELED) before its next tile. */
+typedef int (*td_preload_progress)(void *cls, const char *phase, size_t done, size_t total);
+
+/* Builds (or reads from the cache) what the spec asks for. Preloads run one at a time.
+ * TD_EINVAL for a bad tile index, TD_ETOOBIG when the budget cannot hold it, the
+ * builder's status otherwise; *built counts the tiles published. */
+td_status td_store_preload(td_store *s, const td_preload_spec *p, td_preload_progress cb,
+                           void *cls, size_t *built, td_err *err);
+
+/* Drops all resident acceleration of a dataset, pinned or not; *evicted counts tiles. */
+void td_store_evict_dataset(td_store *s, size_t idx, size_t *evicted);
+
+/* Tiles of dataset idx whose cells meet the box [x0, x1] x [y0, y1] in the dataset
+ * frame (metres). Returns a malloc'ed list (NULL with *n = 0 when none meet it). */
+td_status td_store_tiles_in_box(td_store *s, size_t idx, const double box[4], size_t **tiles,
+                                size_t *n, td_err *err);
+
+#endif
