@@ -1,0 +1,518 @@
+/* test_render.c: the renderer (core/render.c) on procedural terrain.
+ *
+ * - An effect absent from the scene traces no ray and runs no pass (stats: rays by kind,
+ *   stage_ran); each effect present runs its pass, traces its rays (exact counts where
+ *   they are known) and changes the picture the way it should (shadows only darken, sky
+ *   only fills the background, haze only touches the terrain).
+ * - Curvature bends rays only when the view reaches far enough for it to move a pixel,
+ *   and then meets flat ground where the closed form says.
+ * - Supersampling traces n*n rays per pixel; the image is the same for 1 and 2 threads;
+ *   depth agrees with picking; cancellation and unsupported options are refused.
+ * - Golden images: small scenes, one per effect, compared by PSNR (>= 35 dB) with
+ *   tests/golden/NAME.png. TERRAD_UPDATE_GOLDEN=1 rewrites them (then look at them). */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "render.h"
+#include "terrain.h"
+
+#define GOLDEN_DIR TERRAD_TEST_DATA "/../golden"
+#define W 64
+#define H 48
+
+static td_grid *grid;      /* 129 x 129, 30 m, 600 m of relief */
+static td_scene scene;     /* large (pick list): keep it off the stack */
+
+static int setup(void **state)
+{
+    td_terrain_params p;
+    td_err err = {{0}};
+    (void)state;
+    td_terrain_params_default(&p);
+    p.width = p.height = 129;
+    p.spacing = 30.0;
+    p.feature_m = 2500.0;
+    p.relief_m = 600.0;
+    p.base_m = 1000.0;
+    p.seed = 11;
+    return td_terrain_generate(&p, 6, &grid, &err) != TD_OK;
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    td_grid_free(grid);
+    return 0;
+}
+
+/* Looking north-east across the terrain from its south-west corner, horizon in view. */
+static void base_scene(td_scene *s)
+{
+    td_scene_defaults(s);
+    snprintf(s->dataset, sizeof s->dataset, "procedural");
+    s->camera.x = -300.0;
+    s->camera.y = -300.0;
+    s->camera.z = 2100.0;
+    s->camera.heading = 45.0;
+    s->camera.pitch = -12.0;
+    s->camera.fov = 60.0;
+    s->image.width = W;
+    s->image.height = H;
+    s->quality.method = TD_METHOD_INCREMENTAL;
+    s->quality.surface = TD_SURFACE_BILINEAR;
+    s->effects.sun_azimuth = 300.0;
+    s->effects.sun_elevation = 20.0;
+}
+
+static void render(const td_scene *s, int threads, td_render_result *res)
+{
+    td_view v = {grid, NULL};
+    td_render_opts o;
+    td_err err = {{0}};
+    td_render_opts_default(&o);
+    o.threads = threads;
+    td_status st = td_render(&v, s, &o, res, &err);
+    if (st)
+        print_error("render: %s\n", err.msg);
+    assert_int_equal(st, TD_OK);
+}
+
+static const int effect_stages[] = {TD_STAGE_CURVATURE, TD_STAGE_WATER, TD_STAGE_SHADOWS,
+                                    TD_STAGE_AO, TD_STAGE_HAZE, TD_STAGE_SKY};
+
+/* Asserts that of the optional stages exactly `want` ran (-1: none). */
+static void only_stage(const td_render_stats *st, int want)
+{
+    for (size_t i = 0; i < sizeof effect_stages / sizeof effect_stages[0]; i++) {
+        int k = effect_stages[i];
+        if (st->stage_ran[k] != (k == want))
+            print_error("stage %s ran=%d\n", td_stage_name((td_stage)k), st->stage_ran[k]);
+        assert_int_equal(st->stage_ran[k], k == want);
+    }
+    assert_true(st->stage_ran[TD_STAGE_PRIMARY]);
+    assert_true(st->stage_ran[TD_STAGE_RESOLVE]);
+}
+
+static void test_absent_effects_cost_nothing(void **state)
+{
+    td_render_result r;
+    (void)state;
+    base_scene(&scene);
+    render(&scene, 2, &r);
+    assert_int_equal(r.stats.rays[TD_RAY_PRIMARY], W * H);
+    assert_int_equal(r.stats.rays[TD_RAY_SHADOW], 0);
+    assert_int_equal(r.stats.rays[TD_RAY_REFLECTION], 0);
+    assert_int_equal(r.stats.rays[TD_RAY_AO], 0);
+    assert_int_equal(r.stats.curved_rays, 0);
+    only_stage(&r.stats, -1);
+    assert_true(r.stats.stage_ran[TD_STAGE_SHADE]);
+    assert_true(r.stats.hits > W * H / 4 && r.stats.hits < W * H);
+    assert_true(r.stats.steps > 0);
+    /* without sky the background is transparent, the terrain opaque */
+    int clear = 0, opaque = 0;
+    for (int i = 0; i < W * H; i++) {
+        clear += r.rgba[4 * i + 3] == 0;
+        opaque += r.rgba[4 * i + 3] == 255;
+    }
+    assert_true(clear > 0 && opaque > 0);
+    assert_int_equal(clear + opaque, W * H); /* one sample per pixel: no partial alpha */
+    assert_int_equal((uint64_t)opaque, r.stats.hits);
+    td_render_result_free(&r);
+}
+
+static void test_shadows(void **state)
+{
+    td_render_result a, b;
+    (void)state;
+    base_scene(&scene);
+    render(&scene, 2, &a);
+    scene.effects.shadows = 1;
+    render(&scene, 2, &b);
+    only_stage(&b.stats, TD_STAGE_SHADOWS);
+    assert_true(b.stats.rays[TD_RAY_SHADOW] > 0);
+    assert_true(b.stats.rays[TD_RAY_SHADOW] <= b.stats.hits);
+    assert_int_equal(b.stats.rays[TD_RAY_AO] + b.stats.rays[TD_RAY_REFLECTION], 0);
+    int darker = 0;
+    for (int i = 0; i < W * H * 4; i++) {
+        assert_true(b.rgba[i] <= a.rgba[i]); /* a shadow never brightens */
+        darker += b.rgba[i] < a.rgba[i];
+    }
+    assert_true(darker > 20);
+    td_render_result_free(&a);
+    td_render_result_free(&b);
+}
+
+static void test_sky_and_haze(void **state)
+{
+    td_render_result a, b, c;
+    (void)state;
+    base_scene(&scene);
+    render(&scene, 2, &a);
+    scene.effects.sky = 1;
+    render(&scene, 2, &b);
+    only_stage(&b.stats, TD_STAGE_SKY);
+    assert_int_equal(b.stats.rays[TD_RAY_SHADOW] + b.stats.rays[TD_RAY_AO] +
+                         b.stats.rays[TD_RAY_REFLECTION], 0);
+    for (int i = 0; i < W * H; i++) {
+        if (a.rgba[4 * i + 3] == 255) /* terrain untouched */
+            assert_memory_equal(&a.rgba[4 * i], &b.rgba[4 * i], 4);
+        else /* background filled, blue above */
+            assert_int_equal(b.rgba[4 * i + 3], 255);
+    }
+    assert_true(b.rgba[2] > b.rgba[0]);
+    scene.effects.sky = 0;
+    scene.effects.haze = 1;
+    scene.effects.haze_visibility_km = 3.0;
+    render(&scene, 2, &c);
+    only_stage(&c.stats, TD_STAGE_HAZE);
+    int changed = 0;
+    for (int i = 0; i < W * H; i++) {
+        if (a.rgba[4 * i + 3] == 0)
+            assert_int_equal(c.rgba[4 * i + 3], 0); /* haze does not paint the background */
+        else
+            changed += memcmp(&a.rgba[4 * i], &c.rgba[4 * i], 3) != 0;
+    }
+    assert_true((uint64_t)changed > c.stats.hits / 2);
+    td_render_result_free(&a);
+    td_render_result_free(&b);
+    td_render_result_free(&c);
+}
+
+static void test_water_and_ao(void **state)
+{
+    td_render_result r;
+    (void)state;
+    base_scene(&scene);
+    scene.effects.water = 1;
+    scene.effects.water_level = grid->zmin + 0.3 * (grid->zmax - grid->zmin);
+    render(&scene, 2, &r);
+    only_stage(&r.stats, TD_STAGE_WATER);
+    assert_true(r.stats.rays[TD_RAY_REFLECTION] > 0);
+    /* every reflection ray belongs to a camera ray that met the water: bluish pixels */
+    int blue = 0;
+    for (int i = 0; i < W * H; i++)
+        blue += r.rgba[4 * i + 3] == 255 && r.rgba[4 * i + 2] > r.rgba[4 * i];
+    assert_true((uint64_t)blue >= r.stats.rays[TD_RAY_REFLECTION] / 2);
+    td_render_result_free(&r);
+
+    base_scene(&scene);
+    scene.effects.ambient_occlusion = 5;
+    render(&scene, 2, &r);
+    only_stage(&r.stats, TD_STAGE_AO);
+    assert_int_equal(r.stats.rays[TD_RAY_AO], 5 * r.stats.hits);
+    td_render_result_free(&r);
+}
+
+static void test_supersampling_and_threads(void **state)
+{
+    td_render_result a, b;
+    (void)state;
+    base_scene(&scene);
+    scene.quality.samples = 3;
+    scene.effects.shadows = 1;
+    scene.effects.sky = 1;
+    scene.effects.haze = 1;
+    scene.effects.ambient_occlusion = 4;
+    render(&scene, 1, &a);
+    render(&scene, 2, &b);
+    assert_int_equal(a.stats.rays[TD_RAY_PRIMARY], 9 * W * H);
+    assert_int_equal(a.stats.threads, 1);
+    assert_int_equal(b.stats.threads, 2);
+    for (int k = 0; k < TD_RAY_KIND_COUNT; k++)
+        assert_int_equal(a.stats.rays[k], b.stats.rays[k]);
+    assert_memory_equal(a.rgba, b.rgba, (size_t)W * H * 4);
+    /* edges of the terrain against the background get partial alpha */
+    base_scene(&scene);
+    scene.quality.samples = 3;
+    td_render_result c;
+    render(&scene, 2, &c);
+    int partial = 0;
+    for (int i = 0; i < W * H; i++)
+        partial += c.rgba[4 * i + 3] > 0 && c.rgba[4 * i + 3] < 255;
+    assert_true(partial > 0);
+    td_render_result_free(&a);
+    td_render_result_free(&b);
+    td_render_result_free(&c);
+}
+
+static void test_depth_matches_pick(void **state)
+{
+    td_render_result r;
+    td_view v = {grid, NULL};
+    td_err err = {{0}};
+    td_pick pk[3];
+    (void)state;
+    base_scene(&scene);
+    scene.image.format = TD_FORMAT_DEPTH32F;
+    scene.effects.shadows = 1; /* irrelevant to depth: must trace nothing */
+    render(&scene, 2, &r);
+    assert_null(r.rgba);
+    assert_non_null(r.depth);
+    assert_int_equal(r.stats.rays[TD_RAY_SHADOW], 0);
+    assert_false(r.stats.stage_ran[TD_STAGE_SHADE]);
+    scene.image.format = TD_FORMAT_PICK;
+    scene.npick = 3;
+    int px[3][2] = {{32, 40}, {10, 30}, {5, 0}};
+    for (int i = 0; i < 3; i++) {
+        scene.pick[i][0] = px[i][0];
+        scene.pick[i][1] = px[i][1];
+    }
+    assert_int_equal(td_render_pick(&v, &scene, pk, NULL, &err), TD_OK);
+    for (int i = 0; i < 3; i++) {
+        float d = r.depth[px[i][1] * W + px[i][0]];
+        if (pk[i].hit)
+            assert_float_equal(d, pk[i].distance, 1e-3 * pk[i].distance);
+        else
+            assert_true(isinf(d));
+    }
+    assert_true(pk[0].hit);
+    assert_false(pk[2].hit); /* top-left corner: sky */
+    /* depth16 encodes with a scale and 65535 for nothing */
+    td_buf b;
+    double scale = 0.0;
+    scene.image.format = TD_FORMAT_DEPTH16;
+    assert_int_equal(td_render_encode(&r, &scene, &b, &scale, &err), TD_OK);
+    assert_true(scale > 0.0);
+    assert_true(r.stats.stage_ran[TD_STAGE_ENCODE]);
+    td_buf_free(&b);
+    td_render_result_free(&r);
+}
+
+/* Flat ground, a long shallow view: curvature bends the centre ray so that it meets the
+ * ground where a*t^2*cos^2(p) + t*sin(p) + h = 0 says, well beyond the straight hit. */
+static void test_curvature(void **state)
+{
+    td_terrain_params p;
+    td_grid *flat = NULL;
+    td_err err = {{0}};
+    td_pick pk[1];
+    td_render_stats st;
+    (void)state;
+    td_terrain_params_default(&p);
+    p.width = p.height = 257;
+    p.spacing = 100.0;
+    p.relief_m = 0.0;
+    p.base_m = 100.0;
+    assert_int_equal(td_terrain_generate(&p, 6, &flat, &err), TD_OK);
+    td_view v = {flat, NULL};
+    td_scene_defaults(&scene);
+    scene.camera.x = 12800.0;
+    scene.camera.y = 0.0;
+    scene.camera.z = 150.0;
+    scene.camera.pitch = -0.3;
+    scene.camera.fov = 2.0;
+    scene.image.width = W;
+    scene.image.height = H;
+    scene.quality.method = TD_METHOD_INCREMENTAL;
+    scene.image.format = TD_FORMAT_PICK;
+    scene.npick = 1;
+    scene.pick[0][0] = (W - 1) / 2.0;
+    scene.pick[0][1] = (H - 1) / 2.0; /* exactly the optical axis */
+    double sp = sin(-0.3 * M_PI / 180.0), cp = cos(-0.3 * M_PI / 180.0);
+    double straight = 50.0 / -sp;
+    assert_int_equal(td_render_pick(&v, &scene, pk, &st, &err), TD_OK);
+    assert_int_equal(st.curved_rays, 0);
+    assert_float_equal(pk[0].distance, straight, 0.01);
+
+    scene.effects.curvature = 1; /* k = 0.13 */
+    double a = (1.0 - 0.13) / (2.0 * 6371000.0);
+    double A = a * cp * cp, disc = sp * sp - 4.0 * A * 50.0;
+    assert_true(disc > 0.0);
+    double curved = (-sp - sqrt(disc)) / (2.0 * A);
+    assert_int_equal(td_render_pick(&v, &scene, pk, &st, &err), TD_OK);
+    assert_int_equal(st.curved_rays, 1);
+    assert_true(st.curve_segments >= 1);
+    assert_true(pk[0].hit);
+    assert_true(curved - straight > 1000.0);
+    assert_true(fabs(pk[0].distance - curved) < 0.1 * (curved - straight));
+    assert_float_equal(pk[0].p[2], 100.0, 1e-3);
+
+    /* a full render runs the curvature stage */
+    td_render_result r;
+    td_render_opts o;
+    td_render_opts_default(&o);
+    scene.image.format = TD_FORMAT_PNG;
+    scene.npick = 0;
+    assert_int_equal(td_render(&v, &scene, &o, &r, &err), TD_OK);
+    assert_true(r.stats.stage_ran[TD_STAGE_CURVATURE]);
+    assert_true(r.stats.curved_rays > 0);
+    assert_true(r.stats.curved_rays <= r.stats.rays[TD_RAY_PRIMARY]);
+    td_render_result_free(&r);
+
+    /* a wide view of the same ground: the drop never reaches a pixel, nothing bends */
+    scene.camera.fov = 60.0;
+    assert_int_equal(td_render(&v, &scene, &o, &r, &err), TD_OK);
+    assert_false(r.stats.stage_ran[TD_STAGE_CURVATURE]);
+    assert_int_equal(r.stats.curved_rays, 0);
+    td_render_result_free(&r);
+    td_grid_free(flat);
+}
+
+static void test_refusals_and_cancel(void **state)
+{
+    td_render_result r;
+    td_view v = {grid, NULL};
+    td_err err = {{0}};
+    td_render_opts o;
+    atomic_int cancel;
+    (void)state;
+    td_render_opts_default(&o);
+    base_scene(&scene);
+    scene.quality.lod = 1;
+    assert_int_equal(td_render(&v, &scene, &o, &r, &err), TD_EUNSUPPORTED);
+    assert_non_null(strstr(err.msg, "quality.lod"));
+    base_scene(&scene);
+    scene.quality.samples = 9;
+    assert_int_equal(td_render(&v, &scene, &o, &r, &err), TD_ERANGE);
+    assert_non_null(strstr(err.msg, "quality.samples"));
+    base_scene(&scene);
+    scene.camera.fov = 0.0;
+    assert_int_equal(td_render(&v, &scene, &o, &r, &err), TD_ERANGE);
+    assert_non_null(strstr(err.msg, "camera.fov"));
+    base_scene(&scene);
+    scene.effects.drape[0] = '/';
+    snprintf(scene.effects.drape, sizeof scene.effects.drape, "/nonexistent/drape.png");
+    assert_int_equal(td_render(&v, &scene, &o, &r, &err), TD_EFORMAT);
+    assert_null(r.rgba);
+    base_scene(&scene);
+    atomic_init(&cancel, 1);
+    o.cancel = &cancel;
+    assert_int_equal(td_render(&v, &scene, &o, &r, &err), TD_ECANCELED);
+    assert_null(r.rgba);
+}
+
+/* ---- golden images ---- */
+
+static double psnr(const uint8_t *a, const uint8_t *b, size_t n)
+{
+    double se = 0.0;
+    for (size_t i = 0; i < n; i++) {
+        double d = (double)a[i] - (double)b[i];
+        se += d * d;
+    }
+    double mse = se / (double)n;
+    return mse == 0.0 ? INFINITY : 10.0 * log10(255.0 * 255.0 / mse);
+}
+
+static void golden(const char *name, const td_scene *s, const td_image8 *drape)
+{
+    td_view v = {grid, NULL};
+    td_render_opts o;
+    td_render_result r;
+    td_err err = {{0}};
+    td_buf b;
+    char path[1024];
+    td_render_opts_default(&o);
+    o.drape = drape;
+    assert_int_equal(td_render(&v, s, &o, &r, &err), TD_OK);
+    snprintf(path, sizeof path, "%s/%s.png", GOLDEN_DIR, name);
+    const char *upd = getenv("TERRAD_UPDATE_GOLDEN");
+    if (upd && !strcmp(upd, "1")) {
+        assert_int_equal(td_render_encode(&r, s, &b, NULL, &err), TD_OK);
+        FILE *f = fopen(path, "wb");
+        assert_non_null(f);
+        assert_int_equal(fwrite(b.data, 1, b.len, f), b.len);
+        fclose(f);
+        td_buf_free(&b);
+    } else {
+        td_image8 *g = NULL;
+        td_status st = td_image_load(path, 4, 1u << 24, &g, &err);
+        if (st)
+            print_error("%s (regenerate with TERRAD_UPDATE_GOLDEN=1)\n", err.msg);
+        assert_int_equal(st, TD_OK);
+        assert_int_equal(g->width, r.width);
+        assert_int_equal(g->height, r.height);
+        double q = psnr(g->px, r.rgba, (size_t)r.width * r.height * 4);
+        if (q < 35.0)
+            print_error("golden %s: PSNR %.2f dB < 35\n", name, q);
+        assert_true(q >= 35.0);
+        td_image_free(g);
+    }
+    td_render_result_free(&r);
+}
+
+static void test_golden_images(void **state)
+{
+    (void)state;
+    base_scene(&scene);
+    scene.image.width = 96;
+    scene.image.height = 64;
+    golden("base", &scene, NULL);
+
+    td_scene s = scene;
+    s.effects.shadows = 1;
+    golden("shadows", &s, NULL);
+
+    s = scene;
+    s.effects.sky = 1;
+    golden("sky", &s, NULL);
+
+    s = scene;
+    s.effects.haze = 1;
+    s.effects.haze_visibility_km = 4.0;
+    s.effects.sky = 1;
+    golden("haze", &s, NULL);
+
+    s = scene;
+    s.effects.water = 1;
+    s.effects.water_level = grid->zmin + 0.3 * (grid->zmax - grid->zmin);
+    s.effects.sky = 1;
+    golden("water", &s, NULL);
+
+    s = scene;
+    s.effects.ambient_occlusion = 8;
+    golden("ao", &s, NULL);
+
+    s = scene;
+    s.quality.samples = 3;
+    s.quality.smooth_normals = 1;
+    golden("ssaa_smooth", &s, NULL);
+
+    s = scene;
+    s.camera.projection = TD_PROJ_ORTHOGRAPHIC;
+    s.effects.shadows = 1;
+    s.quality.surface = TD_SURFACE_TRIANGLE;
+    golden("ortho_triangle", &s, NULL);
+
+    /* drape: a 16 x 16 checkerboard of red and white over the grid */
+    td_image8 chk;
+    uint8_t px[16 * 16 * 3];
+    for (int y = 0; y < 16; y++)
+        for (int x = 0; x < 16; x++) {
+            uint8_t *p = &px[3 * (y * 16 + x)];
+            int red = ((x / 4) + (y / 4)) & 1;
+            p[0] = 230;
+            p[1] = red ? 40 : 230;
+            p[2] = red ? 40 : 230;
+        }
+    chk.width = chk.height = 16;
+    chk.channels = 3;
+    chk.px = px;
+    s = scene;
+    snprintf(s.effects.drape, sizeof s.effects.drape, "checkerboard");
+    golden("drape", &s, &chk);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_absent_effects_cost_nothing),
+        cmocka_unit_test(test_shadows),
+        cmocka_unit_test(test_sky_and_haze),
+        cmocka_unit_test(test_water_and_ao),
+        cmocka_unit_test(test_supersampling_and_threads),
+        cmocka_unit_test(test_depth_matches_pick),
+        cmocka_unit_test(test_curvature),
+        cmocka_unit_test(test_refusals_and_cancel),
+        cmocka_unit_test(test_golden_images),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
