@@ -75,23 +75,6 @@ int td_demutil_parse_double(const char *tok, double *out)
     return ok;
 }
 
-int td_demutil_parse_int(const char *tok, long lo, long hi, long *out)
-{
-    int ok = *tok != '\0';
-    char *end = NULL;
-    long v = 0;
-    for (const char *p = tok; *p && ok; p++)
-        ok = isdigit((unsigned char)*p) || (p == tok && (*p == '+' || *p == '-'));
-    if (ok) {
-        errno = 0;
-        v = strtol(tok, &end, 10);
-        ok = *end == '\0' && errno != ERANGE && v >= lo && v <= hi;
-    }
-    if (ok)
-        *out = v;
-    return ok;
-}
-
 /* A JSON number that is finite; ints and reals alike. */
 static int json_finite(const json_t *v, double *out)
 {

@@ -73,7 +73,4 @@ const char *td_demutil_basename(const char *path);
  * "inf", hex, or trailing characters). Returns 1 on success. */
 int td_demutil_parse_double(const char *tok, double *out);
 
-/* Strict integer in [lo, hi]. Returns 1 on success. */
-int td_demutil_parse_int(const char *tok, long lo, long hi, long *out);
-
 #endif
