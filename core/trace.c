@@ -24,9 +24,9 @@
  * (block faces; the entry boundary of the cell where a cone step ends), never inside a
  * cell, for the same reason.
  *
- * Precision. Ray setup is in double; the direction is scaled by a power of two so that
- * its largest component is about 1 (exact, undone on t at the end) and components below
- * 1e-200 of it are flushed to zero, so reciprocals never overflow. Positions are kept
+ * Precision. Ray setup is in double; a direction whose largest component lies outside
+ * [2^-20, 2^20] is scaled by a power of two to about 1 (exact, undone on t at the end),
+ * and components below 1e-200 are flushed to zero, so reciprocals never overflow. Positions are kept
  * in cell units (u = x/sx, v = y/sy) and boundary times recomputed from integer cell
  * indices at every step, so nothing drifts. Heights and acceleration data are float.
  * Every skip test keeps a margin of zeps above the bound: a ray closer than that to a
@@ -150,6 +150,11 @@ static inline double ray_z(const walk *w, double t) { return w->oz + w->dz * t; 
 
 static inline double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
 
+/* min/max of non-NaN values as single instructions (libm's fmin/fmax are calls that
+ * honour NaN rules we never need here: no NaN reaches them). */
+static inline double dmin(double a, double b) { return a < b ? a : b; }
+static inline double dmax(double a, double b) { return a > b ? a : b; }
+
 static inline double sample(const td_grid *g, int32_t i, int32_t j)
 {
     return (double)g->z[(size_t)j * (size_t)g->w + (size_t)i];
@@ -166,8 +171,17 @@ static inline double exit_v(const walk *w, int32_t cj) { return time_v(w, (doubl
 /* The cell index along one axis that contains the ray just after time t. */
 static inline int32_t cell_along(double pos, int s, int32_t lo, int32_t hi)
 {
-    double c = s < 0 ? ceil(pos) - 1.0 : floor(pos);
-    return c < (double)lo ? lo : (c > (double)hi ? hi : (int32_t)c);
+    int32_t c;
+    if (!(pos >= (double)lo)) { /* below the range (or NaN): clamp before converting */
+        c = lo;
+    } else if (pos >= (double)hi + 1.0) {
+        c = hi;
+    } else {
+        c = (int32_t)pos; /* floor, pos >= lo >= 0 */
+        if (s < 0 && (double)c == pos && c > lo)
+            c--; /* going west/south, a point on the line belongs to the cell before it */
+    }
+    return c;
 }
 
 /* Height on the sample column I between rows J and J+1 (param from the ray's v). */
@@ -195,7 +209,7 @@ static inline double interior_height(td_surface s, const double c[4], double a, 
         else
             h = c[3] + (c[2] - c[3]) * (1.0 - a) + (c[1] - c[3]) * (1.0 - b);
     } else if (s == TD_SURFACE_PLANE) {
-        h = fmax(fmax(c[0], c[1]), fmax(c[2], c[3]));
+        h = dmax(dmax(c[0], c[1]), dmax(c[2], c[3]));
     } else {
         h = c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b + (c[0] - c[1] - c[2] + c[3]) * a * b;
     }
@@ -210,7 +224,7 @@ static double linear_height(const walk *w, int32_t ci, int32_t cj, const double 
     double tu0 = w->su ? time_u(w, (double)(ci + (w->su < 0))) : -INFINITY;
     double tv0 = w->sv ? time_v(w, (double)(cj + (w->sv < 0))) : -INFINITY;
     double tu1 = exit_u(w, ci), tv1 = exit_v(w, cj);
-    double tin = fmax(tu0, tv0), tout = fmin(tu1, tv1);
+    double tin = dmax(tu0, tv0), tout = dmin(tu1, tv1);
     if (!(tout > tin) || !isfinite(tin) || !isfinite(tout)) {
         /* vertical ray or a ray that only touches the cell: the surface under it */
         h = interior_height(TD_SURFACE_BILINEAR, c, clamp01(ray_u(w, t) - ci), clamp01(ray_v(w, t) - cj));
@@ -305,7 +319,7 @@ static int bilinear_hit(const walk *w, const double c[4], double ta, double fa, 
             double sq = sqrt(disc > 0.0 ? disc : 0.0);
             double q = -0.5 * (B + copysign(sq, B));
             double r1 = q / A, r2 = q != 0.0 ? fa / q : r1;
-            double lo = fmin(r1, r2), hi = fmax(r1, r2);
+            double lo = dmin(r1, r2), hi = dmax(r1, r2);
             double hiend = change ? L : smin;
             double s = lo >= 0.0 ? lo : hi;
             if (!(s >= 0.0 && s <= hiend)) {
@@ -324,7 +338,7 @@ static int plane_hit(const walk *w, const double c[4], double ta, double tb, int
                      int *wall)
 {
     int hit = 0;
-    double top = fmax(fmax(c[0], c[1]), fmax(c[2], c[3]));
+    double top = dmax(dmax(c[0], c[1]), dmax(c[2], c[3]));
     double za = ray_z(w, ta), zb = ray_z(w, tb);
     if (za <= top) {
         *t = ta;
@@ -347,11 +361,11 @@ static int step_cell(const walk *w, walk_state *st, hit_rec *hit)
     int rc = STEP_CONTINUE;
     const int32_t ci = st->ci, cj = st->cj;
     double tu = exit_u(w, ci), tv = exit_v(w, cj);
-    double tb = fmin(tu, tv);
+    double tb = dmin(tu, tv);
     int exit_kind = tu < tv ? ENTRY_U : (tv < tu ? ENTRY_V : ENTRY_UV);
     double c[4] = {sample(w->g, ci, cj), sample(w->g, ci + 1, cj), sample(w->g, ci, cj + 1),
                    sample(w->g, ci + 1, cj + 1)};
-    int hole = isnan(c[0]) || isnan(c[1]) || isnan(c[2]) || isnan(c[3]);
+    int hole = isnan(c[0] + c[1] + c[2] + c[3]);
     double fb = NAN;
 
     if (tb >= w->t_end) {
@@ -359,20 +373,30 @@ static int step_cell(const walk *w, walk_state *st, hit_rec *hit)
         exit_kind = ENTRY_START; /* the ray ends inside the cell: interior value */
     }
     if (!hole && tb >= st->t) {
+        /* Quick rejection: the ray stays strictly above the highest corner (or, for the
+         * two-sided surfaces, strictly below the lowest) over the whole segment. f is
+         * then not carried; the next cell recomputes it with the same edge function,
+         * bit for bit. */
+        double za = ray_z(w, st->t), zb = ray_z(w, tb);
+        double top = dmax(dmax(c[0], c[1]), dmax(c[2], c[3]));
+        double bottom = dmin(dmin(c[0], c[1]), dmin(c[2], c[3]));
+        int clear = dmin(za, zb) > top || (w->surf != TD_SURFACE_PLANE && dmax(za, zb) < bottom);
         double t = 0.0;
-        int found;
-        if (w->surf == TD_SURFACE_PLANE) {
+        int found = 0;
+        if (clear) {
+            found = 0;
+        } else if (w->surf == TD_SURFACE_PLANE) {
             int wall = 0;
             found = plane_hit(w, c, st->t, tb, st->entry, &t, &wall);
             hit->wall = wall;
         } else {
             double fa = isnan(st->f) ? entry_f(w, ci, cj, c, st->t, st->entry) : st->f;
             if (exit_kind == ENTRY_U)
-                fb = ray_z(w, tb) - edge_u_height(w, ci + (w->su > 0), cj, tb);
+                fb = zb - edge_u_height(w, ci + (w->su > 0), cj, tb);
             else if (exit_kind == ENTRY_V)
-                fb = ray_z(w, tb) - edge_v_height(w, ci, cj + (w->sv > 0), tb);
+                fb = zb - edge_v_height(w, ci, cj + (w->sv > 0), tb);
             else if (exit_kind == ENTRY_UV)
-                fb = ray_z(w, tb) - sample(w->g, ci + (w->su > 0), cj + (w->sv > 0));
+                fb = zb - sample(w->g, ci + (w->su > 0), cj + (w->sv > 0));
             else
                 fb = entry_f(w, ci, cj, c, tb, ENTRY_START);
             if (w->surf == TD_SURFACE_BILINEAR)
@@ -413,7 +437,7 @@ static int leave_box(const walk *w, walk_state *st, int32_t ulo, int32_t uhi, in
     int rc = STEP_CONTINUE;
     double tu = w->su > 0 ? time_u(w, (double)uhi) : time_u(w, (double)ulo);
     double tv = w->sv > 0 ? time_v(w, (double)vhi) : time_v(w, (double)vlo);
-    double tx = fmin(tu, tv);
+    double tx = dmin(tu, tv);
     if (!(tx < w->t_end)) {
         rc = STEP_END;
     } else {
@@ -454,8 +478,8 @@ static int hier_step(const walk *w, const td_tile *tile, const td_maxmip *mm, wa
         vhi = vhi < tile->j0 + tile->ny ? vhi : tile->j0 + tile->ny;
         double tu = w->su > 0 ? time_u(w, (double)uhi) : time_u(w, (double)ulo);
         double tv = w->sv > 0 ? time_v(w, (double)vhi) : time_v(w, (double)vlo);
-        double tx = fmin(fmin(tu, tv), w->t_end);
-        double zlow = fmin(ray_z(w, st->t), ray_z(w, tx));
+        double tx = dmin(dmin(tu, tv), w->t_end);
+        double zlow = dmin(ray_z(w, st->t), ray_z(w, tx));
         if (zlow > (double)m + w->zeps) {
             rc = leave_box(w, st, ulo, uhi, vlo, vhi);
             *level = L < mm->levels ? L + 1 : L;
@@ -480,7 +504,7 @@ static int cone_step(const walk *w, const td_tile *tile, const td_planes *pl, wa
     if (above > 0.0) {
         double closing = sp * w->hs - w->dz; /* how fast the ray nears the cone, per unit t */
         int32_t ulo = tile->i0, uhi = tile->i0 + tile->nx, vlo = tile->j0, vhi = tile->j0 + tile->ny;
-        double tx = fmin(w->su > 0 ? time_u(w, (double)uhi) : time_u(w, (double)ulo),
+        double tx = dmin(w->su > 0 ? time_u(w, (double)uhi) : time_u(w, (double)ulo),
                          w->sv > 0 ? time_v(w, (double)vhi) : time_v(w, (double)vlo));
         double tl = closing > 0.0 ? st->t + above / closing : INFINITY;
         if (tl >= tx || tl >= w->t_end) {
@@ -490,7 +514,7 @@ static int cone_step(const walk *w, const td_tile *tile, const td_planes *pl, wa
             int32_t cj = cell_along(ray_v(w, tl), w->sv, vlo, vhi - 1);
             double teu = w->su ? time_u(w, (double)(ci + (w->su < 0))) : -INFINITY;
             double tev = w->sv ? time_v(w, (double)(cj + (w->sv < 0))) : -INFINITY;
-            double te = fmax(teu, tev);
+            double te = dmax(teu, tev);
             if ((ci != st->ci || cj != st->cj) && te > st->t) {
                 st->ci = ci;
                 st->cj = cj;
@@ -597,19 +621,23 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
     int rc = STEP_END;
     td_method used = m == TD_METHOD_AUTO ? TD_METHOD_INCREMENTAL : m;
     int exp2 = 0;
-    double dmax = fmax(fabs(r->d[0]), fmax(fabs(r->d[1]), fabs(r->d[2])));
+    double scale = 1.0;
+    double dlen = dmax(fabs(r->d[0]), dmax(fabs(r->d[1]), fabs(r->d[2])));
     double d[3], t0, t1;
 
     memset(hit, 0, sizeof *hit);
     hit->t = INFINITY;
     hit->ci = hit->cj = -1;
-    if (isnan(g->zmin) || !(dmax > 0.0))
+    if (isnan(g->zmin) || !(dlen > 0.0))
         goto out;
 
     /* Scale the direction by a power of two (exact) so its largest component is ~1. */
-    frexp(dmax, &exp2);
+    if (dlen < 0x1p-20 || dlen > 0x1p20) { /* only extreme directions need rescaling */
+        frexp(dlen, &exp2);
+        scale = ldexp(1.0, -exp2); /* exact power of two: d*scale and t/scale are exact */
+    }
     for (int i = 0; i < 3; i++) {
-        d[i] = ldexp(r->d[i], -exp2);
+        d[i] = r->d[i] * scale;
         if (fabs(d[i]) < 1e-200)
             d[i] = 0.0;
     }
@@ -626,14 +654,14 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
     w.sv = w.dv > 0.0 ? 1 : (w.dv < 0.0 ? -1 : 0);
     w.iu = w.su ? 1.0 / w.du : INFINITY;
     w.iv = w.sv ? 1.0 / w.dv : INFINITY;
-    w.hs = hypot(d[0], d[1]);
+    w.hs = sqrt(d[0] * d[0] + d[1] * d[1]); /* no overflow: |d| <= 2^21 after scaling */
     w.cmax_i = g->w - 2;
     w.cmax_j = g->h - 2;
-    w.zeps = 1e-6 * (1.0 + fmax(fabs((double)g->zmin), fabs((double)g->zmax)));
+    w.zeps = 1e-6 * (1.0 + dmax(fabs((double)g->zmin), fabs((double)g->zmax)));
 
     /* Clip to the grid's box (the plane surface's columns reach down forever). */
-    t0 = ldexp(r->tmin, exp2);
-    t1 = ldexp(r->tmax, exp2);
+    t0 = r->tmin / scale;
+    t1 = r->tmax / scale;
     clip_slab(w.ou, w.du, 0.0, (double)(g->w - 1), &t0, &t1);
     clip_slab(w.ov, w.dv, 0.0, (double)(g->h - 1), &t0, &t1);
     clip_slab(w.oz, w.dz, s == TD_SURFACE_PLANE ? -INFINITY : (double)g->zmin - w.zeps,
@@ -654,18 +682,19 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
         int level = 0;
         rc = STEP_CONTINUE;
         while (rc == STEP_CONTINUE) {
-            const td_tile *now = td_grid_tile_of_cell(g, st.ci, st.cj);
-            if (now != tile) {
+            if (!tile || st.ci < tile->i0 || st.cj < tile->j0 || st.ci >= tile->i0 + tile->nx ||
+                st.cj >= tile->j0 + tile->ny) {
+                const td_tile *now = td_grid_tile_of_cell(g, st.ci, st.cj);
                 /* A new tile: skip it whole if the ray passes above or below it. */
                 int32_t ulo = now->i0, uhi = now->i0 + now->nx, vlo = now->j0, vhi = now->j0 + now->ny;
-                double tx = fmin(fmin(w.su > 0 ? time_u(&w, uhi) : time_u(&w, ulo),
+                double tx = dmin(dmin(w.su > 0 ? time_u(&w, uhi) : time_u(&w, ulo),
                                       w.sv > 0 ? time_v(&w, vhi) : time_v(&w, vlo)),
                                  w.t_end);
                 double za = ray_z(&w, st.t), zb = ray_z(&w, tx);
                 tile = now;
                 steps++;
-                if (fmin(za, zb) > (double)now->zmax + w.zeps || now->zmax < now->zmin ||
-                    (s != TD_SURFACE_PLANE && fmax(za, zb) < (double)now->zmin - w.zeps)) {
+                if (dmin(za, zb) > (double)now->zmax + w.zeps || now->zmax < now->zmin ||
+                    (s != TD_SURFACE_PLANE && dmax(za, zb) < (double)now->zmin - w.zeps)) {
                     rc = leave_box(&w, &st, ulo, uhi, vlo, vhi);
                     continue;
                 }
@@ -686,7 +715,7 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
         }
     }
     if (rc == STEP_HIT) {
-        hit->t = ldexp(hr.t, -exp2);
+        hit->t = hr.t * scale;
         for (int i = 0; i < 3; i++)
             hit->p[i] = r->o[i] + hit->t * r->d[i];
         hit->ci = hr.ci;
