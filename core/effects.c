@@ -26,9 +26,10 @@ void td_sky_color(const double d[3], const double s[3], int disc, float rgb[3])
         for (int k = 0; k < 3; k++)
             c[k] += glow * (warm[k] * 0.5 + 0.5);
         if (cosg > cos(0.27 * M_PI / 180.0) && s[2] > -0.01) {
+            /* brighter than any glow around it, a touch warm */
             c[0] = 1.0;
-            c[1] = 0.97 - 0.25 * low;
-            c[2] = 0.90 - 0.45 * low;
+            c[1] = 0.97;
+            c[2] = 0.90;
         }
     }
     for (int k = 0; k < 3; k++) {

@@ -182,8 +182,9 @@ static void test_decode_refusals(void **state)
     assert_null(d);
     assert_int_equal(td_image_load("/nonexistent/x.png", 3, 1u << 20, &d, &err), TD_EFORMAT);
     assert_non_null(strstr(err.msg, "/nonexistent/x.png"));
-    assert_int_equal(td_image_encode_rgba(img, 0, 16, &b, &err), TD_ERANGE);
     td_buf_free(&b);
+    assert_int_equal(td_image_encode_rgba(img, 0, 16, &b, &err), TD_ERANGE);
+    assert_null(b.data);
 }
 
 int main(void)
