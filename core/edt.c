@@ -68,17 +68,30 @@ static void edt_1d(const double *f, double *d, int32_t n, double w, int32_t *v, 
 
 void td_edt_2d(double *dist, int32_t nx, int32_t ny, double wx, double wy, td_edt_scratch *s)
 {
+    /* Columns first: the input is binary (0 or +inf), so the 1D transform along a column
+     * is the distance to the nearest feature in it, found by one sweep north and one
+     * sweep south. Both sweeps run row by row over contiguous memory. */
+    for (int32_t y = 1; y < ny; y++) {
+        const double *prev = dist + (size_t)(y - 1) * (size_t)nx;
+        double *row = dist + (size_t)y * (size_t)nx;
+        for (int32_t x = 0; x < nx; x++)
+            row[x] = row[x] == 0.0 ? 0.0 : prev[x] + 1.0; /* inf + 1 stays inf */
+    }
+    for (int32_t y = ny - 2; y >= 0; y--) {
+        const double *next = dist + (size_t)(y + 1) * (size_t)nx;
+        double *row = dist + (size_t)y * (size_t)nx;
+        for (int32_t x = 0; x < nx; x++) {
+            double b = next[x] + 1.0;
+            row[x] = b < row[x] ? b : row[x];
+        }
+    }
+    for (size_t c = 0; c < (size_t)nx * (size_t)ny; c++)
+        dist[c] = isinf(dist[c]) ? INFINITY : wy * dist[c] * dist[c];
+    /* Rows: the general transform of the columns' result, in place. */
     for (int32_t y = 0; y < ny; y++) {
         double *row = dist + (size_t)y * (size_t)nx;
         for (int32_t x = 0; x < nx; x++)
             s->f[x] = row[x];
         edt_1d(s->f, row, nx, wx, s->v, s->zs);
-    }
-    for (int32_t x = 0; x < nx; x++) {
-        for (int32_t y = 0; y < ny; y++)
-            s->f[y] = dist[(size_t)y * (size_t)nx + (size_t)x];
-        edt_1d(s->f, s->d, ny, wy, s->v, s->zs);
-        for (int32_t y = 0; y < ny; y++)
-            dist[(size_t)y * (size_t)nx + (size_t)x] = s->d[y];
     }
 }

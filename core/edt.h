@@ -16,7 +16,7 @@ typedef struct td_edt_scratch {
 int td_edt_scratch_init(td_edt_scratch *s, int32_t n);
 void td_edt_scratch_free(td_edt_scratch *s);
 
-/* In: dist[c] = 0 for feature cells, +inf otherwise (nx*ny, row-major).
+/* In: dist[c] = 0 for feature cells, +inf otherwise (binary input only; nx*ny, row-major).
  * Out: dist[c] = min over features q of wx*(cx-qx)^2 + wy*(cy-qy)^2 (+inf if none).
  * Row-major layout, nx, ny <= s->n. */
 void td_edt_2d(double *dist, int32_t nx, int32_t ny, double wx, double wy, td_edt_scratch *s);

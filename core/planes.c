@@ -128,21 +128,24 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
                     : slices == 1 ? (double)zlo
                                   : (double)zlo + (double)s * ((double)zhi - (double)zlo) / (slices - 1);
         if (s < slices) {
-            /* feature mask H >= z_k, dilated by one cell, as EDT input */
-            for (size_t c = 0; c < n; c++)
-                mask[c] = (double)cell[c] >= zk;
+            /* feature mask H >= z_k, dilated by one cell (3x3, separable), as EDT input */
             for (int32_t y = 0; y < ny; y++) {
+                const float *h = cell + (size_t)y * (size_t)nx;
+                unsigned char *mrow = mask + (size_t)y * (size_t)nx;
                 for (int32_t x = 0; x < nx; x++) {
-                    int hit = 0;
-                    for (int32_t dy = -1; dy <= 1 && !hit; dy++) {
-                        for (int32_t dx = -1; dx <= 1 && !hit; dx++) {
-                            int32_t xx = x + dx, yy = y + dy;
-                            hit = xx >= 0 && yy >= 0 && xx < nx && yy < ny &&
-                                  mask[(size_t)yy * (size_t)nx + (size_t)xx];
-                        }
-                    }
-                    dist[(size_t)y * (size_t)nx + (size_t)x] = hit ? 0.0 : INFINITY;
+                    int on = (double)h[x] >= zk;
+                    on |= x > 0 && (double)h[x - 1] >= zk;
+                    on |= x + 1 < nx && (double)h[x + 1] >= zk;
+                    mrow[x] = (unsigned char)on;
                 }
+            }
+            for (int32_t y = 0; y < ny; y++) {
+                const unsigned char *m0 = mask + (size_t)y * (size_t)nx;
+                const unsigned char *mu = y > 0 ? m0 - nx : m0;
+                const unsigned char *md = y + 1 < ny ? m0 + nx : m0;
+                double *drow = dist + (size_t)y * (size_t)nx;
+                for (int32_t x = 0; x < nx; x++)
+                    drow[x] = (m0[x] | mu[x] | md[x]) ? 0.0 : INFINITY;
             }
             td_edt_2d(dist, nx, ny, g->sx * g->sx, g->sy * g->sy, &scratch);
         }
