@@ -11,7 +11,7 @@ void td_grid_limits_default(td_grid_limits *lim)
 {
     lim->max_width = 65536;
     lim->max_height = 65536;
-    lim->max_bytes = 0;
+    lim->max_bytes = (uint64_t)4 << 30; /* 4 GiB: a 32768^2 grid, far beyond the demo */
 }
 
 static int32_t tiles_along(int32_t samples, int tile_log2)

@@ -47,7 +47,7 @@ typedef struct td_tile {
 
 typedef struct td_grid_limits {
     int32_t max_width, max_height; /* default 65536 each */
-    uint64_t max_bytes;            /* heights + tile records; 0 = no budget */
+    uint64_t max_bytes;            /* heights + tile records; 0 = no budget (default 4 GiB) */
 } td_grid_limits;
 
 typedef struct td_grid {
