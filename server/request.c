@@ -628,7 +628,7 @@ static int parse_pick(pctx *p, json_t *root, td_scene *s)
         while (*c && !rc) {
             double x, y;
             int used = 0;
-            if ((size_t)s->npick >= (size_t)p->lim->max_pick)
+            if (s->npick >= p->lim->max_pick || s->npick >= TD_SCENE_PICK_MAX)
                 rc = fail(p, TD_ETOOBIG, "more than %d pixels", p->lim->max_pick);
             else if (sscanf(c, "%lf,%lf%n", &x, &y, &used) != 2 || !isfinite(x) || !isfinite(y))
                 rc = fail(p, TD_EFORMAT, "expected x,y;x,y;...");

@@ -21,6 +21,10 @@
 
 #include <cmocka.h>
 
+#include <jansson.h>
+#include <unistd.h>
+
+#include "cli.h"
 #include "render.h"
 #include "terrain.h"
 
@@ -389,6 +393,62 @@ static void test_refusals_and_cancel(void **state)
     assert_null(r.rgba);
 }
 
+/* `terrad render` end to end on a real DEM fixture: image of the asked size, stats with
+ * rays by kind and only the stages that ran; a scene error is a usage error (2). */
+static void test_cli_render(void **state)
+{
+    char dir[] = "/tmp/terrad-render-XXXXXX";
+    char scene_path[256], out_path[256], stats_path[256], bad_path[256];
+    (void)state;
+    assert_non_null(mkdtemp(dir));
+    snprintf(scene_path, sizeof scene_path, "%s/scene.json", dir);
+    snprintf(out_path, sizeof out_path, "%s/out.png", dir);
+    snprintf(stats_path, sizeof stats_path, "%s/stats.json", dir);
+    snprintf(bad_path, sizeof bad_path, "%s/bad.json", dir);
+    FILE *f = fopen(scene_path, "w");
+    assert_non_null(f);
+    fprintf(f, "{\"dataset\": \"%s/volcano.asc\", \"camera\": {\"position\": {\"x\": 300, "
+               "\"y\": -300, \"z\": 500}, \"pitch\": -25, \"fov\": 50}, \"image\": {\"width\": 80, "
+               "\"height\": 60}, \"effects\": {\"shadows\": true, \"sky\": true}}",
+            TERRAD_TEST_DATA);
+    fclose(f);
+    char *argv[] = {"render", scene_path, "-o", out_path, "--stats", stats_path, "--threads", "2", NULL};
+    assert_int_equal(td_cli_render(8, argv), 0);
+    td_image8 *img = NULL;
+    td_err err = {{0}};
+    assert_int_equal(td_image_load(out_path, 4, 1u << 20, &img, &err), TD_OK);
+    assert_int_equal(img->width, 80);
+    assert_int_equal(img->height, 60);
+    td_image_free(img);
+    json_error_t je;
+    json_t *st = json_load_file(stats_path, 0, &je);
+    assert_non_null(st);
+    json_t *rays = json_object_get(st, "rays"), *stages = json_object_get(st, "stages_ms");
+    assert_int_equal(json_integer_value(json_object_get(rays, "primary")), 80 * 60);
+    assert_true(json_integer_value(json_object_get(rays, "shadow")) > 0);
+    assert_int_equal(json_integer_value(json_object_get(rays, "ao")), 0);
+    assert_int_equal(json_integer_value(json_object_get(rays, "reflection")), 0);
+    assert_non_null(json_object_get(stages, "primary"));
+    assert_non_null(json_object_get(stages, "shadows"));
+    assert_non_null(json_object_get(stages, "sky"));
+    assert_non_null(json_object_get(stages, "encode"));
+    assert_null(json_object_get(stages, "haze"));
+    assert_null(json_object_get(stages, "ao"));
+    json_decref(st);
+
+    f = fopen(bad_path, "w");
+    assert_non_null(f);
+    fprintf(f, "{\"dataset\": \"x\", \"camera\": {\"fov\": 500, \"position\": {\"x\": 1, \"y\": 1, \"z\": 1}}}");
+    fclose(f);
+    char *argv2[] = {"render", bad_path, "-o", out_path, NULL};
+    assert_int_equal(td_cli_render(4, argv2), 2);
+    unlink(scene_path);
+    unlink(out_path);
+    unlink(stats_path);
+    unlink(bad_path);
+    rmdir(dir);
+}
+
 /* ---- golden images ---- */
 
 static double psnr(const uint8_t *a, const uint8_t *b, size_t n)
@@ -512,6 +572,7 @@ int main(void)
         cmocka_unit_test(test_depth_matches_pick),
         cmocka_unit_test(test_curvature),
         cmocka_unit_test(test_refusals_and_cancel),
+        cmocka_unit_test(test_cli_render),
         cmocka_unit_test(test_golden_images),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
