@@ -91,16 +91,40 @@ static void send_json(td_http_resp *r, int status, json_t *j)
 
 static void api_error(td_http_resp *r, td_apierr e, const char *field, const char *fmt, ...)
     __attribute__((format(printf, 4, 5)));
+/* Replaces bytes that are not valid UTF-8 (or are control characters) with '?', so that
+ * text echoed from a request (a key, a value) can always go into a JSON string. */
+static void utf8_clean(char *s)
+{
+    unsigned char *p = (unsigned char *)s;
+    while (*p) {
+        int n = *p < 0x80 ? 1 : (*p & 0xe0) == 0xc0 ? 2 : (*p & 0xf0) == 0xe0 ? 3
+                : (*p & 0xf8) == 0xf0 ? 4 : 0;
+        int ok = n > 0 && !(n == 2 && *p < 0xc2);
+        for (int k = 1; ok && k < n; k++)
+            ok = (p[k] & 0xc0) == 0x80;
+        if (!ok || (n == 1 && *p < 0x20)) {
+            *p++ = '?';
+        } else {
+            p += n;
+        }
+    }
+}
+
 static void api_error(td_http_resp *r, td_apierr e, const char *field, const char *fmt, ...)
 {
-    char msg[600];
+    char msg[600], fld[160];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
+    utf8_clean(msg);
+    if (field) {
+        snprintf(fld, sizeof fld, "%s", field);
+        utf8_clean(fld);
+    }
     send_json(r, td_apierrs[e].status,
-              json_pack("{s:{s:s,s:s?,s:s}}", "error", "code", td_apierrs[e].code, "field", field,
-                        "message", msg));
+              json_pack("{s:{s:s,s:s?,s:s}}", "error", "code", td_apierrs[e].code, "field",
+                        field ? fld : NULL, "message", msg));
 }
 
 static void method_not_allowed(td_http_resp *r, const char *allow, const char *method)
@@ -1040,7 +1064,24 @@ static void h_render(td_app *app, td_http_req *q, td_http_resp *r, int post, int
             return;
         }
         body = td_http_req_body(q, &len);
-        rc = td_request_parse_scene(body, len, &lim, &j->scene, &re);
+        if (pick) {
+            /* /v1/pick implies image.format "pick": add it when the body leaves it out. */
+            json_t *root = json_loadb(body, len, JSON_REJECT_DUPLICATES, NULL);
+            json_t *img = root ? json_object_get(root, "image") : NULL;
+            char *text = NULL;
+            if (json_is_object(root) && !img)
+                json_object_set_new(root, "image", img = json_object());
+            if (json_is_object(img) && !json_object_get(img, "format")) {
+                json_object_set_new(img, "format", json_string("pick"));
+                text = json_dumps(root, JSON_COMPACT);
+            }
+            rc = text ? td_request_parse_scene(text, strlen(text), &lim, &j->scene, &re)
+                      : td_request_parse_scene(body, len, &lim, &j->scene, &re);
+            free(text);
+            json_decref(root);
+        } else {
+            rc = td_request_parse_scene(body, len, &lim, &j->scene, &re);
+        }
     } else {
         td_qargs a;
         memset(&a, 0, sizeof a);
