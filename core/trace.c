@@ -429,6 +429,43 @@ static int step_cell(const walk *w, walk_state *st, hit_rec *hit)
     return rc;
 }
 
+/* The incremental walk through one tile. A cell the ray passes strictly above costs two
+ * exit times, four loads and a compare here (a hole's NaN corners either fail the
+ * compare or drop out of the maximum, and a hole may be passed either way); every other
+ * cell goes through step_cell. Returns when the walk hits, ends, or leaves the tile. */
+static int walk_run(const walk *w, walk_state *st, const td_tile *tile, uint32_t *steps,
+                    hit_rec *hit)
+{
+    int rc = STEP_CONTINUE;
+    const int32_t ilo = tile->i0, ihi = tile->i0 + tile->nx, jlo = tile->j0, jhi = tile->j0 + tile->ny;
+    const size_t W = (size_t)w->g->w;
+    uint32_t n = 0;
+    while (rc == STEP_CONTINUE && st->ci >= ilo && st->ci < ihi && st->cj >= jlo && st->cj < jhi) {
+        const int32_t ci = st->ci, cj = st->cj;
+        double tu = exit_u(w, ci), tv = exit_v(w, cj);
+        double tb = dmin(tu, tv);
+        n++;
+        if (tb < w->t_end) {
+            const float *s0 = w->g->z + (size_t)cj * W + (size_t)ci;
+            double top = dmax(dmax((double)s0[0], (double)s0[1]), dmax((double)s0[W], (double)s0[W + 1]));
+            if (dmin(ray_z(w, st->t), ray_z(w, tb)) > top) {
+                int kind = tu < tv ? ENTRY_U : (tv < tu ? ENTRY_V : ENTRY_UV);
+                st->ci += kind != ENTRY_V ? w->su : 0;
+                st->cj += kind != ENTRY_U ? w->sv : 0;
+                st->t = tb;
+                st->f = NAN;
+                st->entry = kind;
+                if (st->ci < 0 || st->cj < 0 || st->ci > w->cmax_i || st->cj > w->cmax_j)
+                    rc = STEP_END;
+                continue;
+            }
+        }
+        rc = step_cell(w, st, hit);
+    }
+    *steps += n;
+    return rc;
+}
+
 /* Moves the walk to the cell after the box of cells [ulo, uhi) x [vlo, vhi) that the
  * ray leaves at time `tx` (computed from the same box). Used by every skip. */
 static int leave_box(const walk *w, walk_state *st, int32_t ulo, int32_t uhi, int32_t vlo,
@@ -705,13 +742,15 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
                 if (level < 0)
                     level = 0;
             }
-            steps++;
-            if (used == TD_METHOD_HIERARCHICAL)
+            if (used == TD_METHOD_HIERARCHICAL) {
+                steps++;
                 rc = hier_step(&w, tile, ta->maxmip, &st, &level, &hr);
-            else if (used == TD_METHOD_PARAMETRIC)
+            } else if (used == TD_METHOD_PARAMETRIC) {
+                steps++;
                 rc = cone_step(&w, tile, ta->planes, &st, &hr);
-            else
-                rc = step_cell(&w, &st, &hr);
+            } else {
+                rc = walk_run(&w, &st, tile, &steps, &hr);
+            }
         }
     }
     if (rc == STEP_HIT) {
