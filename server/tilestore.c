@@ -295,9 +295,10 @@ static int load_one(td_store *s, const char *path, const char *name, const char 
     td_status rc;
     int ok = 0;
 
-    if (!td_store_id_valid(id)) {
-        td_log(TD_LOG_WARN, "dataset_skipped", "path=%s reason=\"id '%s' is not [A-Za-z0-9_.-]{1,64}\"",
-               td_log_quote(qp, sizeof qp, path), id);
+    if (!td_store_id_valid(id) || td_store_find(s, id) >= 0) {
+        td_log(TD_LOG_WARN, "dataset_skipped", "path=%s reason=\"id '%s' is %s\"",
+               td_log_quote(qp, sizeof qp, path), id,
+               td_store_id_valid(id) ? "already taken" : "not [A-Za-z0-9_.-]{1,64}");
         goto out;
     }
     td_dem_opts_default(&o);

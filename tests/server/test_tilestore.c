@@ -1,0 +1,424 @@
+/* test_tilestore.c: the tile store on its own (no HTTP): dataset ids and directory
+ * scanning (nothing outside the directory), the memory budget with LRU and pinning,
+ * failed preloads leaving resident tiles alone, the disk cache (hit, and rejection of a
+ * corrupted file), and the concurrency contract: renders tracing through snapshots
+ * while another thread rebuilds and evicts tiles see every hit exactly as the
+ * incremental tracer does. Built twice: plainly (and under ASan by `make test`), and
+ * with ThreadSanitizer (test_tilestore_tsan). */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <cmocka.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "maxmip.h"
+#include "planes.h"
+#include "terrain.h"
+#include "tilestore.h"
+
+#define TILE_LOG2 5 /* 32 cells: a 257 x 257 grid has 8 x 8 tiles */
+
+static td_grid *terrain(uint64_t seed)
+{
+    td_terrain_params p;
+    td_grid *g = NULL;
+    td_err e;
+    td_terrain_params_default(&p);
+    p.width = 257;
+    p.height = 257;
+    p.spacing = 30.0;
+    p.seed = seed;
+    p.feature_m = 3000.0;
+    p.relief_m = 800.0;
+    assert_int_equal(td_terrain_generate(&p, TILE_LOG2, &g, &e), TD_OK);
+    return g;
+}
+
+static td_store *store_new(uint64_t budget, const char *cache)
+{
+    td_store_opts o = {budget, TILE_LOG2, 8, cache};
+    td_store *s = NULL;
+    td_err e;
+    assert_int_equal(td_store_create(&o, &s, &e), TD_OK);
+    return s;
+}
+
+/* Bytes one tile's maxmip + planes take (built here, for the budgets below). */
+static uint64_t tile_bytes(const td_grid *g)
+{
+    td_maxmip *m = NULL;
+    td_planes *p = NULL;
+    td_err e;
+    uint64_t b;
+    assert_int_equal(td_maxmip_build(g, 0, &m, &e), TD_OK);
+    assert_int_equal(td_planes_build(g, 0, 8, &p, &e), TD_OK);
+    b = m->bytes + p->bytes;
+    td_maxmip_free(m);
+    td_planes_free(p);
+    return b;
+}
+
+static void test_ids(void **state)
+{
+    (void)state;
+    assert_true(td_store_id_valid("levi"));
+    assert_true(td_store_id_valid("N37W105.v2_a-b"));
+    assert_false(td_store_id_valid(""));
+    assert_false(td_store_id_valid(".hidden"));
+    assert_false(td_store_id_valid(".."));
+    assert_false(td_store_id_valid("a/b"));
+    assert_false(td_store_id_valid("a b"));
+    assert_false(td_store_id_valid("x%2f"));
+    assert_false(td_store_id_valid("0123456789012345678901234567890123456789012345678901234567890123456789"));
+}
+
+static void copy_file(const char *from, const char *to)
+{
+    FILE *a = fopen(from, "rb"), *b = fopen(to, "wb");
+    char buf[65536];
+    size_t n;
+    assert_non_null(a);
+    assert_non_null(b);
+    while ((n = fread(buf, 1, sizeof buf, a)) > 0)
+        assert_int_equal(fwrite(buf, 1, n, b), n);
+    fclose(a);
+    fclose(b);
+}
+
+static void test_add_dir(void **state)
+{
+    char dir[256], p[512], q[512];
+    td_store *s = store_new(64u << 20, NULL);
+    td_dataset_info di;
+    td_err e;
+    int n = 0;
+    (void)state;
+    snprintf(dir, sizeof dir, "%s/terrad-store-%ld", P_tmpdir, (long)getpid());
+    snprintf(p, sizeof p, "rm -rf %s", dir);
+    assert_int_equal(system(p), 0);
+    assert_int_equal(mkdir(dir, 0755), 0);
+    snprintf(p, sizeof p, "%s/data", dir);
+    assert_int_equal(mkdir(p, 0755), 0);
+    /* a file: id volcano */
+    snprintf(p, sizeof p, "%s/data/volcano.asc", dir);
+    copy_file(TERRAD_TEST_DATA "/volcano.asc", p);
+    /* a folder with one DEM: id picos */
+    snprintf(p, sizeof p, "%s/data/picos", dir);
+    assert_int_equal(mkdir(p, 0755), 0);
+    snprintf(p, sizeof p, "%s/data/picos/dtm.asc", dir);
+    copy_file(TERRAD_TEST_DATA "/picos-dtm.asc", p);
+    /* a link to a DEM outside the directory: skipped */
+    snprintf(p, sizeof p, "%s/outside.asc", dir);
+    copy_file(TERRAD_TEST_DATA "/volcano.asc", p);
+    snprintf(q, sizeof q, "%s/data/escape.asc", dir);
+    assert_int_equal(symlink(p, q), 0);
+    /* not a DEM, a hidden file, a bad id: skipped */
+    snprintf(p, sizeof p, "%s/data/notes.txt", dir);
+    copy_file(TERRAD_TEST_DATA "/volcano.asc", p);
+    snprintf(p, sizeof p, "%s/data/.hidden.asc", dir);
+    copy_file(TERRAD_TEST_DATA "/volcano.asc", p);
+    snprintf(p, sizeof p, "%s/data/bad name.asc", dir);
+    copy_file(TERRAD_TEST_DATA "/volcano.asc", p);
+
+    snprintf(p, sizeof p, "%s/data", dir);
+    assert_int_equal(td_store_add_dir(s, p, "data", &n, &e), TD_OK);
+    assert_int_equal(n, 2);
+    assert_int_equal(td_store_count(s), 2);
+    assert_true(td_store_find(s, "picos") >= 0);
+    assert_true(td_store_find(s, "volcano") >= 0);
+    assert_int_equal(td_store_find(s, "escape"), -1);
+    assert_int_equal(td_store_find(s, "outside"), -1);
+    td_store_info(s, (size_t)td_store_find(s, "picos"), &di);
+    assert_int_equal(di.grid->w, 714);
+    assert_int_equal(di.grid->h, 482);
+    assert_string_equal(di.file, "dtm.asc");
+    assert_string_equal(di.origin, "data");
+    /* the same directory again: ids are taken, nothing is added */
+    assert_int_equal(td_store_add_dir(s, p, "data", &n, &e), TD_OK);
+    assert_int_equal(n, 0);
+    snprintf(p, sizeof p, "%s/none", dir);
+    assert_int_equal(td_store_add_dir(s, p, "data", &n, &e), TD_ENOTFOUND);
+    td_store_free(s);
+    snprintf(p, sizeof p, "rm -rf %s", dir);
+    assert_int_equal(system(p), 0);
+}
+
+static void test_budget_lru_pin(void **state)
+{
+    td_grid *g = terrain(7);
+    uint64_t gb = td_grid_bytes(g->w, g->h, g->tile_log2), tb = tile_bytes(g);
+    /* Heights + room for 10 tiles (with the up-front bound's slack). */
+    uint64_t budget = gb + 10 * tb + tb / 2;
+    td_store *s = store_new(budget, NULL);
+    td_store_stats st;
+    td_dataset_info di;
+    td_err e;
+    size_t built, first[6] = {0, 1, 2, 3, 4, 5}, second[6] = {10, 11, 12, 13, 14, 15}, pinned[2] = {20, 21};
+    td_preload_spec all = {0, NULL, 0, 1, 1, 0, 0};
+    td_preload_spec a = {0, first, 6, 1, 1, 0, 0}, b = {0, second, 6, 1, 1, 0, 0};
+    td_preload_spec pin = {0, pinned, 2, 1, 1, 1, 0};
+    (void)state;
+    assert_int_equal(td_store_add_grid(s, "t", "api", g, &e), TD_OK);
+    /* 64 tiles cannot fit: refused up front, nothing built. */
+    assert_int_equal(td_store_preload(s, &all, NULL, NULL, &built, &e), TD_ETOOBIG);
+    assert_non_null(strstr(e.msg, "budget"));
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.resident_tiles, 0);
+    assert_int_equal(st.tiles_built, 0);
+
+    assert_int_equal(td_store_preload(s, &pin, NULL, NULL, &built, &e), TD_OK);
+    assert_int_equal(td_store_preload(s, &a, NULL, NULL, &built, &e), TD_OK);
+    assert_int_equal(built, 6);
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.resident_tiles, 8);
+    assert_true(st.resident_bytes <= budget);
+    /* Six more: LRU evicts four of the first six, never the pinned pair. */
+    assert_int_equal(td_store_preload(s, &b, NULL, NULL, &built, &e), TD_OK);
+    td_store_stats_get(s, &st);
+    assert_true(st.resident_bytes <= budget);
+    assert_true(st.resident_tiles <= 10);
+    assert_true(st.tiles_evicted >= 4);
+    td_store_info(s, 0, &di);
+    assert_int_equal(di.pinned_tiles, 2);
+    {
+        td_snapshot *snap = NULL;
+        const td_view *v;
+        assert_int_equal(td_store_acquire(s, "t", &snap, &e), TD_OK);
+        v = td_snapshot_view(snap);
+        for (int k = 0; k < 6; k++)
+            assert_non_null(v->accel[second[k]].planes); /* the newest stay */
+        assert_non_null(v->accel[20].maxmip);
+        assert_non_null(v->accel[21].planes);
+        assert_null(v->accel[0].maxmip); /* the oldest went first */
+        td_snapshot_release(snap);
+    }
+    /* A bad tile index is refused before anything changes. */
+    {
+        size_t bad[2] = {30, 64};
+        td_preload_spec x = {0, bad, 2, 1, 1, 0, 0};
+        td_store_stats_get(s, &st);
+        assert_int_equal(td_store_preload(s, &x, NULL, NULL, &built, &e), TD_EINVAL);
+        assert_non_null(strstr(e.msg, "tiles[1]"));
+    }
+    /* Eviction by the admin drops pinned tiles too. */
+    td_store_evict_dataset(s, 0, &built);
+    assert_true(built >= 8);
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.resident_tiles, 0);
+    assert_int_equal(st.resident_bytes, gb);
+    assert_int_equal(td_store_acquire(s, "nope", &(td_snapshot *){NULL}, &e), TD_ENOTFOUND);
+    td_store_free(s);
+}
+
+static void test_disk_cache(void **state)
+{
+    char dir[256], cmd[600], path[600];
+    td_grid *g1 = terrain(3), *g2 = terrain(3), *g3 = terrain(3);
+    td_store *s;
+    td_store_stats st;
+    td_err e;
+    size_t built, one[1] = {9};
+    td_preload_spec all = {0, NULL, 0, 1, 1, 0, 0}, p9 = {0, one, 1, 1, 1, 0, 1};
+    td_snapshot *b = NULL;
+    (void)state;
+    snprintf(dir, sizeof dir, "%s/terrad-cache-%ld", P_tmpdir, (long)getpid());
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    assert_int_equal(system(cmd), 0);
+
+    s = store_new(256u << 20, dir);
+    assert_int_equal(td_store_add_grid(s, "t", "api", g1, &e), TD_OK);
+    assert_int_equal(td_store_preload(s, &all, NULL, NULL, &built, &e), TD_OK);
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.tiles_built, 128); /* 64 maxmip + 64 planes */
+    assert_int_equal(st.cache_hits, 0);
+    td_store_free(s);
+
+    /* A restart reads everything back. */
+    s = store_new(256u << 20, dir);
+    assert_int_equal(td_store_add_grid(s, "t", "api", g2, &e), TD_OK);
+    assert_int_equal(td_store_preload(s, &all, NULL, NULL, &built, &e), TD_OK);
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.tiles_built, 0);
+    assert_int_equal(st.cache_hits, 128);
+    /* Identical to a fresh build. */
+    assert_int_equal(td_store_acquire(s, "t", &b, &e), TD_OK);
+    {
+        const td_view *v = td_snapshot_view(b);
+        td_maxmip *m = NULL;
+        td_planes *p = NULL;
+        assert_int_equal(td_maxmip_build(v->grid, 9, &m, &e), TD_OK);
+        assert_int_equal(td_planes_build(v->grid, 9, 8, &p, &e), TD_OK);
+        assert_int_equal(v->accel[9].maxmip->bytes, m->bytes);
+        assert_memory_equal(v->accel[9].maxmip->max, m->max, m->bytes - sizeof *m);
+        assert_memory_equal(v->accel[9].planes->zp, p->zp, sizeof(float) * (size_t)p->nx * (size_t)p->ny);
+        assert_memory_equal(v->accel[9].planes->sp, p->sp, sizeof(float) * (size_t)p->nx * (size_t)p->ny);
+        td_maxmip_free(m);
+        td_planes_free(p);
+    }
+    td_snapshot_release(b);
+    td_store_free(s);
+
+    /* A flipped payload byte fails the checksum: rejected and rebuilt. */
+    snprintf(cmd, sizeof cmd, "ls %s/*-t5-9.pl", dir);
+    {
+        FILE *ls = popen(cmd, "r"), *f;
+        long size;
+        assert_non_null(ls);
+        assert_non_null(fgets(path, sizeof path, ls));
+        pclose(ls);
+        path[strcspn(path, "\n")] = '\0';
+        f = fopen(path, "r+b");
+        assert_non_null(f);
+        fseek(f, 0, SEEK_END);
+        size = ftell(f);
+        fseek(f, size - 5, SEEK_SET);
+        {
+            int c = fgetc(f);
+            fseek(f, size - 5, SEEK_SET);
+            fputc(c ^ 0xff, f);
+        }
+        fclose(f);
+    }
+    s = store_new(256u << 20, dir);
+    assert_int_equal(td_store_add_grid(s, "t", "api", g3, &e), TD_OK);
+    assert_int_equal(td_store_preload(s, &p9, NULL, NULL, &built, &e), TD_OK);
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.cache_hits, 1);   /* the maxmip */
+    assert_int_equal(st.tiles_built, 1);  /* the planes, rebuilt */
+    td_store_free(s);
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
+/* --- concurrency ------------------------------------------------------------------------ */
+
+enum { NRAYS = 96 };
+
+typedef struct shared {
+    td_store *s;
+    td_ray rays[NRAYS];
+    double ref[NRAYS];     /* incremental hits, before any acceleration existed */
+    atomic_int stop;
+    atomic_int mismatches, snapshots, with_accel;
+    uint64_t budget, slack;
+    atomic_int over_budget;
+} shared;
+
+static int same_t(double a, double b)
+{
+    return (isinf(a) && isinf(b)) || fabs(a - b) <= 1e-6 * (1.0 + fabs(a));
+}
+
+static void *reader(void *arg)
+{
+    shared *sh = arg;
+    static const td_method methods[] = {TD_METHOD_HIERARCHICAL, TD_METHOD_PARAMETRIC, TD_METHOD_AUTO};
+    int k = 0;
+    while (!atomic_load(&sh->stop) || k < 3) {
+        td_snapshot *snap = NULL;
+        td_err e;
+        const td_view *v;
+        if (td_store_acquire(sh->s, "t", &snap, &e) != TD_OK)
+            continue;
+        v = td_snapshot_view(snap);
+        if (td_snapshot_count(snap, 0) + td_snapshot_count(snap, 1) > 0)
+            atomic_fetch_add(&sh->with_accel, 1);
+        for (int i = 0; i < NRAYS; i++) {
+            td_hit h;
+            td_trace(v, methods[k % 3], TD_SURFACE_BILINEAR, &sh->rays[i], &h);
+            if (!same_t(h.t, sh->ref[i]))
+                atomic_fetch_add(&sh->mismatches, 1);
+        }
+        td_snapshot_release(snap);
+        atomic_fetch_add(&sh->snapshots, 1);
+        k++;
+    }
+    return NULL;
+}
+
+static void test_concurrent_snapshots(void **state)
+{
+    td_grid *g = terrain(11);
+    shared *sh = calloc(1, sizeof *sh);
+    pthread_t th[2];
+    td_err e;
+    td_view plain;
+    size_t built;
+    uint64_t gb = td_grid_bytes(g->w, g->h, g->tile_log2), tb;
+    uint64_t x = 0x9e3779b97f4a7c15ULL;
+    (void)state;
+    assert_non_null(sh);
+    tb = tile_bytes(g);
+    /* Room for 24 of the 64 tiles: preloads of 16 keep evicting each other. */
+    sh->budget = gb + 24 * tb + tb;
+    sh->slack = tb;
+    sh->s = store_new(sh->budget, NULL);
+    plain.grid = g;
+    plain.accel = NULL;
+    for (int i = 0; i < NRAYS; i++) {
+        td_ray *r = &sh->rays[i];
+        td_hit h;
+        double u, v2;
+        x ^= x << 13, x ^= x >> 7, x ^= x << 17;
+        u = (double)(x % 10000) / 10000.0;
+        x ^= x << 13, x ^= x >> 7, x ^= x << 17;
+        v2 = (double)(x % 10000) / 10000.0;
+        r->o[0] = -500.0;
+        r->o[1] = u * 7680.0;
+        r->o[2] = (double)g->zmax + 200.0;
+        r->d[0] = 1.0;
+        r->d[1] = (v2 - 0.5) * 0.6;
+        r->d[2] = -0.02 - 0.1 * v2;
+        r->tmin = 0.0;
+        r->tmax = INFINITY;
+        td_trace(&plain, TD_METHOD_INCREMENTAL, TD_SURFACE_BILINEAR, r, &h);
+        sh->ref[i] = h.t;
+    }
+    assert_int_equal(td_store_add_grid(sh->s, "t", "api", g, &e), TD_OK);
+    for (int i = 0; i < 2; i++)
+        assert_int_equal(pthread_create(&th[i], NULL, reader, sh), 0);
+    for (int round = 0; round < 12; round++) {
+        size_t tiles[16];
+        td_store_stats st;
+        td_preload_spec p = {0, tiles, 16, 1, 1, round % 4 == 3, 1};
+        for (int k = 0; k < 16; k++)
+            tiles[k] = (size_t)((round * 16 + k * 5) % 64);
+        assert_int_equal(td_store_preload(sh->s, &p, NULL, NULL, &built, &e), TD_OK);
+        td_store_stats_get(sh->s, &st);
+        if (st.resident_bytes > sh->budget + sh->slack)
+            atomic_fetch_add(&sh->over_budget, 1);
+        if (round % 4 == 3) {
+            td_store_evict_dataset(sh->s, 0, &built);
+            assert_true(built > 0);
+        }
+    }
+    atomic_store(&sh->stop, 1);
+    for (int i = 0; i < 2; i++)
+        pthread_join(th[i], NULL);
+    assert_int_equal(atomic_load(&sh->mismatches), 0);
+    assert_int_equal(atomic_load(&sh->over_budget), 0);
+    assert_true(atomic_load(&sh->snapshots) >= 6);
+    td_store_free(sh->s);
+    free(sh);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_ids),
+        cmocka_unit_test(test_add_dir),
+        cmocka_unit_test(test_budget_lru_pin),
+        cmocka_unit_test(test_disk_cache),
+        cmocka_unit_test(test_concurrent_snapshots),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
