@@ -99,6 +99,7 @@ typedef struct worker {
     smp *s;
     float *lit, *occl, *refl;
     uint64_t rays[TD_RAY_KIND_COUNT], steps, hits, curved, segs;
+    uint64_t method_rays[TD_METHOD_COUNT];
     double stage_s[TD_STAGE_COUNT];
     int ran[TD_STAGE_COUNT];
     int cancelled;
@@ -186,6 +187,8 @@ static void trace_curved(const ctx *c, const td_ray *r, td_hit *hit, uint64_t *s
     const td_scene *s = c->s;
     double t0, t1, a = c->curv_a, dxy = hypot(r->d[0], r->d[1]);
     hit->t = INFINITY;
+    hit->steps = 0;
+    hit->method = s->quality.method;
     if (!clip_xy(c, r->o, r->d, &t0, &t1) || !(dxy > 0.0))
         return;
     double tc = t0;
@@ -315,6 +318,8 @@ static void run_block(worker *w, int b)
         }
         td_trace(c->v, s->quality.method, s->quality.surface, &r, &hit);
         w->steps += hit.steps;
+        if ((unsigned)hit.method < TD_METHOD_COUNT)
+            w->method_rays[hit.method]++;
         if (hit.t < INFINITY) {
             q->flags = F_HIT;
             q->t = hit.t;
@@ -339,6 +344,8 @@ static void run_block(worker *w, int b)
             r.tmax = INFINITY;
             trace_curved(c, &r, &hit, &w->steps, &w->segs);
             w->curved++;
+            if ((unsigned)hit.method < TD_METHOD_COUNT)
+                w->method_rays[hit.method]++;
             if (hit.t < INFINITY) {
                 q->flags |= F_HIT;
                 q->t = hit.t;
@@ -752,6 +759,8 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
         st->hits += w->hits;
         st->curved_rays += w->curved;
         st->curve_segments += w->segs;
+        for (int k = 0; k < TD_METHOD_COUNT; k++)
+            st->method_rays[k] += w->method_rays[k];
         for (int k = 0; k < TD_STAGE_COUNT; k++) {
             st->stage_ms[k] += 1000.0 * w->stage_s[k] / started;
             st->stage_ran[k] |= w->ran[k];

@@ -70,6 +70,8 @@ typedef struct td_render_stats {
     uint64_t hits;             /* camera samples that hit the terrain */
     uint64_t curved_rays;      /* camera rays traced bent */
     uint64_t curve_segments;   /* straight pieces those were traced as */
+    uint64_t method_rays[TD_METHOD_COUNT]; /* camera rays by the method the tracer used
+                                              where they ended (what `auto` chose) */
     int stage_ran[TD_STAGE_COUNT];
     double stage_ms[TD_STAGE_COUNT];
     double total_ms;           /* wall time of td_render */

@@ -165,6 +165,11 @@ static json_t *stats_json(const td_render_stats *st)
     for (int k = 0; k < TD_STAGE_COUNT; k++)
         if (st->stage_ran[k])
             json_object_set_new(stages, td_stage_name((td_stage)k), json_real(st->stage_ms[k]));
+    json_t *methods = json_object();
+    for (int k = 0; k < TD_METHOD_COUNT; k++)
+        if (st->method_rays[k])
+            json_object_set_new(methods, td_method_name((td_method)k), json_integer((json_int_t)st->method_rays[k]));
+    json_object_set_new(o, "methods", methods);
     json_object_set_new(o, "rays", rays);
     json_object_set_new(o, "stages_ms", stages);
     json_object_set_new(o, "steps", json_integer((json_int_t)st->steps));
