@@ -1,0 +1,320 @@
+// browser.test.mjs: the map client in a real browser against a live terrad.
+//
+// Starts `terrad serve` on a free loopback port (killed by pid at the end), drives
+// Debian's chromium headless through playwright-core (a fresh profile, no network
+// beyond the loopback server: any other request is refused and fails the test), and
+// checks what a user sees: the default view appears on load and is a real picture,
+// its timing chart is drawn, clicking the map places the camera there and renders a new
+// view, keyboard keys move the camera, a burst of changes sends one request, a click in
+// the view marks the picked terrain point on the map with plausible coordinates, compare
+// mode shows two renders and their pixel difference, and the admin panel's preload
+// reaches 100 %. Screenshots go to the output directory (and to
+// docs/web-screenshot.png when TERRAD_WEB_DOCS_SCREENSHOT=1).
+//
+// Environment: TERRAD_BIN (the terrad binary; default build/terrad), TERRAD_SOURCE_DIR
+// (the repository; default two levels up), TERRAD_WEB_OUT (screenshots and the server
+// log; default the current directory), CHROMIUM (default /usr/bin/chromium).
+//
+// Run: ctest -L web (from a build directory), or node web/test/browser.test.mjs.
+import { test, before, after } from 'node:test';
+import assert from 'node:assert/strict';
+import { spawn } from 'node:child_process';
+import { createServer } from 'node:net';
+import { mkdtemp, rm, mkdir, copyFile } from 'node:fs/promises';
+import { existsSync, openSync, closeSync, readFileSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { randomBytes } from 'node:crypto';
+
+const here = path.dirname(fileURLToPath(import.meta.url));
+const SRC = process.env.TERRAD_SOURCE_DIR || path.resolve(here, '..', '..');
+const BIN = process.env.TERRAD_BIN || path.join(SRC, 'build', 'terrad');
+const OUT = process.env.TERRAD_WEB_OUT || process.cwd();
+const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
+const TOKEN = randomBytes(12).toString('hex');
+
+let chromium;
+try {
+  ({ chromium } = await import('playwright-core'));
+} catch (e) {
+  console.error(`cannot load playwright-core from ${path.join(SRC, 'web', 'node_modules')}: ` +
+    'run scripts/install-deps (npm ci in web/)');
+  process.exit(1);
+}
+for (const [what, p] of [['terrad', BIN], ['chromium', CHROMIUM]]) {
+  if (!existsSync(p)) {
+    console.error(`${what} not found at ${p}`);
+    process.exit(1);
+  }
+}
+
+let server = null, serverExit = null, port = 0, base = '';
+let context = null, page = null, profile = null;
+const foreign = [], pageErrors = [], renderRequests = [];
+
+function freePort() {
+  return new Promise((resolve, reject) => {
+    const s = createServer();
+    s.on('error', reject);
+    s.listen(0, '127.0.0.1', () => {
+      const p = s.address().port;
+      s.close(() => resolve(p));
+    });
+  });
+}
+
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+async function waitReady(deadlineMs) {
+  const end = Date.now() + deadlineMs;
+  let last = '';
+  while (Date.now() < end) {
+    if (serverExit) throw new Error(`terrad exited (${serverExit}) before it was ready; see ${OUT}/web-terrad.log`);
+    try {
+      const r = await fetch(`${base}/readyz`);
+      if (r.ok) return;
+      last = `HTTP ${r.status}`;
+    } catch (e) {
+      last = e.message;
+    }
+    await sleep(100);
+  }
+  throw new Error(`terrad not ready after ${deadlineMs} ms (${last})`);
+}
+
+const renders = () => page.evaluate(() => Number(document.body.dataset.renders || 0));
+async function waitRenders(n, ms = 20000) {
+  await page.waitForFunction((k) => Number(document.body.dataset.renders || 0) >= k, n, { timeout: ms });
+}
+const camField = async (id) => Number(await page.inputValue(`#${id}`));
+
+// Pixels of a displayed image, read back through a canvas in the page.
+async function viewStats(selector) {
+  return page.evaluate(async (sel) => {
+    const { imageStats } = await import('/js/diff.js');
+    const img = document.querySelector(sel);
+    const c = document.createElement('canvas');
+    c.width = img.naturalWidth;
+    c.height = img.naturalHeight;
+    const ctx = c.getContext('2d');
+    ctx.drawImage(img, 0, 0);
+    const s = imageStats(ctx.getImageData(0, 0, c.width, c.height).data);
+    return { ...s, width: c.width, height: c.height };
+  }, selector);
+}
+
+before(async () => {
+  await mkdir(OUT, { recursive: true });
+  port = await freePort();
+  base = `http://127.0.0.1:${port}`;
+  const log = openSync(path.join(OUT, 'web-terrad.log'), 'w');
+  server = spawn(BIN, ['serve', '--listen', `127.0.0.1:${port}`, '--web-dir', path.join(SRC, 'web'),
+    '--demo-dir', path.join(SRC, 'data'), '--preload', 'all', '--log-level', 'warn'], {
+    env: { ...process.env, TERRAD_ADMIN_TOKEN: TOKEN, TERRAD_ADMIN_TOKEN_FILE: '', TERRAD_CACHE: '', TERRAD_DATA: '' },
+    stdio: ['ignore', log, log],
+  });
+  closeSync(log);
+  server.on('exit', (code, sig) => { serverExit = sig || `code ${code}`; });
+  await waitReady(15000);
+
+  profile = await mkdtemp(path.join(tmpdir(), 'terrad-web-chromium-'));
+  context = await chromium.launchPersistentContext(profile, {
+    executablePath: CHROMIUM,
+    headless: true,
+    viewport: { width: 1400, height: 1050 },
+    args: ['--no-sandbox', '--disable-gpu', '--disable-background-networking',
+      '--disable-component-update', '--no-first-run', '--disable-default-apps', '--disable-sync'],
+  });
+  // Works with no internet: only the loopback terrad may be asked for anything.
+  await context.route('**/*', (route) => {
+    const u = route.request().url();
+    if (u.startsWith(base + '/') || u.startsWith('data:') || u.startsWith('blob:')) return route.continue();
+    foreign.push(u);
+    return route.abort();
+  });
+  page = context.pages()[0] || await context.newPage();
+  page.on('pageerror', (e) => pageErrors.push(`pageerror: ${e.message}`));
+  page.on('console', (m) => { if (m.type() === 'error') pageErrors.push(`console: ${m.text()}`); });
+  page.on('request', (r) => { if (r.url().endsWith('/v1/render')) renderRequests.push(r.postDataJSON()); });
+  page.setDefaultTimeout(20000);
+});
+
+after(async () => {
+  if (context) await context.close().catch(() => {});
+  if (profile) await rm(profile, { recursive: true, force: true }).catch(() => {});
+  if (server && !serverExit) {
+    process.kill(server.pid, 'SIGTERM');
+    const end = Date.now() + 5000;
+    while (!serverExit && Date.now() < end) await sleep(50);
+    if (!serverExit) process.kill(server.pid, 'SIGKILL');
+  }
+});
+
+test('the page loads and shows the default view at once', async () => {
+  const t0 = Date.now();
+  await page.goto(`${base}/`);
+  await waitRenders(1);
+  console.log(`# first view after ${Date.now() - t0} ms`);
+  const ds = await page.inputValue('#dataset');
+  assert.equal(ds, 'trinidad', 'the default dataset');
+  const options = await page.$$eval('#dataset option', (os) => os.map((o) => o.value));
+  assert.deepEqual(options.sort(), ['levi', 'trinidad', 'volcano']);
+  const s = await viewStats('#view-img');
+  assert.deepEqual([s.width, s.height], [640, 400], 'the image has the size asked for');
+  assert.ok(s.opaque > 0.9 * s.pixels, `the view is opaque (${s.opaque} of ${s.pixels})`);
+  assert.ok(s.variance > 20, `the view is not flat (luminance variance ${s.variance.toFixed(1)})`);
+  // Map tiles came from terrad and were drawn.
+  await page.waitForFunction(() => [...document.querySelectorAll('img.leaflet-tile')].some((t) => t.complete && t.naturalWidth === 256));
+  // Attribution of the dataset on the page.
+  assert.match(await page.textContent('#attribution-current'), /USGS/);
+  assert.match(await page.textContent('footer'), /National Land Survey of Finland/);
+});
+
+test('the timing chart shows the stages of the view, with steps per ray', async () => {
+  const bars = await page.$$eval('#charts svg .bar', (gs) => gs.map((g) => ({
+    stage: g.dataset.stage, w: Number(g.querySelector('rect').getAttribute('width')),
+  })));
+  const stages = bars.map((b) => b.stage);
+  for (const s of ['parse', 'queue', 'trace', 'shadows', 'sky', 'encode']) assert.ok(stages.includes(s), `stage ${s} in ${stages}`);
+  assert.ok(bars.every((b) => b.w >= 1), 'every bar is drawn');
+  assert.ok(Math.max(...bars.map((b) => b.w)) > 50, 'the longest bar spans the chart');
+  const title = await page.textContent('#charts svg .chart-title');
+  assert.match(title, /ms, \d+(\.\d)? steps\/ray/);
+});
+
+test('clicking the map places the camera there and renders its view', async () => {
+  const n = await renders();
+  const box = await page.locator('#map').boundingBox();
+  const cx = Math.round(box.x + box.width * 0.55), cy = Math.round(box.y + box.height * 0.35);
+  const want = await page.evaluate(([x, y]) => {
+    const ll = window.terrad.map.mouseEventToLatLng({ clientX: x, clientY: y });
+    return { x: ll.lng, y: ll.lat };
+  }, [cx, cy]);
+  await page.mouse.click(cx, cy);
+  await waitRenders(n + 1);
+  const x = await camField('cam-x'), y = await camField('cam-y');
+  // Within a map pixel of where the click was (the fields show decimetres).
+  const mpp = await page.evaluate(() => {
+    const m = window.terrad.map;
+    return m.containerPointToLatLng([1, 0]).lng - m.containerPointToLatLng([0, 0]).lng;
+  });
+  assert.ok(Math.abs(x - want.x) < mpp && Math.abs(y - want.y) < mpp,
+    `camera at (${x}, ${y}), clicked (${want.x}, ${want.y}), ${mpp} m a pixel`);
+  const last = renderRequests.at(-1);
+  assert.ok(Math.abs(last.camera.position.x - want.x) < 1 && Math.abs(last.camera.position.y - want.y) < 1,
+    'the render asked for the new camera');
+  const paths = await page.$$eval('#map svg path', (ps) => ps.map((p) => p.getAttribute('d')).filter((d) => d && d !== 'M0 0'));
+  assert.ok(paths.length >= 2, 'the wedge and the heading line are drawn');
+  const apex = await page.evaluate(() => window.terrad.layers.wedgeLayer.getLatLngs()[0][0]);
+  assert.ok(Math.abs(apex.lng - x) < 1 && Math.abs(apex.lat - y) < 1, 'the wedge starts at the camera');
+});
+
+test('the keyboard moves and turns the camera', async () => {
+  const n = await renders();
+  const h0 = await camField('cam-heading');
+  await page.focus('.camera-marker');
+  await page.keyboard.press('ArrowRight');
+  await waitRenders(n + 1);
+  const h1 = await camField('cam-heading');
+  assert.ok(Math.abs(((h1 - h0 + 360) % 360) - 5) < 0.01, `heading ${h0} -> ${h1}`);
+  const x0 = await camField('cam-x'), y0 = await camField('cam-y');
+  await page.keyboard.press('ArrowUp');
+  await waitRenders(n + 2);
+  const x1 = await camField('cam-x'), y1 = await camField('cam-y');
+  const moved = Math.hypot(x1 - x0, y1 - y0);
+  const dir = (Math.atan2(x1 - x0, y1 - y0) * 180) / Math.PI;
+  assert.ok(moved > 100, `moved ${moved} m forward`);
+  assert.ok(Math.abs((((dir - h1) % 360) + 540) % 360 - 180) < 1, `moved along the heading (${dir} vs ${h1})`);
+  // Enter on the focused map places the camera at the map's centre.
+  await page.focus('#map');
+  await page.keyboard.press('Enter');
+  await waitRenders(n + 3);
+  const c = await page.evaluate(() => window.terrad.map.getCenter());
+  assert.ok(Math.abs((await camField('cam-x')) - c.lng) < 1 && Math.abs((await camField('cam-y')) - c.lat) < 1,
+    'camera at the map centre');
+});
+
+test('a burst of changes sends one render request', async () => {
+  const n = await renders();
+  const before = renderRequests.length;
+  await page.evaluate(() => {
+    const r = document.getElementById('cam-pitch-range');
+    for (const v of [-20, -18, -16, -14, -12]) {
+      r.value = String(v);
+      r.dispatchEvent(new Event('input', { bubbles: true }));
+    }
+  });
+  await waitRenders(n + 1);
+  await sleep(300);
+  assert.equal(renderRequests.length - before, 1, 'one request for five changes');
+  assert.equal(renderRequests.at(-1).camera.pitch, -12, 'with the last value');
+});
+
+test('a click in the view marks the terrain point on the map', async () => {
+  const img = await page.locator('#view-img').boundingBox();
+  // Lower middle of the view: terrain, not sky (the camera looks down 12 degrees).
+  await page.mouse.click(img.x + img.width * 0.5, img.y + img.height * 0.8);
+  await page.waitForFunction(() => Number(document.body.dataset.picks || 0) >= 1);
+  const m = await page.$eval('.pick-marker', (e) => ({ x: Number(e.dataset.x), y: Number(e.dataset.y), z: Number(e.dataset.z) }));
+  const ds = await page.evaluate(() => window.terrad.ds);
+  const cam = await page.evaluate(() => window.terrad.shown.a.scene.camera);
+  assert.ok(m.x >= 0 && m.x <= ds.xmax && m.y >= 0 && m.y <= ds.ymax, `point (${m.x}, ${m.y}) inside the dataset`);
+  assert.ok(m.z >= ds.zmin - 1 && m.z <= ds.zmax + 1, `height ${m.z} within ${ds.zmin}..${ds.zmax}`);
+  // In front of the camera, near the centre line of the view (the middle column).
+  const dir = (Math.atan2(m.x - cam.position.x, m.y - cam.position.y) * 180) / Math.PI;
+  const off = Math.abs((((dir - cam.heading) % 360) + 540) % 360 - 180);
+  assert.ok(off < 2, `the picked point lies along the heading (${off.toFixed(2)} degrees off)`);
+  const text = await page.textContent('#pick-result');
+  assert.match(text, /height \d+(\.\d)? m/);
+  assert.match(text, /°/, 'lon/lat for a georeferenced dataset');
+  assert.ok(await page.locator('.pick-marker').isVisible(), 'the marker is on the map');
+});
+
+test('compare mode renders both settings and their pixel difference', async () => {
+  const n = await renders();
+  await page.check('#cmp-on');
+  await waitRenders(n + 1);
+  const last2 = renderRequests.slice(-2).map((s) => `${s.quality.method}/${s.quality.surface}`).sort();
+  assert.deepEqual(last2, ['auto/bilinear', 'incremental/plane']);
+  assert.equal(await page.locator('#charts svg').count(), 2, 'two timing charts');
+  const b = await viewStats('#view-img-b');
+  assert.ok(b.opaque > 0.9 * b.pixels && b.variance > 20, 'B is a picture too');
+  const differ = Number(await page.getAttribute('#view-diff', 'data-differ'));
+  assert.ok(differ > 0 && differ < b.pixels, `plane and bilinear differ in some pixels (${differ})`);
+  assert.match(await page.textContent('#diff-result'), /pixels differ .*PSNR/);
+});
+
+test('the admin panel preloads the visible area with a progress bar', async () => {
+  await page.click('#admin summary');
+  await page.fill('#admin-token', TOKEN);
+  await page.click('#admin-preload');
+  await page.waitForFunction(() => /done|failed|refused/.test(document.getElementById('admin-progress-label').textContent));
+  const label = await page.textContent('#admin-progress-label');
+  assert.match(label, /Job \d+ done: \d+ tiles built/);
+  assert.equal(Number(await page.getAttribute('#admin-progress', 'value')), 1);
+  // A wrong token is refused, and says so.
+  await page.fill('#admin-token', 'wrong');
+  await page.click('#admin-preload');
+  await page.waitForFunction(() => /refused/.test(document.getElementById('admin-progress-label').textContent));
+  assert.match(await page.textContent('#admin-progress-label'), /401/);
+});
+
+test('screenshots, and nothing went wrong on the way', async () => {
+  await page.fill('#admin-token', '');
+  await page.evaluate(() => { document.getElementById('admin').open = false; window.scrollTo(0, 0); });
+  const shot = path.join(OUT, 'web-page.png');
+  await page.screenshot({ path: shot, fullPage: true });
+  await page.locator('#view-panel').screenshot({ path: path.join(OUT, 'web-view.png') });
+  assert.ok(readFileSync(shot).length > 10000, 'a screenshot was written');
+  if (process.env.TERRAD_WEB_DOCS_SCREENSHOT === '1') {
+    await mkdir(path.join(SRC, 'docs'), { recursive: true });
+    await copyFile(shot, path.join(SRC, 'docs', 'web-screenshot.png'));
+  }
+  assert.deepEqual(foreign, [], 'no request left the loopback server');
+  // The wrong-token preload logs a 401 in the console (the browser does that for any
+  // failed fetch); anything else is a defect.
+  const unexpected = pageErrors.filter((e) => !/401 \(Unauthorized\)/.test(e));
+  assert.deepEqual(unexpected, [], 'no page errors');
+  assert.equal(serverExit, null, 'terrad is still running');
+});
