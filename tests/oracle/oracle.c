@@ -284,8 +284,9 @@ static void print_ray(const char *what, td_method m, td_surface sf, const td_ray
                       double want, const td_ref_hit *ref)
 {
     pthread_mutex_lock(&print_lock);
-    printf("UNEXPLAINED %s method=%s surface=%s got t=%.17g want t=%.17g (near %.17g strict %.17g)\n"
+    printf("%s %s method=%s surface=%s got t=%.17g want t=%.17g (near %.17g strict %.17g)\n"
            "  replay: --ray %a %a %a %a %a %a   (tmin %a tmax %a)\n",
+           strcmp(what, v_names[V_TIE]) && strcmp(what, v_names[V_FLOAT]) ? "UNEXPLAINED" : "SHOW",
            what, td_method_name(m), td_surface_name(sf), got, want, ref ? ref->t_near : NAN,
            ref ? ref->t_strict : NAN, r->o[0], r->o[1], r->o[2], r->d[0], r->d[1], r->d[2],
            r->tmin, r->tmax);
@@ -394,7 +395,6 @@ static void one_ray(ctx *c, const td_ray *r)
                     st->refined_within++;
                 } else if (tf > wide.t_strict) {
                     st->refined_embree_miss++;
-                    st->refined_within++;
                 } else {
                     st->refined_error++;
                     if (st->printed++ < MAX_PRINT)
@@ -466,6 +466,90 @@ static void merge(stats *a, const stats *b)
     a->refined_embree_miss += b->refined_embree_miss;
 }
 
+/* Little-endian float64 files of `terrad trace`. */
+static int write_rays(const char *path, const td_ray *r, size_t n)
+{
+    FILE *f = fopen(path, "wb");
+    int ok = f != NULL;
+    for (size_t k = 0; k < n && ok; k++) {
+        unsigned char b[48];
+        for (int c = 0; c < 6; c++) {
+            double v = c < 3 ? r[k].o[c] : r[k].d[c - 3];
+            uint64_t u;
+            memcpy(&u, &v, 8);
+            for (int q = 0; q < 8; q++, u >>= 8)
+                b[8 * c + q] = (unsigned char)(u & 0xff);
+        }
+        ok = fwrite(b, 1, 48, f) == 48;
+    }
+    if (f && fclose(f) != 0)
+        ok = 0;
+    return ok;
+}
+
+static double *read_doubles(const char *path, size_t *n)
+{
+    FILE *f = fopen(path, "rb");
+    double *v = NULL;
+    size_t cap = 0, len = 0;
+    unsigned char b[8];
+    while (f && fread(b, 1, 8, f) == 8) {
+        uint64_t u = 0;
+        if (len == cap) {
+            double *nv = realloc(v, (cap = cap ? 2 * cap : 4096) * sizeof *v);
+            if (!nv)
+                break;
+            v = nv;
+        }
+        for (int q = 7; q >= 0; q--)
+            u = (u << 8) | b[q];
+        memcpy(&v[len++], &u, 8);
+    }
+    if (f)
+        fclose(f);
+    *n = len;
+    return v;
+}
+
+/* --check RAYS HITS: judges the output of `terrad trace` (any method) for one surface:
+ * triangle against Embree with the same settling, the others against the reference. */
+static uint64_t check_file(ctx *c, td_surface sf, const char *rays_path, const char *hits_path)
+{
+    size_t nr = 0, nh = 0;
+    double *rv = read_doubles(rays_path, &nr), *hv = read_doubles(hits_path, &nh);
+    uint64_t v[V_COUNT] = {0}, hits = 0;
+    nr /= 6;
+    if (!rv || !hv || nr != nh) {
+        fprintf(stderr, "oracle: %s holds %zu rays but %s %zu hits\n", rays_path, nr, hits_path, nh);
+        v[V_ERROR] = 1;
+    } else {
+        for (size_t k = 0; k < nr; k++) {
+            td_ray r;
+            td_ref_hit ref;
+            int have_ref = 0, vv;
+            set_ray(&r, rv[6 * k], rv[6 * k + 1], rv[6 * k + 2], rv[6 * k + 3], rv[6 * k + 4],
+                    rv[6 * k + 5]);
+            hits += hv[k] < INFINITY;
+            if (sf == TD_SURFACE_TRIANGLE && same_hit(&r, hv[k], td_embree_trace(c->emb, &r)))
+                vv = V_AGREE;
+            else
+                vv = settle(c, sf, &r, hv[k], &ref, &have_ref);
+            if (vv == V_AGREE && sf == TD_SURFACE_TRIANGLE && have_ref)
+                vv = V_EMBREE_WRONG;
+            v[vv]++;
+            if (vv == V_ERROR && c->st.printed++ < MAX_PRINT)
+                print_ray("terrad trace output", TD_METHOD_AUTO, sf, &r, hv[k], ref.t, &ref);
+        }
+        printf("check %s surface %s: %zu rays, %" PRIu64 " hits: %" PRIu64 " agree, %" PRIu64
+               " embree wrong, %" PRIu64 " ties, %" PRIu64 " float, %" PRIu64 " unexplained\n",
+               hits_path, td_surface_name(sf), nr, hits, v[V_AGREE], v[V_EMBREE_WRONG], v[V_TIE],
+               v[V_FLOAT], v[V_ERROR]);
+    }
+    free(rv);
+    free(hv);
+    return v[V_ERROR];
+}
+
 static double parse_double(const char *s)
 {
     char *end;
@@ -503,7 +587,9 @@ int main(int argc, char **argv)
     int rc = 1, threads = 2, do_replay = 0, running = 0;
     size_t nrays = 200000;
     uint64_t seed = 12345;
-    const char *name = argc > 1 ? argv[1] : "procedural";
+    const char *name = argc > 1 && argv[1][0] != '-' ? argv[1] : "procedural";
+    const char *dem = NULL, *out_rays = NULL, *check_rays = NULL, *check_hits = NULL;
+    td_surface check_sf = TD_SURFACE_TRIANGLE;
     td_err err = {{0}};
     td_grid *g = NULL;
     td_accel *acc = NULL;
@@ -516,8 +602,19 @@ int main(int argc, char **argv)
     stats total;
 
     memset(&total, 0, sizeof total);
-    for (int k = 2; k < argc; k++) {
-        if (!strcmp(argv[k], "--rays") && k + 1 < argc) {
+    for (int k = argc > 1 && argv[1][0] != '-' ? 2 : 1; k < argc; k++) {
+        if (!strcmp(argv[k], "--dem") && k + 1 < argc) {
+            dem = argv[++k];
+        } else if (!strcmp(argv[k], "--write-rays") && k + 1 < argc) {
+            out_rays = argv[++k];
+        } else if (!strcmp(argv[k], "--surface") && k + 1 < argc &&
+                   td_surface_parse(argv[k + 1], &check_sf) == TD_OK) {
+            k++;
+        } else if (!strcmp(argv[k], "--check") && k + 2 < argc) {
+            check_rays = argv[k + 1];
+            check_hits = argv[k + 2];
+            k += 2;
+        } else if (!strcmp(argv[k], "--rays") && k + 1 < argc) {
             nrays = (size_t)parse_double(argv[++k]);
         } else if (!strcmp(argv[k], "--seed") && k + 1 < argc) {
             seed = (uint64_t)parse_double(argv[++k]);
@@ -532,14 +629,25 @@ int main(int argc, char **argv)
             k += 6;
             do_replay = 1;
         } else {
-            fprintf(stderr, "usage: %s DATASET [--rays N] [--seed S] [--threads T] [--ray OX OY OZ DX DY DZ]\n", argv[0]);
+            fprintf(stderr,
+                    "usage: %s DATASET|--dem FILE [--rays N] [--seed S] [--threads T] [--reference-only]\n"
+                    "       [--ray OX OY OZ DX DY DZ] [--write-rays FILE] [--surface S --check RAYS HITS]\n",
+                    argv[0]);
             return 2;
         }
     }
     if (threads < 1)
         threads = 1;
     show_ties = getenv("ORACLE_SHOW_TIES") != NULL;
-    if (load_dataset(name, &g, &err) != TD_OK) {
+    if (dem) {
+        td_dem_opts o;
+        td_dem_opts_default(&o);
+        name = dem;
+        if (td_dem_load(dem, &o, &g, &err) != TD_OK) {
+            fprintf(stderr, "oracle: %s\n", err.msg);
+            goto out;
+        }
+    } else if (load_dataset(name, &g, &err) != TD_OK) {
         fprintf(stderr, "oracle: %s\n", err.msg);
         goto out;
     }
@@ -571,6 +679,18 @@ int main(int argc, char **argv)
         rc = 0;
         goto out;
     }
+    if (check_rays) {
+        ctx c1;
+        memset(&c1, 0, sizeof c1);
+        c1.g = g;
+        c1.view = view;
+        c1.emb = emb;
+        c1.eps_f = eps_f;
+        c1.eps_x = eps_x;
+        rc = check_file(&c1, check_sf, check_rays, check_hits) ? 1 : 0;
+        printf("%s\n", rc ? "FAIL" : "PASS");
+        goto out;
+    }
     rays = calloc(nrays, sizeof *rays);
     cx = calloc((size_t)threads, sizeof *cx);
     th = calloc((size_t)threads, sizeof *th);
@@ -579,6 +699,14 @@ int main(int argc, char **argv)
     uint64_t s = seed;
     for (size_t k = 0; k < nrays; k++)
         make_ray(g, (int)(k % K_COUNT), &s, &rays[k]);
+    if (out_rays) { /* for `terrad trace`, whose rays all have tmin = 0 and tmax = +inf */
+        for (size_t k = 0; k < nrays; k++)
+            rays[k].tmax = INFINITY;
+        rc = write_rays(out_rays, rays, nrays) ? 0 : 1;
+        if (rc)
+            fprintf(stderr, "oracle: cannot write %s\n", out_rays);
+        goto out;
+    }
     printf("rays: %zu, seed %" PRIu64 ", kinds:", nrays, seed);
     for (int k = 0; k < K_COUNT; k++)
         printf(" %s%s", kind_names[k], k + 1 < K_COUNT ? "," : "\n");

@@ -45,13 +45,14 @@ static int corners(const td_grid *g, int32_t i, int32_t j, double z[4])
     return !(isnan(z[0]) || isnan(z[1]) || isnan(z[2]) || isnan(z[3]));
 }
 
-/* Parametric interval of the ray's LINE inside cell (i, j)'s footprint grown by m. */
-static int clip_cell(const td_grid *g, const td_ray *r, int32_t i, int32_t j, double m,
-                     double *t0, double *t1)
+/* Parametric interval of the ray's LINE inside cell (i, j)'s footprint grown by mw, me,
+ * ms, mn on its west, east, south and north sides (negative: shrunk). */
+static int clip_cell4(const td_grid *g, const td_ray *r, int32_t i, int32_t j, double mw,
+                      double me, double ms, double mn, double *t0, double *t1)
 {
     double lo = -INFINITY, hi = INFINITY;
-    double b0[2] = {i * g->sx - m, j * g->sy - m};
-    double b1[2] = {(i + 1) * g->sx + m, (j + 1) * g->sy + m};
+    double b0[2] = {i * g->sx - mw, j * g->sy - ms};
+    double b1[2] = {(i + 1) * g->sx + me, (j + 1) * g->sy + mn};
     int ok = 1;
     for (int a = 0; a < 2 && ok; a++) {
         if (b0[a] > b1[a]) {
@@ -73,6 +74,19 @@ static int clip_cell(const td_grid *g, const td_ray *r, int32_t i, int32_t j, do
     *t0 = lo;
     *t1 = hi;
     return ok;
+}
+
+static int clip_cell(const td_grid *g, const td_ray *r, int32_t i, int32_t j, double m,
+                     double *t0, double *t1)
+{
+    return clip_cell4(g, r, i, j, m, m, m, m, t0, t1);
+}
+
+/* Non-zero if cell (i, j) exists and has no void corner. */
+static int cell_ok(const td_grid *g, int32_t i, int32_t j)
+{
+    double z[4];
+    return i >= 0 && j >= 0 && i <= g->w - 2 && j <= g->h - 2 && corners(g, i, j, z);
 }
 
 static double bilin(const double z[4], double u, double v)
@@ -130,9 +144,36 @@ static double first_root(double A, double B, double C, double s0, double L)
 
 static double poly(double A, double B, double C, double s) { return C + s * (B + s * A); }
 
-/* Feeds one piece f(t) = C + B (t-a) + A (t-a)^2 on [a, b] of cell (i, j). */
-static void run_piece(ref_walk *w, int32_t i, int32_t j, double a, double b, double A, double B,
+/* Exact hit and near point of one piece f(t) = C + B (t-a) + A (t-a)^2 on [a, b] of
+ * cell (i, j). */
+static void piece_hit(ref_walk *w, int32_t i, int32_t j, double a, double b, double A, double B,
                       double C)
+{
+    td_ref_hit *o = w->out;
+    double eps = w->eps, L = b - a, s, cand;
+
+    if (a > b)
+        return;
+    s = first_root(A, B, C, 0.0, L);
+    cand = a + s;
+    if (s < INFINITY && cand < o->t) {
+        o->t = cand;
+        o->ci = i;
+        o->cj = j;
+    }
+    if (fabs(C) <= eps)
+        s = 0.0;
+    else
+        s = first_root(A, B, C - (C > 0.0 ? eps : -eps), 0.0, L);
+    cand = a + s;
+    if (s < INFINITY && cand < o->t_near)
+        o->t_near = cand;
+}
+
+/* The definite-crossing state machine over one piece [a, b] (pieces come in ray order;
+ * the part of the ray within eps of a hole's or the grid's border is left out, so the
+ * state restarts after it). */
+static void piece_strict(ref_walk *w, double a, double b, double A, double B, double C)
 {
     td_ref_hit *o = w->out;
     double eps = w->eps, L, s, cand;
@@ -147,27 +188,10 @@ static void run_piece(ref_walk *w, int32_t i, int32_t j, double a, double b, dou
     }
     L = b - a;
     if (!w->started || a - w->t_cov > 1e-9 * (fabs(a) + (isfinite(L) ? L : 0.0) + 1e-300)) {
-        /* first piece, or after a hole: no crossing can have happened before */
+        /* first piece, or after a gap: no crossing can have happened before */
         w->side = C > eps ? 1 : (C < -eps ? -1 : 0);
         w->started = 1;
     }
-    /* exact */
-    s = first_root(A, B, C, 0.0, L);
-    cand = a + s;
-    if (s < INFINITY && cand < o->t) {
-        o->t = cand;
-        o->ci = i;
-        o->cj = j;
-    }
-    /* near */
-    if (fabs(C) <= eps)
-        s = 0.0;
-    else
-        s = first_root(A, B, C - (C > 0.0 ? eps : -eps), 0.0, L);
-    cand = a + s;
-    if (s < INFINITY && cand < o->t_near)
-        o->t_near = cand;
-    /* strict: a definite crossing from one side to the other */
     s = 0.0;
     if (w->side == 1 && C <= -eps) {
         cand = a;
@@ -203,6 +227,19 @@ static void run_piece(ref_walk *w, int32_t i, int32_t j, double a, double b, dou
         w->t_cov = b;
 }
 
+/* Both of the above; [sa, sb] is the part of [a, b] away from holes and the border. */
+static void run_piece(ref_walk *w, int32_t i, int32_t j, double a, double b, double A, double B,
+                      double C, double sa, double sb)
+{
+    piece_hit(w, i, j, a, b, A, B, C);
+    sa = sa > a ? sa : a;
+    sb = sb < b ? sb : b;
+    if (sa <= sb) {
+        double sh = sa - a;
+        piece_strict(w, sa, sb, A, B + 2.0 * A * sh, poly(A, B, C, sh));
+    }
+}
+
 static void box_hit(const td_ray *r, double l0, double l1, double H, double *best)
 {
     double a = l0 > r->tmin ? l0 : r->tmin, b = l1 < r->tmax ? l1 : r->tmax, t = INFINITY;
@@ -227,7 +264,7 @@ static void visit_plane(ref_walk *w, int32_t i, int32_t j, const double z[4])
     const td_ray *r = w->r;
     double H = fmax(fmax(z[0], z[1]), fmax(z[2], z[3]));
     double l0, l1, t = INFINITY;
-    if (clip_cell(g, r, i, j, 0.0, &l0, &l1)) {
+    if (clip_cell(g, r, i, j, 1e-9 * (g->sx + g->sy), &l0, &l1)) { /* see visit() */
         box_hit(r, l0, l1, H, &t);
         if (t < w->out->t) {
             w->out->t = t;
@@ -295,7 +332,7 @@ static void visit(ref_walk *w, int32_t i, int32_t j)
 {
     const td_grid *g = w->g;
     const td_ray *r = w->r;
-    double z[4], l0, l1, a, b, A, B, C;
+    double z[4], l0, l1, a, b, A, B, C, sa, sb;
 
     w->out->cells++;
     if (!corners(g, i, j, z))
@@ -304,32 +341,42 @@ static void visit(ref_walk *w, int32_t i, int32_t j)
         visit_plane(w, i, j, z);
         return;
     }
-    if (!clip_cell(g, r, i, j, 0.0, &l0, &l1))
+    /* a hair of margin so that a ray touching only a corner (a degenerate interval that
+     * rounding may turn inside out) still sees it; the formulas extrapolate by 1e-9 */
+    if (!clip_cell(g, r, i, j, 1e-9 * (g->sx + g->sy), &l0, &l1))
         return;
     a = l0 > r->tmin ? l0 : r->tmin;
     b = l1 < r->tmax ? l1 : r->tmax;
     if (a > b)
         return;
+    {
+        double e = -w->eps, sl0, sl1;
+        if (!clip_cell4(g, r, i, j, cell_ok(g, i - 1, j) ? 0.0 : e, cell_ok(g, i + 1, j) ? 0.0 : e,
+                        cell_ok(g, i, j - 1) ? 0.0 : e, cell_ok(g, i, j + 1) ? 0.0 : e, &sl0, &sl1))
+            sl0 = INFINITY, sl1 = -INFINITY;
+        sa = sl0;
+        sb = sl1;
+    }
     if (w->s == TD_SURFACE_TRIANGLE) {
         double du = r->d[0] / g->sx, dv = r->d[1] / g->sy;
         double ua = (r->o[0] + a * r->d[0] - i * g->sx) / g->sx;
         double va = (r->o[1] + a * r->d[1] - j * g->sy) / g->sy;
-        double sa = ua + va - 1.0, ds = du + dv;
-        double td = ds != 0.0 ? a - sa / ds : INFINITY;
+        double sg = ua + va - 1.0, ds = du + dv;
+        double td = ds != 0.0 ? a - sg / ds : INFINITY;
         if (td > a && td < b) {
-            int first = sa < 0.0 ? 0 : 1;
+            int first = sg < 0.0 ? 0 : 1;
             coefs(w, i, j, z, first, a, l0, l1, &A, &B, &C);
-            run_piece(w, i, j, a, td, A, B, C);
+            run_piece(w, i, j, a, td, A, B, C, sa, sb);
             coefs(w, i, j, z, 1 - first, td, l0, l1, &A, &B, &C);
-            run_piece(w, i, j, td, b, A, B, C);
+            run_piece(w, i, j, td, b, A, B, C, sa, sb);
         } else {
-            double smid = ds == 0.0 ? sa : (isfinite(b) ? sa + 0.5 * (b - a) * ds : ds);
+            double smid = ds == 0.0 ? sg : (isfinite(b) ? sg + 0.5 * (b - a) * ds : ds);
             coefs(w, i, j, z, smid <= 0.0 ? 0 : 1, a, l0, l1, &A, &B, &C);
-            run_piece(w, i, j, a, b, A, B, C);
+            run_piece(w, i, j, a, b, A, B, C, sa, sb);
         }
     } else {
         coefs(w, i, j, z, 0, a, l0, l1, &A, &B, &C);
-        run_piece(w, i, j, a, b, A, B, C);
+        run_piece(w, i, j, a, b, A, B, C, sa, sb);
     }
 }
 
