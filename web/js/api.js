@@ -96,7 +96,16 @@ export async function errorMessage(resp) {
 }
 
 export class ApiError extends Error {
-  constructor(message, status) { super(message); this.status = status; }
+  constructor(message, status, retryAfter = null) {
+    super(message);
+    this.status = status;
+    this.retryAfter = retryAfter;
+  }
+}
+
+async function apiError(resp) {
+  const ra = Number(resp.headers.get('Retry-After'));
+  return new ApiError(await errorMessage(resp), resp.status, Number.isFinite(ra) && ra > 0 ? ra : null);
 }
 
 // Reads the render's headers: Server-Timing stages and whatever terrad says about the
@@ -129,7 +138,7 @@ async function postJson(url, body, signal, extraHeaders = {}) {
 export async function render(scene, signal) {
   const t0 = performance.now();
   const resp = await postJson('/v1/render', scene, signal);
-  if (!resp.ok) throw new ApiError(await errorMessage(resp), resp.status);
+  if (!resp.ok) throw await apiError(resp);
   const blob = await resp.blob();
   return { blob, info: renderInfo(resp.headers), ms: performance.now() - t0 };
 }
@@ -137,7 +146,7 @@ export async function render(scene, signal) {
 // POST /v1/pick -> the first picked pixel, normalised (see firstPick).
 export async function pick(scene, signal) {
   const resp = await postJson('/v1/pick', scene, signal);
-  if (!resp.ok) throw new ApiError(await errorMessage(resp), resp.status);
+  if (!resp.ok) throw await apiError(resp);
   return firstPick(await resp.json());
 }
 
@@ -164,21 +173,21 @@ export function firstPick(j) {
 
 export async function datasets(signal) {
   const resp = await fetch('/v1/datasets', { signal });
-  if (!resp.ok) throw new ApiError(await errorMessage(resp), resp.status);
+  if (!resp.ok) throw await apiError(resp);
   const j = await resp.json();
   return Array.isArray(j) ? j : j.datasets || [];
 }
 
 export async function dataset(id, signal) {
   const resp = await fetch(`/v1/datasets/${encodeURIComponent(id)}`, { signal });
-  if (!resp.ok) throw new ApiError(await errorMessage(resp), resp.status);
+  if (!resp.ok) throw await apiError(resp);
   return resp.json();
 }
 
 // POST /v1/admin/preload -> the job (202).
 export async function preload(token, body) {
   const resp = await postJson('/v1/admin/preload', body, undefined, { Authorization: `Bearer ${token}` });
-  if (!resp.ok) throw new ApiError(await errorMessage(resp), resp.status);
+  if (!resp.ok) throw await apiError(resp);
   return resp.json();
 }
 
@@ -187,7 +196,7 @@ export async function job(token, id, signal) {
     headers: { Authorization: `Bearer ${token}` },
     signal,
   });
-  if (!resp.ok) throw new ApiError(await errorMessage(resp), resp.status);
+  if (!resp.ok) throw await apiError(resp);
   return resp.json();
 }
 

@@ -131,7 +131,7 @@ function selectDataset(id, cam) {
   buildMap();
   syncFields();
   drawCamera();
-  scheduleRender(true);
+  scheduleRender({ now: true });
 }
 
 // --- map ------------------------------------------------------------------------------
@@ -146,7 +146,7 @@ function buildMap() {
   const bounds = L.latLngBounds(LL(ds.xmin, ds.ymin), LL(ds.xmax, ds.ymax));
   const nz = maxNativeZoom(ds);
   const map = L.map('map', {
-    crs, minZoom: -2, maxZoom: nz + 3, keyboard: true, zoomControl: true,
+    crs, minZoom: -2, maxZoom: nz + 3, keyboard: true, zoomControl: true, zoomSnap: 0.25, zoomDelta: 0.5,
     maxBounds: bounds.pad(0.5), maxBoundsViscosity: 0.8,
   });
   map.attributionControl.setPrefix('Leaflet');
@@ -155,7 +155,7 @@ function buildMap() {
     bounds, noWrap: true, attribution: shortAttribution(ds.id), className: 'terrad-tiles',
   }).addTo(map);
   L.control.scale({ imperial: false }).addTo(map);
-  map.fitBounds(bounds);
+  map.fitBounds(bounds, { padding: [8, 8] });
 
   const camIcon = L.divIcon({ className: '', html: '<div class="cam-icon"></div>', iconSize: [18, 18], iconAnchor: [9, 9] });
   const handleIcon = L.divIcon({ className: '', html: '<div class="handle-icon"></div>', iconSize: [14, 14], iconAnchor: [7, 7] });
@@ -173,17 +173,18 @@ function buildMap() {
   state.map = map;
   state.layers = { camera, handle, wedgeLayer, headingLine, picks };
 
+  // While dragging, previews (half size, no comparison); the full view when dropped.
   camera.on('drag', () => {
     const p = camera.getLatLng();
     const [x, y] = clampToDataset(ds, p.lng, p.lat);
-    setCamera({ x, y }, { keepCameraMarker: true });
+    setCamera({ x, y }, { keepCameraMarker: true, preview: true });
   });
-  camera.on('dragend', () => drawCamera());
+  camera.on('dragend', () => setCamera({}));
   handle.on('drag', () => {
     const p = handle.getLatLng();
-    setCamera({ heading: headingTo(state.cam.x, state.cam.y, p.lng, p.lat) }, { keepHandle: true });
+    setCamera({ heading: headingTo(state.cam.x, state.cam.y, p.lng, p.lat) }, { keepHandle: true, preview: true });
   });
-  handle.on('dragend', () => drawCamera());
+  handle.on('dragend', () => setCamera({}));
   map.on('click', (e) => {
     const [x, y] = clampToDataset(ds, e.latlng.lng, e.latlng.lat);
     setCamera({ x, y });
@@ -264,6 +265,8 @@ function syncFields() {
   }
 }
 
+// Applies a change to the camera, redraws it and schedules a render (a preview while
+// something is being dragged, else the full view).
 function setCamera(patch, drawOpts = {}) {
   const c = { ...state.cam, ...patch };
   c.heading = normHeading(c.heading);
@@ -274,7 +277,7 @@ function setCamera(patch, drawOpts = {}) {
   syncFields();
   drawCamera(drawOpts);
   saveHash();
-  scheduleRender();
+  scheduleRender({ preview: !!drawOpts.preview });
 }
 
 function wireCameraFields() {
@@ -288,12 +291,14 @@ function wireCameraFields() {
   $('cam-x').addEventListener('change', readXY);
   $('cam-y').addEventListener('change', readXY);
   for (const [k, num, range] of PAIRS) {
-    const apply = (el) => {
+    // A slider previews while it moves (input) and renders in full when let go (change).
+    const apply = (el, preview) => {
       const v = Number(el.value);
-      if (el.value !== '' && Number.isFinite(v)) setCamera({ [k]: v });
+      if (el.value !== '' && Number.isFinite(v)) setCamera({ [k]: v }, { preview });
     };
-    $(num).addEventListener('input', () => apply($(num)));
-    $(range).addEventListener('input', () => apply($(range)));
+    $(num).addEventListener('input', () => apply($(num), false));
+    $(range).addEventListener('input', () => apply($(range), true));
+    $(range).addEventListener('change', () => apply($(range), false));
   }
 }
 
@@ -376,15 +381,27 @@ function showCompareLayout() {
 
 // --- rendering ------------------------------------------------------------------------
 
-function scheduleRender(now = false) {
+// Debounced: a burst of changes sends one request, DEBOUNCE_MS after the last, or
+// MAX_WAIT_MS after the first when changes keep coming (a long drag). The kind of the
+// last change wins: a full render scheduled after a preview replaces it.
+function scheduleRender({ now = false, preview = false } = {}) {
   const t = performance.now();
   if (!state.timer) state.firstScheduled = t;
   clearTimeout(state.timer);
   const wait = now ? 0 : Math.max(0, Math.min(DEBOUNCE_MS, MAX_WAIT_MS - (t - state.firstScheduled)));
   state.timer = setTimeout(() => {
     state.timer = null;
-    renderNow();
+    renderNow(preview);
   }, wait);
+}
+
+// When terrad's queue is full it answers 503 with Retry-After: try again once then,
+// unless a newer view was asked for meanwhile.
+function retryLater(err) {
+  const s = Math.min(10, Math.max(1, err.retryAfter || 1));
+  setStatus(`terrad is busy (${err.message}); retrying in ${s} s.`, true);
+  const asked = state.asked;
+  setTimeout(() => { if (state.asked === asked) scheduleRender({ now: true }); }, s * 1000);
 }
 
 async function showBlob(img, blob) {
@@ -405,13 +422,21 @@ function describeInfo(info, scene) {
   return t;
 }
 
-async function renderNow() {
+// Renders the current camera: A, and B in compare mode. A preview is half the size,
+// one sample a pixel and no B; the B view and the difference are marked stale until
+// the next full render.
+async function renderNow(preview = false) {
   if (state.controller) state.controller.abort();
   const controller = new AbortController();
   state.controller = controller;
-  const size = imageSize(), fx = effects();
-  const sceneA = api.buildScene(state.ds.id, state.cam, size, qualityA(), fx);
-  const sceneB = comparing() ? api.buildScene(state.ds.id, state.cam, size, qualityB(), fx) : null;
+  state.asked = (state.asked || 0) + 1;
+  const full = imageSize(), fx = effects();
+  const size = preview ? { width: Math.round(full.width / 2), height: Math.round(full.height / 2) } : full;
+  const qa = preview ? { ...qualityA(), samples: 1 } : qualityA();
+  const sceneA = api.buildScene(state.ds.id, state.cam, size, qa, fx);
+  const sceneB = comparing() && !preview ? api.buildScene(state.ds.id, state.cam, size, qualityB(), fx) : null;
+  $('view-b').classList.toggle('stale', comparing() && preview);
+  $('view-diff').classList.toggle('stale', comparing() && preview);
   const frames = [$('view-a'), $('view-b')].map((f) => f.querySelector('.frame'));
   frames.forEach((f) => f.classList.add('loading'));
   $('view-panel').setAttribute('aria-busy', 'true');
@@ -424,8 +449,8 @@ async function renderNow() {
     await showBlob($('view-img'), ra.blob);
     if (rb) await showBlob($('view-img-b'), rb.blob);
     if (controller.signal.aborted) return;
-    state.shown = { a: { scene: sceneA, info: ra.info }, b: rb ? { scene: sceneB, info: rb.info } : null };
-    $('view-a-caption').textContent = `A: ${describeInfo(ra.info, sceneA)}`;
+    state.shown = { a: { scene: sceneA, info: ra.info, preview }, b: rb ? { scene: sceneB, info: rb.info } : null };
+    $('view-a-caption').textContent = `A${preview ? ' (preview)' : ''}: ${describeInfo(ra.info, sceneA)}`;
     if (rb) $('view-b-caption').textContent = `B: ${describeInfo(rb.info, sceneB)}`;
     drawCharts();
     if (rb) showDiff();
@@ -435,7 +460,8 @@ async function renderNow() {
       (rb ? `, B ${fmtMs(totalOf(rb.info))}` : '') + `, ${Math.round(ra.ms)} ms round trip.`);
   } catch (e) {
     if (e.name === 'AbortError') return;
-    setStatus(`Render failed: ${e.message}`, true);
+    if (e.status === 503) retryLater(e);
+    else setStatus(`Render failed: ${e.message}`, true);
   } finally {
     if (state.controller === controller) {
       state.controller = null;
@@ -456,7 +482,7 @@ function drawCharts() {
     div.className = 'chart';
     div.dataset.view = label;
     const q = v.scene.quality;
-    drawTimingChart(div, v.info, scale, `${label} ${v.info.method || q.method}/${v.info.surface || q.surface}`);
+    drawTimingChart(div, v.info, scale, `${label}${v.preview ? ' preview' : ''} ${v.info.method || q.method}/${v.info.surface || q.surface}`);
     host.append(div);
   }
 }

@@ -238,17 +238,65 @@ test('the keyboard moves and turns the camera', async () => {
 test('a burst of changes sends one render request', async () => {
   const n = await renders();
   const before = renderRequests.length;
-  await page.evaluate(() => {
+  // A slider moved and let go: input events 20 ms apart, as a hand makes them, then
+  // one change.
+  await page.evaluate(async () => {
     const r = document.getElementById('cam-pitch-range');
     for (const v of [-20, -18, -16, -14, -12]) {
       r.value = String(v);
       r.dispatchEvent(new Event('input', { bubbles: true }));
+      await new Promise((ok) => setTimeout(ok, 20));
     }
+    r.dispatchEvent(new Event('change', { bubbles: true }));
   });
   await waitRenders(n + 1);
   await sleep(300);
-  assert.equal(renderRequests.length - before, 1, 'one request for five changes');
-  assert.equal(renderRequests.at(-1).camera.pitch, -12, 'with the last value');
+  assert.equal(renderRequests.length - before, 1, 'one request for six changes');
+  const last = renderRequests.at(-1);
+  assert.equal(last.camera.pitch, -12, 'with the last value');
+  assert.deepEqual([last.image.width, last.image.height], [640, 400], 'in full');
+});
+
+test('dragging the heading handle turns the camera, with previews on the way', async () => {
+  const before = renderRequests.length;
+  const h = await page.locator('.heading-handle').boundingBox();
+  const c = await page.locator('.camera-marker').boundingBox();
+  const hx = h.x + h.width / 2, hy = h.y + h.height / 2;
+  const cx = c.x + c.width / 2, cy = c.y + c.height / 2;
+  // Swing the handle a quarter turn clockwise about the camera, over about a second.
+  const r = Math.hypot(hx - cx, hy - cy), a0 = Math.atan2(hy - cy, hx - cx);
+  await page.mouse.move(hx, hy);
+  await page.mouse.down();
+  let ex = hx, ey = hy;
+  for (let i = 1; i <= 10; i++) {
+    const a = a0 + (Math.PI / 2) * (i / 10);
+    ex = Math.round(cx + r * Math.cos(a));
+    ey = Math.round(cy + r * Math.sin(a));
+    await page.mouse.move(ex, ey, { steps: 2 });
+    await sleep(100);
+  }
+  await page.mouse.up();
+  // Settled: nothing scheduled, nothing in flight, the full view of the camera shown.
+  await page.waitForFunction(() => {
+    const t = window.terrad;
+    return !t.timer && !t.controller && t.shown.a.scene.image.width === 640 &&
+      Math.abs(t.shown.a.scene.camera.heading - t.cam.heading) < 0.01;
+  });
+  const sent = renderRequests.slice(before);
+  const previews = sent.filter((q) => q.image.width === 320);
+  assert.ok(previews.length >= 1, `previews while dragging (${sent.map((q) => q.image.width)})`);
+  const last = sent.at(-1);
+  assert.equal(last.image.width, 640, 'the full view once dropped');
+  const want = await page.evaluate(([x, y]) => {
+    const ll = window.terrad.map.mouseEventToLatLng({ clientX: x, clientY: y });
+    const cam = window.terrad.cam;
+    const h = (Math.atan2(ll.lng - cam.x, ll.lat - cam.y) * 180) / Math.PI;
+    return (h + 360) % 360;
+  }, [ex, ey]);
+  const heading = await camField('cam-heading');
+  const off = Math.abs(((heading - want + 540) % 360) - 180);
+  assert.ok(off < 2, `heading ${heading}, towards the drop point ${want}`);
+  assert.ok(Math.abs(last.camera.heading - heading) < 0.01, 'the full view has that heading');
 });
 
 test('a click in the view marks the terrain point on the map', async () => {
