@@ -27,6 +27,7 @@
 
 #include "camera.h"
 #include "image.h"
+#include "lod.h"
 #include "scene.h"
 
 #define TD_RAY_KIND_LIST(X)                                                    \
@@ -72,6 +73,7 @@ typedef struct td_render_stats {
     uint64_t curve_segments;   /* straight pieces those were traced as */
     uint64_t method_rays[TD_METHOD_COUNT]; /* camera rays by the method the tracer used
                                               where they ended (what `auto` chose) */
+    uint64_t lod_rays[TD_LOD_MAX + 1]; /* camera rays by the level of detail they ended on */
     int stage_ran[TD_STAGE_COUNT];
     double stage_ms[TD_STAGE_COUNT];
     double total_ms;           /* wall time of td_render */
@@ -83,6 +85,7 @@ typedef struct td_render_opts {
     const td_image8 *drape;    /* preloaded drape; NULL: loaded from the scene's path */
     uint64_t drape_max_pixels; /* when loading it (0: 64 Mpx) */
     const atomic_int *cancel;  /* polled per block; non-zero -> TD_ECANCELED */
+    const td_lod *lod;         /* coarse levels (quality.lod needs them), or NULL */
 } td_render_opts;
 
 typedef struct td_render_result {

@@ -93,7 +93,8 @@ typedef struct td_scene_quality {
     td_method method;
     td_surface surface;
     int samples;        /* n: n x n supersampling, 1 .. 8 */
-    int lod;            /* level of detail: not implemented, must be 0 */
+    int lod;            /* level of detail on (render.c; needs td_render_opts.lod) */
+    double lod_pixels;  /* with lod: pixels one coarse cell may span (default 1) */
     int smooth_normals; /* vertex normals interpolated across the cell */
 } td_scene_quality;
 

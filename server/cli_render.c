@@ -170,6 +170,14 @@ static json_t *stats_json(const td_render_stats *st)
         if (st->method_rays[k])
             json_object_set_new(methods, td_method_name((td_method)k), json_integer((json_int_t)st->method_rays[k]));
     json_object_set_new(o, "methods", methods);
+    json_t *lod = json_array();
+    int top = 0;
+    for (int k = 0; k <= TD_LOD_MAX; k++)
+        if (st->lod_rays[k])
+            top = k;
+    for (int k = 0; k <= top; k++)
+        json_array_append_new(lod, json_integer((json_int_t)st->lod_rays[k]));
+    json_object_set_new(o, "lod_rays", lod);
     json_object_set_new(o, "rays", rays);
     json_object_set_new(o, "stages_ms", stages);
     json_object_set_new(o, "steps", json_integer((json_int_t)st->steps));
@@ -215,6 +223,7 @@ int td_cli_render(int argc, char **argv)
     td_err err = {""};
     td_grid *g = NULL;
     td_accel *acc = NULL;
+    td_lod *lod = NULL;
     td_render_result res;
     td_buf buf = {0};
     td_pick *picks = NULL;
@@ -329,6 +338,14 @@ int td_cli_render(int argc, char **argv)
         accel_ms = now_ms() - t;
     }
     td_view view = {g, acc ? acc->tiles : NULL};
+    if (scene->quality.lod) {
+        t = now_ms();
+        if (td_lod_build(g, TD_LOD_MAX, &aopts, &lod, &err)) {
+            fprintf(stderr, "terrad render: %s\n", err.msg);
+            goto out;
+        }
+        accel_ms += now_ms() - t;
+    }
 
     if (scene->image.format == TD_FORMAT_PICK) {
         td_render_stats pst;
@@ -348,6 +365,7 @@ int td_cli_render(int argc, char **argv)
         td_render_opts ropts;
         td_render_opts_default(&ropts);
         ropts.threads = threads;
+        ropts.lod = lod;
         double scale = 0.0;
         if (td_render(&view, scene, &ropts, &res, &err) ||
             td_render_encode(&res, scene, &buf, &scale, &err)) {
@@ -386,6 +404,7 @@ out:
     free(picks);
     td_buf_free(&buf);
     td_render_result_free(&res);
+    td_lod_free(lod);
     td_accel_free(acc);
     td_grid_free(g);
     free(scene);

@@ -489,12 +489,13 @@ static int parse_quality(pctx *p, json_t *q, td_scene *s)
     if (!rc && integer(p, q, "samples", 1, p->lim->max_samples, &n) < 0)
         rc = -1;
     s->quality.samples = (int)n;
-    if (!rc && boolean(p, q, "lod", &s->quality.lod) < 0)
+    /* lod: true/false, or a number: pixels one coarse cell may span (0.25 .. 64) */
+    if (!rc && json_is_number(json_object_get(q, "lod"))) {
+        if (num(p, q, "lod", 0.25, 64.0, &s->quality.lod_pixels) < 0)
+            rc = -1;
+        s->quality.lod = 1;
+    } else if (!rc && boolean(p, q, "lod", &s->quality.lod) < 0) {
         rc = -1;
-    if (!rc && s->quality.lod) {
-        size_t old = push(p, "lod");
-        rc = fail(p, TD_EUNSUPPORTED, "level of detail is not implemented");
-        pop(p, old);
     }
     if (!rc && boolean(p, q, "smooth_normals", &s->quality.smooth_normals) < 0)
         rc = -1;

@@ -370,8 +370,11 @@ static void test_refusals_and_cancel(void **state)
     (void)state;
     td_render_opts_default(&o);
     base_scene(&scene);
-    scene.quality.lod = 1;
+    scene.quality.lod = 1; /* no coarse levels given */
     assert_int_equal(td_render(&v, &scene, &o, &r, &err), TD_EUNSUPPORTED);
+    assert_non_null(strstr(err.msg, "quality.lod"));
+    scene.quality.lod_pixels = 100.0;
+    assert_int_equal(td_render(&v, &scene, &o, &r, &err), TD_ERANGE);
     assert_non_null(strstr(err.msg, "quality.lod"));
     base_scene(&scene);
     scene.quality.samples = 9;
@@ -450,6 +453,69 @@ static void test_cli_render(void **state)
 }
 
 /* ---- golden images ---- */
+
+static double psnr(const uint8_t *a, const uint8_t *b, size_t n);
+
+/* Level of detail: far pixels end on coarse levels, the picture stays close to the full
+ * grid's (PSNR), secondary rays run on the level their camera ray used, and an
+ * orthographic view whose pixels cover several cells is traced on one coarse level. */
+static void test_level_of_detail(void **state)
+{
+    td_render_result full, lod;
+    td_view v = {grid, NULL};
+    td_render_opts o;
+    td_lod *levels = NULL;
+    td_accel_opts ao;
+    td_err err = {{0}};
+    (void)state;
+    td_accel_opts_default(&ao);
+    ao.maxmip = ao.planes = 0;
+    assert_int_equal(td_lod_build(grid, TD_LOD_MAX, &ao, &levels, &err), TD_OK);
+    assert_true(levels->levels >= 5); /* 129 -> 65 -> 33 -> 17 -> 9 -> 5 -> 3 -> 2 */
+    assert_int_equal(levels->grid[1]->w, 65);
+    assert_true(levels->grid[1]->sx == 2.0 * grid->sx);
+    /* a coarse sample sits over a base sample and stays within the terrain's range */
+    assert_true(levels->grid[1]->zmin >= grid->zmin && levels->grid[1]->zmax <= grid->zmax);
+
+    base_scene(&scene);
+    scene.image.width = 160;
+    scene.image.height = 120;
+    scene.effects.shadows = 1;
+    td_render_opts_default(&o);
+    o.threads = 2;
+    assert_int_equal(td_render(&v, &scene, &o, &full, &err), TD_OK);
+    scene.quality.lod = 1;
+    scene.quality.lod_pixels = 2.0;
+    o.lod = levels;
+    assert_int_equal(td_render(&v, &scene, &o, &lod, &err), TD_OK);
+    uint64_t coarse = 0;
+    for (int k = 1; k <= TD_LOD_MAX; k++)
+        coarse += lod.stats.lod_rays[k];
+    assert_int_equal(full.stats.lod_rays[0], 160 * 120);
+    assert_true(coarse > 0 && lod.stats.lod_rays[0] > 0);
+    double q = psnr(full.rgba, lod.rgba, (size_t)160 * 120 * 4);
+    print_message("lod: %llu of %d camera rays on coarse levels, steps %llu -> %llu, PSNR %.1f dB\n",
+                  (unsigned long long)coarse, 160 * 120, (unsigned long long)full.stats.steps,
+                  (unsigned long long)lod.stats.steps, q);
+    assert_true(q >= 25.0);
+    td_render_result_free(&full);
+    td_render_result_free(&lod);
+
+    /* orthographic: 8 cells per pixel -> every ray on level 3 */
+    td_scene_defaults(&scene);
+    snprintf(scene.dataset, sizeof scene.dataset, "procedural");
+    scene.camera.projection = TD_PROJ_ORTHOGRAPHIC;
+    scene.camera.extent[0] = 0.0;
+    scene.camera.extent[1] = 0.0;
+    scene.camera.extent[2] = 128 * 30.0;
+    scene.camera.extent[3] = 128 * 30.0;
+    scene.image.width = scene.image.height = 16;
+    scene.quality.lod = 1;
+    assert_int_equal(td_render(&v, &scene, &o, &lod, &err), TD_OK);
+    assert_int_equal(lod.stats.lod_rays[3], 16 * 16);
+    td_render_result_free(&lod);
+    td_lod_free(levels);
+}
 
 static double psnr(const uint8_t *a, const uint8_t *b, size_t n)
 {
@@ -572,6 +638,7 @@ int main(void)
         cmocka_unit_test(test_depth_matches_pick),
         cmocka_unit_test(test_curvature),
         cmocka_unit_test(test_refusals_and_cancel),
+        cmocka_unit_test(test_level_of_detail),
         cmocka_unit_test(test_cli_render),
         cmocka_unit_test(test_golden_images),
     };

@@ -186,8 +186,9 @@ static void test_refusals(void **state)
            TD_EINVAL, "camera.extent", "orthographic");
     expect("{\"dataset\":\"a\",\"camera\":{\"projection\":\"orthographic\",\"extent\":[5,0,1,1]}}",
            TD_ERANGE, "camera.extent", NULL);
-    /* level of detail is refused rather than faked */
-    expect("{\"dataset\":\"a\"," CAM ",\"quality\":{\"lod\":true}}", TD_EUNSUPPORTED, "quality.lod", NULL);
+    /* level of detail: a boolean or pixels per coarse cell in 0.25 .. 64 */
+    expect("{\"dataset\":\"a\"," CAM ",\"quality\":{\"lod\":100}}", TD_ERANGE, "quality.lod", NULL);
+    expect("{\"dataset\":\"a\"," CAM ",\"quality\":{\"lod\":\"yes\"}}", TD_EINVAL, "quality.lod", NULL);
     /* ids: no paths from the network */
     expect("{\"dataset\":\"../etc/passwd\"," CAM "}", TD_EINVAL, "dataset", "id");
     expect("{\"dataset\":\"a\"," CAM ",\"effects\":{\"drape\":\"/etc/x.png\"}}", TD_EINVAL, "effects.drape", NULL);
