@@ -11,7 +11,16 @@
  * meets the surface (touching counts; a ray that starts on or below the surface hits at
  * once: `tmin` for the triangle, linear and bilinear surfaces when it starts exactly on
  * them, the first crossing when it starts below; the plane surface is a solid column,
- * so an origin inside it hits at tmin). Cells with a void corner are holes. */
+ * so an origin inside it hits at tmin). Cells with a void corner are holes.
+ *
+ * Where a ray runs exactly along a grid line (x = i*sx or y = j*sy), the triangle,
+ * linear and bilinear surfaces of the two cells agree on the shared edge, so either cell
+ * gives the same hit. The plane surface's columns do not agree there: they are
+ * half-open, [i*sx, (i+1)*sx) x [j*sy, (j+1)*sy) (closed on the grid's east and north
+ * edges), so such a ray sees the column east (north) of the line, and a vertical ray
+ * through a sample sees the column north-east of it. A ray through a sample point
+ * crosses diagonally between the two cells that meet there and touches the other two
+ * only at that point; a touch there (measure zero) may be reported or not. */
 #ifndef TD_TRACE_H
 #define TD_TRACE_H
 
