@@ -6,9 +6,9 @@
 // Per pixel the difference is the largest absolute difference over R, G, B (alpha is
 // compared too: sky against no sky is a difference). Statistics: pixels that differ at
 // all, pixels that differ by more than `threshold` (visible), mean and max difference,
-// and PSNR over RGB. The difference image shows identical pixels as a dimmed grey copy
-// of image A and differing ones in red, brighter for larger differences, so where the
-// two settings disagree (silhouettes, shadow edges) stands out.
+// and PSNR over RGB. The difference image is a dimmed grey copy of image A turning red
+// where the two differ, fully red from 32 levels up, so where the settings disagree
+// (silhouettes, shadow edges) stands out and rounding-level noise does not.
 
 export function diffRGBA(a, b, width, height, threshold = 8) {
   const n = width * height;
@@ -24,14 +24,13 @@ export function diffRGBA(a, b, width, height, threshold = 8) {
     if (d > max) max = d;
     if (d > 0) differ++;
     if (d > threshold) visible++;
-    if (d > 0) {
-      out[o] = 96 + Math.min(159, d * 4);
-      out[o + 1] = 0;
-      out[o + 2] = 0;
-    } else {
-      const g = (a[o] + a[o + 1] + a[o + 2]) / 6;
-      out[o] = out[o + 1] = out[o + 2] = g;
-    }
+    // Dimmed grey of A, blended towards red as the difference grows (full red from 32
+    // levels): a difference of a level or two barely tints, an edge that moved glows.
+    const g = (a[o] + a[o + 1] + a[o + 2]) / 6;
+    const k = Math.min(1, d / 32);
+    out[o] = g + (255 - g) * k;
+    out[o + 1] = g * (1 - k);
+    out[o + 2] = g * (1 - k);
     out[o + 3] = 255;
   }
   const mse = sq / (n * 3);

@@ -348,6 +348,35 @@ test('the admin panel preloads the visible area with a progress bar', async () =
   assert.match(await page.textContent('#admin-progress-label'), /401/);
 });
 
+test('every control is labelled and reachable by Tab in reading order', async () => {
+  const unlabelled = await page.$$eval('input, select, button, textarea', (els) => els
+    .filter((e) => !e.disabled && !(e.labels && e.labels.length) && !e.getAttribute('aria-label') && !e.getAttribute('aria-labelledby') &&
+      !(e.tagName === 'BUTTON' && e.textContent.trim()))
+    .map((e) => e.id || e.outerHTML.slice(0, 60)));
+  assert.deepEqual(unlabelled, []);
+  // Tab from the top: the dataset picker, the map, the camera on it, its fields, the
+  // quality settings, then the view and the comparison, in that order.
+  await page.evaluate(() => { document.activeElement && document.activeElement.blur(); window.scrollTo(0, 0); });
+  await page.focus('#dataset');
+  const order = [];
+  for (let i = 0; i < 40; i++) {
+    await page.keyboard.press('Tab');
+    order.push(await page.evaluate(() => {
+      const e = document.activeElement;
+      return e.id || [...e.classList].find((c) => /^(camera-marker|heading-handle|pick-marker|leaflet-control-zoom-in)$/.test(c)) || e.tagName;
+    }));
+  }
+  const at = (k) => order.indexOf(k);
+  for (const k of ['map', 'camera-marker', 'heading-handle', 'cam-x', 'cam-fov', 'q-method', 'view-img', 'cmp-on']) assert.ok(at(k) >= 0, `${k} reached by Tab (${order})`);
+  assert.ok(at('map') < at('camera-marker') && at('camera-marker') < at('cam-x') && at('cam-x') < at('q-method') &&
+    at('q-method') < at('view-img') && at('view-img') < at('cmp-on'), `reading order: ${order}`);
+  // Enter on the focused view picks its centre.
+  const picks = Number(await page.evaluate(() => document.body.dataset.picks || 0));
+  await page.focus('#view-img');
+  await page.keyboard.press('Enter');
+  await page.waitForFunction((k) => Number(document.body.dataset.picks || 0) > k, picks);
+});
+
 test('screenshots, and nothing went wrong on the way', async () => {
   await page.fill('#admin-token', '');
   await page.evaluate(() => { document.getElementById('admin').open = false; window.scrollTo(0, 0); });
@@ -365,4 +394,21 @@ test('screenshots, and nothing went wrong on the way', async () => {
   const unexpected = pageErrors.filter((e) => !/401 \(Unauthorized\)/.test(e));
   assert.deepEqual(unexpected, [], 'no page errors');
   assert.equal(serverExit, null, 'terrad is still running');
+});
+
+test('another dataset: its map, its view, its attribution', async () => {
+  const n = await renders();
+  await page.selectOption('#dataset', 'volcano');
+  await waitRenders(n + 1);
+  const last = renderRequests.at(-1);
+  assert.equal(last.dataset, 'volcano');
+  // Camera inside the 600 x 860 m grid and a sensible height for 100 m of relief.
+  const p = last.camera.position;
+  assert.ok(p.x > 0 && p.x < 600 && p.y > 0 && p.y < 860 && p.agl > 0 && p.agl < 100, JSON.stringify(p));
+  const s = await viewStats('#view-img');
+  assert.ok(s.opaque > 0.9 * s.pixels && s.variance > 20, 'a picture of the volcano');
+  assert.match(await page.textContent('#attribution-current'), /volcano/);
+  await page.waitForFunction(() => [...document.querySelectorAll('img.leaflet-tile')].some((t) => t.complete && t.naturalWidth === 256 && t.src.includes('/volcano/')));
+  assert.match(page.url(), /#volcano\//, 'the camera is in the URL');
+  assert.deepEqual(foreign, [], 'no request left the loopback server');
 });

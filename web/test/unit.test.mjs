@@ -173,8 +173,11 @@ test('pixel difference: counts, threshold, PSNR and the difference image', () =>
   assert.ok(near(r.mean, (10 + 3 + 100) / n));
   const mse = (10 * 10 + 3 * 3) / (n * 3);
   assert.ok(near(r.psnr, 10 * Math.log10((255 * 255) / mse), 1e-9));
-  assert.equal(r.image[0], 96 + 40, 'a differing pixel is red');
-  assert.equal(r.image[1], 0);
+  // Pixel 0 (grey 50 in A) differs by 10: 10/32 of the way to red.
+  assert.equal(r.image[0], Math.round(50 + 205 * (10 / 32)), 'a differing pixel turns red');
+  assert.equal(r.image[1], Math.round(50 * (22 / 32)));
+  // Pixel 2 differs by 100 (alpha): fully red.
+  assert.deepEqual([...r.image.subarray(8, 12)], [255, 0, 0, 255]);
   assert.equal(r.image[12], 50, 'an equal pixel is a dimmed grey of A');
   assert.equal(r.image[12 + 3], 255);
   const same = diffRGBA(a, a, w, h);
