@@ -95,13 +95,12 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
     p->k = k;
     p->nx = nx;
     p->ny = ny;
-    p->zp = malloc(sizeof(float) * n);
-    p->sp = malloc(sizeof(float) * n);
-    if (!p->zp || !p->sp) {
+    p->cone = malloc(sizeof(td_cone) * n);
+    if (!p->cone) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for parameter planes");
         goto out;
     }
-    p->bytes = sizeof *p + 2 * sizeof(float) * n;
+    p->bytes = sizeof *p + sizeof(td_cone) * n;
 
     td_grid_cell_max(g, t, cell);
     for (size_t c = 0; c < n; c++) {
@@ -112,8 +111,8 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
     }
     if (zhi == -INFINITY) { /* all holes: nothing to hit anywhere in the tile */
         for (size_t c = 0; c < n; c++) {
-            p->zp[c] = -INFINITY;
-            p->sp[c] = 0.0f;
+            p->cone[c].zp = -INFINITY;
+            p->cone[c].sp = 0.0f;
         }
         goto out;
     }
@@ -170,8 +169,8 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
         }
     }
     for (size_t c = 0; c < n; c++) {
-        p->zp[c] = round_up(zp[c]);
-        p->sp[c] = round_up(sp[c]);
+        p->cone[c].zp = round_up(zp[c]);
+        p->cone[c].sp = round_up(sp[c]);
     }
 out:
     free(cell);
@@ -192,8 +191,7 @@ out:
 void td_planes_free(td_planes *p)
 {
     if (p) {
-        free(p->zp);
-        free(p->sp);
+        free(p->cone);
         free(p);
     }
 }

@@ -6,11 +6,16 @@
 
 #include "trace.h"
 
+/* One cell's cone; apex and slope side by side so a step costs one cache miss. */
+typedef struct td_cone {
+    float zp; /* apex height (rounded up) */
+    float sp; /* slope, metres of height per metre of distance (rounded up) */
+} td_cone;
+
 struct td_planes {
     int k;          /* slices used */
     int32_t nx, ny; /* cells */
-    float *zp;      /* nx*ny apex heights (rounded up) */
-    float *sp;      /* nx*ny slopes, metres of height per metre of distance (rounded up) */
+    td_cone *cone;  /* nx*ny, row-major, south first */
     size_t bytes;
 };
 

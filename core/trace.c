@@ -536,7 +536,7 @@ static int cone_step(const walk *w, const td_tile *tile, const td_planes *pl, wa
 {
     int rc = -1;
     size_t idx = (size_t)(st->cj - tile->j0) * (size_t)pl->nx + (size_t)(st->ci - tile->i0);
-    double zp = (double)pl->zp[idx], sp = (double)pl->sp[idx];
+    double zp = (double)pl->cone[idx].zp, sp = (double)pl->cone[idx].sp;
     double above = ray_z(w, st->t) - zp - w->zeps;
     if (above > 0.0) {
         double closing = sp * w->hs - w->dz; /* how fast the ray nears the cone, per unit t */

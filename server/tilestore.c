@@ -568,7 +568,7 @@ void td_store_evict_dataset(td_store *s, size_t idx, size_t *evicted)
 /* --- disk cache ------------------------------------------------------------------- */
 
 #define TD_CACHE_MAGIC "TDACCEL"
-#define TD_CACHE_VERSION 1u
+#define TD_CACHE_VERSION 2u /* 2: planes stored as interleaved cones */
 
 typedef struct td_cache_hdr {
     char magic[8];
@@ -636,13 +636,12 @@ static void cache_write(const td_store *s, const td_ds *d, size_t tile, const td
         ok = f && fwrite(&h, sizeof h, 1, f) == 1 && fwrite(m->max, 1, h.payload, f) == h.payload;
     } else {
         const td_planes *pl = p->ptr;
-        size_t n = (size_t)pl->nx * (size_t)pl->ny * sizeof(float);
+        size_t n = (size_t)pl->nx * (size_t)pl->ny * sizeof(td_cone);
         h.levels = pl->k;
-        h.payload = 2 * n;
-        h.checksum = fnv1a(fnv1a(TD_FNV_INIT, pl->zp, n), pl->sp, n);
+        h.payload = n;
+        h.checksum = fnv1a(TD_FNV_INIT, pl->cone, n);
         f = fopen(tmp, "wb");
-        ok = f && fwrite(&h, sizeof h, 1, f) == 1 && fwrite(pl->zp, 1, n, f) == n &&
-             fwrite(pl->sp, 1, n, f) == n;
+        ok = f && fwrite(&h, sizeof h, 1, f) == 1 && fwrite(pl->cone, 1, n, f) == n;
     }
     if (f && fclose(f))
         ok = 0;
@@ -714,23 +713,21 @@ static td_part *cache_read(td_store *s, const td_ds *d, size_t tile, td_part_kin
         part = part_new(kind, m, m->bytes);
     } else {
         td_planes *p = calloc(1, sizeof *p);
-        size_t n = (size_t)h.nx * (size_t)h.ny * sizeof(float);
+        size_t n = (size_t)h.nx * (size_t)h.ny * sizeof(td_cone);
         obj = p;
-        if (!p || h.payload != 2 * n || h.levels != s->o.planes_k) {
+        if (!p || h.payload != n || h.levels != s->o.planes_k) {
             why = "bad shape";
             goto out;
         }
         p->k = h.levels;
         p->nx = h.nx;
         p->ny = h.ny;
-        p->zp = malloc(n ? n : 1);
-        p->sp = malloc(n ? n : 1);
-        if (!p->zp || !p->sp || fread(p->zp, 1, n, f) != n || fread(p->sp, 1, n, f) != n ||
-            fnv1a(fnv1a(TD_FNV_INIT, p->zp, n), p->sp, n) != h.checksum) {
+        p->cone = malloc(n ? n : 1);
+        if (!p->cone || fread(p->cone, 1, n, f) != n || fnv1a(TD_FNV_INIT, p->cone, n) != h.checksum) {
             why = "checksum mismatch or short payload";
             goto out;
         }
-        p->bytes = sizeof *p + 2 * n;
+        p->bytes = sizeof *p + n;
         part = part_new(kind, p, p->bytes);
     }
     if (part)

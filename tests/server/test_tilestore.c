@@ -259,8 +259,7 @@ static void test_disk_cache(void **state)
         assert_int_equal(td_planes_build(v->grid, 9, 8, &p, &e), TD_OK);
         assert_int_equal(v->accel[9].maxmip->bytes, m->bytes);
         assert_memory_equal(v->accel[9].maxmip->max, m->max, m->bytes - sizeof *m);
-        assert_memory_equal(v->accel[9].planes->zp, p->zp, sizeof(float) * (size_t)p->nx * (size_t)p->ny);
-        assert_memory_equal(v->accel[9].planes->sp, p->sp, sizeof(float) * (size_t)p->nx * (size_t)p->ny);
+        assert_memory_equal(v->accel[9].planes->cone, p->cone, sizeof(td_cone) * (size_t)p->nx * (size_t)p->ny);
         td_maxmip_free(m);
         td_planes_free(p);
     }
