@@ -196,15 +196,18 @@ double td_embree_trace(const td_embree *e, const td_ray *r)
         }
     }
     if (ok && lo <= hi) {
-        double n = sqrt(r->d[0] * r->d[0] + r->d[1] * r->d[1] + r->d[2] * r->d[2]);
+        /* |d| without overflow or underflow for huge or denormal components */
+        double m = fmax(fabs(r->d[0]), fmax(fabs(r->d[1]), fabs(r->d[2])));
+        double q[3] = {r->d[0] / m, r->d[1] / m, r->d[2] / m};
+        double n = m * sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
         struct RTCRayHit rh;
         struct RTCIntersectContext ctx;
         rh.ray.org_x = (float)(r->o[0] + lo * r->d[0] - e->c[0]);
         rh.ray.org_y = (float)(r->o[1] + lo * r->d[1] - e->c[1]);
         rh.ray.org_z = (float)(r->o[2] + lo * r->d[2] - e->c[2]);
-        rh.ray.dir_x = (float)(r->d[0] / n);
-        rh.ray.dir_y = (float)(r->d[1] / n);
-        rh.ray.dir_z = (float)(r->d[2] / n);
+        rh.ray.dir_x = (float)(q[0] * (m / n));
+        rh.ray.dir_y = (float)(q[1] * (m / n));
+        rh.ray.dir_z = (float)(q[2] * (m / n));
         rh.ray.tnear = 0.0f;
         rh.ray.tfar = isfinite(hi) ? (float)((hi - lo) * n) : INFINITY;
         rh.ray.time = 0.0f;

@@ -3,8 +3,13 @@
  *   oracle_trace DATASET [--rays N] [--seed S] [--threads T]
  *   oracle_trace DATASET --ray OX OY OZ DX DY DZ      (replay one ray; %a hex accepted)
  *
+ *   oracle_trace DATASET|--dem FILE --write-rays FILE        (a ray set for terrad trace)
+ *   oracle_trace --dem FILE --surface S --check RAYS HITS     (judge terrad trace output)
+ *
  * DATASET is volcano, levi, picos (voids), trinidad (a crop of the fixtures' N37W105.hgt),
- * trinidad-crop, or procedural; all use 32 x 32-cell tiles so rays cross seams often.
+ * trinidad-crop, procedural, or a made-up terrain (flat, single, strip, needle, wall,
+ * terraces, voids); all use 32 x 32-cell tiles so rays cross seams often. ORACLE_SHOW_TIES
+ * in the environment prints the first ties too.
  * Per dataset one ray set mixes camera fans (oblique, grazing, looking up, straight
  * down), rays from outside the box, rays along grid lines and diagonals, rays through
  * sample points and horizontal rays at sample heights (see make_rays).
@@ -93,6 +98,78 @@ static td_status crop(const td_grid *src, int32_t i0, int32_t j0, int32_t w, int
     return rc;
 }
 
+/* Small made-up terrains that break tracers: flat, one cell, a 2 x N strip, a needle,
+ * a 1e4 m wall, terraces at round heights, and voids in rows, blocks and a whole tile. */
+static td_status synthetic(const char *name, td_grid **out, td_err *err)
+{
+    td_status rc = TD_OK;
+    int32_t w = 65, h = 65;
+    double sp = 10.0;
+    td_grid *g = NULL;
+    int kind = -1;
+    const char *names[] = {"flat", "single", "strip", "needle", "wall", "terraces", "voids"};
+    for (int k = 0; k < 7; k++)
+        if (!strcmp(name, names[k]))
+            kind = k;
+    if (kind < 0) {
+        rc = td_err_set(err, TD_EINVAL, "unknown dataset '%s'", name);
+        goto out;
+    }
+    if (kind == 1)
+        w = h = 2;
+    if (kind == 2)
+        w = 2, h = 70;
+    if (kind == 5 || kind == 6) {
+        td_terrain_params p;
+        td_terrain_params_default(&p);
+        p.width = 130;
+        p.height = 100;
+        p.spacing = 20.0;
+        p.seed = 11;
+        p.feature_m = 1500.0;
+        p.relief_m = 600.0;
+        rc = td_terrain_generate(&p, 5, &g, err);
+        if (rc != TD_OK)
+            goto out;
+        for (int32_t j = 0; j < g->h; j++) {
+            for (int32_t i = 0; i < g->w; i++) {
+                float *z = &g->z[(size_t)j * g->w + i];
+                if (kind == 5)
+                    *z = 50.0f * floorf(*z / 50.0f);
+                else if (j == 40 || (i >= 70 && i < 75 && j < 60) || (i < 33 && j >= 64) ||
+                         ((i * 7 + j * 13) % 97 == 0))
+                    *z = NAN; /* a row, a block, a whole tile (cells 0..31 x 64..95), specks */
+            }
+        }
+    } else {
+        rc = td_grid_create(w, h, sp, sp, 5, NULL, &g, err);
+        if (rc != TD_OK)
+            goto out;
+        for (int32_t j = 0; j < h; j++) {
+            for (int32_t i = 0; i < w; i++) {
+                float z = 100.0f;
+                if (kind == 1)
+                    z = (float[]){100.0f, 105.0f, 103.0f, 110.0f}[j * 2 + i];
+                else if (kind == 2)
+                    z = 100.0f + 30.0f * (float)sin(0.3 * j) + 5.0f * (float)i;
+                else if (kind == 3 && i == 32 && j == 32)
+                    z = 2000.0f;
+                else if (kind == 4)
+                    z = i < 30 ? 0.0f : 10000.0f;
+                g->z[(size_t)j * w + i] = z;
+            }
+        }
+    }
+    rc = td_grid_finish(g, err);
+out:
+    if (rc != TD_OK) {
+        td_grid_free(g);
+        g = NULL;
+    }
+    *out = g;
+    return rc;
+}
+
 static td_status load_dataset(const char *name, td_grid **out, td_err *err)
 {
     td_status rc = TD_OK;
@@ -127,7 +204,7 @@ static td_status load_dataset(const char *name, td_grid **out, td_err *err)
         p.relief_m = 1200.0;
         rc = td_terrain_generate(&p, 5, out, err);
     } else {
-        rc = td_err_set(err, TD_EINVAL, "unknown dataset '%s'", name);
+        rc = synthetic(name, out, err);
     }
     td_grid_free(full);
     return rc;

@@ -227,16 +227,41 @@ static void piece_strict(ref_walk *w, double a, double b, double A, double B, do
         w->t_cov = b;
 }
 
-/* Both of the above; [sa, sb] is the part of [a, b] away from holes and the border. */
+/* Up to 5 disjoint sorted intervals of the ray away from holes and the grid's border. */
+typedef struct ref_ivs {
+    int n;
+    double lo[5], hi[5];
+} ref_ivs;
+
+/* Removes [c0, c1] from the set. */
+static void ivs_cut(ref_ivs *v, double c0, double c1)
+{
+    ref_ivs o;
+    o.n = 0;
+    for (int k = 0; k < v->n; k++) {
+        if (c1 < v->lo[k] || c0 > v->hi[k]) {
+            o.lo[o.n] = v->lo[k], o.hi[o.n++] = v->hi[k];
+            continue;
+        }
+        if (c0 > v->lo[k] && o.n < 5)
+            o.lo[o.n] = v->lo[k], o.hi[o.n++] = c0;
+        if (c1 < v->hi[k] && o.n < 5)
+            o.lo[o.n] = c1, o.hi[o.n++] = v->hi[k];
+    }
+    *v = o;
+}
+
+/* Both of the above; iv is the part of the ray away from holes and the border. */
 static void run_piece(ref_walk *w, int32_t i, int32_t j, double a, double b, double A, double B,
-                      double C, double sa, double sb)
+                      double C, const ref_ivs *iv)
 {
     piece_hit(w, i, j, a, b, A, B, C);
-    sa = sa > a ? sa : a;
-    sb = sb < b ? sb : b;
-    if (sa <= sb) {
-        double sh = sa - a;
-        piece_strict(w, sa, sb, A, B + 2.0 * A * sh, poly(A, B, C, sh));
+    for (int k = 0; k < iv->n; k++) {
+        double sa = iv->lo[k] > a ? iv->lo[k] : a, sb = iv->hi[k] < b ? iv->hi[k] : b;
+        if (sa <= sb) {
+            double sh = sa - a;
+            piece_strict(w, sa, sb, A, B + 2.0 * A * sh, poly(A, B, C, sh));
+        }
     }
 }
 
@@ -332,7 +357,8 @@ static void visit(ref_walk *w, int32_t i, int32_t j)
 {
     const td_grid *g = w->g;
     const td_ray *r = w->r;
-    double z[4], l0, l1, a, b, A, B, C, sa, sb;
+    double z[4], l0, l1, a, b, A, B, C;
+    ref_ivs iv;
 
     w->out->cells++;
     if (!corners(g, i, j, z))
@@ -350,12 +376,26 @@ static void visit(ref_walk *w, int32_t i, int32_t j)
     if (a > b)
         return;
     {
-        double e = -w->eps, sl0, sl1;
-        if (!clip_cell4(g, r, i, j, cell_ok(g, i - 1, j) ? 0.0 : e, cell_ok(g, i + 1, j) ? 0.0 : e,
-                        cell_ok(g, i, j - 1) ? 0.0 : e, cell_ok(g, i, j + 1) ? 0.0 : e, &sl0, &sl1))
-            sl0 = INFINITY, sl1 = -INFINITY;
-        sa = sl0;
-        sb = sl1;
+        /* strict crossings only count eps away from holes and the border: shrink the
+         * sides that face a hole, and cut out the corners whose diagonal cell is one */
+        double e = w->eps, sl0, sl1;
+        iv.n = 0;
+        if (clip_cell4(g, r, i, j, cell_ok(g, i - 1, j) ? 0.0 : -e, cell_ok(g, i + 1, j) ? 0.0 : -e,
+                       cell_ok(g, i, j - 1) ? 0.0 : -e, cell_ok(g, i, j + 1) ? 0.0 : -e, &sl0, &sl1)) {
+            iv.n = 1;
+            iv.lo[0] = sl0;
+            iv.hi[0] = sl1;
+        }
+        for (int c = 0; c < 4 && e > 0.0; c++) {
+            int di = c & 1, dj = c >> 1; /* corner (i+di, j+dj) */
+            if (!cell_ok(g, di ? i + 1 : i - 1, dj ? j + 1 : j - 1)) {
+                int32_t ci = i + di, cj = j + dj;
+                /* the eps-square around the corner is cell (ci-1, cj-1) grown by e-1 cell */
+                double c0, c1;
+                if (clip_cell4(g, r, ci - 1, cj - 1, e - g->sx, e, e - g->sy, e, &c0, &c1))
+                    ivs_cut(&iv, c0, c1);
+            }
+        }
     }
     if (w->s == TD_SURFACE_TRIANGLE) {
         double du = r->d[0] / g->sx, dv = r->d[1] / g->sy;
@@ -366,17 +406,17 @@ static void visit(ref_walk *w, int32_t i, int32_t j)
         if (td > a && td < b) {
             int first = sg < 0.0 ? 0 : 1;
             coefs(w, i, j, z, first, a, l0, l1, &A, &B, &C);
-            run_piece(w, i, j, a, td, A, B, C, sa, sb);
+            run_piece(w, i, j, a, td, A, B, C, &iv);
             coefs(w, i, j, z, 1 - first, td, l0, l1, &A, &B, &C);
-            run_piece(w, i, j, td, b, A, B, C, sa, sb);
+            run_piece(w, i, j, td, b, A, B, C, &iv);
         } else {
             double smid = ds == 0.0 ? sg : (isfinite(b) ? sg + 0.5 * (b - a) * ds : ds);
             coefs(w, i, j, z, smid <= 0.0 ? 0 : 1, a, l0, l1, &A, &B, &C);
-            run_piece(w, i, j, a, b, A, B, C, sa, sb);
+            run_piece(w, i, j, a, b, A, B, C, &iv);
         }
     } else {
         coefs(w, i, j, z, 0, a, l0, l1, &A, &B, &C);
-        run_piece(w, i, j, a, b, A, B, C, sa, sb);
+        run_piece(w, i, j, a, b, A, B, C, &iv);
     }
 }
 
@@ -553,10 +593,16 @@ double td_ref_max_slope(const td_grid *g)
     return mx + my;
 }
 
+static double dir_norm(const td_ray *r)
+{
+    double m = fmax(fabs(r->d[0]), fmax(fabs(r->d[1]), fabs(r->d[2])));
+    double q[3] = {r->d[0] / m, r->d[1] / m, r->d[2] / m};
+    return m * sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+}
+
 double td_ref_dist(const td_ray *r, double t1, double t2)
 {
-    double n = sqrt(r->d[0] * r->d[0] + r->d[1] * r->d[1] + r->d[2] * r->d[2]);
-    return fabs(t1 - t2) * n;
+    return t1 == t2 ? 0.0 : fabs(t1 - t2) * dir_norm(r);
 }
 
 td_ref_verdict td_ref_judge(const td_grid *g, td_surface s, const td_ray *r,
@@ -569,7 +615,7 @@ td_ref_verdict td_ref_judge(const td_grid *g, td_surface s, const td_ray *r,
         else if (!(ref->t_strict < INFINITY))
             v = TD_REF_TIE;
     } else if (isfinite(t)) {
-        double p[3], n = sqrt(r->d[0] * r->d[0] + r->d[1] * r->d[1] + r->d[2] * r->d[2]);
+        double p[3], n = dir_norm(r);
         for (int a = 0; a < 3; a++)
             p[a] = r->o[a] + t * r->d[a];
         double tol = td_ref_tol(p), tol_t = tol / n;
