@@ -460,8 +460,17 @@ async function renderNow(preview = false) {
       (rb ? `, B ${fmtMs(totalOf(rb.info))}` : '') + `, ${Math.round(ra.ms)} ms round trip.`);
   } catch (e) {
     if (e.name === 'AbortError') return;
-    if (e.status === 503) retryLater(e);
-    else setStatus(`Render failed: ${e.message}`, true);
+    if (e.status === 503) {
+      retryLater(e);
+    } else if (e.status === 400 && /quality\.lod:/.test(e.message) && $('q-lod').checked) {
+      // This terrad does not do level of detail: say so, untick it, show the view without.
+      $('q-lod').checked = false;
+      setStatus(`terrad refused level of detail (${e.message}); rendering without it.`, true);
+      scheduleRender({ now: true });
+      $('q-lod-note').textContent = 'not available on this server';
+    } else {
+      setStatus(`Render failed: ${e.message}`, true);
+    }
   } finally {
     if (state.controller === controller) {
       state.controller = null;

@@ -51,7 +51,7 @@ for (const [what, p] of [['terrad', BIN], ['chromium', CHROMIUM]]) {
 
 let server = null, serverExit = null, port = 0, base = '';
 let context = null, page = null, profile = null;
-const foreign = [], pageErrors = [], renderRequests = [];
+const foreign = [], pageErrors = [], renderRequests = [], failed = [];
 
 function freePort() {
   return new Promise((resolve, reject) => {
@@ -137,6 +137,12 @@ before(async () => {
   page.on('pageerror', (e) => pageErrors.push(`pageerror: ${e.message}`));
   page.on('console', (m) => { if (m.type() === 'error') pageErrors.push(`console: ${m.text()}`); });
   page.on('request', (r) => { if (r.url().endsWith('/v1/render')) renderRequests.push(r.postDataJSON()); });
+  page.on('response', (r) => {
+    if (r.status() < 400) return;
+    const q = r.request();
+    const body = q.postData() || '';
+    failed.push(`${r.status()} ${q.method()} ${new URL(r.url()).pathname}${/"lod":true/.test(body) ? ' lod' : ''}`);
+  });
   page.setDefaultTimeout(20000);
 });
 
@@ -333,6 +339,23 @@ test('compare mode renders both settings and their pixel difference', async () =
   assert.match(await page.textContent('#diff-result'), /pixels differ .*PSNR/);
 });
 
+test('level of detail: rendered, or refused by terrad and unticked with a note', async () => {
+  const n = await renders();
+  await page.check('#q-lod');
+  await waitRenders(n + 1);
+  const lodSent = renderRequests.some((q) => q.quality.lod === true);
+  assert.ok(lodSent, 'the page asked for level of detail');
+  const shownLod = await page.evaluate(() => !!window.terrad.shown.a.scene.quality.lod);
+  if (!shownLod) {
+    assert.equal(await page.isChecked('#q-lod'), false, 'unticked after the refusal');
+    assert.match(await page.textContent('#q-lod-note'), /not available/);
+  }
+  if (await page.isChecked('#q-lod')) {
+    await page.uncheck('#q-lod');
+    await waitRenders(n + 2);
+  }
+});
+
 test('the admin panel preloads the visible area with a progress bar', async () => {
   await page.click('#admin summary');
   await page.fill('#admin-token', TOKEN);
@@ -389,10 +412,14 @@ test('screenshots, and nothing went wrong on the way', async () => {
     await copyFile(shot, path.join(SRC, 'docs', 'web-screenshot.png'));
   }
   assert.deepEqual(foreign, [], 'no request left the loopback server');
-  // The wrong-token preload logs a 401 in the console (the browser does that for any
-  // failed fetch); anything else is a defect.
-  const unexpected = pageErrors.filter((e) => !/401 \(Unauthorized\)/.test(e));
+  // The only failed requests are the ones the tests caused: the wrong admin token (401)
+  // and level of detail if this terrad refuses it (400). The browser logs a console
+  // error for each; any other console error or failed request is a defect.
+  const expected = (f) => f === '401 POST /v1/admin/preload' || f === '400 POST /v1/render lod';
+  assert.deepEqual(failed.filter((f) => !expected(f)), [], 'no unexpected failed request');
+  const unexpected = pageErrors.filter((e) => !/Failed to load resource: .* (401|400) /.test(e));
   assert.deepEqual(unexpected, [], 'no page errors');
+  assert.equal(pageErrors.length - unexpected.length, failed.length, 'one console error per failed request');
   assert.equal(serverExit, null, 'terrad is still running');
 });
 
