@@ -468,12 +468,10 @@ static int walk_run(const walk *w, walk_state *st, const td_tile *tile, uint32_t
 
 /* Moves the walk to the cell after the box of cells [ulo, uhi) x [vlo, vhi) that the
  * ray leaves at time `tx` (computed from the same box). Used by every skip. */
-static int leave_box(const walk *w, walk_state *st, int32_t ulo, int32_t uhi, int32_t vlo,
-                     int32_t vhi)
+static inline int leave_box_at(const walk *w, walk_state *st, int32_t ulo, int32_t uhi,
+                               int32_t vlo, int32_t vhi, double tu, double tv)
 {
     int rc = STEP_CONTINUE;
-    double tu = w->su > 0 ? time_u(w, (double)uhi) : time_u(w, (double)ulo);
-    double tv = w->sv > 0 ? time_v(w, (double)vhi) : time_v(w, (double)vlo);
     double tx = dmin(tu, tv);
     if (!(tx < w->t_end)) {
         rc = STEP_END;
@@ -492,78 +490,112 @@ static int leave_box(const walk *w, walk_state *st, int32_t ulo, int32_t uhi, in
     return rc;
 }
 
+/* Exit times of the box [ulo, uhi) x [vlo, vhi) along each axis. */
+static inline double box_exit_u(const walk *w, int32_t ulo, int32_t uhi)
+{
+    return w->su > 0 ? time_u(w, (double)uhi) : time_u(w, (double)ulo);
+}
+
+static inline double box_exit_v(const walk *w, int32_t vlo, int32_t vhi)
+{
+    return w->sv > 0 ? time_v(w, (double)vhi) : time_v(w, (double)vlo);
+}
+
+static int leave_box(const walk *w, walk_state *st, int32_t ulo, int32_t uhi, int32_t vlo,
+                     int32_t vhi)
+{
+    return leave_box_at(w, st, ulo, uhi, vlo, vhi, box_exit_u(w, ulo, uhi), box_exit_v(w, vlo, vhi));
+}
+
+static inline int in_tile(const walk_state *st, const td_tile *t)
+{
+    return st->ci >= t->i0 && st->cj >= t->j0 && st->ci < t->i0 + t->nx && st->cj < t->j0 + t->ny;
+}
+
 /* ------------------------------------------------------------------------------------ */
 /* The methods' skips.                                                                  */
 
-/* Hierarchical: test the block of level *level that holds the current cell; skip it if
- * the ray stays above its maximum up to the block's exit, else descend a level; at level
- * 0 intersect the cell. One call is one step. */
-static int hier_step(const walk *w, const td_tile *tile, const td_maxmip *mm, walk_state *st,
-                     int *level, hit_rec *hit)
+/* Hierarchical, through one tile: test the block of the current level that holds the
+ * current cell; skip it if the ray stays above its maximum up to the block's exit (and go
+ * up a level), else descend a level; at level 0 intersect the cell. Every test is one
+ * step. Returns when the walk hits, ends, or leaves the tile. */
+static int hier_run(const walk *w, const td_tile *tile, const td_maxmip *mm, walk_state *st,
+                    uint32_t *steps, hit_rec *hit)
 {
-    int rc;
-    int L = *level;
-    if (L == 0) {
-        rc = step_cell(w, st, hit);
-        *level = 1;
-    } else {
-        int32_t bi = (st->ci - tile->i0) >> L, bj = (st->cj - tile->j0) >> L;
-        float m = mm->max[mm->offset[L] + (size_t)bj * (size_t)mm->dim[L] + (size_t)bi];
-        int32_t ulo = tile->i0 + (bi << L), vlo = tile->j0 + (bj << L);
-        int32_t uhi = ulo + ((int32_t)1 << L), vhi = vlo + ((int32_t)1 << L);
-        uhi = uhi < tile->i0 + tile->nx ? uhi : tile->i0 + tile->nx;
-        vhi = vhi < tile->j0 + tile->ny ? vhi : tile->j0 + tile->ny;
-        double tu = w->su > 0 ? time_u(w, (double)uhi) : time_u(w, (double)ulo);
-        double tv = w->sv > 0 ? time_v(w, (double)vhi) : time_v(w, (double)vlo);
-        double tx = dmin(dmin(tu, tv), w->t_end);
-        double zlow = dmin(ray_z(w, st->t), ray_z(w, tx));
-        if (zlow > (double)m + w->zeps) {
-            rc = leave_box(w, st, ulo, uhi, vlo, vhi);
-            *level = L < mm->levels ? L + 1 : L;
+    int rc = STEP_CONTINUE;
+    int L = mm->levels > 1 ? mm->levels - 1 : mm->levels; /* the tile test covered the top */
+    const int32_t ti1 = tile->i0 + tile->nx, tj1 = tile->j0 + tile->ny;
+    uint32_t n = 0;
+    while (rc == STEP_CONTINUE && in_tile(st, tile)) {
+        n++;
+        if (L == 0) {
+            rc = step_cell(w, st, hit);
+            L = 1;
         } else {
-            rc = STEP_CONTINUE;
-            *level = L - 1;
-        }
-    }
-    return rc;
-}
-
-/* Parametric: if the ray is above the current cell's cone, jump to the entry boundary of
- * the cell where it would meet the cone (or out of the tile); else intersect the cell
- * (Paglieroni's incremental jump-start). One call is one step. */
-static int cone_step(const walk *w, const td_tile *tile, const td_planes *pl, walk_state *st,
-                     hit_rec *hit)
-{
-    int rc = -1;
-    size_t idx = (size_t)(st->cj - tile->j0) * (size_t)pl->nx + (size_t)(st->ci - tile->i0);
-    double zp = (double)pl->cone[idx].zp, sp = (double)pl->cone[idx].sp;
-    double above = ray_z(w, st->t) - zp - w->zeps;
-    if (above > 0.0) {
-        double closing = sp * w->hs - w->dz; /* how fast the ray nears the cone, per unit t */
-        int32_t ulo = tile->i0, uhi = tile->i0 + tile->nx, vlo = tile->j0, vhi = tile->j0 + tile->ny;
-        double tx = dmin(w->su > 0 ? time_u(w, (double)uhi) : time_u(w, (double)ulo),
-                         w->sv > 0 ? time_v(w, (double)vhi) : time_v(w, (double)vlo));
-        double tl = closing > 0.0 ? st->t + above / closing : INFINITY;
-        if (tl >= tx || tl >= w->t_end) {
-            rc = leave_box(w, st, ulo, uhi, vlo, vhi);
-        } else {
-            int32_t ci = cell_along(ray_u(w, tl), w->su, ulo, uhi - 1);
-            int32_t cj = cell_along(ray_v(w, tl), w->sv, vlo, vhi - 1);
-            double teu = w->su ? time_u(w, (double)(ci + (w->su < 0))) : -INFINITY;
-            double tev = w->sv ? time_v(w, (double)(cj + (w->sv < 0))) : -INFINITY;
-            double te = dmax(teu, tev);
-            if ((ci != st->ci || cj != st->cj) && te > st->t) {
-                st->ci = ci;
-                st->cj = cj;
-                st->t = te;
-                st->f = NAN;
-                st->entry = teu > tev ? ENTRY_U : (tev > teu ? ENTRY_V : ENTRY_UV);
-                rc = STEP_CONTINUE;
+            int32_t bi = (st->ci - tile->i0) >> L, bj = (st->cj - tile->j0) >> L;
+            float m = mm->max[mm->offset[L] + (size_t)bj * (size_t)mm->dim[L] + (size_t)bi];
+            int32_t ulo = tile->i0 + (bi << L), vlo = tile->j0 + (bj << L);
+            int32_t uhi = ulo + ((int32_t)1 << L), vhi = vlo + ((int32_t)1 << L);
+            uhi = uhi < ti1 ? uhi : ti1;
+            vhi = vhi < tj1 ? vhi : tj1;
+            double tu = box_exit_u(w, ulo, uhi), tv = box_exit_v(w, vlo, vhi);
+            double tx = dmin(dmin(tu, tv), w->t_end);
+            if (dmin(ray_z(w, st->t), ray_z(w, tx)) > (double)m + w->zeps) {
+                rc = leave_box_at(w, st, ulo, uhi, vlo, vhi, tu, tv);
+                L = L < mm->levels ? L + 1 : L;
+            } else {
+                L--;
             }
         }
     }
-    if (rc < 0)
-        rc = step_cell(w, st, hit);
+    *steps += n;
+    return rc;
+}
+
+/* Parametric, through one tile: if the ray is above the current cell's cone, jump to the
+ * entry boundary of the cell where it would meet the cone (or out of the tile); else
+ * intersect the cell (Paglieroni's incremental jump-start). Every jump or cell is one
+ * step. Returns when the walk hits, ends, or leaves the tile. */
+static int cone_run(const walk *w, const td_tile *tile, const td_planes *pl, walk_state *st,
+                    uint32_t *steps, hit_rec *hit)
+{
+    int rc = STEP_CONTINUE;
+    const int32_t ulo = tile->i0, uhi = tile->i0 + tile->nx, vlo = tile->j0, vhi = tile->j0 + tile->ny;
+    const double txu = box_exit_u(w, ulo, uhi), txv = box_exit_v(w, vlo, vhi);
+    const double tx = dmin(dmin(txu, txv), w->t_end);
+    uint32_t n = 0;
+    while (rc == STEP_CONTINUE && in_tile(st, tile)) {
+        size_t idx = (size_t)(st->cj - vlo) * (size_t)pl->nx + (size_t)(st->ci - ulo);
+        double zp = (double)pl->cone[idx].zp, sp = (double)pl->cone[idx].sp;
+        double above = ray_z(w, st->t) - zp - w->zeps;
+        int jumped = 0;
+        n++;
+        if (above > 0.0) {
+            double closing = sp * w->hs - w->dz; /* how fast the ray nears the cone, per unit t */
+            double tl = closing > 0.0 ? st->t + above / closing : INFINITY;
+            if (tl >= tx) {
+                rc = leave_box_at(w, st, ulo, uhi, vlo, vhi, txu, txv);
+                jumped = 1;
+            } else {
+                int32_t ci = cell_along(ray_u(w, tl), w->su, ulo, uhi - 1);
+                int32_t cj = cell_along(ray_v(w, tl), w->sv, vlo, vhi - 1);
+                double teu = w->su ? time_u(w, (double)(ci + (w->su < 0))) : -INFINITY;
+                double tev = w->sv ? time_v(w, (double)(cj + (w->sv < 0))) : -INFINITY;
+                double te = dmax(teu, tev);
+                if ((ci != st->ci || cj != st->cj) && te > st->t) {
+                    st->ci = ci;
+                    st->cj = cj;
+                    st->t = te;
+                    st->f = NAN;
+                    st->entry = teu > tev ? ENTRY_U : (tev > teu ? ENTRY_V : ENTRY_UV);
+                    jumped = 1;
+                }
+            }
+        }
+        if (!jumped)
+            rc = step_cell(w, st, hit);
+    }
+    *steps += n;
     return rc;
 }
 
@@ -721,7 +753,6 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
     {
         const td_tile *tile = NULL;
         const td_tile_accel *ta = NULL;
-        int level = 0;
         rc = STEP_CONTINUE;
         while (rc == STEP_CONTINUE) {
             if (!tile || st.ci < tile->i0 || st.cj < tile->j0 || st.ci >= tile->i0 + tile->nx ||
@@ -743,16 +774,11 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
                 ta = v->accel ? &v->accel[now - g->tiles] : NULL;
                 used = choose_method(&w, m, ta,
                                      fabs(ray_u(&w, tx) - ray_u(&w, st.t)) + fabs(ray_v(&w, tx) - ray_v(&w, st.t)));
-                level = (used == TD_METHOD_HIERARCHICAL) ? ta->maxmip->levels - 1 : 0;
-                if (level < 0)
-                    level = 0;
             }
             if (used == TD_METHOD_HIERARCHICAL) {
-                steps++;
-                rc = hier_step(&w, tile, ta->maxmip, &st, &level, &hr);
+                rc = hier_run(&w, tile, ta->maxmip, &st, &steps, &hr);
             } else if (used == TD_METHOD_PARAMETRIC) {
-                steps++;
-                rc = cone_step(&w, tile, ta->planes, &st, &hr);
+                rc = cone_run(&w, tile, ta->planes, &st, &steps, &hr);
             } else {
                 rc = walk_run(&w, &st, tile, &steps, &hr);
             }
