@@ -248,7 +248,8 @@ static void camera_ray(td_ray *r, const double p[3], double heading, double pitc
     X(K_OUTSIDE, "from outside the box")                                       \
     X(K_GRIDLINE, "along grid lines / diagonals")                              \
     X(K_SAMPLE, "through sample points")                                       \
-    X(K_HORIZONTAL, "horizontal at sample heights")
+    X(K_HORIZONTAL, "horizontal at sample heights")                            \
+    X(K_SCALED, "far origins, huge/tiny direction lengths")
 
 enum {
 #define X_ENUM(e, n) e,
@@ -339,6 +340,17 @@ static void make_ray(const td_grid *g, int kind, uint64_t *s, td_ray *r)
         double t[3] = {i * g->sx, j * g->sy, z};
         double o[3] = {p[0], p[1], zmax + rng_range(s, -0.2, 1.0) * R};
         set_ray(r, o[0], o[1], o[2], t[0] - o[0], t[1] - o[1], t[2] - o[2]);
+        break;
+    }
+    case K_SCALED: { /* an oblique ray moved back up to 1e7 m, its direction scaled */
+        double sc = pow(10.0, rng_range(s, -150.0, 150.0)), back = pow(10.0, rng_range(s, 0.0, 7.0));
+        p[2] = zmax + rng_range(s, 0.1, 1.0) * R;
+        camera_ray(r, p, rng_range(s, 0, 360), rng_range(s, -40, -5), 60, s);
+        double n = sqrt(r->d[0] * r->d[0] + r->d[1] * r->d[1] + r->d[2] * r->d[2]);
+        for (int a = 0; a < 3; a++) {
+            r->o[a] -= back * r->d[a] / n;
+            r->d[a] *= sc;
+        }
         break;
     }
     default: { /* K_HORIZONTAL: dz = 0 at exactly a sample's height, through the sample */
