@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """oblique_rays.py: one pinhole camera's rays for `terrad trace` (little-endian float64
 ox oy oz dx dy dz, one per pixel, row by row), for measuring steps per ray on an oblique view.
-usage: oblique.py X Y Z HEADING PITCH FOV W H > rays.bin  (dataset frame, degrees)"""
+usage: oblique_rays.py X Y Z HEADING PITCH FOV W H > rays.bin  (dataset frame, degrees)"""
 import math, struct, sys
 x, y, z, heading, pitch, fov = map(float, sys.argv[1:7])
 w, h = int(sys.argv[7]), int(sys.argv[8])
