@@ -1,4 +1,4 @@
-/* embree_ref.h: Embree 3 as the triangle oracle, for the oracle tests and the benchmark.
+/* embree_ref.h: Embree 3 as the triangle oracle, for the oracle tests and `terrad bench`.
  *
  * Builds one robust, high-quality scene from a grid: a triangle mesh with exactly
  * terrad's split (each cell cut along the diagonal from its south-east corner (i+1, j)
