@@ -47,6 +47,34 @@ static int read_port(const th_server *s)
     return port;
 }
 
+/* Servers still running when the test process exits (a failed assertion jumps past
+ * th_stop) are killed at exit, so no terrad outlives its test. */
+static pid_t th_live[32];
+
+static void th_kill_live(void)
+{
+    for (int i = 0; i < 32; i++)
+        if (th_live[i] > 0) {
+            kill(th_live[i], SIGKILL);
+            waitpid(th_live[i], NULL, 0);
+            th_live[i] = 0;
+        }
+}
+
+static void th_track(pid_t pid, pid_t old)
+{
+    static int registered;
+    if (!registered) {
+        atexit(th_kill_live);
+        registered = 1;
+    }
+    for (int i = 0; i < 32; i++)
+        if (th_live[i] == old) {
+            th_live[i] = pid;
+            break;
+        }
+}
+
 int th_start(th_server *s, const char *terrad, const char *const *argv, const char *const *env)
 {
     const char *args[64];
@@ -75,9 +103,11 @@ int th_start(th_server *s, const char *terrad, const char *const *argv, const ch
     }
     if (s->pid < 0)
         return -1;
+    th_track(s->pid, 0);
     for (int i = 0; i < 400 && !s->port; i++) {
         int st;
         if (waitpid(s->pid, &st, WNOHANG) == s->pid) {
+            th_track(0, s->pid);
             s->pid = 0;
             return -1;
         }
@@ -104,6 +134,7 @@ int th_stop(th_server *s)
         kill(s->pid, SIGKILL);
         waitpid(s->pid, &st, 0);
     }
+    th_track(0, s->pid);
     s->pid = 0;
     return rc;
 }
