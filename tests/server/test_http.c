@@ -879,6 +879,78 @@ static void test_queue_full(void **state)
     th_forget(&s);
 }
 
+static const char *HEAVY =
+    "{\"dataset\":\"trinidad\",\"camera\":{\"position\":{\"x\":20000,\"y\":-3000,\"z\":5200},"
+    "\"pitch\":-12},\"image\":{\"width\":1600,\"height\":1200},"
+    "\"quality\":{\"method\":\"incremental\",\"samples\":2},\"effects\":{\"shadows\":true}}";
+
+typedef struct bg_render {
+    const th_server *s;
+    long status;
+    int w, h;
+} bg_render;
+
+static void *bg_render_main(void *arg)
+{
+    bg_render *b = arg;
+    th_resp r;
+    if (th_request(b->s, "POST", "/v1/render", JSON_CT, HEAVY, strlen(HEAVY), &r) == 0) {
+        b->status = r.status;
+        th_png_size(&r, &b->w, &b->h);
+    }
+    th_resp_free(&r);
+    return NULL;
+}
+
+static void test_sigterm_finishes_inflight(void **state)
+{
+    /* A render running when SIGTERM arrives is finished and answered; then exit 0. */
+    th_server s;
+    const char *args[] = {"--demo-dir", TERRAD_DATA_DIR, "--preload", "none", "--render-workers", "1",
+                          "--shutdown-timeout", "60", NULL};
+    bg_render b = {&s, 0, 0, 0};
+    pthread_t t;
+    int seen = 0;
+    (void)state;
+    assert_int_equal(th_start(&s, TERRAD_BIN, args, NULL), 0);
+    assert_int_equal(pthread_create(&t, NULL, bg_render_main, &b), 0);
+    for (int i = 0; i < 1000 && !seen; i++) {
+        th_resp r;
+        req(&s, "GET", "/metrics", NULL, NULL, &r);
+        seen = strstr(r.body, "terrad_render_queue_depth 1\n") != NULL;
+        th_resp_free(&r);
+        if (!seen)
+            usleep(5000);
+    }
+    assert_true(seen);
+    assert_int_equal(th_stop(&s), 0);
+    pthread_join(t, NULL);
+    assert_int_equal(b.status, 200);
+    assert_int_equal(b.w, 1600);
+    assert_int_equal(b.h, 1200);
+    assert_true(th_log_has(&s, "event=stopped unfinished_at_deadline=0"));
+    th_forget(&s);
+}
+
+static void test_render_timeout(void **state)
+{
+    /* A render past --render-timeout is cancelled: 503 render_timeout, not a hung worker. */
+    th_server s;
+    th_resp r;
+    const char *args[] = {"--demo-dir", TERRAD_DATA_DIR, "--preload", "none", "--render-timeout", "0.01", NULL};
+    (void)state;
+    assert_int_equal(th_start(&s, TERRAD_BIN, args, NULL), 0);
+    req(&s, "POST", "/v1/render", JSON_CT, HEAVY, &r);
+    assert_error(&r, 503, "render_timeout", NULL);
+    th_resp_free(&r);
+    req(&s, "GET", "/metrics", NULL, NULL, &r); /* the worker is free again */
+    assert_non_null(strstr(r.body, "terrad_render_queue_depth 0\n"));
+    assert_non_null(strstr(r.body, "terrad_requests_total{route=\"render\",status=\"503\"} 1\n"));
+    th_resp_free(&r);
+    assert_int_equal(th_stop(&s), 0);
+    th_forget(&s);
+}
+
 int main(void)
 {
     const struct CMUnitTest with_a[] = {
@@ -900,6 +972,8 @@ int main(void)
         cmocka_unit_test(test_admin_disabled),
         cmocka_unit_test(test_budget_refusal),
         cmocka_unit_test(test_queue_full),
+        cmocka_unit_test(test_sigterm_finishes_inflight),
+        cmocka_unit_test(test_render_timeout),
     };
     int rc;
     curl_global_init(CURL_GLOBAL_ALL);
