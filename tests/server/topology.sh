@@ -5,10 +5,14 @@
 # and no request may fail: terrad finishes what it holds and refuses new work, and
 # nginx's proxy_next_upstream sends refused or failed attempts to the other replica.
 #
-# usage: topology.sh TERRAD DATA_DIR      (exit 77 = skipped: no nginx or curl here)
+# The nginx configuration is docker/nginx.conf itself (the one compose.yaml mounts), with
+# the replicas' addresses and the listen port substituted.
+#
+# usage: topology.sh TERRAD DATA_DIR NGINX_CONF   (exit 77 = skipped: no nginx or curl)
 set -u
 TERRAD=$1
 DATA=$2
+CONF=$3
 NGINX=$(command -v nginx || echo /usr/sbin/nginx)
 [ -x "$NGINX" ] || { echo "skip: nginx not installed"; exit 77; }
 command -v curl >/dev/null || { echo "skip: curl not installed"; exit 77; }
@@ -46,7 +50,11 @@ P2=$(port_of r2) || fail "replica 2 did not start"
 
 mkdir -p "$T/tmp"
 chmod 777 "$T/tmp"
-start_nginx() { # $1 = port
+start_nginx() { # $1 = port; docker/nginx.conf with loopback addresses, in a temp prefix
+  sed -e "s/terrad1:8080/127.0.0.1:$P1/" -e "s/terrad2:8080/127.0.0.1:$P2/" \
+      -e "s/listen 80;/listen 127.0.0.1:$1;/" "$CONF" >"$T/default.conf"
+  grep -q "127.0.0.1:$P1" "$T/default.conf" && grep -q "127.0.0.1:$P2" "$T/default.conf" \
+      && grep -q "listen 127.0.0.1:$1;" "$T/default.conf" || fail "docker/nginx.conf changed shape"
   cat >"$T/nginx.conf" <<CONF
 worker_processes 1;
 daemon off;
@@ -60,25 +68,7 @@ http {
   fastcgi_temp_path $T/tmp/fastcgi;
   uwsgi_temp_path $T/tmp/uwsgi;
   scgi_temp_path $T/tmp/scgi;
-  upstream terrad {
-    server 127.0.0.1:$P1 max_fails=1 fail_timeout=10s;
-    server 127.0.0.1:$P2 max_fails=1 fail_timeout=10s;
-    keepalive 8;
-  }
-  server {
-    listen 127.0.0.1:$1;
-    location / {
-      proxy_pass http://terrad;
-      proxy_http_version 1.1;
-      proxy_set_header Connection "";
-      proxy_connect_timeout 2s;
-      proxy_read_timeout 60s;
-      # a replica that is stopping refuses connections, resets idle keep-alive ones, or
-      # answers 503: try the other one, POST included (a render has no side effect)
-      proxy_next_upstream error timeout http_502 http_503 non_idempotent;
-      proxy_next_upstream_tries 2;
-    }
-  }
+  include $T/default.conf;
 }
 CONF
   "$NGINX" -c "$T/nginx.conf" -p "$T" >/dev/null 2>>"$T/error.log" &
