@@ -21,7 +21,7 @@ import assert from 'node:assert/strict';
 import { spawn } from 'node:child_process';
 import { createServer } from 'node:net';
 import { mkdtemp, rm, mkdir, copyFile } from 'node:fs/promises';
-import { existsSync, openSync, closeSync, readFileSync } from 'node:fs';
+import { existsSync, openSync, closeSync, readFileSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -116,6 +116,12 @@ before(async () => {
   });
   closeSync(log);
   server.on('exit', (code, sig) => { serverExit = sig || `code ${code}`; });
+  // Never leave terrad behind, even when this script is interrupted.
+  process.on('exit', () => {
+    if (!serverExit) try { process.kill(server.pid, 'SIGKILL'); } catch (e) { /* gone */ }
+    if (profile) rmSync(profile, { recursive: true, force: true });
+  });
+  for (const sig of ['SIGINT', 'SIGTERM']) process.on(sig, () => process.exit(1));
   await waitReady(15000);
 
   profile = await mkdtemp(path.join(tmpdir(), 'terrad-web-chromium-'));
