@@ -118,7 +118,7 @@ static void *builder_main(void *arg)
         if (rc == TD_OK) {
             jb->info.state = TD_JOB_DONE;
             snprintf(jb->info.phase, sizeof jb->info.phase, "done");
-            jb->info.done = jb->info.total;
+            jb->info.done = jb->info.total = jb->info.requested; /* all resident now */
         } else {
             jb->info.state = TD_JOB_FAILED;
             jb->info.error_status = (int)rc;

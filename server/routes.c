@@ -310,14 +310,14 @@ static void job_json_send(td_http_resp *r, int status, const td_job_info *ji)
         err = json_pack("{s:s,s:s}", "code", td_status_json((td_status)ji->error_status), "message",
                         ji->error);
     send_json(r, status,
-              json_pack("{s:I,s:s,s:s,s:s,s:{s:I,s:I,s:I,s:I},s:o,s:b,s:b,s:f,s:o,s:o,s:s}",
+              json_pack("{s:I,s:s,s:s,s:s,s:{s:I,s:I,s:I,s:I},s:o,s:b,s:b,s:f,s:o,s:o}",
                         "id", (json_int_t)ji->id, "dataset", ji->dataset, "state",
                         td_job_state_name(ji->state), "phase", ji->phase, "tiles", "done",
                         (json_int_t)ji->done, "total", (json_int_t)ji->total, "requested",
                         (json_int_t)ji->requested, "built", (json_int_t)ji->built, "build", build,
                         "pin", ji->pin, "rebuild", ji->rebuild, "elapsed_s", ji->elapsed_s,
                         "estimate_s", ji->estimate_s >= 0 ? json_real(ji->estimate_s) : json_null(),
-                        "error", err, "location", ""));
+                        "error", err));
 }
 
 static void h_preload(td_app *app, td_http_req *q, td_http_resp *r)
