@@ -128,6 +128,7 @@ function selectDataset(id, cam) {
   const relief = Math.max(ds.zmax - ds.zmin, 1);
   $('cam-agl-range').max = String(Math.max(200, Math.ceil((relief * 2) / 100) * 100));
   state.cam = cam || defaultCamera(ds);
+  [state.cam.x, state.cam.y] = clampToDataset(ds, state.cam.x, state.cam.y);
   buildMap();
   syncFields();
   drawCamera();
@@ -542,6 +543,10 @@ async function pickAt(which, px, py) {
     m.bindTooltip(text, { direction: 'top', offset: [0, -8] });
     m.options.terrad = p;
     state.layers.picks.clearLayers();
+    // The line of sight from where the view was taken to the point.
+    const cp = view.scene.camera.position;
+    L.polyline([LL(cp.x, cp.y), LL(p.x, p.y)], { color: '#1c7c54', weight: 1.5, dashArray: '2 4', interactive: false })
+      .addTo(state.layers.picks);
     m.addTo(state.layers.picks);
     m.getElement().classList.add('pick-marker');
     m.getElement().dataset.x = String(p.x);
