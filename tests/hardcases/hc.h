@@ -26,9 +26,7 @@
 #include "reference.h"
 #include "trace.h"
 
-#ifdef TERRAD_HAVE_EMBREE
 #include "embree_ref.h"
-#endif
 
 /* ---- random numbers (splitmix64: same sequence on every machine) ------------------ */
 uint64_t hc_rng_next(uint64_t *s);
@@ -127,12 +125,11 @@ typedef struct hc_scene {
     td_accel *acc;
     td_view view;
     double eps_x, eps_f; /* exact band and float32 band, metres (as in tests/oracle) */
-#ifdef TERRAD_HAVE_EMBREE
     td_embree *emb;
-#endif
 } hc_scene;
 
-/* Takes ownership of g; builds max-mipmaps and planes with k slices. 0 on success. */
+/* Takes ownership of g; builds max-mipmaps and planes with k slices (k <= 0: neither,
+ * nor the Embree scene: a judge only). 0 on success. */
 int hc_scene_init(hc_scene *sc, const char *label, td_grid *g, int k);
 void hc_scene_free(hc_scene *sc);
 

@@ -7,9 +7,10 @@
  *   hc_tool rays DEM OUT N SEED            N rays of every kind of hc.h (little-endian
  *        float64 ox oy oz dx dy dz) over the DEM as td_dem_load reads it
  *   hc_tool badrays OUT                    rays with NaN or inf in each component
- *   hc_tool check DEM SURFACE RAYS HITS    judges each t of HITS (as `terrad trace`
- *        writes them) for the ray of RAYS on SURFACE: NaN, -inf or a t before the
- *        origin is wrong; otherwise the verdict of hc_judge (agree, tie, float, wrong)
+ *   hc_tool check DEM RAYS SURFACE HITS [SURFACE HITS ...]   judges each t of HITS (as
+ *        `terrad trace` writes them) for the ray of RAYS on SURFACE: NaN, -inf or a t
+ *        before the origin is wrong; otherwise the verdict of hc_judge (agree, tie,
+ *        float, wrong)
  * Exit status: 0 ok, 1 a wrong answer or a failure, 2 usage. */
 #include <math.h>
 #include <stdio.h>
@@ -237,24 +238,20 @@ static int cmd_badrays(int argc, char **argv)
 }
 
 /* ---- check ------------------------------------------------------------------------------- */
-static int cmd_check(int argc, char **argv)
+/* Judges one hits file for one surface; returns the wrong answers (or 1 on a bad file). */
+static uint64_t check_one(const hc_scene *sc, const char *surface, const double *rv, size_t nr,
+                          const char *hits_path)
 {
     static const char *const vname[HC_VERDICTS] = {"agree", "tie", "float", "WRONG"};
     td_surface sf;
-    hc_scene sc;
-    size_t nr = 0, nh = 0;
-    double *rv = NULL, *hv = NULL;
+    size_t nh = 0;
+    double *hv = read_f64(hits_path, &nh);
     uint64_t v[HC_VERDICTS] = {0}, hits = 0, printed = 0;
-    int rc = 1;
-    if (argc != 4 || td_surface_parse(argv[1], &sf) != TD_OK)
-        return 2;
-    if (hc_scene_init(&sc, argv[0], load(argv[0]), 2) != 0)
-        goto out;
-    rv = read_f64(argv[2], &nr);
-    hv = read_f64(argv[3], &nh);
-    if (!rv || !hv || nr % 6 || nr / 6 != nh) {
-        fprintf(stderr, "hc_tool check: %s holds %zu values, %s %zu hits\n", argv[2], nr, argv[3], nh);
-        goto out;
+    if (td_surface_parse(surface, &sf) != TD_OK || !hv || nr / 6 != nh) {
+        fprintf(stderr, "hc_tool check: surface '%s', %zu rays but %s holds %zu hits\n", surface, nr / 6,
+                hits_path, nh);
+        v[HC_WRONG] = 1;
+        nh = 0;
     }
     for (size_t k = 0; k < nh; k++) {
         td_ray r;
@@ -264,22 +261,45 @@ static int cmd_check(int argc, char **argv)
         if (isnan(t) || t == -INFINITY || t < r.tmin)
             verdict = HC_WRONG;
         else
-            verdict = hc_judge(&sc, sf, &r, t, &ref_t, &near_t, &strict_t);
+            verdict = hc_judge(sc, sf, &r, t, &ref_t, &near_t, &strict_t);
         hits += t < INFINITY;
         v[verdict]++;
         if (verdict == HC_WRONG && printed++ < 10) {
             printf("WRONG %s surface=%s ray %zu: got t=%.17g want t=%.17g (near %.17g strict %.17g)\n",
-                   argv[0], argv[1], k, t, ref_t, near_t, strict_t);
+                   hits_path, surface, k, t, ref_t, near_t, strict_t);
             hc_print_ray(stdout, &r);
         }
     }
-    printf("check %s %s: %zu rays, %llu hits: %llu %s, %llu %s, %llu %s, %llu %s\n", argv[0], argv[1], nh,
-           (unsigned long long)hits, (unsigned long long)v[0], vname[0], (unsigned long long)v[1], vname[1],
-           (unsigned long long)v[2], vname[2], (unsigned long long)v[3], vname[3]);
-    rc = v[HC_WRONG] ? 1 : 0;
+    if (nh)
+        printf("check %s %s: %zu rays, %llu hits: %llu %s, %llu %s, %llu %s, %llu %s\n", hits_path, surface, nh,
+               (unsigned long long)hits, (unsigned long long)v[0], vname[0], (unsigned long long)v[1], vname[1],
+               (unsigned long long)v[2], vname[2], (unsigned long long)v[3], vname[3]);
+    free(hv);
+    return v[HC_WRONG];
+}
+
+/* check DEM RAYS SURFACE HITS [SURFACE HITS ...] */
+static int cmd_check(int argc, char **argv)
+{
+    hc_scene sc;
+    size_t nr = 0;
+    double *rv = NULL;
+    uint64_t wrong = 0;
+    int rc = 1;
+    if (argc < 4 || argc % 2)
+        return 2;
+    if (hc_scene_init(&sc, argv[0], load(argv[0]), 0) != 0)
+        goto out;
+    rv = read_f64(argv[1], &nr);
+    if (!rv || nr % 6) {
+        fprintf(stderr, "hc_tool check: %s is not a whole number of rays\n", argv[1]);
+        goto out;
+    }
+    for (int k = 2; k + 1 < argc; k += 2)
+        wrong += check_one(&sc, argv[k], rv, nr, argv[k + 1]);
+    rc = wrong ? 1 : 0;
 out:
     free(rv);
-    free(hv);
     hc_scene_free(&sc);
     return rc;
 }
@@ -300,6 +320,6 @@ int main(int argc, char **argv)
                 "usage: hc_tool dem KIND OUT [key=value ...]\n"
                 "       hc_tool rays DEM OUT N SEED\n"
                 "       hc_tool badrays OUT\n"
-                "       hc_tool check DEM SURFACE RAYS HITS\n");
+                "       hc_tool check DEM RAYS SURFACE HITS [SURFACE HITS ...]\n");
     return rc;
 }
