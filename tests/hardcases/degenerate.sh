@@ -78,19 +78,25 @@ for entry in "${terrains[@]}"; do
     sed -e "s|$work/||" "$work/$name.check"
 done
 
-# NaN or inf in any component: refused with the ray's index, nothing written
-if ! "$tool" dem procedural "$work/bad" w=20 h=20 || ! "$tool" badrays "$work/bad.rays"; then
-    echo "FAIL hc_tool could not write the bad rays"
+# NaN or inf in each component: the file is refused with the ray's index, nothing written
+if ! "$tool" dem procedural "$work/bad" w=20 h=20; then
+    echo "FAIL hc_tool could not write the DEM for the bad rays"
     fail=$((fail + 1))
-elif "$terrad" trace --dem "$work/bad.f32" <"$work/bad.rays" >"$work/bad.hits" 2>"$work/bad.err"; then
-    echo "FAIL terrad trace accepted rays with NaN/inf"
-    fail=$((fail + 1))
-elif [ -s "$work/bad.hits" ]; then
-    echo "FAIL terrad trace wrote hits for a refused ray file"
-    fail=$((fail + 1))
-else
-    echo "NaN/inf rays refused: $(head -c 200 "$work/bad.err")"
 fi
+for c in 0 1 2 3 4 5; do
+    if ! "$tool" badrays "$work/bad.rays" "$c"; then
+        echo "FAIL hc_tool could not write the bad rays"
+        fail=$((fail + 1))
+    elif "$terrad" trace --dem "$work/bad.f32" <"$work/bad.rays" >"$work/bad.hits" 2>"$work/bad.err"; then
+        echo "FAIL terrad trace accepted rays with NaN/inf in component $c"
+        fail=$((fail + 1))
+    elif [ -s "$work/bad.hits" ]; then
+        echo "FAIL terrad trace wrote hits for a refused ray file (component $c)"
+        fail=$((fail + 1))
+    else
+        echo "NaN/inf in component $c refused: $(head -c 120 "$work/bad.err")"
+    fi
+done
 
 echo "degenerate terrains: ${#terrains[@]}, trace runs: $runs ($rays rays each), failures: $fail"
 [ "$fail" -eq 0 ]

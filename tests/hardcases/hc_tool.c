@@ -6,7 +6,8 @@
  *        (KIND and voids as in hc.h; void samples are written as the nodata value -9999)
  *   hc_tool rays DEM OUT N SEED            N rays of every kind of hc.h (little-endian
  *        float64 ox oy oz dx dy dz) over the DEM as td_dem_load reads it
- *   hc_tool badrays OUT                    rays with NaN or inf in each component
+ *   hc_tool badrays OUT [C]                pairs of a good ray and one with NaN or inf in
+ *        component C (0..5 = ox oy oz dx dy dz; all six without C)
  *   hc_tool check DEM RAYS SURFACE HITS [SURFACE HITS ...]   judges each t of HITS (as
  *        `terrad trace` writes them) for the ray of RAYS on SURFACE: NaN, -inf or a t
  *        before the origin is wrong; otherwise the verdict of hc_judge (agree, tie,
@@ -220,12 +221,14 @@ static int cmd_badrays(int argc, char **argv)
 {
     const double bad[] = {NAN, INFINITY, -INFINITY};
     FILE *f;
-    int ok;
-    if (argc != 1)
+    int ok, only = argc == 2 ? atoi(argv[1]) : -1;
+    if (argc != 1 && argc != 2)
         return 2;
     f = fopen(argv[0], "wb");
     ok = f != NULL;
     for (int c = 0; c < 6 && ok; c++) {
+        if (only >= 0 && c != only)
+            continue;
         for (int b = 0; b < 3 && ok; b++) {
             double v[12] = {10, 10, 500, 0.3, 0.2, -1, 10, 10, 500, 0.3, 0.2, -1};
             v[6 + c] = bad[b]; /* the second ray of each pair is bad */
@@ -319,7 +322,7 @@ int main(int argc, char **argv)
         fprintf(stderr,
                 "usage: hc_tool dem KIND OUT [key=value ...]\n"
                 "       hc_tool rays DEM OUT N SEED\n"
-                "       hc_tool badrays OUT\n"
+                "       hc_tool badrays OUT [COMPONENT]\n"
                 "       hc_tool check DEM RAYS SURFACE HITS [SURFACE HITS ...]\n");
     return rc;
 }
