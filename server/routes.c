@@ -15,6 +15,7 @@
 #include "routes.h"
 
 #include <ctype.h>
+#include <dirent.h>
 #include <errno.h>
 #include <jansson.h>
 #include <math.h>
@@ -27,6 +28,7 @@
 #include <sys/stat.h>
 #include <time.h>
 
+#include "dem.h"
 #include "log.h"
 #include "render.h"
 #include "request.h"
@@ -182,6 +184,31 @@ static int json_body_check(td_http_req *q, td_http_resp *r)
 
 /* --- datasets ---------------------------------------------------------------------- */
 
+/* Drapes a render may name for this dataset: PNG files beside its file that are not
+ * themselves DEMs (at most 16, sorted). */
+static json_t *drapes_json(const td_dataset_info *di)
+{
+    json_t *arr = json_array();
+    struct dirent **names = NULL;
+    int n = di->dir[0] ? scandir(di->dir, &names, NULL, alphasort) : 0;
+    for (int i = 0; i < n; i++) {
+        const char *nm = names[i]->d_name;
+        size_t len = strlen(nm);
+        char path[PATH_MAX], id[TD_SCENE_PATH_MAX];
+        if (len > 4 && !strcasecmp(nm + len - 4, ".png") && nm[0] != '.' && json_array_size(arr) < 16 &&
+            (size_t)snprintf(path, sizeof path, "%s/%s", di->dir, nm) < sizeof path &&
+            !td_dem_recognised(path) && len - 4 < sizeof id) {
+            memcpy(id, nm, len - 4);
+            id[len - 4] = '\0';
+            if (td_store_id_valid(id))
+                json_array_append_new(arr, json_string(id));
+        }
+        free(names[i]);
+    }
+    free(names);
+    return arr;
+}
+
 static json_t *dataset_json(td_app *app, size_t idx)
 {
     td_dataset_info di;
@@ -198,7 +225,7 @@ static json_t *dataset_json(td_app *app, size_t idx)
     }
     return json_pack(
         "{s:s,s:s,s:s,s:{s:i,s:i},s:[f,f],s:{s:[f,f],s:[f,f],s:[f,f]},s:I,s:o,"
-        "s:{s:i,s:i,s:i,s:I},s:{s:I,s:I,s:I,s:I,s:I,s:I}}",
+        "s:{s:i,s:i,s:i,s:I},s:{s:I,s:I,s:I,s:I,s:I,s:I},s:o}",
         "id", di.id, "file", di.file, "origin", di.origin,
         "size", "width", (int)g->w, "height", (int)g->h,
         "spacing", g->sx, g->sy,
@@ -210,7 +237,8 @@ static json_t *dataset_json(td_app *app, size_t idx)
         "total", (json_int_t)di.ntiles,
         "residency", "tiles", (json_int_t)di.resident_tiles, "maxmip", (json_int_t)di.maxmip_tiles,
         "planes", (json_int_t)di.planes_tiles, "pinned", (json_int_t)di.pinned_tiles,
-        "grid_bytes", (json_int_t)di.grid_bytes, "accel_bytes", (json_int_t)di.accel_bytes);
+        "grid_bytes", (json_int_t)di.grid_bytes, "accel_bytes", (json_int_t)di.accel_bytes,
+        "drapes", drapes_json(&di));
 }
 
 static void h_datasets(td_app *app, td_http_resp *r)
@@ -1001,7 +1029,7 @@ static void render_defer(td_app *app, td_http_req *q, td_http_resp *r, td_rjob *
                 free(j);
                 return;
             }
-            snprintf(j->scene.effects.drape, sizeof j->scene.effects.drape, "%s", path);
+            memcpy(j->scene.effects.drape, path, strlen(path) + 1); /* fits: checked above */
         }
     }
     if (j->get) {
@@ -1179,8 +1207,20 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     j->scene.image.format = TD_FORMAT_PNG;
     j->kind = TD_RK_TILE;
     j->get = 1;
-    snprintf(j->etag, sizeof j->etag, "\"t%lx-%ld-%ld-%ld\"",
-             (unsigned long)(di.grid->w * 31 + di.grid->h), z, x, y);
+    {
+        /* The tile's place and the dataset's shape and height range: a changed dataset
+         * (same id after a restart) gets new tags. */
+        uint64_t hsh = 14695981039346656037ULL;
+        double key[6] = {(double)di.grid->w, (double)di.grid->h, di.grid->sx, di.grid->sy,
+                         (double)di.grid->zmin, (double)di.grid->zmax};
+        const unsigned char *kp = (const unsigned char *)key;
+        for (size_t i = 0; i < sizeof key; i++) {
+            hsh ^= kp[i];
+            hsh *= 1099511628211ULL;
+        }
+        snprintf(j->etag, sizeof j->etag, "\"t%012llx-%ld-%ld-%ld\"",
+                 (unsigned long long)(hsh & 0xffffffffffffULL), z, x, y);
+    }
     render_defer(app, q, r, j);
 }
 

@@ -160,6 +160,9 @@ static void test_datasets(void **state)
     assert_float_equal(json_real_value(json_array_get(json_object_get(json_object_get(levi, "extent"), "x"), 1)),
                        7980.0, 1e-6);
     assert_true(json_is_null(json_object_get(levi, "georeference")));
+    assert_int_equal(json_array_size(json_object_get(levi, "drapes")), 1);
+    assert_string_equal(json_string_value(json_array_get(json_object_get(levi, "drapes"), 0)), "orthophoto");
+    assert_int_equal(json_array_size(json_object_get(tri, "drapes")), 0);
     assert_string_equal(json_string_value(json_object_get(json_object_get(tri, "georeference"), "kind")),
                         "lonlat");
     assert_int_equal(json_integer_value(json_object_get(json_object_get(levi, "tiles"), "total")), 4);
@@ -226,6 +229,15 @@ static void test_render_post(void **state)
     assert_string_equal(v, "incremental");
     assert_true(th_header(&r, "X-Terrad-Surface", v, sizeof v));
     assert_string_equal(v, "triangle");
+    th_resp_free(&r);
+
+    /* A drape named by id (a PNG beside the dataset), as /v1/datasets lists it. */
+    req(&A, "POST", "/v1/render", JSON_CT,
+        "{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":4000,\"y\":-2000,\"z\":1500},\"pitch\":-15},"
+        "\"image\":{\"width\":32,\"height\":24},\"effects\":{\"drape\":\"orthophoto\"}}", &r);
+    assert_int_equal(r.status, 200);
+    assert_true(th_png_size(&r, &w, &h));
+    assert_int_equal(w, 32);
     th_resp_free(&r);
 }
 
