@@ -866,7 +866,7 @@ static void timing_header(td_http_resp *r, const td_rjob *j, double queue_ms,
 }
 
 /* A core error: input at fault (400, with the field named before ": ") or not. */
-static void render_error(td_http_resp *r, td_status rc, const char *msg)
+static void render_error(const td_app *app, td_http_resp *r, td_status rc, const char *msg)
 {
     char field[128] = "";
     const char *colon = strstr(msg, ": ");
@@ -874,7 +874,9 @@ static void render_error(td_http_resp *r, td_status rc, const char *msg)
         memcpy(field, msg, (size_t)(colon - msg));
         field[colon - msg] = '\0';
     }
-    if (rc == TD_ECANCELED)
+    if (rc == TD_ECANCELED && !atomic_load(&((td_app *)app)->ready))
+        api_error(r, TD_AE_STOPPING, NULL, "the server stopped before the render finished");
+    else if (rc == TD_ECANCELED)
         api_error(r, TD_AE_TIMEOUT, NULL, "the render did not finish within --render-timeout");
     else if (rc == TD_ENOMEM || rc == TD_EIO)
         api_error(r, TD_AE_INTERNAL, NULL, "%s", msg);
@@ -948,7 +950,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         }
         rc = td_render_pick(v, &j->scene, picks, &pst, &e);
         if (rc) {
-            render_error(r, rc, e.msg);
+            render_error(app, r, rc, e.msg);
             goto out;
         }
         st = &pst;
@@ -961,7 +963,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         if (rc == TD_OK)
             rc = td_render_encode(&res, &j->scene, &buf, &depth_scale, &e);
         if (rc) {
-            render_error(r, rc, e.msg);
+            render_error(app, r, rc, e.msg);
             goto out;
         }
         st = &res.stats;
