@@ -168,10 +168,13 @@ void td_camera_ray(const td_camera *cam, double px, double py, td_ray *r)
         r->d[1] = 0.0;
         r->d[2] = -1.0;
     } else {
-        double a = u - 0.5 * cam->width, b = v - 0.5 * cam->height, n2 = 0.0;
+        /* fwd + (right*a - up*b) / f: bounded for any focal length (f*fwd + ... would
+         * overflow when squared for a fov of 1e-150 degrees) */
+        double a = (u - 0.5 * cam->width) / cam->focal_px, b = (v - 0.5 * cam->height) / cam->focal_px;
+        double n2 = 0.0;
         for (int k = 0; k < 3; k++) {
             r->o[k] = cam->o[k];
-            r->d[k] = cam->fwd[k] * cam->focal_px + cam->right[k] * a - cam->up[k] * b;
+            r->d[k] = cam->fwd[k] + cam->right[k] * a - cam->up[k] * b;
             n2 += r->d[k] * r->d[k];
         }
         double inv = 1.0 / sqrt(n2);

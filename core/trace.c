@@ -102,6 +102,11 @@ td_status td_ray_validate(const td_ray *r, td_err *err)
     }
     if (rc == TD_OK && r->d[0] == 0.0 && r->d[1] == 0.0 && r->d[2] == 0.0)
         rc = td_err_set(err, TD_ERANGE, "ray direction is zero");
+    /* t is in units of d: below this floor a hit distance of a few metres would not fit
+     * a double (2^900 * 2^100 m), and td_trace's power-of-two rescaling stays finite. */
+    if (rc == TD_OK && fabs(r->d[0]) < 0x1p-900 && fabs(r->d[1]) < 0x1p-900 && fabs(r->d[2]) < 0x1p-900)
+        rc = td_err_set(err, TD_ERANGE, "ray direction is too small (all components below 2^-900): "
+                                        "hit distances would overflow");
     if (rc == TD_OK && !(r->tmin >= 0.0 && isfinite(r->tmin)))
         rc = td_err_set(err, TD_ERANGE, "ray tmin must be finite and >= 0");
     if (rc == TD_OK && !(r->tmax >= r->tmin)) /* NaN fails too */

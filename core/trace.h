@@ -89,7 +89,8 @@ typedef struct td_hit {
     td_method method;  /* method used in the tile where the ray ended */
 } td_hit;
 
-/* Refuses NaN or inf in origin or direction, a zero direction, or a NaN/negative
+/* Refuses NaN or inf in origin or direction, a zero direction or one whose components
+ * are all below 2^-900 (hit distances in its units would overflow), or a NaN/negative
  * interval, with a message naming the component. */
 td_status td_ray_validate(const td_ray *r, td_err *err);
 

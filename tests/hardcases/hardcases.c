@@ -922,12 +922,9 @@ static int case_directions(hc_stats *st)
     return 0;
 }
 
-/* KNOWN BUG (tracer-bugs.md, "directions so small that t overflows"): every component
- * subnormal, or so small (about DBL_MIN) that the hit's t = distance/|d| exceeds
- * DBL_MAX. td_trace's rescaling by 2^-e overflows for subnormal directions (2^1074 is
- * not a double), and a hit it finds is returned as t = +inf, i.e. as a miss. Such a ray
- * must be refused by td_ray_validate (or hit correctly), never answered with a miss.
- * Fails until fixed. */
+/* Directions with every component subnormal, or so small (about DBL_MIN) that the hit's
+ * t = distance/|d| would exceed DBL_MAX: td_ray_validate refuses them (no component
+ * reaches 2^-900), so they are never answered with a miss (tracer-bugs.md 3, fixed). */
 static int case_directions_tiny(hc_stats *st)
 {
     static const double den[][3] = {
@@ -986,8 +983,10 @@ static int case_validate(hc_stats *st)
         hc_check(st, td_ray_validate(&r, &err) != TD_OK, "zero direction accepted");
         r.d[0] = -0.0, r.d[1] = 0.0, r.d[2] = -0.0;
         hc_check(st, td_ray_validate(&r, &err) != TD_OK, "negative zero direction accepted");
-        r.d[0] = 0x1p-1074;
-        hc_check(st, td_ray_validate(&r, &err) == TD_OK, "denormal direction refused: %s", err.msg);
+        r.d[0] = 0x1p-1074; /* all components below 2^-900: t would overflow */
+        hc_check(st, td_ray_validate(&r, &err) != TD_OK, "denormal-only direction accepted");
+        r.d[0] = 0x1p-900, r.d[1] = 0x1p-1074;
+        hc_check(st, td_ray_validate(&r, &err) == TD_OK, "direction of 2^-900 refused: %s", err.msg);
         r.d[0] = DBL_MAX, r.d[1] = -DBL_MAX, r.d[2] = DBL_MAX;
         hc_check(st, td_ray_validate(&r, &err) == TD_OK, "huge direction refused: %s", err.msg);
         r.o[0] = -DBL_MAX, r.o[1] = DBL_MAX;
@@ -1129,9 +1128,9 @@ static int case_camera(hc_stats *st)
     return 0;
 }
 
-/* KNOWN BUG (tracer-bugs.md, "camera fov below ~1e-150 degrees"): td_camera_setup accepts
- * the fov, focal_px overflows when squared and td_camera_ray returns a zero direction.
- * Such a camera must be refused, or its rays valid. Fails until fixed. */
+/* A fov below ~1e-150 degrees once made focal_px overflow when squared, and every ray a
+ * zero direction (tracer-bugs.md 4, fixed in td_camera_ray: fwd + (right*a - up*b)/f).
+ * Such a camera's rays must be valid. */
 static int case_camera_tiny_fov(hc_stats *st)
 {
     static const hc_cam cams[] = {{1e-300, -20, 0, 8, 8, 0}, {1e-160, -20, 0, 1, 1, 0}};
@@ -1225,10 +1224,10 @@ static int case_property(hc_stats *st)
     X(voids_all, "an entirely void grid")                                                  \
     X(planes_k, "parameter planes with K = 1, 2, 3, 256")                                  \
     X(directions, "unnormalised, huge, tiny and denormal direction components")             \
-    X(directions_tiny, "KNOWN BUG: |d| so small that t overflows: refused or a correct hit") \
+    X(directions_tiny, "|d| so small that t would overflow: refused, never a miss")       \
     X(validate, "NaN or inf anywhere in a ray is refused")                                 \
     X(camera, "fov near 0/180, pitch +-90, roll +-180, 1x1 and 1x4096 images")             \
-    X(camera_tiny_fov, "KNOWN BUG: fov below 1e-150 degrees: refused or valid rays")       \
+    X(camera_tiny_fov, "fov below 1e-150 degrees: valid rays")                                \
     X(property, "seeded mix of everything (TERRAD_SEED replays)")
 
 typedef struct hc_case {

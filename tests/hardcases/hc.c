@@ -430,19 +430,24 @@ void hc_ray_make(const td_grid *g, hc_ray_kind kind, uint64_t *s, td_ray *r)
         break;
     }
     default: { /* HC_R_SCALED: another kind, its direction scaled or given a denormal */
-        static const double lam[] = {0x1p-900, 1e-250, 1e-7, 3.7, -0.0, 1e7, 1e250, 0x1p+900};
+        /* the largest component becomes l; 2^-899 stays above 2^-900, the floor below
+         * which td_ray_validate refuses a direction (t would overflow) */
+        static const double lam[] = {0x1p-899, 1e-250, 1e-7, 3.7, -0.0, 1e7, 1e250, 0x1p+900};
         hc_ray_kind base = (hc_ray_kind)hc_rng_int(s, HC_R_SCALED);
         double l = lam[hc_rng_int(s, 8)];
         hc_ray_make(g, base, s, r);
         if (l == 0.0) { /* a denormal in place of a small component */
             static const double den[] = {0x1p-1074, -0x1p-1074, 1e-310, -3e-320};
-            int c = hc_rng_int(s, 3);
+            int big = fabs(r->d[0]) >= fabs(r->d[1]) ? 0 : 1;
+            big = fabs(r->d[big]) >= fabs(r->d[2]) ? big : 2;
+            int c = (big + 1 + hc_rng_int(s, 2)) % 3; /* never the largest component */
             r->d[c] = den[hc_rng_int(s, 4)];
-            if (r->d[0] == 0.0 && r->d[1] == 0.0 && r->d[2] == 0.0)
-                r->d[2] = -1.0;
         } else {
+            /* scale so the largest component is l (>= 2^-900 in magnitude) */
+            double m = fmax(fabs(r->d[0]), fmax(fabs(r->d[1]), fabs(r->d[2])));
+            double k = m > 0.0 ? fabs(l) / m : 1.0;
             for (int c = 0; c < 3; c++)
-                r->d[c] *= l;
+                r->d[c] *= k;
         }
         break;
     }
