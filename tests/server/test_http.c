@@ -18,6 +18,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -970,6 +973,75 @@ static void test_render_timeout(void **state)
     th_forget(&s);
 }
 
+static void test_token_file_and_limits(void **state)
+{
+    /* The token from --admin-token-file (trailing newline trimmed) wins over the
+     * variable; at most 2 connections per address; HEAD answers headers only. */
+    th_server s;
+    th_resp r;
+    char tok[256];
+    const char *args[] = {"--demo-dir", TERRAD_DATA_DIR, "--preload", "none", "--admin-token-file", tok,
+                          "--per-ip-connections", "2", NULL};
+    const char *env[] = {"TERRAD_ADMIN_TOKEN=" TOKEN, NULL};
+    const char *file_auth[] = {"Authorization: Bearer from-the-file", "Content-Type: application/json", NULL};
+    int fds[3];
+    struct sockaddr_in a;
+    (void)state;
+    snprintf(tok, sizeof tok, "%s/terrad-token-%ld", P_tmpdir, (long)getpid());
+    write_file(tok, "from-the-file\n");
+    assert_int_equal(th_start(&s, TERRAD_BIN, args, env), 0);
+    memset(&a, 0, sizeof a);
+    a.sin_family = AF_INET;
+    a.sin_port = htons((uint16_t)s.port);
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    {
+        /* First, before any other client: two connections, each proven accepted by an
+         * answer (kept alive); then a third, which the server closes unanswered. */
+        char buf[512];
+        const char *get = "GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n";
+        ssize_t n;
+        for (int i = 0; i < 3; i++) {
+            fds[i] = socket(AF_INET, SOCK_STREAM, 0);
+            assert_true(fds[i] >= 0);
+            assert_int_equal(connect(fds[i], (struct sockaddr *)&a, sizeof a), 0);
+            n = write(fds[i], get, strlen(get));
+            n = read(fds[i], buf, sizeof buf - 1);
+            if (i < 2) {
+                assert_true(n > 12);
+                buf[n] = '\0';
+                assert_non_null(strstr(buf, "HTTP/1.1 200"));
+            } else {
+                assert_true(n <= 0);
+            }
+        }
+    }
+    for (int i = 0; i < 3; i++)
+        close(fds[i]);
+    /* The server notices the closes on its own time: poll until a slot is free. */
+    for (int i = 0, ok = 0; !ok; i++) {
+        ok = th_request(&s, "GET", "/healthz", NULL, NULL, 0, &r) == 0 && r.status == 200;
+        th_resp_free(&r);
+        assert_true(ok || i < 500);
+        if (!ok)
+            usleep(10000);
+    }
+    req(&s, "POST", "/v1/admin/preload", AUTH, "{\"dataset\":\"volcano\"}", &r);
+    assert_error(&r, 401, "unauthorized", NULL);
+    th_resp_free(&r);
+    req(&s, "POST", "/v1/admin/preload", file_auth, "{\"dataset\":\"volcano\"}", &r);
+    assert_int_equal(r.status, 202);
+    th_resp_free(&r);
+
+    req(&s, "HEAD", "/v1/datasets", NULL, NULL, &r);
+    assert_int_equal(r.status, 200);
+    assert_int_equal(r.len, 0);
+    th_resp_free(&r);
+
+    assert_int_equal(th_stop(&s), 0);
+    th_forget(&s);
+    unlink(tok);
+}
+
 int main(void)
 {
     const struct CMUnitTest with_a[] = {
@@ -993,6 +1065,7 @@ int main(void)
         cmocka_unit_test(test_queue_full),
         cmocka_unit_test(test_sigterm_finishes_inflight),
         cmocka_unit_test(test_render_timeout),
+        cmocka_unit_test(test_token_file_and_limits),
     };
     int rc;
     curl_global_init(CURL_GLOBAL_ALL);
