@@ -1048,8 +1048,11 @@ static void render_defer(td_app *app, td_http_req *q, td_http_resp *r, td_rjob *
     j->app = app;
     if (td_http_defer(q, render_work, j)) {
         td_http_resp_header(r, "Retry-After", "1");
-        api_error(r, TD_AE_BUSY, NULL, "the render queue is full (%ld running, %ld waiting); retry later",
-                  app->cfg->render_workers, app->cfg->queue);
+        if (!atomic_load(&app->ready))
+            api_error(r, TD_AE_STOPPING, NULL, "the server is stopping; retry on another replica");
+        else
+            api_error(r, TD_AE_BUSY, NULL, "the render queue is full (%ld running, %ld waiting); retry later",
+                      app->cfg->render_workers, app->cfg->queue);
         free(j);
     }
 }
