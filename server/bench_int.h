@@ -1,0 +1,149 @@
+/* bench_int.h: results of `terrad bench`, shared by the measuring code (bench.c) and
+ * the report writer (bench_report.c). Not for other modules. */
+#ifndef TD_BENCH_INT_H
+#define TD_BENCH_INT_H
+
+#include <stdint.h>
+
+#include "accel.h"
+#include "bench.h"
+#include "bench_embree.h"
+#include "render.h"
+
+/* The project's shared data (not in CI): the full Trinidad DEM when it is there. */
+#define TD_BENCH_SHARED_TRINIDAD TERRAD_SOURCE_DIR "/../shared/data/trinidad/dem.f32"
+
+/* Rows of the effects table (section 5): one change to the standard scene each. */
+#define TD_BENCH_EFFECT_LIST(X)                                                \
+    X(TD_BENCH_EFFECT_BASE, "none (shading only)")                             \
+    X(TD_BENCH_EFFECT_SHADOWS, "shadows")                                      \
+    X(TD_BENCH_EFFECT_HAZE, "haze (70 km)")                                    \
+    X(TD_BENCH_EFFECT_SKY, "sky")                                              \
+    X(TD_BENCH_EFFECT_WATER, "water (2450 m)")                                 \
+    X(TD_BENCH_EFFECT_AO, "ambient occlusion (8 rays)")                        \
+    X(TD_BENCH_EFFECT_CURVATURE, "curvature (k 0.13)")                         \
+    X(TD_BENCH_EFFECT_SAMPLES2, "supersampling 2 x 2")                         \
+    X(TD_BENCH_EFFECT_SAMPLES4, "supersampling 4 x 4")                         \
+    X(TD_BENCH_EFFECT_LOD, "level of detail")                                  \
+    X(TD_BENCH_EFFECT_ALL, "all six effects")
+
+typedef enum td_bench_effect {
+#define TD_X_ENUM(e, name) e,
+    TD_BENCH_EFFECT_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_BENCH_EFFECT_COUNT
+} td_bench_effect;
+
+const char *td_bench_effect_name(int e);
+
+typedef struct bench_trace {
+    int done;
+    double seconds, rps, mean_steps, p99_steps;
+    uint64_t hits;
+    double agree; /* triangle surface: share of rays with Embree's hit (same_t) */
+} bench_trace;
+
+typedef struct bench_embree {
+    int done;
+    double build_s;
+    int64_t bytes, peak_bytes;
+    size_t prims;
+    double rps[2];   /* rtcIntersect1, rtcIntersect16 */
+    double agree[2]; /* share of rays with terrad's triangle hit */
+} bench_embree;
+
+typedef struct bench_err {
+    double zmean, zmax;   /* |hit z - bilinear z at the hit's x, y|, metres */
+    double nmean, nmax;   /* angle to the bilinear normal there, degrees */
+    double moved;         /* rays whose hit is more than a cell diagonal from the
+                             bilinear hit, or hit where it misses (or the reverse) */
+    double flips;         /* of those, hit <-> miss */
+    uint64_t hits;
+} bench_err;
+
+typedef struct bench_ds {
+    char name[64];
+    char path[512];
+    int procedural, speed_done;
+    td_grid *g;
+    td_accel *acc;
+    int32_t w, h;
+    double sx, sy;
+    int64_t voids;
+    double cells;
+    uint64_t height_bytes, maxmip_bytes, planes_bytes;
+    double maxmip_s, planes_s;
+    /* rays */
+    int nviews, view_w, view_h;
+    size_t n;
+    td_ray *rays;
+    double *t, *tref, *ttri;
+    uint32_t *steps;
+    /* results */
+    bench_trace tr[TD_METHOD_COUNT][TD_SURFACE_COUNT];
+    bench_embree em[TD_BENCH_EMBREE_GEOM_COUNT];
+    bench_err err[TD_SURFACE_COUNT];
+} bench_ds;
+
+typedef struct bench_k {
+    int k;
+    double build_s;
+    uint64_t bytes;
+    bench_trace tr;
+} bench_k;
+
+typedef struct bench_render {
+    td_surface surface;
+    int samples, lod;
+    double ms, primary_ms, steps;
+    uint64_t rays;
+    double rmse, psnr, differ;
+    double zmean, zmax; /* from a depth render (samples 1 only) */
+} bench_render;
+
+typedef struct bench_pag {
+    int done, nviews, step;
+    size_t rays_per_view;
+    td_scene_camera cam[16];
+    double steps[3][16]; /* incremental (= n_pierce), hierarchical, parametric */
+    double hits[16];
+    double seconds[3];
+    uint64_t bytes[3];
+} bench_pag;
+
+typedef struct bench_effect {
+    int kind;
+    double ms;
+    td_render_stats stats;
+} bench_effect;
+
+typedef struct bench_ctx {
+    const td_bench_opts *o;
+    int runs, build_runs;
+    double t_start, total_s;
+    char cpu[256], commit[64], date[64];
+    int cores, dirty;
+    int nds;
+    bench_ds ds[4];
+    int nk;
+    bench_k k[8];
+    int nrender, render_w, render_h, lod_levels;
+    uint64_t lod_bytes;
+    bench_render render[24];
+    bench_pag pag;
+    int neffect, effects_w, effects_h;
+    bench_effect effect[TD_BENCH_EFFECT_COUNT];
+} bench_ctx;
+
+double td_bench_now(void);
+double td_bench_median(double *v, int n);
+void td_bench_view_camera(const td_grid *g, int k, int nviews, td_scene_camera *c);
+void td_bench_paglieroni_camera(const td_grid *g, int k, td_scene_camera *c);
+double td_bench_trace_loop(const td_view *v, td_method m, td_surface s, const td_ray *r, size_t n,
+                           double *t, uint32_t *steps, uint64_t *steps_total, uint64_t *hits_total);
+uint64_t td_bench_method_bytes(const bench_ds *d, td_method m);
+
+/* Writes OUT/accuracy-vs-time.md, OUT/bench-summary.md and OUT/bench/ *.svg. */
+td_status td_bench_report(const bench_ctx *b, td_err *err);
+
+#endif
