@@ -175,11 +175,14 @@ static int json_body_check(td_http_req *q, td_http_resp *r)
 {
     const char *ct = td_http_req_header(q, "Content-Type");
     size_t n = strlen("application/json");
-    if (ct && !strncasecmp(ct, "application/json", n) && (ct[n] == '\0' || ct[n] == ';' || ct[n] == ' '))
-        return 0;
-    api_error(r, TD_AE_MEDIA_TYPE, NULL, "the body must be application/json (got %s)",
-              ct ? ct : "no Content-Type");
-    return -1;
+    int rc = ct && !strncasecmp(ct, "application/json", n) &&
+                     (ct[n] == '\0' || ct[n] == ';' || ct[n] == ' ')
+                 ? 0
+                 : -1;
+    if (rc)
+        api_error(r, TD_AE_MEDIA_TYPE, NULL, "the body must be application/json (got %s)",
+                  ct ? ct : "no Content-Type");
+    return rc;
 }
 
 /* --- datasets ---------------------------------------------------------------------- */
@@ -285,12 +288,12 @@ static void h_metrics(td_app *app, td_http_resp *r)
     e.jobs_done = jc[TD_JOB_DONE];
     e.jobs_failed = jc[TD_JOB_FAILED];
     text = td_metrics_format(app->metrics, &e, &len);
-    if (!text) {
+    if (text) {
+        r->status = 200;
+        td_http_resp_take(r, text, len, "text/plain; version=0.0.4; charset=utf-8");
+    } else {
         api_error(r, TD_AE_INTERNAL, NULL, "out of memory");
-        return;
     }
-    r->status = 200;
-    td_http_resp_take(r, text, len, "text/plain; version=0.0.4; charset=utf-8");
 }
 
 static void h_readyz(td_app *app, td_http_resp *r)
@@ -535,11 +538,11 @@ static void h_evict(td_app *app, const char *id, td_http_resp *r)
     size_t n = 0;
     if (idx < 0) {
         api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", id);
-        return;
+    } else {
+        td_store_evict_dataset(app->store, (size_t)idx, &n);
+        td_log(TD_LOG_INFO, "tiles_evicted", "dataset=%s tiles=%zu", id, n);
+        send_json(r, 200, json_pack("{s:s,s:I}", "dataset", id, "evicted", (json_int_t)n));
     }
-    td_store_evict_dataset(app->store, (size_t)idx, &n);
-    td_log(TD_LOG_INFO, "tiles_evicted", "dataset=%s tiles=%zu", id, n);
-    send_json(r, 200, json_pack("{s:s,s:I}", "dataset", id, "evicted", (json_int_t)n));
 }
 
 /* --- static files -------------------------------------------------------------------- */
@@ -1005,56 +1008,55 @@ out:
     free(j);
 }
 
-/* Queues a job, or answers 503 with Retry-After when the queue is full. */
+/* Queues a job (which the worker frees), or answers at once: unknown dataset or drape,
+ * 304 for a matching If-None-Match, 503 with Retry-After when the queue is full. */
 static void render_defer(td_app *app, td_http_req *q, td_http_resp *r, td_rjob *j)
 {
     const td_grid *g = NULL;
     long idx = td_store_find(app->store, j->scene.dataset);
+    td_dataset_info di;
+    int deferred = 0;
+
     if (idx < 0) {
         api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", j->scene.dataset);
-        free(j);
-        return;
+        goto out;
     }
-    {
-        td_dataset_info di;
-        td_store_info(app->store, (size_t)idx, &di);
-        g = di.grid;
-        if (j->scene.effects.drape[0]) {
-            /* A drape is an id: a PNG beside the dataset's file, never a path. */
-            char path[PATH_MAX];
-            struct stat st;
-            if ((size_t)snprintf(path, sizeof path, "%s/%s.png", di.dir, j->scene.effects.drape) >=
-                    sizeof path || sizeof j->scene.effects.drape <= strlen(path) || stat(path, &st) ||
-                !S_ISREG(st.st_mode)) {
-                api_error(r, TD_AE_BAD_REQUEST, "effects.drape",
-                          "effects.drape: dataset '%s' has no drape '%s'", di.id, j->scene.effects.drape);
-                free(j);
-                return;
-            }
-            memcpy(j->scene.effects.drape, path, strlen(path) + 1); /* fits: checked above */
+    td_store_info(app->store, (size_t)idx, &di);
+    g = di.grid;
+    if (j->scene.effects.drape[0]) {
+        /* A drape is an id: a PNG beside the dataset's file, never a path. */
+        char path[PATH_MAX];
+        struct stat st;
+        if ((size_t)snprintf(path, sizeof path, "%s/%s.png", di.dir, j->scene.effects.drape) >=
+                sizeof path || sizeof j->scene.effects.drape <= strlen(path) || stat(path, &st) ||
+            !S_ISREG(st.st_mode)) {
+            api_error(r, TD_AE_BAD_REQUEST, "effects.drape",
+                      "effects.drape: dataset '%s' has no drape '%s'", di.id, j->scene.effects.drape);
+            goto out;
         }
+        memcpy(j->scene.effects.drape, path, strlen(path) + 1); /* fits: checked above */
     }
-    if (j->get) {
-        if (j->kind != TD_RK_TILE)
-            scene_etag(&j->scene, g, j->etag, sizeof j->etag);
-        if (etag_matches(q, j->etag)) {
-            r->status = 304;
-            td_http_resp_header(r, "ETag", "%s", j->etag);
-            td_http_resp_header(r, "Cache-Control", "public, max-age=%d", j->kind == TD_RK_TILE ? 86400 : 3600);
-            free(j);
-            return;
-        }
+    if (j->get && j->kind != TD_RK_TILE)
+        scene_etag(&j->scene, g, j->etag, sizeof j->etag);
+    if (j->get && etag_matches(q, j->etag)) {
+        r->status = 304;
+        td_http_resp_header(r, "ETag", "%s", j->etag);
+        td_http_resp_header(r, "Cache-Control", "public, max-age=%d", j->kind == TD_RK_TILE ? 86400 : 3600);
+        goto out;
     }
     j->app = app;
-    if (td_http_defer(q, render_work, j)) {
+    deferred = td_http_defer(q, render_work, j) == 0;
+    if (!deferred) {
         td_http_resp_header(r, "Retry-After", "1");
         if (!atomic_load(&app->ready))
             api_error(r, TD_AE_STOPPING, NULL, "the server is stopping; retry on another replica");
         else
             api_error(r, TD_AE_BUSY, NULL, "the render queue is full (%ld running, %ld waiting); retry later",
                       app->cfg->render_workers, app->cfg->queue);
-        free(j);
     }
+out:
+    if (!deferred)
+        free(j);
 }
 
 typedef struct td_qargs {
@@ -1086,16 +1088,14 @@ static void h_render(td_app *app, td_http_req *q, td_http_resp *r, int post, int
     memset(&re, 0, sizeof re);
     if (!j) {
         api_error(r, TD_AE_INTERNAL, NULL, "out of memory");
-        return;
+        goto out;
     }
     request_limits(app, &lim);
     if (post) {
         size_t len;
         const char *body;
-        if (json_body_check(q, r)) {
-            free(j);
-            return;
-        }
+        if (json_body_check(q, r))
+            goto out;
         body = td_http_req_body(q, &len);
         if (pick) {
             /* /v1/pick implies image.format "pick": add it when the body leaves it out. */
@@ -1121,25 +1121,25 @@ static void h_render(td_app *app, td_http_req *q, td_http_resp *r, int post, int
         td_http_req_query_each(q, collect_arg, &a);
         if (a.overflow) {
             api_error(r, TD_AE_BAD_REQUEST, NULL, "more than 128 query parameters");
-            free(j);
-            return;
+            goto out;
         }
         rc = td_request_parse_query(a.keys, a.values, a.n, &lim, &j->scene, &re);
         j->get = 1;
     }
     if (rc) {
         api_error(r, TD_AE_BAD_REQUEST, re.field, "%s", re.message);
-        free(j);
-        return;
+        goto out;
     }
     if (pick && j->scene.npick == 0) {
         api_error(r, TD_AE_BAD_REQUEST, "pick", "pick: give the pixels to pick, [[x, y], ...]");
-        free(j);
-        return;
+        goto out;
     }
     j->kind = pick || j->scene.image.format == TD_FORMAT_PICK ? TD_RK_PICK : TD_RK_RENDER;
     j->parse_ms = (td_http_now() - t0) * 1e3;
-    render_defer(app, q, r, j);
+    render_defer(app, q, r, j); /* takes j */
+    j = NULL;
+out:
+    free(j);
 }
 
 static int parse_uint(const char *s, long max, long *out)
@@ -1163,28 +1163,29 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
     long z, x, y, idx;
     size_t yl = strlen(seg[3]);
-    td_rjob *j;
+    td_rjob *j = NULL;
     td_dataset_info di;
     double wm, hm, side, t;
+    uint64_t hsh = 14695981039346656037ULL;
 
     if (yl < 5 || strcmp(seg[3] + yl - 4, ".png")) {
         api_error(r, TD_AE_NOT_FOUND, NULL, "tile paths end in {y}.png");
-        return;
+        goto out;
     }
     seg[3][yl - 4] = '\0';
     idx = td_store_find(app->store, seg[0]);
     if (idx < 0) {
         api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", seg[0]);
-        return;
+        goto out;
     }
     if (!parse_uint(seg[1], 24, &z)) {
         api_error(r, TD_AE_BAD_REQUEST, "z", "z: an integer zoom in [0, 24]");
-        return;
+        goto out;
     }
     if (!parse_uint(seg[2], (1L << z) - 1, &x) || !parse_uint(seg[3], (1L << z) - 1, &y)) {
         api_error(r, TD_AE_NOT_FOUND, NULL, "no tile %s/%s at zoom %ld (x and y in [0, %ld])", seg[2],
                   seg[3], z, (1L << z) - 1);
-        return;
+        goto out;
     }
     td_store_info(app->store, (size_t)idx, &di);
     wm = di.grid->sx * (di.grid->w - 1);
@@ -1193,12 +1194,12 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     t = side / (double)(1L << z);
     if (x * t >= wm || y * t >= hm) {
         api_error(r, TD_AE_NOT_FOUND, NULL, "tile %ld/%ld/%ld is outside dataset '%s'", z, x, y, di.id);
-        return;
+        goto out;
     }
     j = calloc(1, sizeof *j);
     if (!j) {
         api_error(r, TD_AE_INTERNAL, NULL, "out of memory");
-        return;
+        goto out;
     }
     td_scene_defaults(&j->scene);
     snprintf(j->scene.dataset, sizeof j->scene.dataset, "%s", di.id);
@@ -1215,7 +1216,6 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     {
         /* The tile's place and the dataset's shape and height range: a changed dataset
          * (same id after a restart) gets new tags. */
-        uint64_t hsh = 14695981039346656037ULL;
         double key[6] = {(double)di.grid->w, (double)di.grid->h, di.grid->sx, di.grid->sy,
                          (double)di.grid->zmin, (double)di.grid->zmax};
         const unsigned char *kp = (const unsigned char *)key;
@@ -1226,7 +1226,9 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
         snprintf(j->etag, sizeof j->etag, "\"t%012llx-%ld-%ld-%ld\"",
                  (unsigned long long)(hsh & 0xffffffffffffULL), z, x, y);
     }
-    render_defer(app, q, r, j);
+    render_defer(app, q, r, j); /* takes j */
+out:
+    return;
 }
 
 static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
@@ -1299,10 +1301,10 @@ static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
             td_http_req_set_route(q, TD_ROUTE_JOB);
         else
             td_http_req_set_route(q, TD_ROUTE_EVICT);
-        if (admin_check(app, q, r))
-            return;
         n = split_path(rest, buf, sizeof buf, seg, 4);
-        if (n == 1 && !strcmp(seg[0], "preload")) {
+        if (admin_check(app, q, r)) {
+            /* answered: 404 admin_disabled or 401 */
+        } else if (n == 1 && !strcmp(seg[0], "preload")) {
             if (!post)
                 method_not_allowed(r, "POST", m);
             else if (!json_body_check(q, r))
@@ -1346,9 +1348,9 @@ void td_routes_handle(void *cls, td_http_req *q, td_http_resp *r)
         api_error(r, TD_AE_TOO_LARGE, NULL, "the body is over the limit of %ld KiB (--max-body-kb)",
                   app->cfg->max_body_kb);
         td_http_resp_header(r, "Connection", "close");
-        return;
+    } else {
+        dispatch(app, q, r);
     }
-    dispatch(app, q, r);
 }
 
 void td_routes_done(void *cls, int route, int status, size_t bytes, double seconds)
