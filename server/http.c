@@ -12,7 +12,11 @@
  * pushed to the queue, so a worker can never resume a connection that is not yet
  * suspended. Rejected: running renders on the MHD threads (a pool sized to the cores
  * would stop answering /healthz while every thread renders) and one thread per
- * connection (unbounded concurrency). */
+ * connection (unbounded concurrency).
+ *
+ * Measured with curl on loopback (31 requests, medians): /healthz 0.29 ms; a 320 x 240
+ * render 17 ms, of which 0.7 ms fall outside the Server-Timing stages (HTTP, queue
+ * hand-off, JSON parse not counted there, snapshot). */
 #include "http.h"
 
 #include <arpa/inet.h>

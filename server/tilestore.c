@@ -9,7 +9,10 @@
  * Slots are read and written under `mu` only; a part's refcount is atomic so that
  * snapshots release without the lock. LRU picks the smallest stamp by a scan over all
  * slots (a few thousand at most here); rejected: an intrusive list, which needs the same
- * lock and more code for no measurable gain at this size. */
+ * lock and more code for no measurable gain at this size.
+ *
+ * Measured (demo data, 64-cell tiles, 262 parts, one run each on a shared 2-core box):
+ * building every part took 0.28 s, reading them back from the disk cache 0.011 s. */
 #include "tilestore.h"
 
 #include <dirent.h>
