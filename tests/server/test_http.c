@@ -1042,6 +1042,60 @@ static void test_token_file_and_limits(void **state)
     unlink(tok);
 }
 
+static void test_data_dir_and_empty(void **state)
+{
+    /* --data DIR makes datasets of its files (id = name without extension); with no
+     * dataset at all terrad still starts, says so, and serves an empty list. */
+    th_server s;
+    th_resp r;
+    json_t *j;
+    char dir[256], p[512], cmd[600];
+    const char *args[] = {"--demo-dir", "", "--data", dir, "--preload", "none", NULL};
+    const char *empty[] = {"--demo-dir", "", "--preload", "none", NULL};
+    FILE *in, *out;
+    char buf[4096];
+    size_t n;
+    (void)state;
+    snprintf(dir, sizeof dir, "%s/terrad-data-%ld", P_tmpdir, (long)getpid());
+    mkdir(dir, 0755);
+    snprintf(p, sizeof p, "%s/mt-eden.asc", dir);
+    in = fopen(TERRAD_DATA_DIR "/volcano/volcano.asc", "rb");
+    out = fopen(p, "wb");
+    assert_non_null(in);
+    assert_non_null(out);
+    while ((n = fread(buf, 1, sizeof buf, in)) > 0)
+        fwrite(buf, 1, n, out);
+    fclose(in);
+    fclose(out);
+
+    assert_int_equal(th_start(&s, TERRAD_BIN, args, NULL), 0);
+    req(&s, "GET", "/v1/datasets", NULL, NULL, &r);
+    j = body_json(&r);
+    assert_int_equal(json_array_size(j), 1);
+    assert_string_equal(json_string_value(json_object_get(json_array_get(j, 0), "id")), "mt-eden");
+    assert_string_equal(json_string_value(json_object_get(json_array_get(j, 0), "origin")), "data");
+    json_decref(j);
+    th_resp_free(&r);
+    assert_int_equal(th_stop(&s), 0);
+    th_forget(&s);
+
+    assert_int_equal(th_start(&s, TERRAD_BIN, empty, NULL), 0);
+    assert_true(th_log_has(&s, "event=no_datasets"));
+    req(&s, "GET", "/v1/datasets", NULL, NULL, &r);
+    assert_int_equal(r.status, 200);
+    j = body_json(&r);
+    assert_int_equal(json_array_size(j), 0);
+    json_decref(j);
+    th_resp_free(&r);
+    req(&s, "GET", "/healthz", NULL, NULL, &r);
+    assert_int_equal(r.status, 200);
+    th_resp_free(&r);
+    assert_int_equal(th_stop(&s), 0);
+    th_forget(&s);
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest with_a[] = {
@@ -1066,6 +1120,7 @@ int main(void)
         cmocka_unit_test(test_sigterm_finishes_inflight),
         cmocka_unit_test(test_render_timeout),
         cmocka_unit_test(test_token_file_and_limits),
+        cmocka_unit_test(test_data_dir_and_empty),
     };
     int rc;
     curl_global_init(CURL_GLOBAL_ALL);
