@@ -366,8 +366,8 @@ static void write_errors(FILE *f, const bench_ctx *b)
     fprintf(f, "\nThe bilinear rows measure float rounding only (terrad's hit against the same surface "
                "evaluated in double).\n\n");
     if (b->nrender > 0) {
-        fprintf(f, "### Pictures: surfaces, supersampling and level of detail (%s, view 1, %d x %d, `auto`, one "
-                   "thread)\n\n", b->ds[0].name, b->render_w, b->render_h);
+        fprintf(f, "### Pictures: surfaces, supersampling and level of detail (%s, view 1, %d x %d, `auto`, "
+                   "shading and sky, one thread)\n\n", b->ds[0].name, b->render_w, b->render_h);
         fprintf(f, "Reference: bilinear, 4 x 4 samples, level of detail off. Level of detail: %d coarse levels, "
                    "%.2f extra bytes per base cell, a pixel's footprint may span one coarse cell. Height errors "
                    "from a depth render (one sample per pixel) against the base grid's bilinear surface.\n\n",
