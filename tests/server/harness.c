@@ -123,7 +123,7 @@ int th_stop(th_server *s)
     if (s->pid <= 0)
         return -1;
     kill(s->pid, SIGTERM);
-    for (int i = 0; i < 800; i++) {
+    for (int i = 0; i < 2400; i++) {
         if (waitpid(s->pid, &st, WNOHANG) == s->pid) {
             rc = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
             break;

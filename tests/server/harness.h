@@ -16,7 +16,7 @@ typedef struct th_server {
 /* argv: extra arguments after `serve --listen 127.0.0.1:0`, NULL-terminated; env: extra
  * "K=V" strings, NULL-terminated (may be NULL). Returns 0 when terrad is listening. */
 int th_start(th_server *s, const char *terrad, const char *const *argv, const char *const *env);
-/* SIGTERM, wait; returns the exit status (or -1 if it did not exit by itself in 20 s, in
+/* SIGTERM, wait; returns the exit status (or -1 if it did not exit by itself in 60 s, in
  * which case it was killed). */
 int th_stop(th_server *s);
 /* Removes the server's log file (call once a test that passed no longer needs it). */

@@ -896,7 +896,7 @@ static void test_queue_full(void **state)
 
 static const char *HEAVY =
     "{\"dataset\":\"trinidad\",\"camera\":{\"position\":{\"x\":20000,\"y\":-3000,\"z\":5200},"
-    "\"pitch\":-12},\"image\":{\"width\":1600,\"height\":1200},"
+    "\"pitch\":-12},\"image\":{\"width\":960,\"height\":720},"
     "\"quality\":{\"method\":\"incremental\",\"samples\":2},\"effects\":{\"shadows\":true}}";
 
 typedef struct bg_render {
@@ -941,8 +941,8 @@ static void test_sigterm_finishes_inflight(void **state)
     assert_int_equal(th_stop(&s), 0);
     pthread_join(t, NULL);
     assert_int_equal(b.status, 200);
-    assert_int_equal(b.w, 1600);
-    assert_int_equal(b.h, 1200);
+    assert_int_equal(b.w, 960);
+    assert_int_equal(b.h, 720);
     assert_true(th_log_has(&s, "event=stopped unfinished_at_deadline=0"));
     th_forget(&s);
 }
