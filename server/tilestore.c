@@ -687,7 +687,6 @@ static td_part *cache_read(td_store *s, const td_ds *d, size_t tile, td_part_kin
     }
     if (kind == TD_PART_MAXMIP) {
         td_maxmip *m = calloc(1, sizeof *m);
-        size_t need = 0;
         obj = m;
         if (!m || h.levels < 0 || h.levels > 16 || h.payload % sizeof(float)) {
             why = "bad shape";
@@ -711,7 +710,6 @@ static td_part *cache_read(td_store *s, const td_ds *d, size_t tile, td_part_kin
             why = "checksum mismatch or short payload";
             goto out;
         }
-        (void)need;
         m->bytes = sizeof *m + h.payload;
         part = part_new(kind, m, m->bytes);
     } else {
@@ -768,7 +766,8 @@ static uint64_t part_bound(const td_store *s, const td_tile *t, td_part_kind kin
 
 typedef struct td_stage_tile {
     size_t tile;
-    td_part *mm, *pl;
+    int want_mm, want_pl; /* what to build for this tile */
+    td_part *mm, *pl;     /* built, not yet published */
 } td_stage_tile;
 
 static td_status build_part(td_store *s, td_ds *d, size_t tile, td_part_kind kind,
@@ -862,8 +861,8 @@ td_status td_store_preload(td_store *s, const td_preload_spec *p, td_preload_pro
         sl->job = 1;
         if (want_mm || want_pl) {
             stage[nstage].tile = t;
-            stage[nstage].mm = want_mm ? (td_part *)1 : NULL; /* placeholder: to build */
-            stage[nstage].pl = want_pl ? (td_part *)1 : NULL;
+            stage[nstage].want_mm = want_mm;
+            stage[nstage].want_pl = want_pl;
             nstage++;
             need += (want_mm ? part_bound(s, &d->grid->tiles[t], TD_PART_MAXMIP) : 0) +
                     (want_pl ? part_bound(s, &d->grid->tiles[t], TD_PART_PLANES) : 0);
@@ -892,9 +891,8 @@ td_status td_store_preload(td_store *s, const td_preload_spec *p, td_preload_pro
         for (size_t i = 0; i < nstage; i++) {
             td_part **slotp = kind == TD_PART_MAXMIP ? &stage[i].mm : &stage[i].pl;
             uint64_t bound;
-            if (!*slotp)
+            if (!(kind == TD_PART_MAXMIP ? stage[i].want_mm : stage[i].want_pl))
                 continue;
-            *slotp = NULL;
             if (cb && cb(cls, kind == TD_PART_MAXMIP ? "maxmip" : "planes", i, nstage)) {
                 rc = td_err_set(err, TD_ECANCELED, "preload cancelled (server stopping)");
                 goto out;
@@ -953,10 +951,8 @@ out:
         pthread_mutex_unlock(&s->mu);
     }
     for (size_t i = 0; stage && i < nstage; i++) {
-        if (stage[i].mm != (td_part *)1)
-            part_unref(stage[i].mm);
-        if (stage[i].pl != (td_part *)1)
-            part_unref(stage[i].pl);
+        part_unref(stage[i].mm); /* left over only when the preload failed */
+        part_unref(stage[i].pl);
     }
     free(stage);
     pthread_mutex_unlock(&s->preload);
