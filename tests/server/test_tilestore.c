@@ -298,6 +298,50 @@ static void test_disk_cache(void **state)
     assert_int_equal(system(cmd), 0);
 }
 
+static int cancel_after_3(void *cls, const char *phase, size_t done, size_t total)
+{
+    int *calls = cls;
+    (void)phase;
+    (void)done;
+    (void)total;
+    return ++*calls > 3;
+}
+
+static void test_failed_preload_publishes_nothing(void **state)
+{
+    /* A preload that stops half-way (here: cancelled after a few tiles) publishes none
+     * of what it built, and what was resident stays, the very same structures. */
+    td_grid *g = terrain(5);
+    td_store *s = store_new(256u << 20, NULL);
+    td_err e;
+    size_t built, four[4] = {0, 1, 2, 3}, eight[8] = {0, 1, 2, 3, 4, 5, 6, 7};
+    td_preload_spec first = {0, four, 4, 1, 0, 0, 0};         /* maxmip of tiles 0..3 */
+    td_preload_spec second = {0, eight, 8, 1, 1, 0, 1};       /* rebuild both on 0..7 */
+    td_snapshot *a = NULL, *b = NULL;
+    int calls = 0;
+    td_store_stats st;
+    (void)state;
+    assert_int_equal(td_store_add_grid(s, "t", "api", g, &e), TD_OK);
+    assert_int_equal(td_store_preload(s, &first, NULL, NULL, &built, &e), TD_OK);
+    assert_int_equal(td_store_acquire(s, "t", &a, &e), TD_OK);
+    assert_int_equal(td_store_preload(s, &second, cancel_after_3, &calls, &built, &e), TD_ECANCELED);
+    assert_int_equal(built, 0);
+    assert_true(calls > 3);
+    assert_int_equal(td_store_acquire(s, "t", &b, &e), TD_OK);
+    for (size_t t = 0; t < 64; t++) {
+        assert_ptr_equal(td_snapshot_view(a)->accel[t].maxmip, td_snapshot_view(b)->accel[t].maxmip);
+        assert_null(td_snapshot_view(b)->accel[t].planes);
+    }
+    assert_int_equal(td_snapshot_count(b, 0), 4);
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.resident_tiles, 4);
+    assert_int_equal(st.resident_bytes, td_grid_bytes(257, 257, TILE_LOG2) +
+                                            (uint64_t)(4 * td_snapshot_view(b)->accel[0].maxmip->bytes));
+    td_snapshot_release(a);
+    td_snapshot_release(b);
+    td_store_free(s);
+}
+
 /* --- concurrency ------------------------------------------------------------------------ */
 
 enum { NRAYS = 96 };
@@ -417,6 +461,7 @@ int main(void)
         cmocka_unit_test(test_add_dir),
         cmocka_unit_test(test_budget_lru_pin),
         cmocka_unit_test(test_disk_cache),
+        cmocka_unit_test(test_failed_preload_publishes_nothing),
         cmocka_unit_test(test_concurrent_snapshots),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
