@@ -77,6 +77,11 @@ static int teardown_a(void **state)
     assert_int_equal(rc, 0);
     assert_true(th_log_has(&A, "event=stopped"));
     th_forget(&A);
+    {
+        char cmd[300];
+        snprintf(cmd, sizeof cmd, "rm -rf %s", webdir);
+        assert_int_equal(system(cmd), 0);
+    }
     return 0;
 }
 
