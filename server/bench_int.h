@@ -131,6 +131,8 @@ typedef struct bench_ctx {
     uint64_t lod_bytes;
     bench_render render[24];
     bench_pag pag;
+    int repro_done;
+    double repro_rps, repro_steps; /* `terrad trace --threads 1` on trinidad's rays */
     int neffect, effects_w, effects_h;
     bench_effect effect[TD_BENCH_EFFECT_COUNT];
 } bench_ctx;
