@@ -7,7 +7,8 @@
  *
  * Level 0 (single cells) is not stored: the tracer reads a cell's four corners anyway
  * to intersect it, so storing their maximum would add 4 bytes per cell for nothing.
- * Cells outside a partial (edge) tile and holes count as -inf. The pyramid costs
+ * A partial (edge) tile gets the smallest power-of-two pyramid that covers its cells;
+ * cells outside it and holes count as -inf. The pyramid costs
  * 4/3 * 4 / 4 = 1.33 bytes per cell. */
 #include "maxmip.h"
 
@@ -18,7 +19,10 @@ td_status td_maxmip_build(const td_grid *g, size_t tile, td_maxmip **out, td_err
 {
     td_status rc = TD_OK;
     const td_tile *t = &g->tiles[tile];
-    const int L = g->tile_log2;
+    const int32_t n = t->nx > t->ny ? t->nx : t->ny;
+    int L = 1;
+    while (L < g->tile_log2 && ((int32_t)1 << L) < n)
+        L++; /* a partial tile (east or north edge, small grid) gets a smaller pyramid */
     const int32_t T = (int32_t)1 << L;
     float *cell = NULL;
     td_maxmip *m = NULL;

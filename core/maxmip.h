@@ -9,7 +9,8 @@
 
 struct td_maxmip {
     int levels;          /* stored levels 1 .. levels (block of the top level covers the tile) */
-    int32_t dim[17];     /* blocks per side at level L: dim[L] = T >> L */
+    int32_t dim[17];     /* blocks per side at level L: dim[L] = 2^levels >> L, where 2^levels
+                            covers the tile's cells (T, or less for a partial tile) */
     size_t offset[17];   /* offset of level L in `max` */
     float *max;          /* all levels, row-major, south first */
     size_t bytes;

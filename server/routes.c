@@ -830,17 +830,34 @@ static int etag_matches(td_http_req *q, const char *etag)
 }
 
 /* The resolved method label: what the tracer can actually use with what is resident. */
-static const char *method_label(td_method m, size_t nmm, size_t npl, size_t nt)
+/* The method asked for and, from the render's stats, the tracers that camera rays
+ * actually ended in (what `auto` chose, or the walk where a tile had no acceleration
+ * resident), e.g. "auto:hierarchical" or "hierarchical:hierarchical=97%,incremental=3%". */
+static void method_label(td_method m, const td_render_stats *st, char *out, size_t n)
 {
-    const char *label = td_method_name(m);
-    if (m == TD_METHOD_HIERARCHICAL)
-        label = nmm == nt ? "hierarchical" : nmm == 0 ? "incremental" : "hierarchical+incremental";
-    else if (m == TD_METHOD_PARAMETRIC)
-        label = npl == nt ? "parametric" : npl == 0 ? "incremental" : "parametric+incremental";
-    else if (m == TD_METHOD_AUTO)
-        label = npl == nt ? "auto:parametric" : nmm == nt ? "auto:hierarchical"
-                : npl + nmm == 0 ? "auto:incremental" : "auto:mixed";
-    return label;
+    uint64_t total = 0;
+    int used = 0, only = -1;
+    size_t k;
+    for (int i = 0; i < TD_METHOD_COUNT; i++) {
+        total += st->method_rays[i];
+        if (st->method_rays[i]) {
+            used++;
+            only = i;
+        }
+    }
+    k = (size_t)snprintf(out, n, "%s", td_method_name(m));
+    if (used == 1 && only == (int)m) {
+        /* the method asked for, everywhere */
+    } else if (used == 1 && k < n) {
+        snprintf(out + k, n - k, ":%s", td_method_name((td_method)only));
+    } else if (used > 1) {
+        for (int i = 0; i < TD_METHOD_COUNT && k < n; i++) {
+            if (st->method_rays[i])
+                k += (size_t)snprintf(out + k, n - k, "%s%s=%.0f%%", k == strlen(td_method_name(m)) ? ":" : ",",
+                                      td_method_name((td_method)i),
+                                      100.0 * (double)st->method_rays[i] / (double)total);
+        }
+    }
 }
 
 static void timing_header(td_http_resp *r, const td_rjob *j, double queue_ms,
@@ -924,7 +941,6 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     td_err e = {{0}};
     td_status rc;
     const td_view *v;
-    size_t nt, nmm, npl;
     double queue_ms = td_http_req_queue_wait(q) * 1e3, depth_scale = 0, t0 = td_http_now();
     const td_render_stats *st = NULL;
 
@@ -941,9 +957,6 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         goto out;
     }
     v = td_snapshot_view(snap);
-    nt = (size_t)v->grid->tiles_x * (size_t)v->grid->tiles_y;
-    nmm = td_snapshot_count(snap, 0);
-    npl = td_snapshot_count(snap, 1);
     ws = watch_begin(app, app->cfg->render_timeout_s);
     if (j->kind == TD_RK_PICK) {
         picks = calloc((size_t)(j->scene.npick ? j->scene.npick : 1), sizeof *picks);
@@ -962,6 +975,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         td_render_opts_default(&o);
         o.threads = 1; /* one render per worker; the workers use the cores */
         o.cancel = ws ? &ws->cancel : NULL;
+        o.lod = td_snapshot_lod(snap);
         rc = td_render(v, &j->scene, &o, &res, &e);
         if (rc == TD_OK)
             rc = td_render_encode(&res, &j->scene, &buf, &depth_scale, &e);
@@ -980,8 +994,11 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         if (j->scene.image.format == TD_FORMAT_DEPTH32F)
             td_http_resp_header(r, "X-Terrad-Size", "%dx%d", (int)res.width, (int)res.height);
     }
-    td_http_resp_header(r, "X-Terrad-Method", "%s",
-                        method_label(j->scene.quality.method, nmm, npl, nt));
+    {
+        char label[160];
+        method_label(j->scene.quality.method, st, label, sizeof label);
+        td_http_resp_header(r, "X-Terrad-Method", "%s", label);
+    }
     td_http_resp_header(r, "X-Terrad-Surface", "%s", td_surface_name(j->scene.quality.surface));
     td_http_resp_header(r, "X-Terrad-Rays", "%llu", (unsigned long long)(st->rays[TD_RAY_PRIMARY] +
                         st->rays[TD_RAY_SHADOW] + st->rays[TD_RAY_REFLECTION] + st->rays[TD_RAY_AO]));

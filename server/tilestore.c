@@ -54,6 +54,7 @@ typedef struct td_ds {
     char dir[PATH_MAX];
     const char *origin;
     td_grid *grid;
+    td_lod *lod;          /* coarse levels for quality.lod, built at load, immutable */
     size_t ntiles;
     td_slot *slots;
     uint64_t grid_bytes;
@@ -74,6 +75,7 @@ struct td_store {
 
 struct td_snapshot {
     td_view view;
+    const td_lod *lod;
     td_tile_accel *accel;
     td_part **parts;
     size_t nparts;
@@ -160,6 +162,7 @@ void td_store_free(td_store *s)
             part_unref(s->ds[d].slots[t].pl);
         }
         free(s->ds[d].slots);
+        td_lod_free(s->ds[d].lod);
         td_grid_free(s->ds[d].grid);
     }
     free(s->ds);
@@ -221,6 +224,7 @@ td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_
 {
     td_status rc = TD_OK;
     td_ds *nds = NULL, *d;
+    td_lod *lod = NULL;
     uint64_t bytes;
 
     if (!td_store_id_valid(id)) {
@@ -231,7 +235,18 @@ td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_
         rc = td_err_set(err, TD_EINVAL, "dataset id '%s' is already taken", id);
         goto out;
     }
-    bytes = td_grid_bytes(g->w, g->h, g->tile_log2);
+    /* Levels of detail: filtered coarse grids with their max-mipmaps (a third of the
+     * heights and little more), resident with the heights for the dataset's lifetime. */
+    {
+        td_accel_opts ao;
+        td_accel_opts_default(&ao);
+        ao.planes = 0;
+        ao.threads = 1;
+        rc = td_lod_build(g, TD_LOD_MAX, &ao, &lod, err);
+        if (rc)
+            goto out;
+    }
+    bytes = td_grid_bytes(g->w, g->h, g->tile_log2) + lod->bytes;
     if (s->resident_bytes + bytes > s->o.budget_bytes) {
         rc = td_err_set(err, TD_ETOOBIG,
                         "dataset '%s' needs %llu bytes of heights, over what is left of the "
@@ -257,12 +272,15 @@ td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_
     snprintf(d->id, sizeof d->id, "%s", id);
     d->origin = origin ? origin : "api";
     d->grid = g;
+    d->lod = lod;
+    lod = NULL;
     d->grid_bytes = bytes;
     d->fingerprint = s->cache_dir ? grid_fingerprint(g) : 0;
     g = NULL;
     s->resident_bytes += bytes;
     s->nds++;
 out:
+    td_lod_free(lod);
     td_grid_free(g);
     return rc;
 }
@@ -474,6 +492,7 @@ td_status td_store_acquire(td_store *s, const char *id, td_snapshot **out, td_er
         goto out;
     }
     snap->view.grid = d->grid;
+    snap->lod = d->lod;
     snap->view.accel = snap->accel;
     pthread_mutex_lock(&s->mu);
     stamp = ++s->clock;
@@ -503,6 +522,8 @@ out:
 }
 
 const td_view *td_snapshot_view(const td_snapshot *snap) { return &snap->view; }
+
+const td_lod *td_snapshot_lod(const td_snapshot *snap) { return snap->lod; }
 
 size_t td_snapshot_count(const td_snapshot *snap, int planes)
 {

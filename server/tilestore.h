@@ -32,6 +32,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "lod.h"
 #include "trace.h"
 
 #define TD_STORE_ID_MAX 64
@@ -91,6 +92,8 @@ void td_store_stats_get(td_store *s, td_store_stats *st);
 /* The dataset's grid and every acceleration part resident now, held until release. */
 td_status td_store_acquire(td_store *s, const char *id, td_snapshot **out, td_err *err);
 const td_view *td_snapshot_view(const td_snapshot *snap);
+/* The dataset's levels of detail (td_render_opts.lod). */
+const td_lod *td_snapshot_lod(const td_snapshot *snap);
 /* Tiles of the snapshot with maxmip / planes. */
 size_t td_snapshot_count(const td_snapshot *snap, int planes);
 void td_snapshot_release(td_snapshot *snap);

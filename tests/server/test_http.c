@@ -239,6 +239,15 @@ static void test_render_post(void **state)
     assert_string_equal(v, "triangle");
     th_resp_free(&r);
 
+    /* level of detail: the dataset's coarse levels are resident from load */
+    req(&A, "POST", "/v1/render", JSON_CT,
+        "{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":4000,\"y\":-2000,\"z\":1500},\"pitch\":-15},"
+        "\"image\":{\"width\":32,\"height\":24},\"quality\":{\"lod\":4}}", &r);
+    assert_int_equal(r.status, 200);
+    assert_true(th_header(&r, "X-Terrad-Rays", v, sizeof v));
+    assert_int_equal(atoi(v), 32 * 24);
+    th_resp_free(&r);
+
     /* A drape named by id (a PNG beside the dataset), as /v1/datasets lists it. */
     req(&A, "POST", "/v1/render", JSON_CT,
         "{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":4000,\"y\":-2000,\"z\":1500},\"pitch\":-15},"
@@ -555,13 +564,15 @@ static void test_admin_preload(void **state)
     assert_true(json_integer_value(json_object_get(res, "accel_bytes")) > 0);
     json_decref(res);
 
-    /* A render now says the parameter planes are what auto uses. */
+    /* A render now says which tracers auto used: the max-mipmap, now resident (and the
+     * walk where a ray crosses only a few cells of a tile). */
     req(&A, "POST", "/v1/render", JSON_CT, SCENE, &r);
     assert_int_equal(r.status, 200);
     {
-        char v[64];
+        char v[160];
         assert_true(th_header(&r, "X-Terrad-Method", v, sizeof v));
-        assert_string_equal(v, "auto:parametric");
+        assert_int_equal(strncmp(v, "auto:", 5), 0);
+        assert_non_null(strstr(v, "hierarchical"));
     }
     th_resp_free(&r);
 
@@ -791,12 +802,13 @@ static void test_admin_disabled(void **state)
 
 static void test_budget_refusal(void **state)
 {
-    /* 1 MiB: levi's heights (0.64 MB) and volcano's fit; trinidad's (1.2 MB) do not, and
-     * levi's acceleration (1.6 MB) cannot be added beside them. */
+    /* 2 MiB: levi's heights and levels of detail (0.9 MB) and volcano's fit; trinidad's
+     * (1.2 + 0.4 MB) do not, and levi's acceleration (1.6 MB) cannot be added beside
+     * them. */
     th_server s;
     th_resp r;
     json_t *j, *res;
-    const char *args[] = {"--demo-dir", TERRAD_DATA_DIR, "--preload", "none", "--memory-mb", "1", NULL};
+    const char *args[] = {"--demo-dir", TERRAD_DATA_DIR, "--preload", "none", "--memory-mb", "2", NULL};
     const char *env[] = {"TERRAD_ADMIN_TOKEN=" TOKEN, NULL};
     (void)state;
     assert_int_equal(th_start(&s, TERRAD_BIN, args, env), 0);

@@ -152,10 +152,26 @@ static void test_add_dir(void **state)
     assert_int_equal(system(p), 0);
 }
 
+/* What a dataset costs from load: its heights and its levels of detail (tilestore.c
+ * builds them with max-mipmaps only, like this). */
+static uint64_t dataset_bytes(const td_grid *g)
+{
+    td_lod *lod = NULL;
+    td_accel_opts ao;
+    uint64_t bytes;
+    td_accel_opts_default(&ao);
+    ao.planes = 0;
+    ao.threads = 1;
+    assert_int_equal(td_lod_build(g, TD_LOD_MAX, &ao, &lod, NULL), TD_OK);
+    bytes = td_grid_bytes(g->w, g->h, g->tile_log2) + lod->bytes;
+    td_lod_free(lod);
+    return bytes;
+}
+
 static void test_budget_lru_pin(void **state)
 {
     td_grid *g = terrain(7);
-    uint64_t gb = td_grid_bytes(g->w, g->h, g->tile_log2), tb = tile_bytes(g);
+    uint64_t gb = dataset_bytes(g), tb = tile_bytes(g);
     /* Heights + room for 10 tiles (with the up-front bound's slack). */
     uint64_t budget = gb + 10 * tb + tb / 2;
     td_store *s = store_new(budget, NULL);
@@ -335,7 +351,7 @@ static void test_failed_preload_publishes_nothing(void **state)
     assert_int_equal(td_snapshot_count(b, 0), 4);
     td_store_stats_get(s, &st);
     assert_int_equal(st.resident_tiles, 4);
-    assert_int_equal(st.resident_bytes, td_grid_bytes(257, 257, TILE_LOG2) +
+    assert_int_equal(st.resident_bytes, dataset_bytes(td_snapshot_view(b)->grid) +
                                             (uint64_t)(4 * td_snapshot_view(b)->accel[0].maxmip->bytes));
     td_snapshot_release(a);
     td_snapshot_release(b);
@@ -396,7 +412,7 @@ static void test_concurrent_snapshots(void **state)
     td_err e;
     td_view plain;
     size_t built;
-    uint64_t gb = td_grid_bytes(g->w, g->h, g->tile_log2), tb;
+    uint64_t gb = dataset_bytes(g), tb;
     uint64_t x = 0x9e3779b97f4a7c15ULL;
     (void)state;
     assert_non_null(sh);
