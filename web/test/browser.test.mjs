@@ -345,21 +345,17 @@ test('compare mode renders both settings and their pixel difference', async () =
   assert.match(await page.textContent('#diff-result'), /pixels differ .*PSNR/);
 });
 
-test('level of detail: rendered, or refused by terrad and unticked with a note', async () => {
+test('level of detail: the view is rendered with it and still ticked', async () => {
   const n = await renders();
   await page.check('#q-lod');
   await waitRenders(n + 1);
   const lodSent = renderRequests.some((q) => q.quality.lod === true);
   assert.ok(lodSent, 'the page asked for level of detail');
   const shownLod = await page.evaluate(() => !!window.terrad.shown.a.scene.quality.lod);
-  if (!shownLod) {
-    assert.equal(await page.isChecked('#q-lod'), false, 'unticked after the refusal');
-    assert.match(await page.textContent('#q-lod-note'), /not available/);
-  }
-  if (await page.isChecked('#q-lod')) {
-    await page.uncheck('#q-lod');
-    await waitRenders(n + 2);
-  }
+  assert.ok(shownLod, 'the view on screen was rendered with level of detail');
+  assert.equal(await page.isChecked('#q-lod'), true);
+  await page.uncheck('#q-lod');
+  await waitRenders(n + 2);
 });
 
 test('the admin panel preloads the visible area with a progress bar', async () => {
