@@ -1023,7 +1023,9 @@ static void run_repro(bench_ctx *b, const bench_ds *d)
         }
     }
     if (ok && n > 0) {
-        b->repro_rps = td_bench_median(rps, n);
+        b->repro_rps = td_bench_median(rps, n); /* sorts */
+        b->repro_min = rps[0];
+        b->repro_max = rps[n - 1];
         b->repro_done = 1;
     }
     if (rays[0] && strncmp(dir, "/tmp/terrad-bench-", 18) == 0) {

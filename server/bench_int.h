@@ -132,7 +132,7 @@ typedef struct bench_ctx {
     bench_render render[24];
     bench_pag pag;
     int repro_done;
-    double repro_rps, repro_steps; /* `terrad trace --threads 1` on trinidad's rays */
+    double repro_rps, repro_min, repro_max, repro_steps; /* `terrad trace --threads 1` on trinidad's rays */
     int neffect, effects_w, effects_h;
     bench_effect effect[TD_BENCH_EFFECT_COUNT];
 } bench_ctx;

@@ -195,13 +195,15 @@ static void write_method(FILE *f, const bench_ctx *b)
             d->path, d->path, b->runs);
     if (b->repro_done) {
         const bench_trace *t = &d->tr[TD_METHOD_HIERARCHICAL][TD_SURFACE_TRIANGLE];
-        char r1[32], r2[32];
+        char r1[32], r2[32], r3[32], r4[32];
         fprintf(f, "This run did exactly that %d times (this binary, a temporary ray file): `terrad trace` "
-                   "took %.2f steps per ray at a median of %s rays/s, against %.2f steps and %s rays/s in the "
-                   "table (%+.0f%%). `terrad trace` times one pass right after loading, so its caches start "
-                   "colder than the benchmark's rounds.\n\n",
-                b->runs, b->repro_steps, rate(r1, sizeof r1, b->repro_rps), t->mean_steps,
-                rate(r2, sizeof r2, t->rps), 100.0 * (b->repro_rps / t->rps - 1.0));
+                   "took %.2f steps per ray at a median of %s rays/s (runs from %s to %s), against %.2f steps "
+                   "and %s rays/s in the table (%+.0f%%). Same rays, same loop, same steps; the rates differ by "
+                   "the spread of a shared 2-core machine, and `terrad trace` times a single pass right after "
+                   "loading where the benchmark's rounds run on warm caches.\n\n",
+                b->runs, b->repro_steps, rate(r1, sizeof r1, b->repro_rps), rate(r3, sizeof r3, b->repro_min),
+                rate(r4, sizeof r4, b->repro_max), t->mean_steps, rate(r2, sizeof r2, t->rps),
+                100.0 * (b->repro_rps / t->rps - 1.0));
     }
 }
 
