@@ -360,6 +360,7 @@ static void run_block(worker *w, int b)
         q->t = INFINITY;
         q->tw = INFINITY;
         q->alpha = 0.0f;
+        q->rgb[0] = q->rgb[1] = q->rgb[2] = 0.0f; /* a miss without sky stays transparent black */
         w->rays[TD_RAY_PRIMARY]++;
         if (needs_curve(c, r.o, r.d)) {
             q->flags = F_CURVE;
