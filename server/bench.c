@@ -29,7 +29,7 @@
 
 #include <jansson.h>
 
-#include "bench_embree.h"
+#include "embree_ref.h"
 #include "camera.h"
 #include "dem.h"
 #include "maxmip.h"
@@ -379,7 +379,7 @@ static void surface_error(const bench_ds *d, const td_view *v, td_surface s, ben
 }
 
 /* Builds both Embree scenes (one thread, `build_runs` times each, the last kept). */
-static td_status build_embree(bench_ctx *b, bench_ds *d, td_bench_embree **emb, td_err *err)
+static td_status build_embree(bench_ctx *b, bench_ds *d, td_embree **emb, td_err *err)
 {
     td_status rc = TD_OK;
     double *bs = malloc((size_t)b->build_runs * sizeof *bs);
@@ -387,14 +387,18 @@ static td_status build_embree(bench_ctx *b, bench_ds *d, td_bench_embree **emb, 
         rc = td_err_set(err, TD_ENOMEM, "bench: out of memory");
         goto out;
     }
-    for (int gk = 0; gk < TD_BENCH_EMBREE_GEOM_COUNT && rc == TD_OK; gk++) {
-        td_bench_embree_stats st;
+    for (int gk = 0; gk < TD_EMBREE_GEOM_COUNT && rc == TD_OK; gk++) {
+        td_embree_stats st;
         bench_embree *res = &d->em[gk];
-        progress(b, "%s: building Embree's %s", d->name, td_bench_embree_geom_name((td_bench_embree_geom)gk));
+        progress(b, "%s: building Embree's %s", d->name, td_embree_geom_name((td_embree_geom)gk));
         for (int r = 0; r < b->build_runs && rc == TD_OK; r++) {
-            td_bench_embree_free(emb[gk]);
+            td_embree_free(emb[gk]);
             emb[gk] = NULL;
-            rc = td_bench_embree_build(d->g, (td_bench_embree_geom)gk, 1, &emb[gk], &st, err);
+            td_embree_opts eo;
+            td_embree_opts_default(&eo);
+            eo.geom = (td_embree_geom)gk;
+            eo.threads = 1;
+            rc = td_embree_build_opts(d->g, &eo, &emb[gk], &st, err);
             bs[r] = st.build_seconds;
         }
         if (rc == TD_OK) {
@@ -422,14 +426,14 @@ static double agreement(const double *t, const double *ref, size_t n)
  * elsewhere on a shared machine hits one round of all of them rather than all runs of
  * one; the median is over rounds. */
 #define NTD (TD_METHOD_COUNT * TD_SURFACE_COUNT)
-#define NEM (TD_BENCH_EMBREE_GEOM_COUNT * 2)
+#define NEM (TD_EMBREE_GEOM_COUNT * 2)
 static td_status run_speed(bench_ctx *b, bench_ds *d, td_err *err)
 {
     td_status rc = TD_OK;
     td_tile_accel *tiles[TD_METHOD_COUNT] = {0};
     td_view views[TD_METHOD_COUNT];
-    td_bench_embree *emb[TD_BENCH_EMBREE_GEOM_COUNT] = {0};
-    td_bench_eray *er = NULL;
+    td_embree *emb[TD_EMBREE_GEOM_COUNT] = {0};
+    td_embree_ray *er = NULL;
     double *secs = NULL;
     size_t nconf = NTD + NEM;
 
@@ -465,7 +469,7 @@ static td_status run_speed(bench_ctx *b, bench_ds *d, td_err *err)
     rc = build_embree(b, d, emb, err);
     if (rc)
         goto out;
-    td_bench_embree_prepare(emb[0], d->rays, d->n, er);
+    td_embree_prepare(emb[0], d->rays, d->n, er);
 
     for (int r = 0; r < b->runs; r++) {
         progress(b, "%s: tracing, round %s", d->name, r == 0 ? "1" : r == 1 ? "2" : "3+");
@@ -484,13 +488,13 @@ static td_status run_speed(bench_ctx *b, bench_ds *d, td_err *err)
                 }
             }
         }
-        for (int g = 0; g < TD_BENCH_EMBREE_GEOM_COUNT; g++) {
+        for (int g = 0; g < TD_EMBREE_GEOM_COUNT; g++) {
             for (int w = 0; w < 2; w++) {
                 double t0 = td_bench_now();
                 if (w == 0)
-                    td_bench_embree_trace1(emb[g], er, d->n, d->t);
+                    td_embree_trace1(emb[g], er, d->n, d->t);
                 else
-                    td_bench_embree_trace16(emb[g], er, d->n, d->t);
+                    td_embree_trace16(emb[g], er, d->n, d->t);
                 secs[(size_t)(NTD + g * 2 + w) * (size_t)b->runs + (size_t)r] = td_bench_now() - t0;
                 if (r == 0)
                     d->em[g].agree[w] = agreement(d->t, d->ttri, d->n);
@@ -504,14 +508,14 @@ static td_status run_speed(bench_ctx *b, bench_ds *d, td_err *err)
             o->rps = o->seconds > 0 ? (double)d->n / o->seconds : 0;
             o->done = 1;
         }
-    for (int g = 0; g < TD_BENCH_EMBREE_GEOM_COUNT; g++) {
+    for (int g = 0; g < TD_EMBREE_GEOM_COUNT; g++) {
         for (int w = 0; w < 2; w++)
             d->em[g].rps[w] = (double)d->n / td_bench_median(secs + (size_t)(NTD + g * 2 + w) * (size_t)b->runs, b->runs);
         d->em[g].done = 1;
     }
 out:
-    for (int g = 0; g < TD_BENCH_EMBREE_GEOM_COUNT; g++)
-        td_bench_embree_free(emb[g]);
+    for (int g = 0; g < TD_EMBREE_GEOM_COUNT; g++)
+        td_embree_free(emb[g]);
     for (int m = 0; m < TD_METHOD_COUNT; m++)
         free(tiles[m]);
     free(d->ttri);

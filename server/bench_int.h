@@ -7,7 +7,7 @@
 
 #include "accel.h"
 #include "bench.h"
-#include "bench_embree.h"
+#include "embree_ref.h"
 #include "render.h"
 
 /* The project's shared data (not in CI): the full Trinidad DEM when it is there. */
@@ -81,7 +81,7 @@ typedef struct bench_ds {
     uint32_t *steps;
     /* results */
     bench_trace tr[TD_METHOD_COUNT][TD_SURFACE_COUNT];
-    bench_embree em[TD_BENCH_EMBREE_GEOM_COUNT];
+    bench_embree em[TD_EMBREE_GEOM_COUNT];
     bench_err err[TD_SURFACE_COUNT];
 } bench_ds;
 

@@ -71,7 +71,7 @@ static const char *sci(char *buf, size_t n, double v)
 static double embree_best(const bench_ds *d, int *geom, int *wide)
 {
     double best = 0;
-    for (int g = 0; g < TD_BENCH_EMBREE_GEOM_COUNT; g++)
+    for (int g = 0; g < TD_EMBREE_GEOM_COUNT; g++)
         for (int w = 0; w < 2; w++)
             if (d->em[g].done && d->em[g].rps[w] > best) {
                 best = d->em[g].rps[w];
@@ -221,7 +221,7 @@ static void write_targets(FILE *f, const bench_ctx *b)
         fprintf(f, "| fastest exact configuration >= 3x Embree's best, one thread | %s | %s/%s %s rays/s = "
                    "%.2fx Embree %s %s (%s rays/s) | %s |\n",
                 d->name, td_method_name((td_method)m), td_surface_name((td_surface)s), rate(r1, sizeof r1, ours),
-                ours / eb, td_bench_embree_geom_name((td_bench_embree_geom)g), w ? "rtcIntersect16" : "rtcIntersect1",
+                ours / eb, td_embree_geom_name((td_embree_geom)g), w ? "rtcIntersect16" : "rtcIntersect1",
                 rate(r2, sizeof r2, eb), status_word(ours >= 3 * eb));
     }
     for (int k = 0; k < b->nds; k++) {
@@ -251,13 +251,13 @@ static void write_targets(FILE *f, const bench_ctx *b)
     }
     for (int k = 0; k < b->nds; k++) {
         const bench_ds *d = &b->ds[k];
-        if (!d->em[TD_BENCH_EMBREE_GRID].done)
+        if (!d->em[TD_EMBREE_GRID].done)
             continue;
         fprintf(f, "| parameter planes built no slower than Embree's GRID geometry (one thread) | %s | planes "
                    "(K = %d) %.3f s, GRID %.3f s (%.2fx) | %s |\n",
-                d->name, TD_PLANES_K_DEFAULT, d->planes_s, d->em[TD_BENCH_EMBREE_GRID].build_s,
-                d->planes_s / d->em[TD_BENCH_EMBREE_GRID].build_s,
-                status_word(d->planes_s <= d->em[TD_BENCH_EMBREE_GRID].build_s));
+                d->name, TD_PLANES_K_DEFAULT, d->planes_s, d->em[TD_EMBREE_GRID].build_s,
+                d->planes_s / d->em[TD_EMBREE_GRID].build_s,
+                status_word(d->planes_s <= d->em[TD_EMBREE_GRID].build_s));
     }
     fprintf(f, "\n");
 }
@@ -305,13 +305,13 @@ static void write_designs(FILE *f, const bench_ctx *b)
                 "in the surface) in 2; with the max-mipmap dropped (or its top levels only) that "
                 "is 5-6 bytes a cell.\n",
                 bpc);
-    if (d->em[TD_BENCH_EMBREE_GRID].done && d->planes_s > d->em[TD_BENCH_EMBREE_GRID].build_s)
+    if (d->em[TD_EMBREE_GRID].done && d->planes_s > d->em[TD_EMBREE_GRID].build_s)
         fprintf(f,
                 "- **Planes built as fast as Embree's GRID** (now %.2fx its time). The build runs K "
                 "exact distance transforms per tile; the distance to the nearest cell at least z_k "
                 "high can be computed for all k in one pass by propagating (distance, height) "
                 "pairs, or with fewer slices where the K sweep below shows no loss of steps.\n",
-                d->planes_s / d->em[TD_BENCH_EMBREE_GRID].build_s);
+                d->planes_s / d->em[TD_EMBREE_GRID].build_s);
     fprintf(f, "\n");
 }
 
@@ -342,12 +342,12 @@ static void write_speed(FILE *f, const bench_ctx *b)
         }
         fprintf(f, "\n| Embree | rtcIntersect1 rays/s | rtcIntersect16 rays/s | build s | bytes/cell (peak during "
                    "build) | primitives | agrees with terrad's triangle (1 / 16) |\n|---|---|---|---|---|---|---|\n");
-        for (int g = 0; g < TD_BENCH_EMBREE_GEOM_COUNT; g++) {
+        for (int g = 0; g < TD_EMBREE_GEOM_COUNT; g++) {
             const bench_embree *e = &d->em[g];
             if (!e->done)
                 continue;
             fprintf(f, "| %s | %s | %s | %.3f | %.2f (%.2f) | %zu | %.3f%% / %.3f%% |\n",
-                    td_bench_embree_geom_name((td_bench_embree_geom)g), rate(r1, sizeof r1, e->rps[0]),
+                    td_embree_geom_name((td_embree_geom)g), rate(r1, sizeof r1, e->rps[0]),
                     rate(r3, sizeof r3, e->rps[1]), e->build_s, (double)e->bytes / d->cells,
                     (double)e->peak_bytes / d->cells, e->prims, 100 * e->agree[0], 100 * e->agree[1]);
         }
@@ -542,7 +542,7 @@ static td_status write_charts(const bench_ctx *b, const char *dir, td_err *err)
                 snprintf(pts[n].label, sizeof pts[n].label, "%s", short_s[s]);
                 n++;
             }
-        for (int g = 0; g < TD_BENCH_EMBREE_GEOM_COUNT; g++)
+        for (int g = 0; g < TD_EMBREE_GEOM_COUNT; g++)
             for (int w = 0; w < 2; w++)
                 if (d->em[g].done) {
                     pts[n].x = 1e9 / d->em[g].rps[w];
@@ -647,7 +647,7 @@ static td_status write_summary(const bench_ctx *b, const char *path, td_err *err
             fprintf(f, "| %s | %s | %.2f | %.2f | %.2f |\n", td_method_name((td_method)q), rate(r1, sizeof r1, t->rps),
                     eb > 0 ? t->rps / eb : 0, t->mean_steps, (double)td_bench_method_bytes(d, (td_method)q) / d->cells);
         }
-        fprintf(f, "| Embree best (%s, %s) | %s | 1 | | %.2f |\n\n", td_bench_embree_geom_name((td_bench_embree_geom)g),
+        fprintf(f, "| Embree best (%s, %s) | %s | 1 | | %.2f |\n\n", td_embree_geom_name((td_embree_geom)g),
                 w ? "rtcIntersect16" : "rtcIntersect1", rate(r2, sizeof r2, eb), (double)d->em[g].bytes / d->cells);
         fprintf(f, "- Fastest exact configuration: %s / %s at %.2fx Embree's best (target 3x: %s).\n",
                 td_method_name((td_method)m), td_surface_name((td_surface)s), eb > 0 ? ours / eb : 0,
@@ -661,10 +661,10 @@ static td_status write_summary(const bench_ctx *b, const char *path, td_err *err
         fprintf(f, "- Resident bytes per cell with both structures: %.2f (target 6: %s).\n",
                 (double)td_bench_method_bytes(d, TD_METHOD_AUTO) / d->cells,
                 (double)td_bench_method_bytes(d, TD_METHOD_AUTO) / d->cells <= 6 ? "met" : "not met");
-        if (d->em[TD_BENCH_EMBREE_GRID].done)
+        if (d->em[TD_EMBREE_GRID].done)
             fprintf(f, "- Parameter planes build %.3f s against Embree's GRID %.3f s, one thread each (target: no "
-                       "slower: %s).\n", d->planes_s, d->em[TD_BENCH_EMBREE_GRID].build_s,
-                    d->planes_s <= d->em[TD_BENCH_EMBREE_GRID].build_s ? "met" : "not met");
+                       "slower: %s).\n", d->planes_s, d->em[TD_EMBREE_GRID].build_s,
+                    d->planes_s <= d->em[TD_EMBREE_GRID].build_s ? "met" : "not met");
         fprintf(f, "- Mean height error against the bilinear surface: plane %.3g m, linear %.3g m, triangle %.3g m.\n",
                 d->err[TD_SURFACE_PLANE].zmean, d->err[TD_SURFACE_LINEAR].zmean, d->err[TD_SURFACE_TRIANGLE].zmean);
     }

@@ -1,31 +1,79 @@
-/* embree_ref.c: the Embree 3 reference scene (see embree_ref.h).
+/* embree_ref.c: Embree 3 scenes of a height field (see embree_ref.h), for the oracle
+ * tests and `terrad bench`.
  *
- * Layout: one triangle geometry; vertex (I, J) of the (possibly refined) lattice is
- * vertex I + J * VW, VW = n*(w-1) + 1; cell (i, j) sub-quad (a, b) gives triangles
- * SW = (I,J) (I+1,J) (I,J+1) and NE = (I+1,J) (I+1,J+1) (I,J+1) with I = n*i + a,
- * J = n*j + b: the same diagonal as terrad's (south-east to north-west). Refined vertices
- * on a cell edge are interpolated along that edge only, so a void cell next to a valid
- * one cannot leak NaN into the shared edge.
+ * Layout. Vertex (I, J) of the (possibly refined) lattice is vertex I + J * VW,
+ * VW = n*(w-1) + 1, at (I*sx/n, J*sy/n, z) minus the grid's centre (void samples get
+ * z = 0; no primitive uses them). Triangle mesh: cell (i, j) sub-quad (a, b) gives
+ * triangles SW = (I,J) (I+1,J) (I,J+1) and NE = (I+1,J) (I+1,J+1) (I,J+1) with
+ * I = n*i + a, J = n*j + b: the same diagonal as terrad's (south-east to north-west).
+ * Refined vertices on a cell edge are interpolated along that edge only, so a void cell
+ * next to a valid one cannot leak NaN into the shared edge.
+ * GRID geometry (n = 1 only): RTCGrid records over the same vertex buffer (stride = grid
+ * width); Embree splits each grid quad (v0 = (x,y), v1 = (x+1,y), v2 = (x+1,y+1),
+ * v3 = (x,y+1)) into (v0,v1,v3) and (v2,v3,v1), the same diagonal v1-v3. A tile without
+ * a void cell becomes one record; a tile with voids one record per run of valid cells in
+ * each cell row, so holes stay holes.
  *
  * Error bound of the refinement: on a sub-square of side 1/n (in cell units) the
  * bilinear patch differs from its linear interpolant only by the d*u*v term, and
  * u*v deviates from the plane through three corners of a triangle by at most
- * (1/n)^2 / 4; so |surface - mesh| <= |z00 - z10 - z01 + z11| / (4 n^2) per cell. */
+ * (1/n)^2 / 4; so |surface - mesh| <= |z00 - z10 - z01 + z11| / (4 n^2) per cell.
+ *
+ * Memory: rtcSetDeviceMemoryMonitorFunction counts every byte Embree allocates on the
+ * device (BVH nodes, primitive blocks, the buffers of rtcSetNewGeometryBuffer).
+ *
+ * Rays are prepared (clipped and converted in double) apart from tracing, so the
+ * benchmark can time Embree at its best, on rays already in its native form. */
 #include "embree_ref.h"
 
 #include <math.h>
+#include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+#include <sys/types.h>
+#include <time.h>
 
 #include <embree3/rtcore.h>
+
+static const char *const geom_names[] = {
+#define TD_X_NAME(e, name) name,
+    TD_EMBREE_GEOM_LIST(TD_X_NAME)
+#undef TD_X_NAME
+};
+
+const char *td_embree_geom_name(td_embree_geom g)
+{
+    return (unsigned)g < TD_EMBREE_GEOM_COUNT ? geom_names[g] : "unknown";
+}
 
 struct td_embree {
     RTCDevice dev;
     RTCScene scene;
-    double c[3];     /* local frame origin in the dataset frame */
+    double c[3];         /* local frame origin in the dataset frame */
     double lo[3], hi[3]; /* bounding box (dataset frame), padded */
-    double bound;    /* refinement error bound, metres */
-    size_t ntri;
+    double bound;        /* refinement error bound, metres */
+    size_t prims;
+    _Atomic int64_t cur, peak;
 };
+
+static bool monitor(void *ptr, ssize_t bytes, bool post)
+{
+    td_embree *e = ptr;
+    (void)post;
+    int64_t now = atomic_fetch_add(&e->cur, (int64_t)bytes) + (int64_t)bytes;
+    int64_t pk = atomic_load(&e->peak);
+    while (now > pk && !atomic_compare_exchange_weak(&e->peak, &pk, now)) {
+    }
+    return true;
+}
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
 
 static double sample(const td_grid *g, int32_t i, int32_t j) { return (double)td_grid_at(g, i, j); }
 
@@ -53,18 +101,102 @@ static int cell_valid(const td_grid *g, int32_t i, int32_t j)
              isnan(td_grid_at(g, i, j + 1)) || isnan(td_grid_at(g, i + 1, j + 1)));
 }
 
-td_status td_embree_build(const td_grid *g, int refine, td_embree **out, td_err *err)
+/* Counts (fill = NULL) or writes the GRID records. */
+static size_t grid_records(const td_grid *g, struct RTCGrid *fill)
+{
+    size_t k = 0;
+    for (int32_t ty = 0; ty < g->tiles_y; ty++) {
+        for (int32_t tx = 0; tx < g->tiles_x; tx++) {
+            const td_tile *t = &g->tiles[(size_t)ty * (size_t)g->tiles_x + (size_t)tx];
+            int whole = 1;
+            for (int32_t j = t->j0; j < t->j0 + t->ny && whole; j++)
+                for (int32_t i = t->i0; i < t->i0 + t->nx && whole; i++)
+                    whole = cell_valid(g, i, j);
+            if (whole) {
+                if (fill) {
+                    fill[k].startVertexID = (unsigned)((size_t)t->j0 * (size_t)g->w + (size_t)t->i0);
+                    fill[k].stride = (unsigned)g->w;
+                    fill[k].width = (unsigned short)(t->nx + 1);
+                    fill[k].height = (unsigned short)(t->ny + 1);
+                }
+                k++;
+                continue;
+            }
+            for (int32_t j = t->j0; j < t->j0 + t->ny; j++) {
+                int32_t i = t->i0, iend = t->i0 + t->nx;
+                while (i < iend) {
+                    int32_t a;
+                    while (i < iend && !cell_valid(g, i, j))
+                        i++;
+                    a = i;
+                    while (i < iend && cell_valid(g, i, j))
+                        i++;
+                    if (i > a) {
+                        if (fill) {
+                            fill[k].startVertexID = (unsigned)((size_t)j * (size_t)g->w + (size_t)a);
+                            fill[k].stride = (unsigned)g->w;
+                            fill[k].width = (unsigned short)(i - a + 1);
+                            fill[k].height = 2;
+                        }
+                        k++;
+                    }
+                }
+            }
+        }
+    }
+    return k;
+}
+
+/* Index buffer of the triangle mesh (see the top of the file); returns the bound. */
+static double mesh_indices(const td_grid *g, int refine, size_t vw, unsigned *ib)
+{
+    size_t k = 0;
+    double bound = 0.0;
+    for (int32_t j = 0; j + 1 < g->h; j++) {
+        for (int32_t i = 0; i + 1 < g->w; i++) {
+            if (!cell_valid(g, i, j))
+                continue;
+            double d = sample(g, i, j) - sample(g, i + 1, j) - sample(g, i, j + 1) + sample(g, i + 1, j + 1);
+            if (refine > 1 && fabs(d) / (4.0 * refine * refine) > bound)
+                bound = fabs(d) / (4.0 * refine * refine);
+            for (int b = 0; b < refine; b++) {
+                for (int a = 0; a < refine; a++) {
+                    unsigned I = (unsigned)(refine * i + a), J = (unsigned)(refine * j + b);
+                    unsigned v00 = J * (unsigned)vw + I, v10 = v00 + 1;
+                    unsigned v01 = v00 + (unsigned)vw, v11 = v01 + 1;
+                    ib[k++] = v00, ib[k++] = v10, ib[k++] = v01;
+                    ib[k++] = v10, ib[k++] = v11, ib[k++] = v01;
+                }
+            }
+        }
+    }
+    return bound;
+}
+
+void td_embree_opts_default(td_embree_opts *o)
+{
+    o->geom = TD_EMBREE_TRIANGLES;
+    o->refine = 1;
+    o->threads = 0;
+}
+
+td_status td_embree_build_opts(const td_grid *g, const td_embree_opts *o, td_embree **out,
+                               td_embree_stats *st, td_err *err)
 {
     td_status rc = TD_OK;
     td_embree *e = NULL;
-    RTCGeometry geom = NULL;
-    size_t vw, vh, nv, ncell = 0, ntri, tmp;
-    float *vb;
-    unsigned *ib;
+    RTCGeometry gm = NULL;
+    td_embree_stats stats;
+    const int refine = o->refine;
+    size_t vw, vh, nv, ncell = 0, nprim = 0, tmp;
+    char cfg[64];
+    double t0;
 
     *out = NULL;
-    if (refine < 1 || refine > 64) {
-        rc = td_err_set(err, TD_ERANGE, "embree: refinement %d is out of range (1 .. 64)", refine);
+    memset(&stats, 0, sizeof stats);
+    if (refine < 1 || refine > 64 || (o->geom == TD_EMBREE_GRID && refine != 1) ||
+        (unsigned)o->geom >= TD_EMBREE_GEOM_COUNT) {
+        rc = td_err_set(err, TD_ERANGE, "embree: refinement %d is out of range (1 .. 64, 1 for GRID)", refine);
         goto out;
     }
     vw = (size_t)refine * (size_t)(g->w - 1) + 1;
@@ -73,8 +205,8 @@ td_status td_embree_build(const td_grid *g, int refine, td_embree **out, td_err 
         for (int32_t i = 0; i + 1 < g->w; i++)
             ncell += (size_t)cell_valid(g, i, j);
     if (!td_mul_size(vw, vh, &nv) || nv > 0xffffffffu ||
-        !td_mul_size(ncell, (size_t)refine * (size_t)refine * 2, &ntri) || ntri > 0x7fffffffu ||
-        !td_mul_size(ntri, 3 * sizeof(unsigned), &tmp)) {
+        !td_mul_size(ncell, (size_t)refine * (size_t)refine * 2, &tmp) || tmp > 0x7fffffffu ||
+        !td_mul_size(tmp, 3 * sizeof(unsigned), &tmp) || g->tile_log2 > 14) {
         rc = td_err_set(err, TD_ETOOBIG, "embree: %d x %d grid refined %d times is too big",
                         (int)g->w, (int)g->h, refine);
         goto out;
@@ -84,7 +216,6 @@ td_status td_embree_build(const td_grid *g, int refine, td_embree **out, td_err 
         rc = td_err_set(err, TD_ENOMEM, "embree: out of memory");
         goto out;
     }
-    e->ntri = ntri;
     e->c[0] = 0.5 * (g->w - 1) * g->sx;
     e->c[1] = 0.5 * (g->h - 1) * g->sy;
     e->c[2] = isnan(g->zmin) ? 0.0 : 0.5 * ((double)g->zmin + (double)g->zmax);
@@ -94,23 +225,27 @@ td_status td_embree_build(const td_grid *g, int refine, td_embree **out, td_err 
     e->hi[1] = (g->h - 1) * g->sy + 1.0;
     e->lo[2] = isnan(g->zmin) ? 0.0 : (double)g->zmin - 1.0 - 1e-6 * fabs(g->zmin);
     e->hi[2] = isnan(g->zmax) ? 0.0 : (double)g->zmax + 1.0 + 1e-6 * fabs(g->zmax);
-    e->dev = rtcNewDevice(NULL);
+    snprintf(cfg, sizeof cfg, "threads=%d,verbose=0", o->threads > 0 ? o->threads : 0);
+    e->dev = rtcNewDevice(cfg);
     if (!e->dev) {
-        rc = td_err_set(err, TD_EUNSUPPORTED, "embree: rtcNewDevice failed");
+        rc = td_err_set(err, TD_EUNSUPPORTED, "embree: rtcNewDevice(\"%s\") failed", cfg);
         goto out;
     }
+    rtcSetDeviceMemoryMonitorFunction(e->dev, monitor, e);
+
+    t0 = now_s();
     e->scene = rtcNewScene(e->dev);
     rtcSetSceneFlags(e->scene, RTC_SCENE_FLAG_ROBUST);
     rtcSetSceneBuildQuality(e->scene, RTC_BUILD_QUALITY_HIGH);
-    if (ntri > 0) {
-        geom = rtcNewGeometry(e->dev, RTC_GEOMETRY_TYPE_TRIANGLE);
-        rtcSetGeometryBuildQuality(geom, RTC_BUILD_QUALITY_HIGH);
-        vb = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+    if (ncell > 0) {
+        float *vb;
+        gm = rtcNewGeometry(e->dev, o->geom == TD_EMBREE_GRID ? RTC_GEOMETRY_TYPE_GRID
+                                                              : RTC_GEOMETRY_TYPE_TRIANGLE);
+        rtcSetGeometryBuildQuality(gm, RTC_BUILD_QUALITY_HIGH);
+        vb = rtcSetNewGeometryBuffer(gm, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                      3 * sizeof(float), nv);
-        ib = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                     3 * sizeof(unsigned), ntri);
-        if (!vb || !ib) {
-            rc = td_err_set(err, TD_ENOMEM, "embree: out of memory for %zu triangles", ntri);
+        if (!vb) {
+            rc = td_err_set(err, TD_ENOMEM, "embree: out of memory for %zu vertices", nv);
             goto out;
         }
         for (size_t J = 0; J < vh; J++) {
@@ -122,44 +257,62 @@ td_status td_embree_build(const td_grid *g, int refine, td_embree **out, td_err 
                 p[2] = (float)(isnan(h) ? 0.0 : h - e->c[2]);
             }
         }
-        size_t k = 0;
-        for (int32_t j = 0; j + 1 < g->h; j++) {
-            for (int32_t i = 0; i + 1 < g->w; i++) {
-                if (!cell_valid(g, i, j))
-                    continue;
-                double d = sample(g, i, j) - sample(g, i + 1, j) - sample(g, i, j + 1) +
-                           sample(g, i + 1, j + 1);
-                if (refine > 1 && fabs(d) / (4.0 * refine * refine) > e->bound)
-                    e->bound = fabs(d) / (4.0 * refine * refine);
-                for (int b = 0; b < refine; b++) {
-                    for (int a = 0; a < refine; a++) {
-                        unsigned I = (unsigned)(refine * i + a), J = (unsigned)(refine * j + b);
-                        unsigned v00 = J * (unsigned)vw + I, v10 = v00 + 1;
-                        unsigned v01 = v00 + (unsigned)vw, v11 = v01 + 1;
-                        ib[k++] = v00, ib[k++] = v10, ib[k++] = v01;
-                        ib[k++] = v10, ib[k++] = v11, ib[k++] = v01;
-                    }
-                }
+        if (o->geom == TD_EMBREE_GRID) {
+            struct RTCGrid *gb;
+            nprim = grid_records(g, NULL);
+            gb = rtcSetNewGeometryBuffer(gm, RTC_BUFFER_TYPE_GRID, 0, RTC_FORMAT_GRID,
+                                         sizeof(struct RTCGrid), nprim);
+            if (!gb) {
+                rc = td_err_set(err, TD_ENOMEM, "embree: out of memory for %zu grids", nprim);
+                goto out;
             }
+            grid_records(g, gb);
+        } else {
+            unsigned *ib;
+            nprim = 2 * ncell * (size_t)refine * (size_t)refine;
+            ib = rtcSetNewGeometryBuffer(gm, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                         3 * sizeof(unsigned), nprim);
+            if (!ib) {
+                rc = td_err_set(err, TD_ENOMEM, "embree: out of memory for %zu triangles", nprim);
+                goto out;
+            }
+            e->bound = mesh_indices(g, refine, vw, ib);
         }
-        rtcCommitGeometry(geom);
-        rtcAttachGeometry(e->scene, geom);
+        rtcCommitGeometry(gm);
+        rtcAttachGeometry(e->scene, gm);
+        rtcReleaseGeometry(gm);
+        gm = NULL;
     }
     rtcCommitScene(e->scene);
+    stats.build_seconds = now_s() - t0;
     if (rtcGetDeviceError(e->dev) != RTC_ERROR_NONE) {
         rc = td_err_set(err, TD_EUNSUPPORTED, "embree: scene build failed (error %d)",
                         (int)rtcGetDeviceError(e->dev));
         goto out;
     }
+    e->prims = nprim;
+    stats.bytes = atomic_load(&e->cur);
+    stats.peak_bytes = atomic_load(&e->peak);
+    stats.primitives = nprim;
 out:
-    if (geom)
-        rtcReleaseGeometry(geom);
+    if (gm)
+        rtcReleaseGeometry(gm);
     if (rc != TD_OK) {
         td_embree_free(e);
         e = NULL;
     }
+    if (st)
+        *st = stats;
     *out = e;
     return rc;
+}
+
+td_status td_embree_build(const td_grid *g, int refine, td_embree **out, td_err *err)
+{
+    td_embree_opts o;
+    td_embree_opts_default(&o);
+    o.refine = refine;
+    return td_embree_build_opts(g, &o, out, NULL, err);
 }
 
 void td_embree_free(td_embree *e)
@@ -175,41 +328,65 @@ void td_embree_free(td_embree *e)
 
 double td_embree_refine_bound(const td_embree *e) { return e->bound; }
 
-size_t td_embree_triangles(const td_embree *e) { return e->ntri; }
+size_t td_embree_triangles(const td_embree *e) { return e->prims; }
 
-double td_embree_trace(const td_embree *e, const td_ray *r)
+void td_embree_prepare(const td_embree *e, const td_ray *r, size_t n, td_embree_ray *out)
 {
-    double lo = r->tmin, hi = r->tmax, res = INFINITY;
-    int ok = e->ntri > 0;
-    for (int a = 0; a < 3 && ok; a++) {
-        if (r->d[a] == 0.0) {
-            ok = r->o[a] >= e->lo[a] && r->o[a] <= e->hi[a];
-        } else {
-            double ta = (e->lo[a] - r->o[a]) / r->d[a], tb = (e->hi[a] - r->o[a]) / r->d[a];
-            if (ta > tb) {
-                double x = ta;
-                ta = tb;
-                tb = x;
+    for (size_t k = 0; k < n; k++) {
+        const td_ray *q = &r[k];
+        td_embree_ray *p = &out[k];
+        double lo = q->tmin, hi = q->tmax;
+        int ok = e->prims > 0;
+        memset(p, 0, sizeof *p);
+        for (int a = 0; a < 3 && ok; a++) {
+            if (q->d[a] == 0.0) {
+                ok = q->o[a] >= e->lo[a] && q->o[a] <= e->hi[a];
+            } else {
+                double ta = (e->lo[a] - q->o[a]) / q->d[a], tb = (e->hi[a] - q->o[a]) / q->d[a];
+                if (ta > tb) {
+                    double x = ta;
+                    ta = tb;
+                    tb = x;
+                }
+                lo = ta > lo ? ta : lo;
+                hi = tb < hi ? tb : hi;
             }
-            lo = ta > lo ? ta : lo;
-            hi = tb < hi ? tb : hi;
+        }
+        if (ok && lo <= hi) {
+            /* |d| without overflow or underflow for huge or denormal components */
+            double m = fmax(fabs(q->d[0]), fmax(fabs(q->d[1]), fabs(q->d[2])));
+            double u[3] = {q->d[0] / m, q->d[1] / m, q->d[2] / m};
+            double nn = m * sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+            for (int a = 0; a < 3; a++) {
+                p->o[a] = (float)(q->o[a] + lo * q->d[a] - e->c[a]);
+                p->d[a] = (float)(u[a] * (m / nn));
+            }
+            p->tfar = isfinite(hi) ? (float)((hi - lo) * nn) : INFINITY;
+            p->lo = lo;
+            p->n = nn;
+            p->valid = 1;
         }
     }
-    if (ok && lo <= hi) {
-        /* |d| without overflow or underflow for huge or denormal components */
-        double m = fmax(fabs(r->d[0]), fmax(fabs(r->d[1]), fabs(r->d[2])));
-        double q[3] = {r->d[0] / m, r->d[1] / m, r->d[2] / m};
-        double n = m * sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+}
+
+void td_embree_trace1(const td_embree *e, const td_embree_ray *r, size_t n, double *t)
+{
+    struct RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    for (size_t k = 0; k < n; k++) {
+        const td_embree_ray *p = &r[k];
         struct RTCRayHit rh;
-        struct RTCIntersectContext ctx;
-        rh.ray.org_x = (float)(r->o[0] + lo * r->d[0] - e->c[0]);
-        rh.ray.org_y = (float)(r->o[1] + lo * r->d[1] - e->c[1]);
-        rh.ray.org_z = (float)(r->o[2] + lo * r->d[2] - e->c[2]);
-        rh.ray.dir_x = (float)(q[0] * (m / n));
-        rh.ray.dir_y = (float)(q[1] * (m / n));
-        rh.ray.dir_z = (float)(q[2] * (m / n));
+        t[k] = INFINITY;
+        if (!p->valid)
+            continue;
+        rh.ray.org_x = p->o[0];
+        rh.ray.org_y = p->o[1];
+        rh.ray.org_z = p->o[2];
+        rh.ray.dir_x = p->d[0];
+        rh.ray.dir_y = p->d[1];
+        rh.ray.dir_z = p->d[2];
         rh.ray.tnear = 0.0f;
-        rh.ray.tfar = isfinite(hi) ? (float)((hi - lo) * n) : INFINITY;
+        rh.ray.tfar = p->tfar;
         rh.ray.time = 0.0f;
         rh.ray.mask = 0xffffffffu;
         rh.ray.id = 0;
@@ -217,12 +394,57 @@ double td_embree_trace(const td_embree *e, const td_ray *r)
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        rtcInitIntersectContext(&ctx);
         rtcIntersect1(e->scene, &ctx, &rh);
         if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID)
-            res = lo + (double)rh.ray.tfar / n;
+            t[k] = p->lo + (double)rh.ray.tfar / p->n;
     }
-    return res;
+}
+
+void td_embree_trace16(const td_embree *e, const td_embree_ray *r, size_t n, double *t)
+{
+    struct RTCIntersectContext ctx;
+    struct RTCRayHit16 rh __attribute__((aligned(64)));
+    int valid[16] __attribute__((aligned(64)));
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    for (size_t k0 = 0; k0 < n; k0 += 16) {
+        size_t m = n - k0 < 16 ? n - k0 : 16;
+        int any = 0;
+        for (size_t l = 0; l < 16; l++) {
+            const td_embree_ray *p = &r[k0 + (l < m ? l : 0)];
+            valid[l] = l < m && p->valid ? -1 : 0;
+            any |= valid[l];
+            rh.ray.org_x[l] = p->o[0];
+            rh.ray.org_y[l] = p->o[1];
+            rh.ray.org_z[l] = p->o[2];
+            rh.ray.dir_x[l] = p->d[0];
+            rh.ray.dir_y[l] = p->d[1];
+            rh.ray.dir_z[l] = p->d[2];
+            rh.ray.tnear[l] = 0.0f;
+            rh.ray.tfar[l] = p->tfar;
+            rh.ray.time[l] = 0.0f;
+            rh.ray.mask[l] = 0xffffffffu;
+            rh.ray.id[l] = (unsigned)l;
+            rh.ray.flags[l] = 0;
+            rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
+        }
+        if (any)
+            rtcIntersect16(valid, e->scene, &ctx, &rh);
+        for (size_t l = 0; l < m; l++)
+            t[k0 + l] = valid[l] && rh.hit.geomID[l] != RTC_INVALID_GEOMETRY_ID
+                            ? r[k0 + l].lo + (double)rh.ray.tfar[l] / r[k0 + l].n
+                            : INFINITY;
+    }
+}
+
+double td_embree_trace(const td_embree *e, const td_ray *r)
+{
+    td_embree_ray p;
+    double t;
+    td_embree_prepare(e, r, 1, &p);
+    td_embree_trace1(e, &p, 1, &t);
+    return t;
 }
 
 void td_embree_trace_many(const td_embree *e, const td_ray *r, size_t n, double *t)
