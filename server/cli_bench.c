@@ -39,19 +39,6 @@ static void bench_usage(FILE *f, const td_bench_opts *d)
             d->out_dir, d->runs, d->trinidad, d->picos, d->levi, d->scene_dem, d->procedural);
 }
 
-static int parse_int(const char *s, long lo, long hi, int *out)
-{
-    char *end = NULL;
-    long v;
-    int ok;
-    errno = 0;
-    v = strtol(s, &end, 10);
-    ok = end != s && *end == '\0' && errno == 0 && v >= lo && v <= hi;
-    if (ok)
-        *out = (int)v;
-    return ok;
-}
-
 static int copy_path(char *dst, size_t n, const char *src)
 {
     int ok = strlen(src) < n;
@@ -107,7 +94,7 @@ int td_cli_bench(int argc, char **argv)
         } else if (!strcmp(opt, "--out")) {
             o.out_dir = val;
         } else if (!strcmp(opt, "--runs")) {
-            ok = parse_int(val, 1, 1000, &o.runs);
+            ok = td_cli_parse_int(val, 1, 1000, &o.runs);
         } else if (!strcmp(opt, "--sections")) {
             ok = parse_sections(val, &o.sections);
         } else if (!strcmp(opt, "--trinidad")) {
@@ -119,7 +106,7 @@ int td_cli_bench(int argc, char **argv)
         } else if (!strcmp(opt, "--scene-dem")) {
             ok = copy_path(o.scene_dem, sizeof o.scene_dem, val);
         } else if (!strcmp(opt, "--procedural")) {
-            ok = parse_int(val, 0, 8192, &o.procedural) && (o.procedural == 0 || o.procedural >= 16);
+            ok = td_cli_parse_int(val, 0, 8192, &o.procedural) && (o.procedural == 0 || o.procedural >= 16);
         } else if (!strcmp(opt, "--write-rays")) {
             o.write_rays = val;
         } else if (!strcmp(opt, "--rays-dataset")) {

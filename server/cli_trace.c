@@ -69,19 +69,6 @@ static double now_seconds(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static int parse_int(const char *s, long lo, long hi, int *out)
-{
-    char *end = NULL;
-    long v;
-    int ok;
-    errno = 0;
-    v = strtol(s, &end, 10);
-    ok = end != s && *end == '\0' && errno == 0 && v >= lo && v <= hi;
-    if (ok)
-        *out = (int)v;
-    return ok;
-}
-
 static double le_double(const unsigned char *p)
 {
     uint64_t u = 0;
@@ -218,9 +205,9 @@ int td_cli_trace(int argc, char **argv)
         } else if (!strcmp(opt, "--surface")) {
             ok = td_surface_parse(val, &surface) == TD_OK;
         } else if (!strcmp(opt, "--threads")) {
-            ok = parse_int(val, 1, 1024, &threads);
+            ok = td_cli_parse_int(val, 1, 1024, &threads);
         } else if (!strcmp(opt, "--k")) {
-            ok = parse_int(val, 1, 4096, &k);
+            ok = td_cli_parse_int(val, 1, 4096, &k);
         } else if (!strcmp(opt, "--stats")) {
             stats = val;
         } else if (!strcmp(opt, "--encoding")) {
