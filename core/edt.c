@@ -87,11 +87,16 @@ void td_edt_2d(double *dist, int32_t nx, int32_t ny, double wx, double wy, td_ed
     }
     for (size_t c = 0; c < (size_t)nx * (size_t)ny; c++)
         dist[c] = isinf(dist[c]) ? INFINITY : wy * dist[c] * dist[c];
-    /* Rows: the general transform of the columns' result, in place. */
+    /* Rows: the general transform of the columns' result, in place. A row of features
+     * only (common for the low slices of a height field) is its own transform. */
     for (int32_t y = 0; y < ny; y++) {
         double *row = dist + (size_t)y * (size_t)nx;
-        for (int32_t x = 0; x < nx; x++)
+        int32_t zeros = 0;
+        for (int32_t x = 0; x < nx; x++) {
             s->f[x] = row[x];
-        edt_1d(s->f, row, nx, wx, s->v, s->zs);
+            zeros += row[x] == 0.0;
+        }
+        if (zeros < nx)
+            edt_1d(s->f, row, nx, wx, s->v, s->zs);
     }
 }

@@ -174,8 +174,8 @@ void td_grid_cell_max(const td_grid *g, const td_tile *t, float *out)
         float *o = out + (size_t)cj * (size_t)t->nx;
         for (int32_t ci = 0; ci < t->nx; ci++) {
             float a = s0[ci], b = s0[ci + 1], c = s1[ci], d = s1[ci + 1];
-            float m = fmaxf(fmaxf(a, b), fmaxf(c, d));
-            o[ci] = (isnan(a) || isnan(b) || isnan(c) || isnan(d)) ? -INFINITY : m;
+            float ab = a > b ? a : b, cd = c > d ? c : d;
+            o[ci] = isnan(a + b + c + d) ? -INFINITY : (ab > cd ? ab : cd);
         }
     }
 }

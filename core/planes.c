@@ -69,7 +69,7 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
     const size_t n = (size_t)nx * (size_t)ny;
     td_planes *p = NULL;
     float *cell = NULL;
-    unsigned char *mask = NULL;
+    float *h3 = NULL; /* H's maximum over each cell's 3x3 neighbourhood */
     double *dist = NULL, *prev = NULL, *zp = NULL, *sp = NULL;
     td_edt_scratch scratch = {0};
     float zlo = INFINITY, zhi = -INFINITY;
@@ -82,12 +82,12 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
     }
     p = calloc(1, sizeof *p);
     cell = malloc(sizeof(float) * n);
-    mask = malloc(n);
+    h3 = malloc(sizeof(float) * n);
     dist = malloc(sizeof(double) * n);
     prev = malloc(sizeof(double) * n);
     zp = malloc(sizeof(double) * n);
     sp = malloc(sizeof(double) * n);
-    if (!p || !cell || !mask || !dist || !prev || !zp || !sp ||
+    if (!p || !cell || !h3 || !dist || !prev || !zp || !sp ||
         !td_edt_scratch_init(&scratch, nx > ny ? nx : ny)) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for parameter planes");
         goto out;
@@ -120,6 +120,33 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
         slices = 1;
     for (size_t c = 0; c < n; c++)
         zp[c] = NAN; /* apex not fixed yet */
+    /* 3x3 maximum of the cell maxima, separable: rows into h3, then columns in place
+     * through a rolling copy of the row above */
+    for (int32_t y = 0; y < ny; y++) {
+        const float *hr = cell + (size_t)y * (size_t)nx;
+        float *o = h3 + (size_t)y * (size_t)nx;
+        for (int32_t x = 0; x < nx; x++) {
+            float m = hr[x];
+            if (x > 0 && hr[x - 1] > m)
+                m = hr[x - 1];
+            if (x + 1 < nx && hr[x + 1] > m)
+                m = hr[x + 1];
+            o[x] = m;
+        }
+    }
+    for (int32_t x = 0; x < nx; x++) {
+        float above = -INFINITY;
+        for (int32_t y = 0; y < ny; y++) {
+            float *o = h3 + (size_t)y * (size_t)nx + (size_t)x;
+            float here = *o, m = here;
+            if (above > m)
+                m = above;
+            if (y + 1 < ny && o[nx] > m)
+                m = o[nx];
+            above = here;
+            *o = m;
+        }
+    }
 
     for (int s = 0; s <= slices; s++) {
         /* slice s < slices is a real slice; s == slices is the final step up to zhi */
@@ -127,25 +154,9 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
                     : slices == 1 ? (double)zlo
                                   : (double)zlo + (double)s * ((double)zhi - (double)zlo) / (slices - 1);
         if (s < slices) {
-            /* feature mask H >= z_k, dilated by one cell (3x3, separable), as EDT input */
-            for (int32_t y = 0; y < ny; y++) {
-                const float *h = cell + (size_t)y * (size_t)nx;
-                unsigned char *mrow = mask + (size_t)y * (size_t)nx;
-                for (int32_t x = 0; x < nx; x++) {
-                    int on = (double)h[x] >= zk;
-                    on |= x > 0 && (double)h[x - 1] >= zk;
-                    on |= x + 1 < nx && (double)h[x + 1] >= zk;
-                    mrow[x] = (unsigned char)on;
-                }
-            }
-            for (int32_t y = 0; y < ny; y++) {
-                const unsigned char *m0 = mask + (size_t)y * (size_t)nx;
-                const unsigned char *mu = y > 0 ? m0 - nx : m0;
-                const unsigned char *md = y + 1 < ny ? m0 + nx : m0;
-                double *drow = dist + (size_t)y * (size_t)nx;
-                for (int32_t x = 0; x < nx; x++)
-                    drow[x] = (m0[x] | mu[x] | md[x]) ? 0.0 : INFINITY;
-            }
+            /* feature mask H >= z_k dilated by one cell = (3x3 maximum of H) >= z_k */
+            for (size_t c = 0; c < n; c++)
+                dist[c] = (double)h3[c] >= zk ? 0.0 : INFINITY;
             td_edt_2d(dist, nx, ny, g->sx * g->sx, g->sy * g->sy, &scratch);
         }
         for (size_t c = 0; c < n; c++) {
@@ -156,15 +167,21 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
                 } else if (dist[c] > 0.0) {
                     zp[c] = zk; /* B(0) = z_{m+1} */
                     sp[c] = 0.0;
-                    prev[c] = sqrt(dist[c]);
+                    prev[c] = dist[c]; /* squared */
                 }
             } else {
-                /* the staircase rises to z_k at r = D_{k-1} = prev */
-                double need = (zk - zp[c]) / prev[c];
-                if (need > sp[c])
-                    sp[c] = need;
+                /* the staircase rises to z_k at r = D_{k-1}: the slope must reach
+                 * rise / D_{k-1}. Compared squared (both sides >= 0; prev holds D^2) so
+                 * the square root and the division run only when the slope may grow;
+                 * the 1e-9 slack takes the candidate whenever rounding could decide. */
+                double rise = zk - zp[c];
+                if (rise > 0.0 && rise * rise >= sp[c] * sp[c] * prev[c] * (1.0 - 1e-9)) {
+                    double need = rise / sqrt(prev[c]);
+                    if (need > sp[c])
+                        sp[c] = need;
+                }
                 if (s < slices)
-                    prev[c] = sqrt(dist[c]);
+                    prev[c] = dist[c];
             }
         }
     }
@@ -174,7 +191,7 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
     }
 out:
     free(cell);
-    free(mask);
+    free(h3);
     free(dist);
     free(prev);
     free(zp);
