@@ -674,6 +674,21 @@ out:
     return rc;
 }
 
+/* An optional object member parsed by `parse` with the member's name on the field path:
+ * 0 when absent, 1 when parsed, -1 (and the error recorded) when refused. */
+static int member(pctx *p, json_t *root, const char *key,
+                  int (*parse)(pctx *, json_t *, td_scene *), td_scene *s)
+{
+    json_t *o = NULL;
+    int r = object(p, root, key, &o);
+    if (r == 1) {
+        size_t old = push(p, key);
+        r = parse(p, o, s) < 0 ? -1 : 1;
+        pop(p, old);
+    }
+    return r;
+}
+
 static td_status walk(pctx *p, json_t *root, td_scene *s)
 {
     static const char *const keys[] = {"dataset", "camera", "image", "quality", "effects",
@@ -692,15 +707,8 @@ static td_status walk(pctx *p, json_t *root, td_scene *s)
     if (name_or_path(p, root, "dataset", s->dataset, sizeof s->dataset, 1) < 0)
         goto out;
     /* image first: pick pixels are checked against its size */
-    if ((r = object(p, root, "image", &o)) < 0)
+    if (member(p, root, "image", parse_image, s) < 0)
         goto out;
-    if (r == 1) {
-        old = push(p, "image");
-        r = parse_image(p, o, s);
-        pop(p, old);
-        if (r < 0)
-            goto out;
-    }
     if ((r = object(p, root, "camera", &o)) < 0)
         goto out;
     old = push(p, "camera");
@@ -708,24 +716,9 @@ static td_status walk(pctx *p, json_t *root, td_scene *s)
     pop(p, old);
     if (r < 0)
         goto out;
-    if ((r = object(p, root, "quality", &o)) < 0)
+    if (member(p, root, "quality", parse_quality, s) < 0 ||
+        member(p, root, "effects", parse_effects, s) < 0)
         goto out;
-    if (r == 1) {
-        old = push(p, "quality");
-        r = parse_quality(p, o, s);
-        pop(p, old);
-        if (r < 0)
-            goto out;
-    }
-    if ((r = object(p, root, "effects", &o)) < 0)
-        goto out;
-    if (r == 1) {
-        old = push(p, "effects");
-        r = parse_effects(p, o, s);
-        pop(p, old);
-        if (r < 0)
-            goto out;
-    }
     if (parse_pick(p, root, s) < 0)
         goto out;
 
