@@ -61,14 +61,10 @@ const char *td_dem_encoding_name(td_dem_encoding e)
 
 td_status td_dem_encoding_parse(const char *name, td_dem_encoding *out)
 {
-    td_status rc = TD_EINVAL;
-    for (int k = 0; k < TD_ENC_COUNT && rc != TD_OK; k++) {
-        if (name && !strcmp(name, td_dem_encoding_names[k])) {
-            *out = (td_dem_encoding)k;
-            rc = TD_OK;
-        }
-    }
-    return rc;
+    int i = td_name_index(td_dem_encoding_names, TD_ENC_COUNT, name);
+    if (i >= 0)
+        *out = (td_dem_encoding)i;
+    return i >= 0 ? TD_OK : TD_EINVAL;
 }
 
 int td_dem_have_gdal(void)

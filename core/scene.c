@@ -39,28 +39,18 @@ const char *td_format_name(td_format f)
 
 td_status td_projection_parse(const char *name, td_projection *out)
 {
-    td_status rc = TD_EINVAL;
-    for (int i = 0; i < TD_PROJ_COUNT; i++) {
-        if (!strcmp(name, td_projection_names[i])) {
-            *out = (td_projection)i;
-            rc = TD_OK;
-            break;
-        }
-    }
-    return rc;
+    int i = td_name_index(td_projection_names, TD_PROJ_COUNT, name);
+    if (i >= 0)
+        *out = (td_projection)i;
+    return i >= 0 ? TD_OK : TD_EINVAL;
 }
 
 td_status td_format_parse(const char *name, td_format *out)
 {
-    td_status rc = TD_EINVAL;
-    for (int i = 0; i < TD_FORMAT_COUNT; i++) {
-        if (!strcmp(name, td_format_names[i])) {
-            *out = (td_format)i;
-            rc = TD_OK;
-            break;
-        }
-    }
-    return rc;
+    int i = td_name_index(td_format_names, TD_FORMAT_COUNT, name);
+    if (i >= 0)
+        *out = (td_format)i;
+    return i >= 0 ? TD_OK : TD_EINVAL;
 }
 
 void td_scene_defaults(td_scene *s)

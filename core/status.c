@@ -4,6 +4,7 @@
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <string.h>
 
 static const char *const td_status_texts[] = {
 #define TD_X_TEXT(code, text, json) text,
@@ -36,6 +37,15 @@ td_status td_err_set(td_err *err, td_status st, const char *fmt, ...)
         va_end(ap);
     }
     return st;
+}
+
+int td_name_index(const char *const *names, int n, const char *name)
+{
+    int found = -1;
+    for (int i = 0; name && i < n && found < 0; i++)
+        if (!strcmp(name, names[i]))
+            found = i;
+    return found;
 }
 
 int td_mul_size(size_t a, size_t b, size_t *out)

@@ -42,6 +42,9 @@ const char *td_status_json(td_status st);
 td_status td_err_set(td_err *err, td_status st, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 
+/* Index of `name` in the n names of an X-macro table, or -1 (also for a NULL name). */
+int td_name_index(const char *const *names, int n, const char *name);
+
 /* Checked size arithmetic: return 0 on overflow, 1 otherwise. */
 int td_mul_size(size_t a, size_t b, size_t *out);
 int td_add_size(size_t a, size_t b, size_t *out);

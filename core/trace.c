@@ -69,26 +69,18 @@ const char *td_surface_name(td_surface s)
 
 td_status td_method_parse(const char *name, td_method *out)
 {
-    td_status rc = TD_EINVAL;
-    for (int i = 0; name && i < TD_METHOD_COUNT; i++) {
-        if (!strcmp(name, td_method_names[i])) {
-            *out = (td_method)i;
-            rc = TD_OK;
-        }
-    }
-    return rc;
+    int i = td_name_index(td_method_names, TD_METHOD_COUNT, name);
+    if (i >= 0)
+        *out = (td_method)i;
+    return i >= 0 ? TD_OK : TD_EINVAL;
 }
 
 td_status td_surface_parse(const char *name, td_surface *out)
 {
-    td_status rc = TD_EINVAL;
-    for (int i = 0; name && i < TD_SURFACE_COUNT; i++) {
-        if (!strcmp(name, td_surface_names[i])) {
-            *out = (td_surface)i;
-            rc = TD_OK;
-        }
-    }
-    return rc;
+    int i = td_name_index(td_surface_names, TD_SURFACE_COUNT, name);
+    if (i >= 0)
+        *out = (td_surface)i;
+    return i >= 0 ? TD_OK : TD_EINVAL;
 }
 
 td_status td_ray_validate(const td_ray *r, td_err *err)
