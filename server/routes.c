@@ -1228,6 +1228,9 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     j->scene.image.width = 256;
     j->scene.image.height = 256;
     j->scene.image.format = TD_FORMAT_PNG;
+    /* a map tile whose pixels cover several cells is traced on the level of detail whose
+     * cells fit a pixel: cheaper at low zooms, and no aliasing from skipped cells */
+    j->scene.quality.lod = 1;
     j->kind = TD_RK_TILE;
     j->get = 1;
     {
