@@ -1352,11 +1352,16 @@ static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
         td_http_req_set_route(q, TD_ROUTE_UNKNOWN);
         api_error(r, TD_AE_NOT_FOUND, NULL, "no such route: %s", path);
     } else {
+        /* the page's own files only: not its tests, build files or node_modules */
+        int page = !strcmp(path, "/") || !strcmp(path, "/index.html") || !strcmp(path, "/style.css") ||
+                   !strncmp(path, "/js/", 4) || !strcmp(path, "/favicon.ico");
         td_http_req_set_route(q, TD_ROUTE_WEB);
-        if (get)
-            serve_file(app->web_dir, path + 1, 0, r);
-        else
+        if (!get)
             method_not_allowed(r, "GET, HEAD", m);
+        else if (!page)
+            api_error(r, TD_AE_NOT_FOUND, NULL, "no such page (the web page is /, /style.css and /js/)");
+        else
+            serve_file(app->web_dir, path + 1, 0, r);
     }
 }
 

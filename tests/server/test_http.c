@@ -59,8 +59,12 @@ static int setup_a(void **state)
     mkdir(p, 0755);
     snprintf(p, sizeof p, "%s/site/index.html", webdir);
     write_file(p, "<!doctype html><title>terrad test</title>");
-    snprintf(p, sizeof p, "%s/site/app.js", webdir);
+    snprintf(p, sizeof p, "%s/site/js", webdir);
+    mkdir(p, 0755);
+    snprintf(p, sizeof p, "%s/site/js/app.js", webdir);
     write_file(p, "console.log('terrad');");
+    snprintf(p, sizeof p, "%s/site/package.json", webdir); /* not part of the page */
+    write_file(p, "{}");
     snprintf(p, sizeof p, "%s/site/.hidden", webdir);
     write_file(p, "hidden");
     snprintf(p, sizeof p, "%s/secret.txt", webdir); /* outside the served root */
@@ -753,10 +757,14 @@ static void test_web(void **state)
     assert_true(th_header(&r, "Content-Type", v, sizeof v));
     assert_string_equal(v, "text/html; charset=utf-8");
     th_resp_free(&r);
-    req(&A, "GET", "/app.js", NULL, NULL, &r);
+    req(&A, "GET", "/js/app.js", NULL, NULL, &r);
     assert_int_equal(r.status, 200);
     assert_true(th_header(&r, "Content-Type", v, sizeof v));
     assert_string_equal(v, "text/javascript; charset=utf-8");
+    th_resp_free(&r);
+    /* only the page's own files: not package.json, tests or node_modules */
+    req(&A, "GET", "/package.json", NULL, NULL, &r);
+    assert_error(&r, 404, "not_found", NULL);
     th_resp_free(&r);
     req(&A, "GET", "/../secret.txt", NULL, NULL, &r);
     assert_int_equal(r.status, 404);
