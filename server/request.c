@@ -523,6 +523,23 @@ static int bool_or_object(pctx *p, json_t *parent, const char *key, int *on, jso
     return rc;
 }
 
+/* An effect given as a boolean, or as an object (on) whose one key is a number in
+ * [lo, hi], e.g. "haze": {"visibility_km": 80}. 0 or 1 as bool_or_object, -1 refused. */
+static int switch_number(pctx *p, json_t *fx, const char *effect, int *on, const char *key,
+                         double lo, double hi, double *value)
+{
+    json_t *o = NULL;
+    int rc = bool_or_object(p, fx, effect, on, &o);
+    if (rc >= 0 && o) {
+        const char *const keys[] = {key, NULL};
+        size_t old = push(p, effect);
+        if (check_keys(p, o, keys) < 0 || num(p, o, key, lo, hi, value) < 0)
+            rc = -1;
+        pop(p, old);
+    }
+    return rc;
+}
+
 static int parse_effects(pctx *p, json_t *fx, td_scene *s)
 {
     static const char *const keys[] = {"sun", "ambient", "shadows", "haze", "sky", "water",
@@ -551,36 +568,11 @@ static int parse_effects(pctx *p, json_t *fx, td_scene *s)
         rc = -1;
     if (!rc && boolean(p, fx, "sky", &e->sky) < 0)
         rc = -1;
-    if (!rc && bool_or_object(p, fx, "haze", &e->haze, &o) < 0)
+    if (!rc && (switch_number(p, fx, "haze", &e->haze, "visibility_km", 0.01, 10000.0,
+                              &e->haze_visibility_km) < 0 ||
+                switch_number(p, fx, "water", &e->water, "level", -1e5, 1e5, &e->water_level) < 0 ||
+                switch_number(p, fx, "curvature", &e->curvature, "k", -0.99, 0.99, &e->curvature_k) < 0))
         rc = -1;
-    if (!rc && o) {
-        static const char *const k2[] = {"visibility_km", NULL};
-        old = push(p, "haze");
-        rc = check_keys(p, o, k2);
-        if (!rc && num(p, o, "visibility_km", 0.01, 10000.0, &e->haze_visibility_km) < 0)
-            rc = -1;
-        pop(p, old);
-    }
-    if (!rc && bool_or_object(p, fx, "water", &e->water, &o) < 0)
-        rc = -1;
-    if (!rc && o) {
-        static const char *const k2[] = {"level", NULL};
-        old = push(p, "water");
-        rc = check_keys(p, o, k2);
-        if (!rc && num(p, o, "level", -1e5, 1e5, &e->water_level) < 0)
-            rc = -1;
-        pop(p, old);
-    }
-    if (!rc && bool_or_object(p, fx, "curvature", &e->curvature, &o) < 0)
-        rc = -1;
-    if (!rc && o) {
-        static const char *const k2[] = {"k", NULL};
-        old = push(p, "curvature");
-        rc = check_keys(p, o, k2);
-        if (!rc && num(p, o, "k", -0.99, 0.99, &e->curvature_k) < 0)
-            rc = -1;
-        pop(p, old);
-    }
     /* ambient_occlusion: N, or {"rays": N, "radius": metres} */
     json_t *ao = json_object_get(fx, "ambient_occlusion");
     if (!rc && ao && json_is_object(ao)) {
