@@ -120,6 +120,24 @@ static void req(const th_server *s, const char *m, const char *path, const char 
     assert_int_equal(th_request(s, m, path, h, body, body ? strlen(body) : 0, r), 0);
 }
 
+/* Like req, for a server with a per-address connection limit: the server notices a
+ * client's close on its own time, so a new connection right after the last one may be
+ * closed unanswered while the old one still counts. A refused connection has no effect on
+ * the server (it is closed before anything is read), so sending again is safe. */
+static void req_limited(const th_server *s, const char *m, const char *path, const char *const *h,
+                        const char *body, th_resp *r)
+{
+    int rc = -1;
+    for (int i = 0; rc != 0 && i < 500; i++) {
+        rc = th_request(s, m, path, h, body, body ? strlen(body) : 0, r);
+        if (rc != 0) {
+            th_resp_free(r);
+            usleep(10000);
+        }
+    }
+    assert_int_equal(rc, 0);
+}
+
 /* --- health, metrics, datasets ---------------------------------------------------------- */
 
 static void test_health(void **state)
@@ -1050,14 +1068,14 @@ static void test_token_file_and_limits(void **state)
         if (!ok)
             usleep(10000);
     }
-    req(&s, "POST", "/v1/admin/preload", AUTH, "{\"dataset\":\"volcano\"}", &r);
+    req_limited(&s, "POST", "/v1/admin/preload", AUTH, "{\"dataset\":\"volcano\"}", &r);
     assert_error(&r, 401, "unauthorized", NULL);
     th_resp_free(&r);
-    req(&s, "POST", "/v1/admin/preload", file_auth, "{\"dataset\":\"volcano\"}", &r);
+    req_limited(&s, "POST", "/v1/admin/preload", file_auth, "{\"dataset\":\"volcano\"}", &r);
     assert_int_equal(r.status, 202);
     th_resp_free(&r);
 
-    req(&s, "HEAD", "/v1/datasets", NULL, NULL, &r);
+    req_limited(&s, "HEAD", "/v1/datasets", NULL, NULL, &r);
     assert_int_equal(r.status, 200);
     assert_int_equal(r.len, 0);
     th_resp_free(&r);
