@@ -11,8 +11,11 @@
  *   rgb-div      8-bit RGB(A), e.g. Levi      m = (R*65536 + G*256 + B) / divisor
  *
  * Voids: a pixel whose alpha is 0, or whose raw value (v, or R*65536+G*256+B) equals the
- * declared nodata. Rows are decoded one at a time (one row buffer) into their south-based
- * place; interlaced PNGs, which need the whole image in memory first, are refused.
+ * declared nodata. Palette PNGs (what lossless optimisers such as optipng make of a tile with
+ * few colours) are expanded to RGB by libpng, and a tRNS chunk to alpha, so a transparent
+ * palette entry or colour is a void. Rows are decoded one at a time (one row buffer) into
+ * their south-based place; an interlaced PNG is only complete after its last pass, so it is
+ * read whole into one buffer first, which must fit the same byte budget as the grid.
  * libpng reports errors by longjmp: everything the error path frees lives in a context
  * struct so no local is clobbered across setjmp. IHDR sizes are checked against the
  * limits before the row buffer or grid is allocated. */
@@ -22,6 +25,7 @@
 #include <float.h>
 #include <math.h>
 #include <setjmp.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -35,7 +39,8 @@ typedef struct png_ctx {
     FILE *f;
     png_structp png;
     png_infop info;
-    unsigned char *row;
+    unsigned char *row;            /* one row, or the whole image if interlaced */
+    png_bytepp rows;               /* row pointers into it, interlaced only */
     td_grid *g;
     char msg[256];
     jmp_buf jmp;
@@ -122,6 +127,44 @@ static int decode_row(const png_params *p, const unsigned char *src, int channel
     return ok;
 }
 
+/* Reads the pixels into the grid's south-based rows: one row at a time, or, for an
+ * interlaced PNG, the whole image first (all passes) within the byte budget. */
+static td_status read_pixels(png_ctx *c, const td_dem_opts *o, const png_params *p, int interlaced,
+                             int channels, int32_t w, int32_t h, td_err *err)
+{
+    td_status rc = TD_OK;
+    size_t rowbytes = png_get_rowbytes(c->png, c->info);
+    size_t nrows = interlaced ? (size_t)h : 1;
+
+    if (nrows > SIZE_MAX / rowbytes ||
+        (o->limits.max_bytes && (uint64_t)rowbytes * nrows > o->limits.max_bytes)) {
+        rc = td_err_set(err, TD_ETOOBIG, "%s: decoding needs %lu x %lu bytes, over the budget of %llu",
+                        c->path, (unsigned long)rowbytes, (unsigned long)nrows,
+                        (unsigned long long)o->limits.max_bytes);
+        goto out;
+    }
+    c->row = malloc(rowbytes * nrows);
+    c->rows = interlaced ? malloc(nrows * sizeof *c->rows) : NULL;
+    if (!c->row || (interlaced && !c->rows)) {
+        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory for %s", c->path, interlaced ? "the image" : "a row");
+        goto out;
+    }
+    if (interlaced) {
+        for (size_t r = 0; r < nrows; r++)
+            c->rows[r] = c->row + r * rowbytes;
+        png_read_image(c->png, c->rows);
+    }
+    for (int32_t r = 0; r < h && rc == TD_OK; r++) {
+        unsigned char *src = interlaced ? c->rows[r] : c->row;
+        if (!interlaced)
+            png_read_row(c->png, src, NULL);
+        if (!decode_row(p, src, channels, w, c->g->z + (size_t)(h - 1 - r) * (size_t)w))
+            rc = td_err_set(err, TD_ERANGE, "%s: row %ld decodes to a height beyond float range", c->path, (long)r);
+    }
+out:
+    return rc;
+}
+
 static td_status load(png_ctx *c, const td_dem_opts *o, td_err *err)
 {
     td_status rc = TD_OK;
@@ -168,24 +211,30 @@ static td_status load(png_ctx *c, const td_dem_opts *o, td_err *err)
     rc = td_demutil_check_limits(path, o, (int32_t)w, (int32_t)h, err);
     if (rc != TD_OK)
         goto out;
-    if (interlace != PNG_INTERLACE_NONE) {
-        rc = td_err_set(err, TD_EUNSUPPORTED, "%s: interlaced PNG; save it without interlacing", path);
-        goto out;
-    }
+    if (p.enc != TD_ENC_GRAY16 && depth <= 8 && ctype == PNG_COLOR_TYPE_PALETTE)
+        png_set_palette_to_rgb(c->png);
+    if (p.enc != TD_ENC_GRAY16 && depth == 8 && (ctype & PNG_COLOR_MASK_COLOR) &&
+        png_get_valid(c->png, c->info, PNG_INFO_tRNS))
+        png_set_tRNS_to_alpha(c->png);
+    if (interlace != PNG_INTERLACE_NONE)
+        (void)png_set_interlace_handling(c->png);
+    png_read_update_info(c->png, c->info);
+    depth = png_get_bit_depth(c->png, c->info);
+    ctype = png_get_color_type(c->png, c->info);
     if (p.enc == TD_ENC_GRAY16) {
         if (depth != 16 || (ctype != PNG_COLOR_TYPE_GRAY && ctype != PNG_COLOR_TYPE_GRAY_ALPHA)) {
             rc = td_err_set(err, TD_EFORMAT,
                             "%s: encoding gray16 needs a 16-bit grayscale PNG, this one has %d-bit %s",
-                            path, depth, ctype & PNG_COLOR_MASK_COLOR ? "colour" : "grayscale");
+                            path, depth, ctype == PNG_COLOR_TYPE_PALETTE ? "palette" :
+                            ctype & PNG_COLOR_MASK_COLOR ? "colour" : "grayscale");
             goto out;
         }
         channels = ctype == PNG_COLOR_TYPE_GRAY ? 1 : 2;
     } else {
         if (depth != 8 || (ctype != PNG_COLOR_TYPE_RGB && ctype != PNG_COLOR_TYPE_RGB_ALPHA)) {
             rc = td_err_set(err, TD_EFORMAT,
-                            "%s: encoding %s needs an 8-bit RGB or RGBA PNG, this one has %d-bit %s%s",
+                            "%s: encoding %s needs an 8-bit RGB, RGBA or palette PNG, this one has %d-bit %s%s",
                             path, td_dem_encoding_name(p.enc), depth,
-                            ctype & PNG_COLOR_MASK_PALETTE ? "palette" :
                             ctype & PNG_COLOR_MASK_COLOR ? "colour" : "grayscale",
                             ctype & PNG_COLOR_MASK_ALPHA ? " with alpha" : "");
             goto out;
@@ -210,19 +259,9 @@ static td_status load(png_ctx *c, const td_dem_opts *o, td_err *err)
     if (rc != TD_OK)
         goto out;
     c->g->geo = sc.geo;
-    c->row = malloc(png_get_rowbytes(c->png, c->info));
-    if (!c->row) {
-        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory for a row", path);
+    rc = read_pixels(c, o, &p, interlace != PNG_INTERLACE_NONE, channels, (int32_t)w, (int32_t)h, err);
+    if (rc != TD_OK)
         goto out;
-    }
-    for (png_uint_32 r = 0; r < h; r++) {
-        png_read_row(c->png, c->row, NULL);
-        if (!decode_row(&p, c->row, channels, (int32_t)w, c->g->z + (size_t)(h - 1 - r) * (size_t)w)) {
-            rc = td_err_set(err, TD_ERANGE, "%s: row %lu decodes to a height beyond float range", path,
-                            (unsigned long)r);
-            goto out;
-        }
-    }
     png_read_end(c->png, NULL);
     rc = td_demutil_finish(path, c->g, err);
 out:
@@ -246,6 +285,7 @@ td_status td_dempng_load(const char *path, const td_dem_opts *o, td_grid **out, 
     if (c->f)
         fclose(c->f);
     free(c->row);
+    free(c->rows);
     if (rc == TD_OK)
         *out = c->g;
     else

@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include <cmocka.h>
+#include <png.h>
 
 #include "dem.h"
 
@@ -913,6 +914,166 @@ static void test_png_refusals(void **state)
     free(buf);
 }
 
+/* Reads a whole PNG as libpng gives it (no transforms), for re-encoding. */
+static unsigned char *png_pixels(const char *path, png_uint_32 *w, png_uint_32 *h, int *depth,
+                                 int *ctype, size_t *rowbytes)
+{
+    FILE *f = fopen(path, "rb");
+    png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+    png_infop info = png_create_info_struct(png);
+    unsigned char *px;
+    assert_non_null(f);
+    png_init_io(png, f);
+    png_read_info(png, info);
+    png_get_IHDR(png, info, w, h, depth, ctype, NULL, NULL, NULL);
+    *rowbytes = png_get_rowbytes(png, info);
+    px = malloc(*rowbytes * *h);
+    assert_non_null(px);
+    for (png_uint_32 r = 0; r < *h; r++)
+        png_read_row(png, px + r * *rowbytes, NULL);
+    png_destroy_read_struct(&png, &info, NULL);
+    fclose(f);
+    return px;
+}
+
+typedef struct png_out {
+    png_uint_32 w, h;
+    int depth, ctype, interlace;
+    size_t rowbytes;
+    const unsigned char *px;
+    const png_color *palette; /* palette images only */
+    int npalette;
+    const png_byte *trns; /* alpha per palette entry, or NULL */
+    int ntrns;
+} png_out;
+
+static void png_write(const char *path, const png_out *o)
+{
+    FILE *f = fopen(path, "wb");
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+    png_infop info = png_create_info_struct(png);
+    png_bytepp rows = malloc(o->h * sizeof *rows);
+    assert_non_null(f);
+    assert_non_null(rows);
+    for (png_uint_32 r = 0; r < o->h; r++)
+        rows[r] = (png_bytep)o->px + r * o->rowbytes;
+    png_init_io(png, f);
+    png_set_IHDR(png, info, o->w, o->h, o->depth, o->ctype, o->interlace, PNG_COMPRESSION_TYPE_DEFAULT,
+                 PNG_FILTER_TYPE_DEFAULT);
+    if (o->palette)
+        png_set_PLTE(png, info, o->palette, o->npalette);
+    if (o->trns)
+        png_set_tRNS(png, info, o->trns, o->ntrns, NULL);
+    png_write_info(png, info);
+    png_write_image(png, rows);
+    png_write_end(png, NULL);
+    png_destroy_write_struct(&png, &info);
+    free(rows);
+    assert_int_equal(fclose(f), 0);
+}
+
+/* The same pixels written with Adam7 interlacing decode to the same heights, for an RGB and
+ * a 16-bit grayscale encoding. */
+static void test_png_interlaced(void **state)
+{
+    const char *names[] = {"levi-terrainrgb.png", "trinidad-west-u16.png"};
+    const td_dem_encoding encs[] = {TD_ENC_TERRAIN_RGB, TD_ENC_GRAY16};
+    (void)state;
+    for (int k = 0; k < 2; k++) {
+        char src[512], p[512];
+        png_out out = {0};
+        unsigned char *px;
+        td_grid *ref, *g;
+        td_dem_opts o;
+        td_dem_opts_default(&o);
+        o.encoding = encs[k];
+        o.spacing[0] = 20.0;
+        fixture(names[k], src, sizeof src);
+        ref = load_ok(src, &o);
+        px = png_pixels(src, &out.w, &out.h, &out.depth, &out.ctype, &out.rowbytes);
+        out.px = px;
+        out.interlace = PNG_INTERLACE_ADAM7;
+        tmpfile_path("adam7.png", p, sizeof p);
+        png_write(p, &out);
+        g = load_ok(p, &o);
+        assert_int_equal(g->w, ref->w);
+        assert_int_equal(g->h, ref->h);
+        assert_memory_equal(g->z, ref->z, (size_t)g->w * (size_t)g->h * sizeof *g->z);
+        assert_true(g->zmin == ref->zmin && g->zmax == ref->zmax);
+        td_grid_free(g);
+
+        /* truncated in the middle of its passes: refused, not half a grid */
+        {
+            size_t len;
+            unsigned char *buf = slurp(p, &len);
+            spit(p, buf, len * 3 / 5);
+            refused(p, &o, TD_EFORMAT);
+            free(buf);
+        }
+        unlink(p);
+        free(px);
+        td_grid_free(ref);
+    }
+}
+
+/* A palette PNG (as optipng makes of a tile with few colours) is expanded to RGB; a palette
+ * entry made transparent by tRNS is a void. 4-bit palette, 5 x 3, terrain-rgb. */
+static void test_png_palette(void **state)
+{
+    /* terrain-rgb: m = -10000 + (R*65536 + G*256 + B) * 0.1 */
+    const png_color pal[4] = {{0x01, 0x86, 0xa0}, {0x01, 0x87, 0x04}, {0x01, 0x90, 0x00}, {0, 0, 0}};
+    const png_byte trns[4] = {255, 255, 255, 0};
+    const double m[4] = {0.0, 10.0, 240.0, NAN}; /* 0x0186a0 = 100000; 0x018704 = 100100; 0x019000 = 102400 */
+    const unsigned char idx[3][5] = {{0, 1, 2, 3, 0}, {1, 1, 1, 1, 1}, {2, 0, 2, 0, 2}};
+    unsigned char px[3][3]; /* 4-bit: 5 pixels in 3 bytes per row */
+    png_out out = {0};
+    char p[512];
+    td_grid *g;
+    td_dem_opts o;
+    (void)state;
+    memset(px, 0, sizeof px);
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 5; c++)
+            px[r][c / 2] |= (unsigned char)(idx[r][c] << (c % 2 ? 0 : 4));
+    out.w = 5;
+    out.h = 3;
+    out.depth = 4;
+    out.ctype = PNG_COLOR_TYPE_PALETTE;
+    out.rowbytes = 3;
+    out.px = &px[0][0];
+    out.palette = pal;
+    out.npalette = 4;
+    out.trns = trns;
+    out.ntrns = 4;
+    tmpfile_path("palette.png", p, sizeof p);
+    for (int interlace = 0; interlace < 2; interlace++) {
+        out.interlace = interlace ? PNG_INTERLACE_ADAM7 : PNG_INTERLACE_NONE;
+        png_write(p, &out);
+        td_dem_opts_default(&o);
+        o.encoding = TD_ENC_TERRAIN_RGB;
+        o.spacing[0] = 30.0;
+        g = load_ok(p, &o);
+        assert_int_equal(g->w, 5);
+        assert_int_equal(g->h, 3);
+        assert_int_equal(g->voids, 1);
+        for (int r = 0; r < 3; r++) {
+            for (int c = 0; c < 5; c++) {
+                float z = g->z[(size_t)(2 - r) * 5 + (size_t)c]; /* south-based storage */
+                double want = m[idx[r][c]];
+                if (isnan(want))
+                    assert_true(isnan(z));
+                else
+                    assert_true(fabs((double)z - want) < 1e-3);
+            }
+        }
+        td_grid_free(g);
+        /* gray16 needs 16-bit grayscale: a palette image is refused by name */
+        o.encoding = TD_ENC_GRAY16;
+        refused(p, &o, TD_EFORMAT);
+    }
+    unlink(p);
+}
+
 /* ---- dispatch, GDAL ----------------------------------------------------------------- */
 
 static void test_dispatch(void **state)
@@ -1051,6 +1212,8 @@ int main(void)
         cmocka_unit_test(test_png_gray16_trinidad_west),
         cmocka_unit_test(test_png_sidecar_and_no_encoding),
         cmocka_unit_test(test_png_refusals),
+        cmocka_unit_test(test_png_interlaced),
+        cmocka_unit_test(test_png_palette),
         cmocka_unit_test(test_dispatch),
         cmocka_unit_test(test_gdal_geotiff),
     };
