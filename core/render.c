@@ -30,8 +30,17 @@
  * s = 2*pixel_angle/a, where the drop reaches one pixel's footprint, are traced
  * straight; if no ray of the view can reach s, the curvature stage does not run at
  * all. An orthographic top-down view never bends: lowering the terrain under vertical
- * rays moves no pixel. Shadow, AO and reflection rays are short or local and stay
- * straight.
+ * rays moves no pixel.
+ *
+ * Shadow and reflection rays bend the same way about their own origin W: the terrain at
+ * horizontal distance h' from W lies a*h'^2 below W's horizon, so the ray toward the sun
+ * (the scene's sun is given in the local frame everywhere) is the parabola from W. A
+ * reflected ray leaves the water with the bent camera ray's slope there, mirrored, and
+ * bends about the water point. They are bent when their run over the grid is long
+ * enough for the drop to reach TD_CURVE_EPS2 (0.5 m, about 2.7 km at k = 0.13), with
+ * chords of the same 0.5 m tolerance; shorter ones are straight. This holds for every
+ * projection: the sun's rays over an orthographic view bend too. AO rays stay straight
+ * (their radius is local).
  *
  * Level of detail (quality.lod, Cohen-Or et al.; Qu et al.): the caller passes the
  * coarse levels of lod.h. A perspective camera ray is traced on level 0 up to the
@@ -108,7 +117,7 @@ typedef struct worker {
     pthread_t th;
     smp *s;
     float *lit, *occl, *refl;
-    uint64_t rays[TD_RAY_KIND_COUNT], steps, hits, curved, segs;
+    uint64_t rays[TD_RAY_KIND_COUNT], steps, hits, curved, curved2, segs;
     uint64_t method_rays[TD_METHOD_COUNT];
     uint64_t lod_rays[TD_LOD_MAX + 1];
     double stage_s[TD_STAGE_COUNT];
@@ -136,8 +145,9 @@ struct ctx {
     double zlo, zspan;
     const td_image8 *drape;
     double beta0, zref; /* haze */
-    int curv;
-    double curv_a, curv_smin;
+    int curv;        /* camera rays may need bending */
+    int curv2;       /* shadow and reflection rays may need bending */
+    double curv_a, curv_smin, curv_smin2;
     double gx1, gy1; /* grid extent */
     double zmax;
     double ao_radius;
@@ -183,24 +193,28 @@ static int clip_xy(const ctx *c, const double o[3], const double d[3], double *t
     return ok;
 }
 
-/* Does this camera ray need bending (see the top of the file)? */
-static int needs_curve(const ctx *c, const double o[3], const double d[3])
+/* Does this ray need bending: is its horizontal run from o to where it leaves the grid
+ * at least smin (see the top of the file)? */
+static int needs_curve(const ctx *c, const double o[3], const double d[3], double smin)
 {
     int need = 0;
     double t0, t1;
-    if (c->curv && clip_xy(c, o, d, &t0, &t1)) {
+    if (clip_xy(c, o, d, &t0, &t1)) {
         double dxy = hypot(d[0], d[1]);
-        double hx = o[0] + t1 * d[0] - c->cam.o[0], hy = o[1] + t1 * d[1] - c->cam.o[1];
-        need = dxy > 0.0 && hypot(hx, hy) >= c->curv_smin;
+        need = dxy > 0.0 && t1 * dxy >= smin;
     }
     return need;
 }
 
-/* The bent camera ray as a chain of straight chords (see the top of the file). On a
- * hit, hit->t is the distance along the unbent ray's parameter, hit->p the terrain
- * point. */
-static void trace_curved(const ctx *c, const td_ray *r, td_hit *hit, uint64_t *steps,
-                         uint64_t *segs)
+/* The drop a secondary ray must reach to be bent, and its chords' tolerance (metres). */
+#define TD_CURVE_EPS2 0.5
+
+/* A ray bent about its origin, q(t) = o + t*d + (0, 0, a*(t*|d_xy|)^2), as a chain of
+ * straight chords on view v (see the top of the file), each within max(0.5 m,
+ * eps_per_t * t) of the parabola. On a hit, hit->t is the distance along the unbent
+ * ray's parameter, hit->p the terrain point. */
+static void trace_curved(const ctx *c, const td_view *v, const td_ray *r, double eps_per_t,
+                         td_hit *hit, uint64_t *steps, uint64_t *segs)
 {
     const td_scene *s = c->s;
     double t0, t1, a = c->curv_a, dxy = hypot(r->d[0], r->d[1]);
@@ -215,7 +229,7 @@ static void trace_curved(const ctx *c, const td_ray *r, td_hit *hit, uint64_t *s
         qc[k] = r->o[k] + tc * r->d[k];
     qc[2] += a * (tc * dxy) * (tc * dxy);
     while (tc < t1) {
-        double eps = fmax(0.5, 0.25 * c->cam.pixel_angle * tc);
+        double eps = fmax(TD_CURVE_EPS2, eps_per_t * tc);
         double run = sqrt(4.0 * eps / a); /* horizontal */
         double tn = fmin(t1, tc + run / dxy);
         double qn[3];
@@ -229,7 +243,7 @@ static void trace_curved(const ctx *c, const td_ray *r, td_hit *hit, uint64_t *s
         }
         seg.tmin = 0.0;
         seg.tmax = 1.0;
-        td_trace(c->v, s->quality.method, s->quality.surface, &seg, hit);
+        td_trace(v, s->quality.method, s->quality.surface, &seg, hit);
         *steps += hit->steps;
         *segs += 1;
         if (hit->t <= 1.0) {
@@ -330,6 +344,19 @@ static void trace_lod(const ctx *c, const td_ray *r, td_hit *hit, int *level, ui
     *level = l;
 }
 
+/* A shadow or reflection ray on view v: bent about its origin when curvature is on and
+ * its run is long enough (see the top of the file), else straight. */
+static void trace_secondary(const ctx *c, worker *w, const td_view *v, const td_ray *r, td_hit *hit)
+{
+    if (c->curv2 && needs_curve(c, r->o, r->d, c->curv_smin2)) {
+        trace_curved(c, v, r, 0.0, hit, &w->steps, &w->segs);
+        w->curved2++;
+    } else {
+        td_trace(v, c->s->quality.method, c->s->quality.surface, r, hit);
+        w->steps += hit->steps;
+    }
+}
+
 static void run_block(worker *w, int b)
 {
     ctx *c = w->c;
@@ -362,7 +389,7 @@ static void run_block(worker *w, int b)
         q->alpha = 0.0f;
         q->rgb[0] = q->rgb[1] = q->rgb[2] = 0.0f; /* a miss without sky stays transparent black */
         w->rays[TD_RAY_PRIMARY]++;
-        if (needs_curve(c, r.o, r.d)) {
+        if (c->curv && needs_curve(c, r.o, r.d, c->curv_smin)) {
             q->flags = F_CURVE;
             continue;
         }
@@ -392,7 +419,7 @@ static void run_block(worker *w, int b)
             memcpy(r.d, q->d, sizeof r.d);
             r.tmin = 0.0;
             r.tmax = INFINITY;
-            trace_curved(c, &r, &hit, &w->steps, &w->segs);
+            trace_curved(c, c->v, &r, 0.25 * c->cam.pixel_angle, &hit, &w->steps, &w->segs);
             w->curved++;
             if ((unsigned)hit.method < TD_METHOD_COUNT)
                 w->method_rays[hit.method]++;
@@ -426,12 +453,13 @@ static void run_block(worker *w, int b)
             memcpy(r.o, wp, sizeof r.o);
             r.d[0] = q->d[0];
             r.d[1] = q->d[1];
-            r.d[2] = fabs(q->d[2]);
+            /* a bent camera ray meets the water with the parabola's slope there */
+            r.d[2] = fabs((q->flags & F_CURVE) ? q->d[2] + 2.0 * c->curv_a * (q->d[0] * q->d[0] + q->d[1] * q->d[1]) * tw
+                                               : q->d[2]);
             r.tmin = 0.0;
             r.tmax = INFINITY;
-            td_trace(c->views[q->level], s->quality.method, s->quality.surface, &r, &hit);
+            trace_secondary(c, w, c->views[q->level], &r, &hit);
             w->rays[TD_RAY_REFLECTION]++;
-            w->steps += hit.steps;
             float *rf = &w->refl[4 * i];
             if (hit.t < INFINITY)
                 shade_plain(c, &hit, q->level, rf);
@@ -459,9 +487,8 @@ static void run_block(worker *w, int b)
             memcpy(r.d, c->sun, sizeof r.d);
             r.tmin = 0.0;
             r.tmax = INFINITY;
-            td_trace(c->views[q->level], s->quality.method, s->quality.surface, &r, &hit);
+            trace_secondary(c, w, c->views[q->level], &r, &hit);
             w->rays[TD_RAY_SHADOW]++;
-            w->steps += hit.steps;
             w->lit[i] = hit.t < INFINITY ? 0.0f : 1.0f;
         }
         w->stage_s[TD_STAGE_SHADOWS] += now_s() - t;
@@ -680,8 +707,12 @@ static td_status setup_ctx(ctx *c, const td_view *v, const td_scene *s, td_err *
     if (s->effects.water && c->cam.projection == TD_PROJ_ORTHOGRAPHIC &&
         s->effects.water_level + 100.0 > c->cam.ztop)
         c->cam.ztop = s->effects.water_level + 100.0;
-    if (s->effects.curvature && c->cam.projection == TD_PROJ_PERSPECTIVE) {
+    if (s->effects.curvature) {
         c->curv_a = (1.0 - s->effects.curvature_k) / (2.0 * TD_EARTH_RADIUS_M);
+        c->curv_smin2 = sqrt(TD_CURVE_EPS2 / c->curv_a);
+        c->curv2 = hypot(c->gx1, c->gy1) >= c->curv_smin2;
+    }
+    if (s->effects.curvature && c->cam.projection == TD_PROJ_PERSPECTIVE) {
         c->curv_smin = 2.0 * c->cam.pixel_angle / c->curv_a;
         /* the farthest the view can reach over the grid: its farthest corner */
         double far = 0.0;
@@ -843,6 +874,7 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
         for (int k = 0; k <= TD_LOD_MAX; k++)
             st->lod_rays[k] += w->lod_rays[k];
         st->curved_rays += w->curved;
+        st->curved_secondary += w->curved2;
         st->curve_segments += w->segs;
         for (int k = 0; k < TD_METHOD_COUNT; k++)
             st->method_rays[k] += w->method_rays[k];
@@ -965,8 +997,8 @@ td_status td_render_pick(const td_view *v, const td_scene *s, td_pick *out,
         pk->px = s->pick[i][0];
         pk->py = s->pick[i][1];
         td_camera_ray(&c.cam, pk->px, pk->py, &r);
-        if (needs_curve(&c, r.o, r.d)) {
-            trace_curved(&c, &r, &hit, &steps, &segs);
+        if (c.curv && needs_curve(&c, r.o, r.d, c.curv_smin)) {
+            trace_curved(&c, v, &r, 0.25 * c.cam.pixel_angle, &hit, &steps, &segs);
             if (stats) {
                 stats->curved_rays++;
                 stats->curve_segments += segs;

@@ -70,7 +70,8 @@ typedef struct td_render_stats {
     uint64_t steps;            /* tracer steps over all rays */
     uint64_t hits;             /* camera samples that hit the terrain */
     uint64_t curved_rays;      /* camera rays traced bent */
-    uint64_t curve_segments;   /* straight pieces those were traced as */
+    uint64_t curved_secondary; /* shadow and reflection rays traced bent */
+    uint64_t curve_segments;   /* straight pieces the bent rays were traced as */
     uint64_t method_rays[TD_METHOD_COUNT]; /* camera rays by the method the tracer used
                                               where they ended (what `auto` chose) */
     uint64_t lod_rays[TD_LOD_MAX + 1]; /* camera rays by the level of detail they ended on */

@@ -5,7 +5,8 @@
  *   they are known) and changes the picture the way it should (shadows only darken, sky
  *   only fills the background, haze only touches the terrain).
  * - Curvature bends rays only when the view reaches far enough for it to move a pixel,
- *   and then meets flat ground where the closed form says.
+ *   and then meets flat ground where the closed form says; shadow rays bend about their
+ *   origin by the right drop (a far wall shadows or not as the parabola says).
  * - Supersampling traces n*n rays per pixel; the image is the same for 1 and 2 threads;
  *   depth agrees with picking; cancellation and unsupported options are refused.
  * - Golden images: small scenes, one per effect, compared by PSNR (>= 35 dB) with
@@ -360,6 +361,82 @@ static void test_curvature(void **state)
     td_grid_free(flat);
 }
 
+/* Flat ground 80 km x 2 km at 0 m with a wall of height `wall` from x = 70 km east. */
+static td_grid *walled_plain(double wall)
+{
+    td_grid *g = NULL;
+    td_err err = {{0}};
+    assert_int_equal(td_grid_create(801, 21, 100.0, 100.0, 6, NULL, &g, &err), TD_OK);
+    for (int32_t j = 0; j < 21; j++)
+        for (int32_t i = 0; i < 801; i++)
+            g->z[(size_t)j * 801 + (size_t)i] = i >= 700 ? (float)wall : 0.0f;
+    assert_int_equal(td_grid_finish(g, &err), TD_OK);
+    return g;
+}
+
+/* Mean of R + G + B over the image. */
+static double mean_rgb(const td_render_result *r)
+{
+    double sum = 0.0;
+    size_t n = (size_t)r->width * (size_t)r->height;
+    for (size_t k = 0; k < n; k++)
+        sum += r->rgba[4 * k] + r->rgba[4 * k + 1] + r->rgba[4 * k + 2];
+    return sum / (double)n;
+}
+
+/* Shadow rays bend about their origin under curvature. The ground near x = 1 km is lit by
+ * a sun 5 degrees up in the east over a wall 69 km away: a straight ray passes x = 70 km
+ * at 69000 tan 5deg = 6037 m; bent, a*69000^2 = 325 m higher (k = 0.13), 6362 m. A wall of
+ * 6300 m shadows the ground only without curvature; one of 6420 m shadows it with
+ * curvature too, so the drop is right within -19% .. +18%. Camera rays are not bent here
+ * (their pixel moves only past 480 km). */
+static void test_curvature_shadows(void **state)
+{
+    const double walls[2] = {6300.0, 6420.0};
+    double lit[2][2];
+    (void)state;
+    for (int k = 0; k < 2; k++) {
+        td_grid *g = walled_plain(walls[k]);
+        td_view v = {g, NULL};
+        for (int curv = 0; curv < 2; curv++) {
+            td_render_result r;
+            td_render_opts o;
+            td_err err = {{0}};
+            td_scene_defaults(&scene);
+            scene.camera.x = 1000.0;
+            scene.camera.y = -300.0;
+            scene.camera.z = 800.0;
+            scene.camera.heading = 0.0;
+            scene.camera.pitch = -45.0;
+            scene.camera.fov = 30.0;
+            scene.image.width = 32;
+            scene.image.height = 24;
+            scene.quality.method = TD_METHOD_INCREMENTAL;
+            scene.effects.sun_azimuth = 90.0;
+            scene.effects.sun_elevation = 5.0;
+            scene.effects.ambient = 0.0;
+            scene.effects.shadows = 1;
+            scene.effects.curvature = curv;
+            td_render_opts_default(&o);
+            o.threads = 2;
+            assert_int_equal(td_render(&v, &scene, &o, &r, &err), TD_OK);
+            assert_int_equal(r.stats.hits, 32 * 24);
+            assert_int_equal(r.stats.rays[TD_RAY_SHADOW], 32 * 24);
+            assert_int_equal(r.stats.curved_rays, 0);
+            assert_int_equal(r.stats.curved_secondary, curv ? 32 * 24 : 0);
+            assert_true(curv ? r.stats.curve_segments >= 32 * 24 : r.stats.curve_segments == 0);
+            lit[k][curv] = mean_rgb(&r);
+            td_render_result_free(&r);
+        }
+        td_grid_free(g);
+    }
+    print_message("  mean R+G+B: wall 6300 m straight %.1f bent %.1f; wall 6420 m straight %.1f bent %.1f\n",
+                  lit[0][0], lit[0][1], lit[1][0], lit[1][1]);
+    assert_true(lit[0][0] < 1.0);           /* shadowed, no ambient: black */
+    assert_true(lit[0][1] > 10.0);          /* bent over the 6300 m wall: sunlit */
+    assert_true(lit[1][0] < 1.0 && lit[1][1] < 1.0); /* 6420 m shadows both */
+}
+
 static void test_refusals_and_cancel(void **state)
 {
     td_render_result r;
@@ -637,6 +714,7 @@ int main(void)
         cmocka_unit_test(test_supersampling_and_threads),
         cmocka_unit_test(test_depth_matches_pick),
         cmocka_unit_test(test_curvature),
+        cmocka_unit_test(test_curvature_shadows),
         cmocka_unit_test(test_refusals_and_cancel),
         cmocka_unit_test(test_level_of_detail),
         cmocka_unit_test(test_cli_render),

@@ -116,6 +116,7 @@ before(async () => {
   });
   closeSync(log);
   server.on('exit', (code, sig) => { serverExit = sig || `code ${code}`; });
+  server.on('error', (e) => { serverExit = `could not start: ${e.message}`; });
   // Never leave terrad behind, even when this script is interrupted.
   process.on('exit', () => {
     if (!serverExit) try { process.kill(server.pid, 'SIGKILL'); } catch (e) { /* gone */ }
