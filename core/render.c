@@ -600,10 +600,14 @@ static void run_block(worker *w, int b)
             const smp *q = &w->s[pix * n * n];
             size_t o = (size_t)y * (size_t)c->cam.width + (size_t)x;
             if (c->depth_only) {
+                /* the nearest visible surface: with water, its surface where it is nearer */
                 double best = INFINITY;
-                for (int k = 0; k < n * n; k++)
+                for (int k = 0; k < n * n; k++) {
                     if ((q[k].flags & F_HIT) && q[k].t < best)
                         best = q[k].t;
+                    if (s->effects.water)
+                        best = dmin_(best, water_distance(c, &q[k]));
+                }
                 c->depth[o] = (float)best;
             } else {
                 double acc[3] = {0.0, 0.0, 0.0}, a = 0.0;

@@ -280,6 +280,32 @@ static void test_depth_matches_pick(void **state)
     }
     assert_true(pk[0].hit);
     assert_false(pk[2].hit); /* top-left corner: sky */
+    /* with water, depth is to the water's surface where it is nearer than the terrain */
+    {
+        td_render_result rw;
+        td_camera cam;
+        td_ray ray;
+        int nearer = 0;
+        scene.image.format = TD_FORMAT_DEPTH32F;
+        scene.effects.water = 1;
+        scene.effects.water_level = pk[0].p[2] + 50.0;
+        render(&scene, 2, &rw);
+        assert_int_equal(rw.stats.rays[TD_RAY_REFLECTION], 0); /* depth traces no reflection */
+        for (int i = 0; i < W * H; i++) {
+            if (isfinite(r.depth[i]))
+                assert_true(rw.depth[i] <= r.depth[i] * (1.0f + 1e-6f));
+            nearer += rw.depth[i] < r.depth[i] * (1.0f - 1e-4f);
+        }
+        assert_true(nearer > 0);
+        assert_int_equal(td_camera_setup(&scene.camera, W, H, grid, &cam, &err), TD_OK);
+        td_camera_ray(&cam, px[0][0], px[0][1], &ray);
+        assert_true(ray.d[2] < 0.0);
+        double tw = (ray.o[2] - scene.effects.water_level) / -ray.d[2];
+        assert_float_equal(rw.depth[px[0][1] * W + px[0][0]], tw, 1e-4 * tw);
+        assert_true(tw < pk[0].distance);
+        td_render_result_free(&rw);
+        scene.effects.water = 0;
+    }
     /* depth16 encodes with a scale and 65535 for nothing */
     td_buf b;
     double scale = 0.0;
