@@ -16,7 +16,11 @@
  * (no DEM in metres has cells under 10 cm over such a small area near (0, 0) without a
  * .prj in practice; --spacing overrides the metres if it does). Lon/lat grids get their
  * spacing in metres at the centre latitude (td_grid_lonlat_spacing); otherwise the cell
- * size is the spacing in metres. */
+ * size times the .prj's linear unit is the spacing in metres: the projected CRS's last
+ * UNIT["name", metres] (WKT1: the GEOGCS's angular unit comes before it) or LENGTHUNIT
+ * (WKT2), e.g. 0.3048006096 for US survey feet; without one, metres. A unit that is
+ * there but not a positive number is refused, naming the .prj. Heights are taken as
+ * metres whatever the unit (a .prj has no vertical unit). */
 #include "demasc.h"
 
 #include <ctype.h>
@@ -101,14 +105,35 @@ static const char *const asc_key_names[] = {
 #undef TD_X_NAME
 };
 
-/* 1 geographic, 0 projected, -1 no .prj (or unreadable / undecided). */
-static int asc_prj_says(const char *path)
+/* The number after the unit's name in `UNIT["name", value` at u; 0 if unreadable. */
+static double prj_unit_value(const char *u)
 {
+    double v = 0.0;
+    const char *q = strchr(u, '"');
+    q = q ? strchr(q + 1, '"') : NULL;
+    if (q) {
+        char *end = NULL;
+        q++;
+        while (*q == ' ' || *q == ',')
+            q++;
+        v = strtod(q, &end);
+        if (end == q || !isfinite(v) || !(v > 0.0) || v > 1e6)
+            v = 0.0;
+    }
+    return v;
+}
+
+/* Reads `<name>.prj` beside the file, if there is one: *kind 1 geographic, 0 projected,
+ * -1 none or undecided; *unit_m the projected CRS's linear unit in metres (1 if none). */
+static td_status asc_prj_read(const char *path, int *kind, double *unit_m, td_err *err)
+{
+    td_status rc = TD_OK;
     char prj[4096], text[TD_ASC_PRJ_MAX];
-    int res = -1;
     size_t n;
     FILE *f = NULL;
     char *dot = NULL;
+    *kind = -1;
+    *unit_m = 1.0;
     if (snprintf(prj, sizeof prj, "%s", path) < (int)sizeof prj - 4)
         dot = strrchr(prj, '.');
     if (dot && !strchr(dot, '/')) {
@@ -120,11 +145,25 @@ static int asc_prj_says(const char *path)
         text[n] = '\0';
         fclose(f);
         if (strstr(text, "PROJCS") || strstr(text, "PROJCRS"))
-            res = 0;
+            *kind = 0;
         else if (strstr(text, "GEOGCS") || strstr(text, "GEOGCRS"))
-            res = 1;
+            *kind = 1;
     }
-    return res;
+    if (*kind == 0) {
+        /* the last one: WKT2 names lengths LENGTHUNIT; in WKT1 the projected CRS's UNIT
+           follows its GEOGCS's angular one */
+        const char *key = strstr(text, "LENGTHUNIT[") ? "LENGTHUNIT[" : "UNIT[";
+        const char *u = NULL;
+        for (const char *p = strstr(text, key); p; p = strstr(p + 1, key))
+            u = p;
+        if (u) {
+            *unit_m = prj_unit_value(u);
+            if (*unit_m == 0.0)
+                rc = td_err_set(err, TD_EFORMAT, "%s: the linear unit in %s is not a positive number of metres",
+                                path, prj);
+        }
+    }
+    return rc;
 }
 
 td_status td_demasc_load(const char *path, const td_dem_opts *o, td_grid **out, td_err *err)
@@ -136,6 +175,7 @@ td_status td_demasc_load(const char *path, const td_dem_opts *o, td_grid **out, 
     double kv[K_COUNT];
     int seen[K_COUNT] = {0};
     int t, geographic = 0, prj;
+    double unit_m = 1.0;
     long w = 0, h = 0;
     double dx = 0, dy = 0, x0, y0, sx = 0, sy = 0;
     size_t n = 0, k = 0;
@@ -220,7 +260,9 @@ td_status td_demasc_load(const char *path, const td_dem_opts *o, td_grid **out, 
     }
     x0 = seen[K_XLLCORNER] ? kv[K_XLLCORNER] + 0.5 * dx : kv[K_XLLCENTER];
     y0 = seen[K_YLLCORNER] ? kv[K_YLLCORNER] + 0.5 * dy : kv[K_YLLCENTER];
-    prj = asc_prj_says(path);
+    rc = asc_prj_read(path, &prj, &unit_m, err);
+    if (rc != TD_OK)
+        goto out;
     if (prj >= 0)
         geographic = prj;
     else
@@ -235,8 +277,8 @@ td_status td_demasc_load(const char *path, const td_dem_opts *o, td_grid **out, 
     memset(&sc, 0, sizeof sc);
     if (!geographic) {
         sc.has_spacing = 1;
-        sc.spacing[0] = dx;
-        sc.spacing[1] = dy;
+        sc.spacing[0] = dx * unit_m;
+        sc.spacing[1] = dy * unit_m;
     }
     rc = td_demutil_spacing(path, o, &sc, &geo, (int32_t)w, (int32_t)h, &sx, &sy, err);
     if (rc != TD_OK)

@@ -281,6 +281,51 @@ static void test_asc_variants(void **state)
     assert_int_equal(g->geo.kind, TD_GEO_PROJECTED);
     assert_true(g->sx == 0.05);
     td_grid_free(g);
+
+    /* the projected CRS's linear unit scales the cell size to metres: a real ESRI .prj
+       in US survey feet (WKT1: the GEOGCS's degree comes first), and WKT2's LENGTHUNIT */
+    tmpfile_path("tiny.prj", p, sizeof p);
+    spit_text(p, "PROJCS[\"NAD_1983_StatePlane_Colorado_Central_FIPS_0502_Feet\",GEOGCS[\"GCS_North_"
+                 "American_1983\",DATUM[\"D_North_American_1983\",SPHEROID[\"GRS_1980\",6378137.0,"
+                 "298.257222101]],PRIMEM[\"Greenwich\",0.0],UNIT[\"Degree\",0.0174532925199433]],"
+                 "PROJECTION[\"Lambert_Conformal_Conic\"],PARAMETER[\"False_Easting\",3000000.000316083],"
+                 "PARAMETER[\"Central_Meridian\",-105.5],UNIT[\"Foot_US\",0.3048006096012192]]");
+    tmpfile_path("tiny.asc", p, sizeof p);
+    spit_text(p, "ncols 2\nnrows 2\nxllcorner 3000000\nyllcorner 1500000\ncellsize 10\n1 2\n3 4\n");
+    g = load_ok(p, NULL);
+    assert_int_equal(g->geo.kind, TD_GEO_PROJECTED);
+    assert_true(fabs(g->sx - 3.048006096012192) < 1e-12 && g->sy == g->sx);
+    assert_true(g->geo.dx == 10.0); /* the georeference stays in the CRS's units */
+    assert_true(td_grid_at(g, 0, 0) == 3.0f); /* heights are not scaled */
+    td_grid_free(g);
+    {
+        td_dem_opts o;
+        td_dem_opts_default(&o);
+        o.spacing[0] = 2.5; /* --spacing still overrides */
+        g = load_ok(p, &o);
+        assert_true(g->sx == 2.5);
+        td_grid_free(g);
+    }
+    tmpfile_path("tiny.prj", p, sizeof p);
+    spit_text(p, "PROJCRS[\"x\",BASEGEOGCRS[\"y\",ANGLEUNIT[\"degree\",0.0174532925199433]],"
+                 "CS[Cartesian,2],LENGTHUNIT[\"US survey foot\", 0.304800609601219]]");
+    tmpfile_path("tiny.asc", p, sizeof p);
+    g = load_ok(p, NULL);
+    assert_true(fabs(g->sx - 3.04800609601219) < 1e-12);
+    td_grid_free(g);
+    /* a unit that is there but unreadable is refused, naming the .prj */
+    tmpfile_path("tiny.prj", p, sizeof p);
+    spit_text(p, "PROJCS[\"local\",UNIT[\"furlong\",-201.168]]");
+    tmpfile_path("tiny.asc", p, sizeof p);
+    refused(p, NULL, TD_EFORMAT);
+    {
+        td_grid *none = NULL;
+        td_err err = {{0}};
+        assert_int_equal(td_dem_load(p, NULL, &none, &err), TD_EFORMAT);
+        assert_non_null(strstr(err.msg, "tiny.prj"));
+    }
+    tmpfile_path("tiny.prj", p, sizeof p);
+    unlink(p);
 }
 
 static void test_asc_refusals(void **state)
