@@ -43,8 +43,15 @@
  * gap: a centre distance of max(|di|-1, 0)*sx by max(|dj|-1, 0)*sy. The EDT is weighted
  * by sx^2 and sy^2, so cells need not be square.
  *
- * Values are rounded up to float (apex and slope), so the stored cone is never narrower
- * than the computed one. Cost: K EDTs of the tile; 8 bytes per cell resident. */
+ * Storage, 2 bytes per cell: the apex is always one of the K slice heights z_{m+1} or
+ * zhi, so a cell stores its index into the tile's table of K + 1 heights (rounded up to
+ * float); the slope is a byte code, the smallest whose value (a per-tile power of two
+ * times td_planes_slope_unit, steps of at most 6.25%) is at least the computed slope.
+ * Both round up, so the stored cone is never narrower than the computed one and (1)
+ * holds as proven; a rounded-up slope only shortens a step. The scale puts the tile's
+ * steepest slope under the top code; slopes below 2^-15 of it round up to the first
+ * code. Measured on trinidad (bench, K = 16): 4x less memory than two floats per cell
+ * (2 instead of 8 bytes) for about 1% more steps. Cost: K EDTs of the tile. */
 #include "planes.h"
 
 #include <math.h>
@@ -52,6 +59,41 @@
 #include <string.h>
 
 #include "edt.h"
+
+/* Exact binary fractions (1 + m/16) * 2^e, code - 1 = 16e + m. */
+#define TD_SLOPE_UNIT(c) ((1.0 + (double)(((c) - 1) % 16) / 16.0) * (double)(1L << (((c) - 1) / 16)))
+#define TD_SLOPE_ROW(b)                                                                             \
+    TD_SLOPE_UNIT(b + 1), TD_SLOPE_UNIT(b + 2), TD_SLOPE_UNIT(b + 3), TD_SLOPE_UNIT(b + 4),         \
+        TD_SLOPE_UNIT(b + 5), TD_SLOPE_UNIT(b + 6), TD_SLOPE_UNIT(b + 7), TD_SLOPE_UNIT(b + 8),     \
+        TD_SLOPE_UNIT(b + 9), TD_SLOPE_UNIT(b + 10), TD_SLOPE_UNIT(b + 11), TD_SLOPE_UNIT(b + 12),  \
+        TD_SLOPE_UNIT(b + 13), TD_SLOPE_UNIT(b + 14), TD_SLOPE_UNIT(b + 15), TD_SLOPE_UNIT(b + 16)
+
+const double td_planes_slope_unit[256] = {
+    0.0,                                                                  /* code 0 */
+    TD_SLOPE_ROW(0),   TD_SLOPE_ROW(16),  TD_SLOPE_ROW(32),  TD_SLOPE_ROW(48),  /* 1 .. 64 */
+    TD_SLOPE_ROW(64),  TD_SLOPE_ROW(80),  TD_SLOPE_ROW(96),  TD_SLOPE_ROW(112), /* .. 128 */
+    TD_SLOPE_ROW(128), TD_SLOPE_ROW(144), TD_SLOPE_ROW(160), TD_SLOPE_ROW(176), /* .. 192 */
+    TD_SLOPE_ROW(192), TD_SLOPE_ROW(208), TD_SLOPE_ROW(224),                    /* .. 240 */
+    TD_SLOPE_UNIT(241), TD_SLOPE_UNIT(242), TD_SLOPE_UNIT(243), TD_SLOPE_UNIT(244),
+    TD_SLOPE_UNIT(245), TD_SLOPE_UNIT(246), TD_SLOPE_UNIT(247), TD_SLOPE_UNIT(248),
+    TD_SLOPE_UNIT(249), TD_SLOPE_UNIT(250), TD_SLOPE_UNIT(251), TD_SLOPE_UNIT(252),
+    TD_SLOPE_UNIT(253), TD_SLOPE_UNIT(254),
+    INFINITY, /* code 255 */
+};
+
+/* The smallest code whose slope is at least s (s >= 0). */
+static uint8_t slope_code(double s, double scale)
+{
+    int lo = 0, hi = 255; /* td_planes_slope_unit[255] = +inf >= anything */
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (scale * td_planes_slope_unit[mid] >= s)
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    return (uint8_t)lo;
+}
 
 static float round_up(double v)
 {
@@ -71,13 +113,14 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
     float *cell = NULL;
     float *h3 = NULL; /* H's maximum over each cell's 3x3 neighbourhood */
     double *dist = NULL, *prev = NULL, *zp = NULL, *sp = NULL;
+    double smax = 0.0;
     td_edt_scratch scratch = {0};
     float zlo = INFINITY, zhi = -INFINITY;
     int slices = k;
 
     *out = NULL;
-    if (k < 1 || k > 1024) {
-        rc = td_err_set(err, TD_ERANGE, "parameter planes need 1 .. 1024 slices, not %d", k);
+    if (k < 1 || k > TD_PLANES_K_MAX) {
+        rc = td_err_set(err, TD_ERANGE, "parameter planes need 1 .. %d slices, not %d", TD_PLANES_K_MAX, k);
         goto out;
     }
     p = calloc(1, sizeof *p);
@@ -95,12 +138,14 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
     p->k = k;
     p->nx = nx;
     p->ny = ny;
+    p->slope_scale = 1.0;
     p->cone = malloc(sizeof(td_cone) * n);
-    if (!p->cone) {
+    p->apex = malloc(sizeof(float) * ((size_t)k + 1));
+    if (!p->cone || !p->apex) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for parameter planes");
         goto out;
     }
-    p->bytes = sizeof *p + sizeof(td_cone) * n;
+    p->bytes = sizeof *p + sizeof(td_cone) * n + sizeof(float) * ((size_t)k + 1);
 
     td_grid_cell_max(g, t, cell);
     for (size_t c = 0; c < n; c++) {
@@ -110,14 +155,15 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
         }
     }
     if (zhi == -INFINITY) { /* all holes: nothing to hit anywhere in the tile */
-        for (size_t c = 0; c < n; c++) {
-            p->cone[c].zp = -INFINITY;
-            p->cone[c].sp = 0.0f;
-        }
+        for (int s = 0; s <= k; s++)
+            p->apex[s] = -INFINITY;
+        memset(p->cone, 0, sizeof(td_cone) * n);
         goto out;
     }
     if (zhi == zlo)
         slices = 1;
+    for (int s = slices; s <= k; s++)
+        p->apex[s] = round_up(zhi); /* the top, and unused entries of a flat tile */
     for (size_t c = 0; c < n; c++)
         zp[c] = NAN; /* apex not fixed yet */
     /* 3x3 maximum of the cell maxima, separable: rows into h3, then columns in place
@@ -154,6 +200,7 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
                     : slices == 1 ? (double)zlo
                                   : (double)zlo + (double)s * ((double)zhi - (double)zlo) / (slices - 1);
         if (s < slices) {
+            p->apex[s] = round_up(zk);
             /* feature mask H >= z_k dilated by one cell = (3x3 maximum of H) >= z_k */
             for (size_t c = 0; c < n; c++)
                 dist[c] = (double)h3[c] >= zk ? 0.0 : INFINITY;
@@ -164,10 +211,12 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
                 if (s == slices) {
                     zp[c] = zhi; /* D_k = 0 for every slice: flat cone at the top */
                     sp[c] = 0.0;
+                    p->cone[c].apex = (uint8_t)s;
                 } else if (dist[c] > 0.0) {
                     zp[c] = zk; /* B(0) = z_{m+1} */
                     sp[c] = 0.0;
                     prev[c] = dist[c]; /* squared */
+                    p->cone[c].apex = (uint8_t)s;
                 }
             } else {
                 /* the staircase rises to z_k at r = D_{k-1}: the slope must reach
@@ -185,10 +234,15 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
             }
         }
     }
-    for (size_t c = 0; c < n; c++) {
-        p->cone[c].zp = round_up(zp[c]);
-        p->cone[c].sp = round_up(sp[c]);
+    for (size_t c = 0; c < n; c++)
+        smax = sp[c] > smax ? sp[c] : smax;
+    if (smax > 0.0) {
+        /* the top code, scale * 59392, is at least 2^ceil(log2(smax)) >= smax */
+        int e = (int)ceil(log2(smax)) - 15;
+        p->slope_scale = ldexp(1.0, e < -1000 ? -1000 : (e > 1000 ? 1000 : e));
     }
+    for (size_t c = 0; c < n; c++)
+        p->cone[c].slope = slope_code(sp[c], p->slope_scale);
 out:
     free(cell);
     free(h3);
@@ -209,6 +263,7 @@ void td_planes_free(td_planes *p)
 {
     if (p) {
         free(p->cone);
+        free(p->apex);
         free(p);
     }
 }

@@ -4,20 +4,39 @@
 #ifndef TD_PLANES_H
 #define TD_PLANES_H
 
+#include <stdint.h>
+
 #include "trace.h"
 
-/* One cell's cone; apex and slope side by side so a step costs one cache miss. */
+/* The most slices a tile's planes can have: apex indices are bytes (0 .. K). */
+#define TD_PLANES_K_MAX 255
+
+/* One cell's cone, quantised to two bytes: the apex is one of the tile's K slice heights
+ * or its top (apex[] below), the slope a code of the slope table, both rounded up, so the
+ * decoded cone is never narrower than the computed one (see planes.c). */
 typedef struct td_cone {
-    float zp; /* apex height (rounded up) */
-    float sp; /* slope, metres of height per metre of distance (rounded up) */
+    uint8_t apex;  /* index into td_planes.apex */
+    uint8_t slope; /* code: 0 flat, 1 .. 254 slope_scale * td_planes_slope_unit[code], 255 +inf */
 } td_cone;
 
+/* Slope code -> slope in units of slope_scale: 0, then (1 + m/16) * 2^e for code - 1 =
+ * 16e + m (e 0 .. 15, steps of at most 6.25%), then +inf. Exact binary fractions. */
+extern const double td_planes_slope_unit[256];
+
 struct td_planes {
-    int k;          /* slices used */
-    int32_t nx, ny; /* cells */
-    td_cone *cone;  /* nx*ny, row-major, south first */
+    int k;              /* slices used */
+    int32_t nx, ny;     /* cells */
+    double slope_scale; /* a power of two chosen per tile so its steepest slope fits */
+    float *apex;        /* k + 1 apex heights (rounded up; -inf in a tile of holes) */
+    td_cone *cone;      /* nx*ny, row-major, south first */
     size_t bytes;
 };
+
+static inline double td_cone_apex(const td_planes *p, td_cone c) { return (double)p->apex[c.apex]; }
+static inline double td_cone_slope(const td_planes *p, td_cone c)
+{
+    return p->slope_scale * td_planes_slope_unit[c.slope];
+}
 
 td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out, td_err *err);
 void td_planes_free(td_planes *p);

@@ -563,7 +563,8 @@ static int cone_run(const walk *w, const td_tile *tile, const td_planes *pl, wal
     uint32_t n = 0;
     while (rc == STEP_CONTINUE && in_tile(st, tile)) {
         size_t idx = (size_t)(st->cj - vlo) * (size_t)pl->nx + (size_t)(st->ci - ulo);
-        double zp = (double)pl->cone[idx].zp, sp = (double)pl->cone[idx].sp;
+        const td_cone cone = pl->cone[idx];
+        double zp = td_cone_apex(pl, cone), sp = td_cone_slope(pl, cone);
         double above = ray_z(w, st->t) - zp - w->zeps;
         int jumped = 0;
         n++;

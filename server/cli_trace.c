@@ -31,6 +31,7 @@
 
 #include "accel.h"
 #include "dem.h"
+#include "planes.h"
 #include "trace.h"
 
 #define TRACE_RECORD 48 /* six float64 */
@@ -207,7 +208,7 @@ int td_cli_trace(int argc, char **argv)
         } else if (!strcmp(opt, "--threads")) {
             ok = td_cli_parse_int(val, 1, 1024, &threads);
         } else if (!strcmp(opt, "--k")) {
-            ok = td_cli_parse_int(val, 1, 4096, &k);
+            ok = td_cli_parse_int(val, 1, TD_PLANES_K_MAX, &k);
         } else if (!strcmp(opt, "--stats")) {
             stats = val;
         } else if (!strcmp(opt, "--encoding")) {

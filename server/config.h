@@ -59,7 +59,7 @@
       "on SIGTERM/SIGINT, how long in-flight requests may finish, seconds")                \
     X(tile_size, INT, "--tile-size", "TERRAD_TILE_SIZE", "256", 2, 65536,                  \
       "cells per tile side (a power of two)")                                              \
-    X(planes_k, INT, "--planes-k", "TERRAD_PLANES_K", "16", 1, 1024,                       \
+    X(planes_k, INT, "--planes-k", "TERRAD_PLANES_K", "16", 1, 255,                        \
       "height slices of the parameter planes")
 
 #define TD_CONFIG_TYPE_STR char *

@@ -592,7 +592,7 @@ void td_store_evict_dataset(td_store *s, size_t idx, size_t *evicted)
 /* --- disk cache ------------------------------------------------------------------- */
 
 #define TD_CACHE_MAGIC "TDACCEL"
-#define TD_CACHE_VERSION 2u /* 2: planes stored as interleaved cones */
+#define TD_CACHE_VERSION 3u /* 2: planes stored as interleaved cones; 3: quantised cones */
 
 typedef struct td_cache_hdr {
     char magic[8];
@@ -605,7 +605,8 @@ typedef struct td_cache_hdr {
     int32_t dim[17];
     int32_t pad2;
     uint64_t offset[17];
-    uint64_t payload; /* bytes after the header */
+    double slope_scale; /* planes */
+    uint64_t payload;   /* bytes after the header */
     uint64_t checksum;
 } td_cache_hdr;
 
@@ -661,11 +662,14 @@ static void cache_write(const td_store *s, const td_ds *d, size_t tile, const td
     } else {
         const td_planes *pl = p->ptr;
         size_t n = (size_t)pl->nx * (size_t)pl->ny * sizeof(td_cone);
+        size_t na = ((size_t)pl->k + 1) * sizeof(float);
         h.levels = pl->k;
-        h.payload = n;
-        h.checksum = fnv1a(TD_FNV_INIT, pl->cone, n);
+        h.slope_scale = pl->slope_scale;
+        h.payload = n + na;
+        h.checksum = fnv1a(fnv1a(TD_FNV_INIT, pl->cone, n), pl->apex, na);
         f = fopen(tmp, "wb");
-        ok = f && fwrite(&h, sizeof h, 1, f) == 1 && fwrite(pl->cone, 1, n, f) == n;
+        ok = f && fwrite(&h, sizeof h, 1, f) == 1 && fwrite(pl->cone, 1, n, f) == n &&
+             fwrite(pl->apex, 1, na, f) == na;
     }
     if (f && fclose(f))
         ok = 0;
@@ -736,20 +740,25 @@ static td_part *cache_read(td_store *s, const td_ds *d, size_t tile, td_part_kin
     } else {
         td_planes *p = calloc(1, sizeof *p);
         size_t n = (size_t)h.nx * (size_t)h.ny * sizeof(td_cone);
+        size_t na = ((size_t)s->o.planes_k + 1) * sizeof(float);
         obj = p;
-        if (!p || h.payload != n || h.levels != s->o.planes_k) {
+        if (!p || h.payload != n + na || h.levels != s->o.planes_k || !(h.slope_scale > 0.0) ||
+            !isfinite(h.slope_scale)) {
             why = "bad shape";
             goto out;
         }
         p->k = h.levels;
         p->nx = h.nx;
         p->ny = h.ny;
+        p->slope_scale = h.slope_scale;
         p->cone = malloc(n ? n : 1);
-        if (!p->cone || fread(p->cone, 1, n, f) != n || fnv1a(TD_FNV_INIT, p->cone, n) != h.checksum) {
+        p->apex = malloc(na);
+        if (!p->cone || !p->apex || fread(p->cone, 1, n, f) != n || fread(p->apex, 1, na, f) != na ||
+            fnv1a(fnv1a(TD_FNV_INIT, p->cone, n), p->apex, na) != h.checksum) {
             why = "checksum mismatch or short payload";
             goto out;
         }
-        p->bytes = sizeof *p + n;
+        p->bytes = sizeof *p + n + na;
         part = part_new(kind, p, p->bytes);
     }
     if (part)
@@ -782,7 +791,8 @@ static uint64_t part_bound(const td_store *s, const td_tile *t, td_part_kind kin
     uint64_t tt = (uint64_t)1 << s->o.tile_log2;
     if (kind == TD_PART_MAXMIP)
         return sizeof(td_maxmip) + sizeof(float) * (tt * tt / 3 + 64);
-    return sizeof(td_planes) + 2 * sizeof(float) * (uint64_t)t->nx * (uint64_t)t->ny;
+    return sizeof(td_planes) + sizeof(td_cone) * (uint64_t)t->nx * (uint64_t)t->ny +
+           sizeof(float) * ((uint64_t)s->o.planes_k + 1);
 }
 
 typedef struct td_stage_tile {

@@ -30,7 +30,7 @@ terrains=(
     "plateau|plateau w=80 h=20 plateau=130 seed=3|16"
     "steps-rows|steps w=77 h=51 voids=rows seed=4|16"
     "saddles-tiles|saddles w=40 h=40 voids=tiles tile=3 seed=6|3"
-    "voids-single|procedural w=90 h=70 voids=single seed=9|256"
+    "voids-single|procedural w=90 h=70 voids=single seed=9|255"
     "voids-seams-cm|procedural w=64 h=48 sx=0.01 sy=0.02 base=1 relief=0.3 voids=seams tile=3|16"
     "ridge-10km|ridge w=45 h=30 sx=10000 sy=7000 relief=8000|16"
     "deep-1e4|procedural w=30 h=60 base=-10000 relief=20|16"

@@ -605,7 +605,7 @@ static int case_georef(hc_stats *st)
 static int case_flat(hc_stats *st)
 {
     static const double zs[] = {0.0, 100.0, -50.5, 1e4};
-    static const int ks[] = {1, 2, 16, 256};
+    static const int ks[] = {1, 2, 16, 255};
     for (int t = 0; t < 4; t++) {
         hc_terrain_params p;
         hc_terrain_defaults(&p, HC_T_FLAT);
@@ -694,7 +694,7 @@ static int case_wall(hc_stats *st)
     p.tile_log2 = 2;
     run_terrain(st, &p, 16, ALL_KINDS, 40, "wall");
     p.sx = 1.0, p.sy = 2.0, p.base = -5000.0;
-    run_terrain(st, &p, 256, ALL_KINDS, 30, "wall");
+    run_terrain(st, &p, 255, ALL_KINDS, 30, "wall");
     return 0;
 }
 
@@ -714,7 +714,7 @@ static int case_plateau(hc_stats *st)
  * one tile (so the tile's range is the grid's) and small tiles. */
 static int case_terraces(hc_stats *st)
 {
-    static const int ks[] = {16, 4, 256, 2};
+    static const int ks[] = {16, 4, 255, 2};
     static const double relief[] = {150.0, 30.0, 127.5, 10.0};
     for (int t = 0; t < 4; t++) {
         hc_terrain_params p;
@@ -825,10 +825,10 @@ static int case_voids_all(hc_stats *st)
     return 0;
 }
 
-/* Parameter planes with K = 1, 2, 3 and 256 slices. */
+/* Parameter planes with K = 1, 2, 3 and 255 slices (the most). */
 static int case_planes_k(hc_stats *st)
 {
-    static const int ks[] = {1, 2, 3, 256};
+    static const int ks[] = {1, 2, 3, 255};
     hc_terrain kinds[] = {HC_T_PROCEDURAL, HC_T_RIDGE, HC_T_NEEDLE, HC_T_TERRACES};
     for (int t = 0; t < 4; t++) {
         for (int k = 0; k < 4; k++) {
@@ -1144,7 +1144,7 @@ static int case_camera_tiny_fov(hc_stats *st)
  * K with every ray kind. Prints its seed; TERRAD_SEED replays it. */
 static int case_property(hc_stats *st)
 {
-    static const int ks[] = {1, 2, 3, 7, 16, 256};
+    static const int ks[] = {1, 2, 3, 7, 16, 255};
     uint64_t seed = 20240917, s;
     const char *env = getenv("TERRAD_SEED");
     uint64_t before;
@@ -1207,7 +1207,7 @@ static int case_property(hc_stats *st)
     X(origin_on_surface, "origins exactly on a sample: hit at tmin")                      \
     X(origin_below, "origins below the surface: plane at tmin, others the first crossing") \
     X(georef, "projected and lon/lat origins (antimeridian, poles) change no hit")         \
-    X(flat, "perfectly flat terrain (zmin == zmax), K = 1, 2, 16, 256")                   \
+    X(flat, "perfectly flat terrain (zmin == zmax), K = 1, 2, 16, 255")                   \
     X(single_cell, "2 x 2 samples: flat, tilted, twisted, one void corner")                \
     X(strips, "2 x N and N x 2 grids")                                                     \
     X(needle, "one sample 1000 m above flat ground")                                       \
@@ -1222,7 +1222,7 @@ static int case_property(hc_stats *st)
     X(voids_tiles, "whole tiles void")                                                     \
     X(voids_seams, "voids along tile seams")                                               \
     X(voids_all, "an entirely void grid")                                                  \
-    X(planes_k, "parameter planes with K = 1, 2, 3, 256")                                  \
+    X(planes_k, "parameter planes with K = 1, 2, 3, 255")                                  \
     X(directions, "unnormalised, huge, tiny and denormal direction components")             \
     X(directions_tiny, "|d| so small that t would overflow: refused, never a miss")       \
     X(validate, "NaN or inf anywhere in a ray is refused")                                 \

@@ -828,20 +828,31 @@ static void test_admin_disabled(void **state)
 
 static void test_budget_refusal(void **state)
 {
-    /* 2 MiB: levi's heights and levels of detail (0.9 MB) and volcano's fit; trinidad's
-     * (1.2 + 0.4 MB) do not, and levi's acceleration (1.6 MB) cannot be added beside
-     * them. */
+    /* Heights and levels of detail: levi 0.98 MB, trinidad 1.90 MB, volcano 0.04 MB. In
+     * 2 MiB trinidad's do not fit beside the others: skipped at load. In 3 MiB all three
+     * fit, with 0.23 MB to spare: volcano's acceleration (0.03 MB) fits, levi's (0.67
+     * MB) cannot be added beside them. */
     th_server s;
     th_resp r;
     json_t *j, *res;
-    const char *args[] = {"--demo-dir", TERRAD_DATA_DIR, "--preload", "none", "--memory-mb", "2", NULL};
+    const char *args2[] = {"--demo-dir", TERRAD_DATA_DIR, "--preload", "none", "--memory-mb", "2", NULL};
+    const char *args[] = {"--demo-dir", TERRAD_DATA_DIR, "--preload", "none", "--memory-mb", "3", NULL};
     const char *env[] = {"TERRAD_ADMIN_TOKEN=" TOKEN, NULL};
     (void)state;
-    assert_int_equal(th_start(&s, TERRAD_BIN, args, env), 0);
+    assert_int_equal(th_start(&s, TERRAD_BIN, args2, env), 0);
     assert_true(th_log_has(&s, "event=dataset_skipped id=trinidad"));
     req(&s, "GET", "/v1/datasets", NULL, NULL, &r);
     j = body_json(&r);
     assert_int_equal(json_array_size(j), 2);
+    json_decref(j);
+    th_resp_free(&r);
+    assert_int_equal(th_stop(&s), 0);
+    th_forget(&s);
+
+    assert_int_equal(th_start(&s, TERRAD_BIN, args, env), 0);
+    req(&s, "GET", "/v1/datasets", NULL, NULL, &r);
+    j = body_json(&r);
+    assert_int_equal(json_array_size(j), 3);
     json_decref(j);
     th_resp_free(&r);
     j = preload_wait(&s, "{\"dataset\":\"volcano\"}");

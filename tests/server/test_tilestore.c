@@ -276,6 +276,9 @@ static void test_disk_cache(void **state)
         assert_int_equal(v->accel[9].maxmip->bytes, m->bytes);
         assert_memory_equal(v->accel[9].maxmip->max, m->max, m->bytes - sizeof *m);
         assert_memory_equal(v->accel[9].planes->cone, p->cone, sizeof(td_cone) * (size_t)p->nx * (size_t)p->ny);
+        assert_memory_equal(v->accel[9].planes->apex, p->apex, sizeof(float) * ((size_t)p->k + 1));
+        assert_true(v->accel[9].planes->slope_scale == p->slope_scale);
+        assert_int_equal(v->accel[9].planes->bytes, p->bytes);
         td_maxmip_free(m);
         td_planes_free(p);
     }

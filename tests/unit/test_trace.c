@@ -300,11 +300,11 @@ static void test_planes_bound(void **state)
         for (int32_t cj = 0; cj < t->ny; cj++) {
             for (int32_t ci = 0; ci < t->nx; ci++) {
                 size_t c = (size_t)cj * (size_t)t->nx + (size_t)ci;
-                mean_slope += p->cone[c].sp;
+                mean_slope += td_cone_slope(p, p->cone[c]);
                 for (int32_t qj = 0; qj < t->ny; qj++) {
                     for (int32_t qi = 0; qi < t->nx; qi++) {
                         double gx = fmax(abs(qi - ci) - 1, 0) * g->sx, gy = fmax(abs(qj - cj) - 1, 0) * g->sy;
-                        double bound = (double)p->cone[c].zp + (double)p->cone[c].sp * sqrt(gx * gx + gy * gy);
+                        double bound = td_cone_apex(p, p->cone[c]) + td_cone_slope(p, p->cone[c]) * sqrt(gx * gx + gy * gy);
                         if ((double)H[(size_t)qj * (size_t)t->nx + (size_t)qi] > bound)
                             violations++;
                     }
@@ -330,13 +330,13 @@ static void test_planes_degenerate(void **state)
     td_planes *p = NULL;
     assert_int_equal(td_planes_build(g, 0, 16, &p, NULL), TD_OK);
     for (int c = 0; c < 64; c++) {
-        assert_true(p->cone[c].zp >= 42.0f);
-        assert_true(isfinite(p->cone[c].sp) && p->cone[c].sp >= 0.0f);
+        assert_true(td_cone_apex(p, p->cone[c]) >= 42.0);
+        assert_true(isfinite(td_cone_slope(p, p->cone[c])) && td_cone_slope(p, p->cone[c]) >= 0.0);
     }
     td_planes_free(p);
     assert_int_equal(td_planes_build(g, 1, 16, &p, NULL), TD_OK); /* cells 8..15: holes */
     for (int c = 0; c < 64; c++)
-        assert_true(p->cone[c].zp == -INFINITY);
+        assert_true(td_cone_apex(p, p->cone[c]) == -INFINITY);
     td_planes_free(p);
     td_accel *a = build_all(g, 16);
     td_view v = {g, a->tiles};
