@@ -283,8 +283,9 @@ static void write_designs(FILE *f, const bench_ctx *b)
                 "cycles on the cone load, a cold cache line per step). "
                 "Designs that would reach it: *vertical ray coherence* (neighbouring pixels of a "
                 "column start where the pixel below hit, so most rays begin one or two cells before "
-                "their hit: the classic height-field trick, valid for a camera without roll over "
-                "the terrain), and *packets* of 4 x 4 rays sharing the block and cone tests "
+                "their hit: the classic height-field trick, exact where a column's rays share a "
+                "vertical plane through the eye, i.e. a level camera without roll, or any view "
+                "traced in such planes and resampled), and *packets* of 4 x 4 rays sharing the block and cone tests "
                 "(one load for 16 rays, as Embree's rtcIntersect16 does for its BVH).\n",
                 ours / eb, d->name, hi->mean_steps, pa->mean_steps,
                 hi->rps > 0 ? 1e9 / hi->rps / fmax(hi->mean_steps, 1) : 0,
