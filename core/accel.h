@@ -8,8 +8,8 @@
 #include "trace.h"
 
 /* Slices of the parameter planes. Chosen by the benchmark's K sweep (trinidad, one
- * thread, docs/accuracy-vs-time.md): K = 8, 16, 32, 64 give 13.3, 10.8, 9.4, 8.6 steps
- * per ray for 0.26, 0.48, 0.97, 1.88 s of build; 16 is the knee, where doubling K
+ * thread, docs/accuracy-vs-time.md): K = 8, 16, 32, 64 give 13.4, 10.8, 9.5, 8.7 steps
+ * per ray for 0.22, 0.41, 0.78, 1.63 s of build; 16 is the knee, where doubling K
  * doubles the build for a tenth fewer steps. */
 #define TD_PLANES_K_DEFAULT 16
 

@@ -411,7 +411,7 @@ static void write_errors(FILE *f, const bench_ctx *b)
             fprintf(f, "| %d | %.3f | %.2f | %.2f | %.0f | %s |\n", k->k, k->build_s, (double)k->bytes / d->cells,
                     k->tr.mean_steps, k->tr.p99_steps, rate(a, sizeof a, k->tr.rps));
         }
-        fprintf(f, "\nThe planes hold one (apex, slope) pair of floats per cell whatever K is; K buys "
+        fprintf(f, "\nThe planes hold two bytes per cell (an apex index and a slope code) whatever K is; K buys "
                    "tighter cones (fewer steps) with build time. The default is K = %d.\n\n",
                 TD_PLANES_K_DEFAULT);
     }
