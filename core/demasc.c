@@ -123,6 +123,33 @@ static double prj_unit_value(const char *u)
     return v;
 }
 
+/* The projected CRS's linear unit in WKT text: in WKT1 the UNIT that is a direct child of
+ * PROJCS (the GEOGCS's angular unit is a grandchild; a compound CRS's vertical unit lies
+ * outside PROJCS), in WKT2 the last LENGTHUNIT inside PROJCRS (the coordinate system's,
+ * or its axes'). Brackets inside quoted names do not count. NULL if there is none. */
+static const char *prj_linear_unit(const char *text)
+{
+    const char *wkt2 = strstr(text, "PROJCRS[");
+    const char *crs = wkt2 ? wkt2 : strstr(text, "PROJCS[");
+    const char *key = wkt2 ? "LENGTHUNIT[" : "UNIT[";
+    const size_t klen = strlen(key);
+    const char *u = NULL;
+    if (crs) {
+        int depth = 0, quoted = 0, closed = 0;
+        for (const char *p = crs + strcspn(crs, "["); *p && !closed; p++) {
+            if (*p == '"')
+                quoted = !quoted;
+            else if (!quoted && (*p == '[' || *p == '('))
+                depth++;
+            else if (!quoted && (*p == ']' || *p == ')'))
+                closed = --depth == 0;
+            else if (!quoted && !strncmp(p, key, klen) && !isalpha((unsigned char)p[-1]) && (wkt2 || depth == 1))
+                u = p;
+        }
+    }
+    return u;
+}
+
 /* Reads `<name>.prj` beside the file, if there is one: *kind 1 geographic, 0 projected,
  * -1 none or undecided; *unit_m the projected CRS's linear unit in metres (1 if none). */
 static td_status asc_prj_read(const char *path, int *kind, double *unit_m, td_err *err)
@@ -150,12 +177,7 @@ static td_status asc_prj_read(const char *path, int *kind, double *unit_m, td_er
             *kind = 1;
     }
     if (*kind == 0) {
-        /* the last one: WKT2 names lengths LENGTHUNIT; in WKT1 the projected CRS's UNIT
-           follows its GEOGCS's angular one */
-        const char *key = strstr(text, "LENGTHUNIT[") ? "LENGTHUNIT[" : "UNIT[";
-        const char *u = NULL;
-        for (const char *p = strstr(text, key); p; p = strstr(p + 1, key))
-            u = p;
+        const char *u = prj_linear_unit(text);
         if (u) {
             *unit_m = prj_unit_value(u);
             if (*unit_m == 0.0)

@@ -313,6 +313,15 @@ static void test_asc_variants(void **state)
     g = load_ok(p, NULL);
     assert_true(fabs(g->sx - 3.04800609601219) < 1e-12);
     td_grid_free(g);
+    /* a compound CRS: the projected part's metre, not the vertical part's foot after it */
+    tmpfile_path("tiny.prj", p, sizeof p);
+    spit_text(p, "COMPD_CS[\"x\",PROJCS[\"UTM [13N]\",GEOGCS[\"g\",UNIT[\"Degree\",0.0174532925199433]],"
+                 "PROJECTION[\"Transverse_Mercator\"],UNIT[\"metre\",1,AUTHORITY[\"EPSG\",\"9001\"]]],"
+                 "VERT_CS[\"v\",VERT_DATUM[\"d\",2005],UNIT[\"foot\",0.3048]]]");
+    tmpfile_path("tiny.asc", p, sizeof p);
+    g = load_ok(p, NULL);
+    assert_true(g->sx == 10.0);
+    td_grid_free(g);
     /* a unit that is there but unreadable is refused, naming the .prj */
     tmpfile_path("tiny.prj", p, sizeof p);
     spit_text(p, "PROJCS[\"local\",UNIT[\"furlong\",-201.168]]");
