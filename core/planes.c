@@ -235,7 +235,7 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
         }
     }
     for (size_t c = 0; c < n; c++)
-        smax = sp[c] > smax ? sp[c] : smax;
+        smax = sp[c] > smax && isfinite(sp[c]) ? sp[c] : smax; /* +inf (absurd spacings) -> code 255 */
     if (smax > 0.0) {
         /* the top code, scale * 59392, is at least 2^ceil(log2(smax)) >= smax */
         int e = (int)ceil(log2(smax)) - 15;

@@ -569,7 +569,9 @@ static int cone_run(const walk *w, const td_tile *tile, const td_planes *pl, wal
         int jumped = 0;
         n++;
         if (above > 0.0) {
-            double closing = sp * w->hs - w->dz; /* how fast the ray nears the cone, per unit t */
+            /* how fast the ray nears the cone, per unit t (a vertical ray meets the apex;
+               the test keeps an infinite slope from making 0 * inf) */
+            double closing = (w->hs > 0.0 ? sp * w->hs : 0.0) - w->dz;
             double tl = closing > 0.0 ? st->t + above / closing : INFINITY;
             if (tl >= tx) {
                 rc = leave_box_at(w, st, ulo, uhi, vlo, vhi, txu, txv);
