@@ -5,7 +5,9 @@
  * samples. Running it along rows (weight sx^2) and then along columns of the result
  * (weight sy^2) gives the exact squared Euclidean distance in metres on grids whose
  * spacing differs in x and y. Samples with infinite cost never enter the envelope, so no
- * inf - inf arises. */
+ * inf - inf arises. The columns go first: on a binary input they are plain distances in
+ * cells (two sweeps); td_edt_columns/td_edt_row do the same for a level set of heights a
+ * row at a time, for the parameter planes. */
 #include "edt.h"
 
 #include <math.h>
@@ -98,5 +100,46 @@ void td_edt_2d(double *dist, int32_t nx, int32_t ny, double wx, double wy, td_ed
         }
         if (zeros < nx)
             edt_1d(s->f, row, nx, wx, s->v, s->zs);
+    }
+}
+
+void td_edt_columns(const float *h, double z, int32_t nx, int32_t ny, uint32_t *col)
+{
+    /* south to north: 0 on a feature, else one more than the cell below; then north to
+     * south, the smaller of that and one more than the cell above. TD_EDT_NONE + ny
+     * cannot overflow, so "none" needs no test in the loops. */
+    for (int32_t x = 0; x < nx; x++)
+        col[x] = (double)h[x] >= z ? 0u : TD_EDT_NONE;
+    for (int32_t y = 1; y < ny; y++) {
+        const float *hr = h + (size_t)y * (size_t)nx;
+        const uint32_t *below = col + (size_t)(y - 1) * (size_t)nx;
+        uint32_t *row = col + (size_t)y * (size_t)nx;
+        for (int32_t x = 0; x < nx; x++)
+            row[x] = (double)hr[x] >= z ? 0u : below[x] + 1u;
+    }
+    for (int32_t y = ny - 2; y >= 0; y--) {
+        const uint32_t *above = col + (size_t)(y + 1) * (size_t)nx;
+        uint32_t *row = col + (size_t)y * (size_t)nx;
+        for (int32_t x = 0; x < nx; x++) {
+            uint32_t b = above[x] + 1u;
+            row[x] = b < row[x] ? b : row[x];
+        }
+    }
+}
+
+void td_edt_row(const uint32_t *colrow, int32_t nx, double wx, double wy, double *out,
+                td_edt_scratch *s)
+{
+    int32_t zeros = 0;
+    for (int32_t x = 0; x < nx; x++) {
+        double c = (double)colrow[x];
+        s->f[x] = colrow[x] >= TD_EDT_NONE ? INFINITY : wy * c * c;
+        zeros += colrow[x] == 0u;
+    }
+    if (zeros == nx) { /* a row of features only is its own transform */
+        for (int32_t x = 0; x < nx; x++)
+            out[x] = 0.0;
+    } else {
+        edt_1d(s->f, out, nx, wx, s->v, s->zs);
     }
 }

@@ -21,4 +21,14 @@ void td_edt_scratch_free(td_edt_scratch *s);
  * Row-major layout, nx, ny <= s->n. */
 void td_edt_2d(double *dist, int32_t nx, int32_t ny, double wx, double wy, td_edt_scratch *s);
 
+/* The same transform streamed a row at a time, for a level set of a height field (the
+ * parameter planes' slices): no nx*ny array of doubles is written or read back.
+ * td_edt_columns: col[c] = distance in cells from c to the nearest cell of its column
+ * with h >= z, or at least TD_EDT_NONE if the column has none (nx*ny, row-major).
+ * td_edt_row: out[x] = the squared distance of td_edt_2d for row y, from col's row y. */
+#define TD_EDT_NONE ((uint32_t)1 << 30)
+void td_edt_columns(const float *h, double z, int32_t nx, int32_t ny, uint32_t *col);
+void td_edt_row(const uint32_t *colrow, int32_t nx, double wx, double wy, double *out,
+                td_edt_scratch *s);
+
 #endif

@@ -401,6 +401,30 @@ static void test_maxmip_and_edt(void **state)
             assert_double_equal(dist[y * NX + x], best, 1e-9);
         }
     }
+    /* Streamed a row at a time over a level set of heights: the same values bit for bit,
+     * with a column that has no feature (x = 3) and a row of features only (y = 5). */
+    {
+        float h[NX * NY];
+        uint32_t col[NX * NY];
+        double row[NX];
+        for (int z = 10; z <= 90; z += 40) {
+            for (int c = 0; c < NX * NY; c++) {
+                h[c] = (float)(100.0 * rnd(&seed));
+                if (c % NX == 3)
+                    h[c] = 0.0f;
+                if (c / NX == 5 && c % NX != 3)
+                    h[c] = 100.0f;
+                dist[c] = (double)h[c] >= z ? 0.0 : INFINITY;
+            }
+            td_edt_2d(dist, NX, NY, 4.0, 9.0, &s);
+            td_edt_columns(h, z, NX, NY, col);
+            assert_true(col[3] >= TD_EDT_NONE && col[5 * NX + 3] >= TD_EDT_NONE);
+            for (int y = 0; y < NY; y++) {
+                td_edt_row(col + y * NX, NX, 4.0, 9.0, row, &s);
+                assert_memory_equal(row, dist + y * NX, sizeof row);
+            }
+        }
+    }
     td_edt_scratch_free(&s);
 }
 
