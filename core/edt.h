@@ -10,6 +10,9 @@
 typedef struct td_edt_scratch {
     int32_t n;
     double *f, *d, *zs; /* n, n, n+1 */
+    double *g;          /* n: f + w*q^2 of the envelope's parabolas */
+    double *rcp;        /* n: 1 / (2 w i), for the weight rcp_w */
+    double rcp_w;
     int32_t *v;         /* n */
 } td_edt_scratch;
 
