@@ -41,7 +41,8 @@ void td_edt_scratch_free(td_edt_scratch *s)
 /* One line: f[0..n) in, d[0..n) out. The envelope keeps each parabola's f + w*q^2 and
  * divides through a table of 1 / (2 w i): a multiplication in the inner loop instead of a
  * division (intersections then differ from a division's by an ulp or two, which can only
- * pick between parabolas equal to that precision; the planes round D^2 down by 2^-22). */
+ * pick between parabolas equal to about 4 n^2 ulps; the planes keep D^2 rounded down by
+ * 2^-16, see planes.c). */
 static void edt_1d(const double *f, double *d, int32_t n, double w, td_edt_scratch *s)
 {
     int32_t k = -1;

@@ -109,6 +109,13 @@ static uint8_t slope_code(double s, double scale)
     return (uint8_t)code;
 }
 
+/* D^2 is kept as a float rounded down with a margin: 2^-16 covers the float's rounding
+ * (2^-24) and the EDT's (a misplaced envelope intersection changes a distance by about
+ * 4 n^2 ulps of a line of n samples: 2e-6 relative for n = 65536, the largest tile), so
+ * the slope it gives is never too small; it is at most 8e-6 too large, far below the
+ * slope code's steps. */
+#define TD_PLANES_D2_DOWN (1.0 - 0x1p-16)
+
 static float round_up(double v)
 {
     float f = (float)v;
@@ -238,7 +245,7 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
                         /* B(0) = z_{m+1}; or D_k = 0 for every slice: flat cone at the top */
                         p->cone[c].apex = (uint8_t)s;
                         sp[c] = 0.0f;
-                        prev[c] = s < slices ? (float)(d2[x] * (1.0 - 0x1p-22)) : 0.0f;
+                        prev[c] = s < slices ? (float)(d2[x] * TD_PLANES_D2_DOWN) : 0.0f;
                     }
                 } else {
                     /* the staircase rises to z_k at r = D_{k-1}: the slope must reach
@@ -253,7 +260,7 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
                             sp[c] = (float)(need * (1.0 + 0x1p-22)); /* rounded up */
                     }
                     if (s < slices)
-                        prev[c] = (float)(d2[x] * (1.0 - 0x1p-22)); /* rounded down */
+                        prev[c] = (float)(d2[x] * TD_PLANES_D2_DOWN); /* rounded down */
                 }
             }
         }
