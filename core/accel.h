@@ -9,7 +9,7 @@
 
 /* Slices of the parameter planes. Chosen by the benchmark's K sweep (trinidad, one
  * thread, docs/accuracy-vs-time.md): K = 8, 16, 32, 64 give 13.4, 10.8, 9.5, 8.7 steps
- * per ray for 0.22, 0.41, 0.78, 1.63 s of build; 16 is the knee, where doubling K
+ * per ray for 0.16, 0.30, 0.58, 1.17 s of build; 16 is the knee, where doubling K
  * doubles the build for a tenth fewer steps. */
 #define TD_PLANES_K_DEFAULT 16
 
