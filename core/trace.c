@@ -602,10 +602,11 @@ static int cone_run(const walk *w, const td_tile *tile, const td_planes *pl, wal
 /* `auto`, per tile and ray: a tile crossed by fewer cells than this is walked
  * incrementally (the skips' bookkeeping costs more than the cells it would save);
  * otherwise the max-mipmap when it is resident, else the parameter planes, else the
- * walk. Measured on oblique views of trinidad (tests/bench, one thread): parametric
- * takes about half the steps of hierarchical but each lands on a cold cone (35% of its
- * cycles wait on that load), so hierarchical traces about 1.7 times as many rays per
- * second; planes are used where they are all that is resident. */
+ * walk. Measured on oblique views of trinidad (make bench, one thread): parametric takes
+ * about half the steps of hierarchical, but a jump costs about three block tests (42 vs
+ * 15 ns: its bookkeeping, and a cone and then the cells it lands on far from the last
+ * ones, out of cache), so hierarchical traces about 1.4 times as many rays per second;
+ * planes are used where they are all that is resident. */
 #define TD_AUTO_MIN_CELLS 6.0
 
 static td_method choose_method(const walk *w, td_method m, const td_tile_accel *ta,

@@ -279,8 +279,8 @@ static void write_designs(FILE *f, const bench_ctx *b)
         fprintf(f,
                 "- **3x Embree** (now %.2fx on %s). Per ray, terrad does %.1f (hierarchical) or %.1f "
                 "(parametric) steps at about %.0f / %.0f ns a step: fewer steps do not pay when each "
-                "one waits on a dependent load (an earlier profile put 35%% of the parametric tracer's "
-                "cycles on the cone load, a cold cache line per step). "
+                "one waits on a dependent load (a parametric jump lands on a cone and cells far from "
+                "the last ones, out of cache). "
                 "Designs that would reach it: *vertical ray coherence* (neighbouring pixels of a "
                 "column start where the pixel below hit, so most rays begin one or two cells before "
                 "their hit: the classic height-field trick, exact where a column's rays share a "
