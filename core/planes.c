@@ -124,6 +124,26 @@ static float round_up(double v)
     return f;
 }
 
+/* D^2 as a float at most d2 * (1 - 2^-17): the nearest float to d2 * TD_PLANES_D2_DOWN
+ * always is, but for subnormals, which the test catches. */
+static inline float d2_down(double d2)
+{
+    float f = (float)(d2 * TD_PLANES_D2_DOWN);
+    if ((double)f > d2 * (1.0 - 0x1p-17))
+        f = nextafterf(f, 0.0f);
+    return f;
+}
+
+/* A slope as a float at least s: the nearest float to s * (1 + 2^-22) always is, but for
+ * subnormals, which the test catches. */
+static inline float slope_up(double s)
+{
+    float f = (float)(s * (1.0 + 0x1p-22));
+    if ((double)f < s)
+        f = nextafterf(f, INFINITY);
+    return f;
+}
+
 td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out, td_err *err)
 {
     td_status rc = TD_OK;
@@ -245,7 +265,7 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
                         /* B(0) = z_{m+1}; or D_k = 0 for every slice: flat cone at the top */
                         p->cone[c].apex = (uint8_t)s;
                         sp[c] = 0.0f;
-                        prev[c] = s < slices ? (float)(d2[x] * TD_PLANES_D2_DOWN) : 0.0f;
+                        prev[c] = s < slices ? d2_down(d2[x]) : 0.0f;
                     }
                 } else {
                     /* the staircase rises to z_k at r = D_{k-1}: the slope must reach
@@ -257,10 +277,10 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
                     if (rise > 0.0 && rise * rise >= sc * sc * pv * (1.0 - 1e-9)) {
                         double need = rise / sqrt(pv);
                         if (need > sc)
-                            sp[c] = (float)(need * (1.0 + 0x1p-22)); /* rounded up */
+                            sp[c] = slope_up(need);
                     }
                     if (s < slices)
-                        prev[c] = (float)(d2[x] * TD_PLANES_D2_DOWN); /* rounded down */
+                        prev[c] = d2_down(d2[x]);
                 }
             }
         }
