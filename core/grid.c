@@ -166,6 +166,37 @@ void td_grid_free(td_grid *g)
     }
 }
 
+int td_grid_bilinear_cell(const td_grid *g, int32_t ci, int32_t cj, double x, double y, double *z,
+                          double n[3])
+{
+    double z00 = td_grid_at(g, ci, cj), z10 = td_grid_at(g, ci + 1, cj);
+    double z01 = td_grid_at(g, ci, cj + 1), z11 = td_grid_at(g, ci + 1, cj + 1);
+    double u = x / g->sx - ci, v = y / g->sy - cj;
+    int ok = !(isnan(z00) || isnan(z10) || isnan(z01) || isnan(z11));
+    if (ok) {
+        u = u < 0 ? 0 : u > 1 ? 1 : u;
+        v = v < 0 ? 0 : v > 1 ? 1 : v;
+        *z = (1 - v) * ((1 - u) * z00 + u * z10) + v * ((1 - u) * z01 + u * z11);
+        if (n) {
+            double dzdx = ((1 - v) * (z10 - z00) + v * (z11 - z01)) / g->sx;
+            double dzdy = ((1 - u) * (z01 - z00) + u * (z11 - z10)) / g->sy;
+            double l = sqrt(dzdx * dzdx + dzdy * dzdy + 1.0);
+            n[0] = -dzdx / l;
+            n[1] = -dzdy / l;
+            n[2] = 1.0 / l;
+        }
+    }
+    return ok;
+}
+
+int td_grid_bilinear(const td_grid *g, double x, double y, double *z, double n[3])
+{
+    double fi = floor(x / g->sx), fj = floor(y / g->sy);
+    int32_t ci = !(fi >= 0.0) ? 0 : (fi > (double)(g->w - 2) ? g->w - 2 : (int32_t)fi);
+    int32_t cj = !(fj >= 0.0) ? 0 : (fj > (double)(g->h - 2) ? g->h - 2 : (int32_t)fj);
+    return td_grid_bilinear_cell(g, ci, cj, x, y, z, n);
+}
+
 void td_grid_cell_max(const td_grid *g, const td_tile *t, float *out)
 {
     for (int32_t cj = 0; cj < t->ny; cj++) {

@@ -93,6 +93,15 @@ static inline const td_tile *td_grid_tile_of_cell(const td_grid *g, int32_t ci, 
                      (size_t)(ci >> g->tile_log2)];
 }
 
+/* The bilinear surface of cell (ci, cj) at (x, y) in the dataset frame (clamped to the
+ * cell): the exact surface the others are measured against. Its unit normal goes to n
+ * unless n is NULL. Returns 0, leaving z and n alone, where a corner is a void. */
+int td_grid_bilinear_cell(const td_grid *g, int32_t ci, int32_t cj, double x, double y, double *z,
+                          double n[3]);
+
+/* The same at (x, y) in whichever cell holds it (the grid's border cells beyond it). */
+int td_grid_bilinear(const td_grid *g, double x, double y, double *z, double n[3]);
+
 /* Per cell of tile t, the highest of its four corners (which bounds every surface), or
  * -inf for a hole (a void corner). out holds t->nx * t->ny floats, row-major, south first. */
 void td_grid_cell_max(const td_grid *g, const td_tile *t, float *out);

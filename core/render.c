@@ -118,6 +118,8 @@ typedef struct worker {
     smp *s;
     float *lit, *occl, *refl;
     uint64_t rays[TD_RAY_KIND_COUNT], steps, hits, curved, curved2, segs;
+    double herr_sum, herr_max; /* camera hits' distance from the exact surface */
+    uint64_t herr_n;
     uint64_t method_rays[TD_METHOD_COUNT];
     uint64_t lod_rays[TD_LOD_MAX + 1];
     double stage_s[TD_STAGE_COUNT];
@@ -344,6 +346,20 @@ static void trace_lod(const ctx *c, const td_ray *r, td_hit *hit, int *level, ui
     *level = l;
 }
 
+/* How far a camera ray's hit lies above or below the exact surface (bilinear, full grid)
+ * at its x, y: what the scene's surface and level of detail cost in accuracy, reported
+ * with every render. One interpolation per hit. */
+static void note_error(const ctx *c, worker *w, const double p[3])
+{
+    double z;
+    if (td_grid_bilinear(c->v->grid, p[0], p[1], &z, NULL)) {
+        double e = fabs(p[2] - z);
+        w->herr_sum += e;
+        w->herr_max = e > w->herr_max ? e : w->herr_max;
+        w->herr_n++;
+    }
+}
+
 /* A shadow or reflection ray on view v: bent about its origin when curvature is on and
  * its run is long enough (see the top of the file), else straight. */
 static void trace_secondary(const ctx *c, worker *w, const td_view *v, const td_ray *r, td_hit *hit)
@@ -401,6 +417,7 @@ static void run_block(worker *w, int b)
             q->flags = F_HIT;
             q->t = hit.t;
             memcpy(q->p, hit.p, sizeof q->p);
+            note_error(c, w, hit.p);
             memcpy(q->n, hit.n, sizeof q->n);
             q->ci = hit.ci;
             q->cj = hit.cj;
@@ -427,6 +444,7 @@ static void run_block(worker *w, int b)
                 q->flags |= F_HIT;
                 q->t = hit.t;
                 memcpy(q->p, hit.p, sizeof q->p);
+                note_error(c, w, hit.p);
                 memcpy(q->n, hit.n, sizeof q->n);
                 q->ci = hit.ci;
                 q->cj = hit.cj;
@@ -868,6 +886,7 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
         pthread_join(ws[i].th, NULL);
 
     td_render_stats *st = &res->stats;
+    double herr_sum = 0.0;
     st->threads = started;
     for (int i = 0; i < started; i++) {
         worker *w = &ws[i];
@@ -879,6 +898,9 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
             st->lod_rays[k] += w->lod_rays[k];
         st->curved_rays += w->curved;
         st->curved_secondary += w->curved2;
+        herr_sum += w->herr_sum;
+        st->height_err_max_m = w->herr_max > st->height_err_max_m ? w->herr_max : st->height_err_max_m;
+        st->height_err_hits += w->herr_n;
         st->curve_segments += w->segs;
         for (int k = 0; k < TD_METHOD_COUNT; k++)
             st->method_rays[k] += w->method_rays[k];
@@ -889,6 +911,7 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
         if (w->cancelled)
             rc = td_err_set(err, TD_ECANCELED, "render: cancelled");
     }
+    st->height_err_mean_m = st->height_err_hits ? herr_sum / (double)st->height_err_hits : 0.0;
     st->total_ms = 1000.0 * (now_s() - t_start);
 out:
     if (ws) {

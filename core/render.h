@@ -75,6 +75,11 @@ typedef struct td_render_stats {
     uint64_t method_rays[TD_METHOD_COUNT]; /* camera rays by the method the tracer used
                                               where they ended (what `auto` chose) */
     uint64_t lod_rays[TD_LOD_MAX + 1]; /* camera rays by the level of detail they ended on */
+    /* How far the picture is from the exact one: the camera hits' height above or below
+     * the bilinear surface of the full grid at their x, y (0 up to rounding for bilinear
+     * without level of detail), mean and max over the hits measured. */
+    double height_err_mean_m, height_err_max_m;
+    uint64_t height_err_hits;
     int stage_ran[TD_STAGE_COUNT];
     double stage_ms[TD_STAGE_COUNT];
     double total_ms;           /* wall time of td_render */

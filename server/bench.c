@@ -323,28 +323,6 @@ uint64_t td_bench_method_bytes(const bench_ds *d, td_method m)
     return b;
 }
 
-/* Bilinear height and normal at (x, y) in cell (ci, cj). */
-static int bilinear_at(const td_grid *g, int32_t ci, int32_t cj, double x, double y, double *z,
-                       double n[3])
-{
-    double z00 = td_grid_at(g, ci, cj), z10 = td_grid_at(g, ci + 1, cj);
-    double z01 = td_grid_at(g, ci, cj + 1), z11 = td_grid_at(g, ci + 1, cj + 1);
-    double u = x / g->sx - ci, v = y / g->sy - cj, dzdx, dzdy, l;
-    int ok = !(isnan(z00) || isnan(z10) || isnan(z01) || isnan(z11));
-    if (ok) {
-        u = u < 0 ? 0 : u > 1 ? 1 : u;
-        v = v < 0 ? 0 : v > 1 ? 1 : v;
-        *z = (1 - v) * ((1 - u) * z00 + u * z10) + v * ((1 - u) * z01 + u * z11);
-        dzdx = ((1 - v) * (z10 - z00) + v * (z11 - z01)) / g->sx;
-        dzdy = ((1 - u) * (z01 - z00) + u * (z11 - z10)) / g->sy;
-        l = sqrt(dzdx * dzdx + dzdy * dzdy + 1.0);
-        n[0] = -dzdx / l;
-        n[1] = -dzdy / l;
-        n[2] = 1.0 / l;
-    }
-    return ok;
-}
-
 /* Error of surface s against the bilinear surface, per ray (untimed pass). */
 static void surface_error(const bench_ds *d, const td_view *v, td_surface s, bench_err *e)
 {
@@ -360,7 +338,7 @@ static void surface_error(const bench_ds *d, const td_view *v, td_surface s, ben
             flips++;
         else if (!isinf(h.t) && fabs(h.t - d->tref[k]) > cell)
             moved++;
-        if (isinf(h.t) || !bilinear_at(d->g, h.ci, h.cj, h.p[0], h.p[1], &z, n))
+        if (isinf(h.t) || !td_grid_bilinear_cell(d->g, h.ci, h.cj, h.p[0], h.p[1], &z, n))
             continue;
         double dz = fabs(h.p[2] - z);
         double c = n[0] * h.n[0] + n[1] * h.n[1] + n[2] * h.n[2];

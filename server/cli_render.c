@@ -10,7 +10,7 @@
  *
  * Output: the image in the scene's format (png, depth16, depth32f), or for format pick
  * a JSON array with the terrain point of each pixel. --stats writes JSON: rays {primary,
- * shadow, reflection, ao}, steps, hits, curved_rays, curved_secondary, curve_segments, stages_ms (one
+ * shadow, reflection, ao}, steps, hits, curved_rays, curved_secondary, curve_segments, height_error_m {mean, max, hits}, stages_ms (one
  * entry per stage that ran), load_ms, accel_ms, render_ms, total_ms, threads, bytes.
  * Exit status: 0 ok, 1 runtime failure, 2 usage or scene error. */
 #include "cli.h"
@@ -185,6 +185,9 @@ static json_t *stats_json(const td_render_stats *st)
     json_object_set_new(o, "curved_rays", json_integer((json_int_t)st->curved_rays));
     json_object_set_new(o, "curved_secondary", json_integer((json_int_t)st->curved_secondary));
     json_object_set_new(o, "curve_segments", json_integer((json_int_t)st->curve_segments));
+    json_object_set_new(o, "height_error_m",
+                        json_pack("{s:f, s:f, s:I}", "mean", st->height_err_mean_m, "max", st->height_err_max_m,
+                                  "hits", (json_int_t)st->height_err_hits));
     json_object_set_new(o, "threads", json_integer(st->threads));
     json_object_set_new(o, "render_ms", json_real(st->total_ms));
     return o;

@@ -1003,6 +1003,10 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     td_http_resp_header(r, "X-Terrad-Rays", "%llu", (unsigned long long)(st->rays[TD_RAY_PRIMARY] +
                         st->rays[TD_RAY_SHADOW] + st->rays[TD_RAY_REFLECTION] + st->rays[TD_RAY_AO]));
     td_http_resp_header(r, "X-Terrad-Steps", "%llu", (unsigned long long)st->steps);
+    /* how far the picture is from the exact one (render.h): metres, over the camera hits */
+    if (st->height_err_hits)
+        td_http_resp_header(r, "X-Terrad-Height-Error", "mean=%.3g; max=%.3g; hits=%llu", st->height_err_mean_m,
+                            st->height_err_max_m, (unsigned long long)st->height_err_hits);
     if (j->get) {
         td_http_resp_header(r, "ETag", "%s", j->etag);
         td_http_resp_header(r, "Cache-Control", "public, max-age=%d", j->kind == TD_RK_TILE ? 86400 : 3600);

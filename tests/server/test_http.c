@@ -246,6 +246,14 @@ static void test_render_post(void **state)
     assert_int_equal(strncmp(v, "auto", 4), 0);
     assert_true(th_header(&r, "X-Terrad-Rays", v, sizeof v));
     assert_int_equal(atoi(v), 64 * 48);
+    {
+        /* bilinear without level of detail: the picture is the exact one */
+        double mean = -1.0, max = -1.0;
+        unsigned long long hits = 0;
+        assert_true(th_header(&r, "X-Terrad-Height-Error", v, sizeof v));
+        assert_int_equal(sscanf(v, "mean=%lf; max=%lf; hits=%llu", &mean, &max, &hits), 3);
+        assert_true(mean >= 0.0 && mean < 1e-6 && max < 1e-6 && hits > 0 && hits <= 64 * 48);
+    }
     th_resp_free(&r);
 
     req(&A, "POST", "/v1/render", JSON_CT,
@@ -259,6 +267,13 @@ static void test_render_post(void **state)
     assert_string_equal(v, "incremental");
     assert_true(th_header(&r, "X-Terrad-Surface", v, sizeof v));
     assert_string_equal(v, "triangle");
+    {
+        /* triangles are off the exact (bilinear) surface inside the cells */
+        double mean = -1.0, max = -1.0;
+        assert_true(th_header(&r, "X-Terrad-Height-Error", v, sizeof v));
+        assert_int_equal(sscanf(v, "mean=%lf; max=%lf", &mean, &max), 2);
+        assert_true(mean > 1e-4 && max >= mean && max < 400.0);
+    }
     th_resp_free(&r);
 
     /* level of detail: the dataset's coarse levels are resident from load */

@@ -133,6 +133,33 @@ static void test_absent_effects_cost_nothing(void **state)
     td_render_result_free(&r);
 }
 
+/* Every render says how far its picture is from the exact one: the camera hits' height
+ * against the bilinear surface. Bilinear is exact up to rounding; the others are off by
+ * what their surface is off, the flat-topped plane most; a hit is never closer to the
+ * exact surface than 0 nor farther than the cell's relief. */
+static void test_height_error(void **state)
+{
+    td_render_result r;
+    double mean[TD_SURFACE_COUNT];
+    (void)state;
+    for (int s = 0; s < TD_SURFACE_COUNT; s++) {
+        base_scene(&scene);
+        scene.quality.surface = (td_surface)s;
+        render(&scene, 2, &r);
+        assert_int_equal(r.stats.height_err_hits, r.stats.hits); /* no voids here */
+        assert_true(r.stats.height_err_mean_m >= 0.0 && r.stats.height_err_max_m >= r.stats.height_err_mean_m);
+        assert_true(r.stats.height_err_max_m < 600.0); /* the terrain's relief */
+        mean[s] = r.stats.height_err_mean_m;
+        td_render_result_free(&r);
+    }
+    print_message("  height error, mean m: plane %.3g linear %.3g triangle %.3g bilinear %.3g\n",
+                  mean[TD_SURFACE_PLANE], mean[TD_SURFACE_LINEAR], mean[TD_SURFACE_TRIANGLE],
+                  mean[TD_SURFACE_BILINEAR]);
+    assert_true(mean[TD_SURFACE_BILINEAR] < 1e-6);
+    assert_true(mean[TD_SURFACE_TRIANGLE] > 1e-3 && mean[TD_SURFACE_LINEAR] > 1e-3);
+    assert_true(mean[TD_SURFACE_PLANE] > mean[TD_SURFACE_TRIANGLE] && mean[TD_SURFACE_PLANE] > mean[TD_SURFACE_LINEAR]);
+}
+
 static void test_shadows(void **state)
 {
     td_render_result a, b;
@@ -596,6 +623,9 @@ static void test_level_of_detail(void **state)
         coarse += lod.stats.lod_rays[k];
     assert_int_equal(full.stats.lod_rays[0], 160 * 120);
     assert_true(coarse > 0 && lod.stats.lod_rays[0] > 0);
+    /* the coarse levels' hits are off the exact surface; the full grid's are not */
+    assert_true(full.stats.height_err_mean_m < 1e-6);
+    assert_true(lod.stats.height_err_mean_m > 1e-3 && lod.stats.height_err_max_m > lod.stats.height_err_mean_m);
     double q = psnr(full.rgba, lod.rgba, (size_t)160 * 120 * 4);
     print_message("lod: %llu of %d camera rays on coarse levels, steps %llu -> %llu, PSNR %.1f dB\n",
                   (unsigned long long)coarse, 160 * 120, (unsigned long long)full.stats.steps,
@@ -734,6 +764,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_absent_effects_cost_nothing),
+        cmocka_unit_test(test_height_error),
         cmocka_unit_test(test_shadows),
         cmocka_unit_test(test_sky_and_haze),
         cmocka_unit_test(test_water_and_ao),

@@ -108,6 +108,17 @@ async function apiError(resp) {
   return new ApiError(await errorMessage(resp), resp.status, Number.isFinite(ra) && ra > 0 ? ra : null);
 }
 
+// X-Terrad-Height-Error: `mean=0.26; max=18.7; hits=41833`, metres between the camera hits
+// and the exact (bilinear, full grid) surface: how far the picture is from the exact one.
+export function parseHeightError(value) {
+  const out = {};
+  for (const part of (value || '').split(';')) {
+    const [k, v] = part.split('=').map((s) => s.trim());
+    if (['mean', 'max', 'hits'].includes(k) && v !== undefined && v !== '' && Number.isFinite(Number(v))) out[k] = Number(v);
+  }
+  return out.mean === undefined || out.max === undefined ? null : out;
+}
+
 // Reads the render's headers: Server-Timing stages and whatever terrad says about the
 // method, surface, rays and steps (X-Terrad-*).
 export function renderInfo(headers) {
@@ -120,6 +131,7 @@ export function renderInfo(headers) {
     rays: num('X-Terrad-Rays'),
     steps: num('X-Terrad-Steps'),
     stepsPerRay: num('X-Terrad-Steps-Per-Ray'),
+    heightError: parseHeightError(get('X-Terrad-Height-Error')),
   };
   if (info.stepsPerRay == null && info.rays > 0 && info.steps != null) info.stepsPerRay = info.steps / info.rays;
   return info;

@@ -414,12 +414,20 @@ async function showBlob(img, blob) {
   if (old) URL.revokeObjectURL(old);
 }
 
+// How far the picture is from the exact one, in metres with a sensible number of digits;
+// rounding-level errors read as exact.
+function heightErrorText(e) {
+  const m = (v) => (v < 0.001 ? '0' : v < 1 ? v.toFixed(3) : v.toFixed(1));
+  return e.max < 0.001 ? 'the exact surface' : `${m(e.mean)} m mean, ${m(e.max)} m max off the exact surface`;
+}
+
 function describeInfo(info, scene) {
   const q = scene.quality;
   const m = info.method || q.method, s = info.surface || q.surface;
   let t = `${m}${info.method && info.method !== q.method ? ` (asked ${q.method})` : ''} / ${s}, ${q.samples}×${q.samples} samples`;
   if (info.rays != null) t += `, ${info.rays.toLocaleString('en-US')} rays`;
   if (info.stepsPerRay != null && Number.isFinite(info.stepsPerRay)) t += `, ${info.stepsPerRay.toFixed(1)} steps/ray`;
+  if (info.heightError) t += `, ${heightErrorText(info.heightError)}`;
   return t;
 }
 

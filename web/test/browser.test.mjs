@@ -344,6 +344,9 @@ test('compare mode renders both settings and their pixel difference', async () =
   const differ = Number(await page.getAttribute('#view-diff', 'data-differ'));
   assert.ok(differ > 0 && differ < b.pixels, `plane and bilinear differ in some pixels (${differ})`);
   assert.match(await page.textContent('#diff-result'), /pixels differ .*PSNR/);
+  // each view says how far it is from the exact picture (X-Terrad-Height-Error)
+  assert.match(await page.textContent('#view-a-caption'), /bilinear.*, the exact surface$/);
+  assert.match(await page.textContent('#view-b-caption'), /plane.*, [\d.]+ m mean, [\d.]+ m max off the exact surface$/);
 });
 
 test('level of detail: the view is rendered with it and still ticked', async () => {

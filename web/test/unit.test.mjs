@@ -3,7 +3,7 @@
 // frame <-> map transformation, camera geometry and the pixel difference.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { parseServerTiming, buildScene, pickScene, firstPick, jobProgress, renderInfo } from '../js/api.js';
+import { parseServerTiming, buildScene, pickScene, firstPick, jobProgress, renderInfo, parseHeightError } from '../js/api.js';
 import {
   normaliseDataset, transformation, maxNativeZoom, wedge, headingTo, along, normHeading,
   keyMove, defaultCamera, frameToGeo, roundNice,
@@ -40,6 +40,15 @@ test('render headers: steps per ray from X-Terrad-Steps over X-Terrad-Rays', () 
   assert.equal(i.surface, 'bilinear');
   assert.equal(i.stepsPerRay, 12.5);
   assert.equal(renderInfo(new Headers()).stepsPerRay, null);
+  assert.equal(renderInfo(new Headers()).heightError, null);
+});
+
+test('render headers: how far the picture is from the exact one', () => {
+  const i = renderInfo(new Headers({ 'X-Terrad-Height-Error': 'mean=0.261; max=18.7; hits=41833' }));
+  assert.deepEqual(i.heightError, { mean: 0.261, max: 18.7, hits: 41833 });
+  assert.deepEqual(parseHeightError('mean=1e-13; max=9.1e-12'), { mean: 1e-13, max: 9.1e-12 });
+  assert.equal(parseHeightError('mean=abc; max=1'), null);
+  assert.equal(parseHeightError(''), null);
 });
 
 test('scene JSON: camera above ground, only the effects that are on', () => {
