@@ -423,8 +423,11 @@ function heightErrorText(e) {
 
 function describeInfo(info, scene) {
   const q = scene.quality;
-  const m = info.method || q.method, s = info.surface || q.surface;
-  let t = `${m}${info.method && info.method !== q.method ? ` (asked ${q.method})` : ''} / ${s}, ${q.samples}×${q.samples} samples`;
+  // `auto:incremental=24%,hierarchical=76%` reads as `auto (incremental 24%, hierarchical 76%)`
+  const raw = info.method || q.method, s = info.surface || q.surface;
+  const [head, used] = raw.split(':');
+  const m = used ? `${head} (${used.split(',').map((u) => u.replace('=', ' ')).join(', ')})` : raw;
+  let t = `${m}${head !== q.method ? ` (asked ${q.method})` : ''} / ${s}, ${q.samples}×${q.samples} samples`;
   if (info.rays != null) t += `, ${info.rays.toLocaleString('en-US')} rays`;
   if (info.stepsPerRay != null && Number.isFinite(info.stepsPerRay)) t += `, ${info.stepsPerRay.toFixed(1)} steps/ray`;
   if (info.heightError) t += `, ${heightErrorText(info.heightError)}`;
@@ -500,7 +503,9 @@ function drawCharts() {
     div.className = 'chart';
     div.dataset.view = label;
     const q = v.scene.quality;
-    drawTimingChart(div, v.info, scale, `${label}${v.preview ? ' preview' : ''} ${v.info.method || q.method}/${v.info.surface || q.surface}`);
+    // the chart's title keeps to one line: `auto`, not what it chose (the caption says that)
+    const method = (v.info.method || q.method).split(':')[0];
+    drawTimingChart(div, v.info, scale, `${label}${v.preview ? ' preview' : ''} ${method}/${v.info.surface || q.surface}`);
     host.append(div);
   }
 }
