@@ -1039,18 +1039,29 @@ td_status td_render_pick(const td_view *v, const td_scene *s, td_pick *out,
             stats->steps += steps;
         }
         pk->distance = INFINITY;
+        pk->height_error_m = NAN;
         if (hit.t < INFINITY) {
+            double z;
             pk->hit = 1;
             memcpy(pk->p, hit.p, sizeof pk->p);
             pk->distance = hit.t;
             pk->ci = hit.ci;
             pk->cj = hit.cj;
+            if (td_grid_bilinear(v->grid, hit.p[0], hit.p[1], &z, NULL))
+                pk->height_error_m = fabs(hit.p[2] - z);
             if (stats)
                 stats->hits++;
+            if (stats && !isnan(pk->height_error_m)) {
+                stats->height_err_mean_m += pk->height_error_m; /* a sum until the end */
+                stats->height_err_max_m = fmax(stats->height_err_max_m, pk->height_error_m);
+                stats->height_err_hits++;
+            }
         }
     }
     if (stats) {
         stats->threads = 1;
+        if (stats->height_err_hits)
+            stats->height_err_mean_m /= (double)stats->height_err_hits;
         stats->stage_ran[TD_STAGE_PRIMARY] = 1;
         stats->stage_ms[TD_STAGE_PRIMARY] = 1000.0 * (now_s() - t);
         stats->total_ms = stats->stage_ms[TD_STAGE_PRIMARY];

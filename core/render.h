@@ -124,6 +124,7 @@ typedef struct td_pick {
     int hit;
     double p[3];      /* terrain point, dataset frame */
     double distance;  /* metres from the camera (orthographic: from the top plane) */
+    double height_error_m; /* |z - the exact (bilinear) surface at x, y|; NaN at a void */
     int32_t ci, cj;
 } td_pick;
 

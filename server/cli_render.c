@@ -203,6 +203,8 @@ static json_t *pick_json(const td_grid *g, const td_pick *pk, int n)
             json_object_set_new(o, "y", json_real(pk[i].p[1]));
             json_object_set_new(o, "z", json_real(pk[i].p[2]));
             json_object_set_new(o, "distance", json_real(pk[i].distance));
+            if (!isnan(pk[i].height_error_m))
+                json_object_set_new(o, "height_error_m", json_real(pk[i].height_error_m));
             json_object_set_new(o, "cell", json_pack("[i,i]", (int)pk[i].ci, (int)pk[i].cj));
             if (g->geo.kind == TD_GEO_LONLAT) {
                 json_object_set_new(o, "lon", json_real(g->geo.x0 + pk[i].p[0] / g->sx * g->geo.dx));

@@ -915,6 +915,8 @@ static json_t *picks_json(const td_scene *s, const td_grid *g, const td_pick *pk
             o = json_pack("{s:[f,f],s:b,s:{s:f,s:f,s:f},s:f,s:[i,i]}", "pixel", pk[i].px, pk[i].py,
                           "hit", 1, "point", "x", pk[i].p[0], "y", pk[i].p[1], "z", pk[i].p[2],
                           "distance", pk[i].distance, "cell", (int)pk[i].ci, (int)pk[i].cj);
+            if (o && !isnan(pk[i].height_error_m))
+                json_object_set_new(o, "height_error_m", json_real(pk[i].height_error_m));
             if (o && g->geo.kind != TD_GEO_NONE) {
                 double gx = g->geo.x0 + pk[i].p[0] / g->sx * g->geo.dx;
                 double gy = g->geo.y0 + pk[i].p[1] / g->sy * g->geo.dy;

@@ -450,9 +450,31 @@ static void test_pick(void **state)
         assert_true(z >= 180.0 && z <= 531.0);
         assert_true(y >= 0.0 && y <= 7980.0);
         assert_true(json_real_value(json_object_get(p0, "distance")) > 0);
+        /* the default surface is the exact one */
+        assert_true(json_is_real(json_object_get(p0, "height_error_m")));
+        assert_true(json_real_value(json_object_get(p0, "height_error_m")) < 1e-6);
     }
     assert_true(json_is_false(json_object_get(p1, "hit"))); /* above the horizon: sky */
     json_decref(j);
+    th_resp_free(&r);
+    /* on the flat-topped plane surface the picked point is off the exact one, and the
+       response says by how much, as renders do */
+    req(&A, "POST", "/v1/pick", JSON_CT,
+        "{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":4000,\"y\":-2000,\"z\":1500},\"pitch\":-15},"
+        "\"quality\":{\"surface\":\"plane\"},\"pick\":[[320,400],[300,380],[340,420]]}", &r);
+    assert_int_equal(r.status, 200);
+    {
+        char v[256];
+        double sum = 0.0;
+        j = body_json(&r);
+        for (int i = 0; i < 3; i++)
+            sum += json_real_value(json_object_get(json_array_get(json_object_get(j, "picks"), (size_t)i),
+                                                   "height_error_m"));
+        assert_true(sum > 1e-3);
+        json_decref(j);
+        assert_true(th_header(&r, "X-Terrad-Height-Error", v, sizeof v));
+        assert_non_null(strstr(v, "hits=3"));
+    }
     th_resp_free(&r);
     req(&A, "POST", "/v1/pick", JSON_CT, SCENE, &r);
     assert_error(&r, 400, "bad_request", "pick");

@@ -300,10 +300,13 @@ static void test_depth_matches_pick(void **state)
     assert_int_equal(td_render_pick(&v, &scene, pk, NULL, &err), TD_OK);
     for (int i = 0; i < 3; i++) {
         float d = r.depth[px[i][1] * W + px[i][0]];
-        if (pk[i].hit)
+        if (pk[i].hit) {
             assert_float_equal(d, pk[i].distance, 1e-3 * pk[i].distance);
-        else
+            assert_true(pk[i].height_error_m < 1e-6); /* bilinear: the exact surface */
+        } else {
             assert_true(isinf(d));
+            assert_true(isnan(pk[i].height_error_m));
+        }
     }
     assert_true(pk[0].hit);
     assert_false(pk[2].hit); /* top-left corner: sky */
