@@ -360,6 +360,23 @@ static void note_error(const ctx *c, worker *w, const double p[3])
     }
 }
 
+/* A camera ray's result into its sample: the method it ended with, and on a hit the
+ * point, normal, cell and how far the point is from the exact surface. */
+static void keep_camera_hit(const ctx *c, worker *w, const td_hit *hit, smp *q)
+{
+    if ((unsigned)hit->method < TD_METHOD_COUNT)
+        w->method_rays[hit->method]++;
+    if (hit->t < INFINITY) {
+        q->flags |= F_HIT;
+        q->t = hit->t;
+        memcpy(q->p, hit->p, sizeof q->p);
+        memcpy(q->n, hit->n, sizeof q->n);
+        q->ci = hit->ci;
+        q->cj = hit->cj;
+        note_error(c, w, hit->p);
+    }
+}
+
 /* A shadow or reflection ray on view v: bent about its origin when curvature is on and
  * its run is long enough (see the top of the file), else straight. */
 static void trace_secondary(const ctx *c, worker *w, const td_view *v, const td_ray *r, td_hit *hit)
@@ -411,17 +428,7 @@ static void run_block(worker *w, int b)
         }
         trace_lod(c, &r, &hit, &q->level, &w->steps);
         w->lod_rays[q->level]++;
-        if ((unsigned)hit.method < TD_METHOD_COUNT)
-            w->method_rays[hit.method]++;
-        if (hit.t < INFINITY) {
-            q->flags = F_HIT;
-            q->t = hit.t;
-            memcpy(q->p, hit.p, sizeof q->p);
-            note_error(c, w, hit.p);
-            memcpy(q->n, hit.n, sizeof q->n);
-            q->ci = hit.ci;
-            q->cj = hit.cj;
-        }
+        keep_camera_hit(c, w, &hit, q);
     }
     w->stage_s[TD_STAGE_PRIMARY] += now_s() - t;
     w->ran[TD_STAGE_PRIMARY] = 1;
@@ -438,17 +445,7 @@ static void run_block(worker *w, int b)
             r.tmax = INFINITY;
             trace_curved(c, c->v, &r, 0.25 * c->cam.pixel_angle, &hit, &w->steps, &w->segs);
             w->curved++;
-            if ((unsigned)hit.method < TD_METHOD_COUNT)
-                w->method_rays[hit.method]++;
-            if (hit.t < INFINITY) {
-                q->flags |= F_HIT;
-                q->t = hit.t;
-                memcpy(q->p, hit.p, sizeof q->p);
-                note_error(c, w, hit.p);
-                memcpy(q->n, hit.n, sizeof q->n);
-                q->ci = hit.ci;
-                q->cj = hit.cj;
-            }
+            keep_camera_hit(c, w, &hit, q);
         }
         w->stage_s[TD_STAGE_CURVATURE] += now_s() - t;
         w->ran[TD_STAGE_CURVATURE] = 1;
