@@ -1,13 +1,13 @@
-/* edt.c: the Felzenszwalb-Huttenlocher distance transform, O(n) per line.
+/* edt.c: the Felzenszwalb-Huttenlocher distance transform of a level set (cells with
+ * h >= z), O(n) per line.
  *
- * For a line of samples with costs f(q) (0 on features, +inf elsewhere) it computes
- * d(p) = min_q w*(p-q)^2 + f(q) as the lower envelope of parabolas rooted at the finite
- * samples. Running it along rows (weight sx^2) and then along columns of the result
- * (weight sy^2) gives the exact squared Euclidean distance in metres on grids whose
- * spacing differs in x and y. Samples with infinite cost never enter the envelope, so no
- * inf - inf arises. The columns go first: on a binary input they are plain distances in
- * cells (two sweeps); td_edt_columns/td_edt_row do the same for a level set of heights a
- * row at a time, for the parameter planes. */
+ * Columns first: the input is binary, so along a column the transform is the distance in
+ * cells to the nearest feature, two sweeps (td_edt_columns). Then per row, from those
+ * distances as costs f(q) = wy*dy^2 (+inf where a column has no feature), d(p) = min_q
+ * wx*(p-q)^2 + f(q) as the lower envelope of parabolas rooted at the finite samples
+ * (td_edt_row): the exact squared Euclidean distance in metres on grids whose spacing
+ * differs in x and y. Samples with infinite cost never enter the envelope, so no inf - inf
+ * arises. */
 #include "edt.h"
 
 #include <math.h>
@@ -17,24 +17,22 @@ int td_edt_scratch_init(td_edt_scratch *s, int32_t n)
 {
     s->n = n;
     s->f = malloc(sizeof(double) * (size_t)n);
-    s->d = malloc(sizeof(double) * (size_t)n);
     s->zs = malloc(sizeof(double) * ((size_t)n + 1));
     s->g = malloc(sizeof(double) * (size_t)n);
     s->rcp = malloc(sizeof(double) * (size_t)n);
     s->rcp_w = 0.0;
     s->v = malloc(sizeof(int32_t) * (size_t)n);
-    return s->f && s->d && s->zs && s->g && s->rcp && s->v;
+    return s->f && s->zs && s->g && s->rcp && s->v;
 }
 
 void td_edt_scratch_free(td_edt_scratch *s)
 {
     free(s->f);
-    free(s->d);
     free(s->zs);
     free(s->v);
     free(s->g);
     free(s->rcp);
-    s->f = s->d = s->zs = s->g = s->rcp = NULL;
+    s->f = s->zs = s->g = s->rcp = NULL;
     s->v = NULL;
 }
 
@@ -81,41 +79,6 @@ static void edt_1d(const double *f, double *d, int32_t n, double w, td_edt_scrat
             double dq = (double)(q - v[j]);
             d[q] = w * dq * dq + f[v[j]];
         }
-    }
-}
-
-void td_edt_2d(double *dist, int32_t nx, int32_t ny, double wx, double wy, td_edt_scratch *s)
-{
-    /* Columns first: the input is binary (0 or +inf), so the 1D transform along a column
-     * is the distance to the nearest feature in it, found by one sweep north and one
-     * sweep south. Both sweeps run row by row over contiguous memory. */
-    for (int32_t y = 1; y < ny; y++) {
-        const double *prev = dist + (size_t)(y - 1) * (size_t)nx;
-        double *row = dist + (size_t)y * (size_t)nx;
-        for (int32_t x = 0; x < nx; x++)
-            row[x] = row[x] == 0.0 ? 0.0 : prev[x] + 1.0; /* inf + 1 stays inf */
-    }
-    for (int32_t y = ny - 2; y >= 0; y--) {
-        const double *next = dist + (size_t)(y + 1) * (size_t)nx;
-        double *row = dist + (size_t)y * (size_t)nx;
-        for (int32_t x = 0; x < nx; x++) {
-            double b = next[x] + 1.0;
-            row[x] = b < row[x] ? b : row[x];
-        }
-    }
-    for (size_t c = 0; c < (size_t)nx * (size_t)ny; c++)
-        dist[c] = isinf(dist[c]) ? INFINITY : wy * dist[c] * dist[c];
-    /* Rows: the general transform of the columns' result, in place. A row of features
-     * only (common for the low slices of a height field) is its own transform. */
-    for (int32_t y = 0; y < ny; y++) {
-        double *row = dist + (size_t)y * (size_t)nx;
-        int32_t zeros = 0;
-        for (int32_t x = 0; x < nx; x++) {
-            s->f[x] = row[x];
-            zeros += row[x] == 0.0;
-        }
-        if (zeros < nx)
-            edt_1d(s->f, row, nx, wx, s);
     }
 }
 
