@@ -2,12 +2,12 @@
  * parallel: worker threads take tiles from a shared atomic counter (tiles are
  * independent, so no other synchronisation). Reports wall time and resident bytes. */
 #include "accel.h"
+#include "clock.h"
 
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "maxmip.h"
@@ -67,13 +67,6 @@ static void *build_worker(void *arg)
     return NULL;
 }
 
-static double now_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static td_status run_build(const td_grid *g, td_accel *a, int what, int k, int threads,
                            double *seconds, td_err *err)
 {
@@ -81,7 +74,7 @@ static td_status run_build(const td_grid *g, td_accel *a, int what, int k, int t
     build_job job = {.g = g, .a = a, .what = what, .k = k};
     pthread_t tid[256];
     int started = 0;
-    double t0 = now_seconds();
+    double t0 = td_clock_s();
 
     atomic_init(&job.next, 0);
     atomic_init(&job.failed, 0);
@@ -96,7 +89,7 @@ static td_status run_build(const td_grid *g, td_accel *a, int what, int k, int t
     for (int i = 0; i < started; i++)
         pthread_join(tid[i], NULL);
     pthread_mutex_destroy(&job.err_lock);
-    *seconds = now_seconds() - t0;
+    *seconds = td_clock_s() - t0;
     if (atomic_load(&job.failed)) {
         rc = (td_status)atomic_load(&job.failed);
         if (err)

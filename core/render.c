@@ -53,13 +53,13 @@
  * benchmark (PSNR, hit distance) and bounded in test_render. Curved rays and picks use
  * the full grid. */
 #include "render.h"
+#include "clock.h"
 
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "effects.h"
@@ -159,13 +159,6 @@ struct ctx {
 
 static inline double dmin_(double a, double b) { return a < b ? a : b; }
 static inline double dmax_(double a, double b) { return a > b ? a : b; }
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 /* Enter/exit of the ray's xy line over the grid rectangle; 0 if it never crosses it. */
 static int clip_xy(const ctx *c, const double o[3], const double d[3], double *t0, double *t1)
@@ -406,7 +399,7 @@ static void run_block(worker *w, int b)
     td_ray r;
 
     /* primary */
-    t = now_s();
+    t = td_clock_s();
     for (int i = 0; i < ns; i++) {
         smp *q = &w->s[i];
         int pix = i / (n * n), sub = i % (n * n);
@@ -430,11 +423,11 @@ static void run_block(worker *w, int b)
         w->lod_rays[q->level]++;
         keep_camera_hit(c, w, &hit, q);
     }
-    w->stage_s[TD_STAGE_PRIMARY] += now_s() - t;
+    w->stage_s[TD_STAGE_PRIMARY] += td_clock_s() - t;
     w->ran[TD_STAGE_PRIMARY] = 1;
 
     if (c->curv) {
-        t = now_s();
+        t = td_clock_s();
         for (int i = 0; i < ns; i++) {
             smp *q = &w->s[i];
             if (!(q->flags & F_CURVE))
@@ -447,12 +440,12 @@ static void run_block(worker *w, int b)
             w->curved++;
             keep_camera_hit(c, w, &hit, q);
         }
-        w->stage_s[TD_STAGE_CURVATURE] += now_s() - t;
+        w->stage_s[TD_STAGE_CURVATURE] += td_clock_s() - t;
         w->ran[TD_STAGE_CURVATURE] = 1;
     }
 
     if (!c->depth_only && s->effects.water) {
-        t = now_s();
+        t = td_clock_s();
         for (int i = 0; i < ns; i++) {
             smp *q = &w->s[i];
             double tw = water_distance(c, q);
@@ -482,12 +475,12 @@ static void run_block(worker *w, int b)
                 td_sky_color(r.d, c->sun, 1, rf);
             rf[3] = (float)td_water_fresnel(fabs(q->d[2]));
         }
-        w->stage_s[TD_STAGE_WATER] += now_s() - t;
+        w->stage_s[TD_STAGE_WATER] += td_clock_s() - t;
         w->ran[TD_STAGE_WATER] = 1;
     }
 
     if (!c->depth_only && s->effects.shadows) {
-        t = now_s();
+        t = td_clock_s();
         for (int i = 0; i < ns; i++) {
             smp *q = &w->s[i];
             w->lit[i] = 0.0f;
@@ -506,13 +499,13 @@ static void run_block(worker *w, int b)
             w->rays[TD_RAY_SHADOW]++;
             w->lit[i] = hit.t < INFINITY ? 0.0f : 1.0f;
         }
-        w->stage_s[TD_STAGE_SHADOWS] += now_s() - t;
+        w->stage_s[TD_STAGE_SHADOWS] += td_clock_s() - t;
         w->ran[TD_STAGE_SHADOWS] = 1;
     }
 
     if (!c->depth_only && s->effects.ambient_occlusion > 0) {
         int na = s->effects.ambient_occlusion;
-        t = now_s();
+        t = td_clock_s();
         for (int i = 0; i < ns; i++) {
             smp *q = &w->s[i];
             w->occl[i] = 1.0f;
@@ -534,12 +527,12 @@ static void run_block(worker *w, int b)
             w->rays[TD_RAY_AO] += (uint64_t)na;
             w->occl[i] = (float)open / (float)na;
         }
-        w->stage_s[TD_STAGE_AO] += now_s() - t;
+        w->stage_s[TD_STAGE_AO] += td_clock_s() - t;
         w->ran[TD_STAGE_AO] = 1;
     }
 
     if (!c->depth_only) {
-        t = now_s();
+        t = td_clock_s();
         for (int i = 0; i < ns; i++) {
             smp *q = &w->s[i];
             if (!(q->flags & (F_HIT | F_WATER)))
@@ -571,12 +564,12 @@ static void run_block(worker *w, int b)
             memcpy(q->rgb, col, sizeof col);
             q->alpha = 1.0f;
         }
-        w->stage_s[TD_STAGE_SHADE] += now_s() - t;
+        w->stage_s[TD_STAGE_SHADE] += td_clock_s() - t;
         w->ran[TD_STAGE_SHADE] = 1;
     }
 
     if (!c->depth_only && s->effects.haze) {
-        t = now_s();
+        t = td_clock_s();
         for (int i = 0; i < ns; i++) {
             smp *q = &w->s[i];
             if (!(q->flags & (F_HIT | F_WATER)))
@@ -590,12 +583,12 @@ static void run_block(worker *w, int b)
             for (int k = 0; k < 3; k++)
                 q->rgb[k] = (float)(q->rgb[k] * tr + hc[k] * (1.0 - tr));
         }
-        w->stage_s[TD_STAGE_HAZE] += now_s() - t;
+        w->stage_s[TD_STAGE_HAZE] += td_clock_s() - t;
         w->ran[TD_STAGE_HAZE] = 1;
     }
 
     if (!c->depth_only && s->effects.sky) {
-        t = now_s();
+        t = td_clock_s();
         for (int i = 0; i < ns; i++) {
             smp *q = &w->s[i];
             if (q->flags & (F_HIT | F_WATER))
@@ -603,12 +596,12 @@ static void run_block(worker *w, int b)
             td_sky_color(q->d, c->sun, 1, q->rgb);
             q->alpha = 1.0f;
         }
-        w->stage_s[TD_STAGE_SKY] += now_s() - t;
+        w->stage_s[TD_STAGE_SKY] += td_clock_s() - t;
         w->ran[TD_STAGE_SKY] = 1;
     }
 
     /* resolve */
-    t = now_s();
+    t = td_clock_s();
     for (int32_t y = y0; y < y1; y++) {
         for (int32_t x = x0; x < x1; x++) {
             int pix = (int)((y - y0) * bw + (x - x0));
@@ -642,7 +635,7 @@ static void run_block(worker *w, int b)
     }
     for (int i = 0; i < ns; i++)
         w->hits += (w->s[i].flags & F_HIT) != 0;
-    w->stage_s[TD_STAGE_RESOLVE] += now_s() - t;
+    w->stage_s[TD_STAGE_RESOLVE] += td_clock_s() - t;
     w->ran[TD_STAGE_RESOLVE] = 1;
 }
 
@@ -781,7 +774,7 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
     td_image8 *drape = NULL;
     int nthreads = 0, started = 0;
     size_t npix = 0, nsmp = 0, bytes;
-    double t_start = now_s();
+    double t_start = td_clock_s();
 
     memset(res, 0, sizeof *res);
     if (!o) {
@@ -909,7 +902,7 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
             rc = td_err_set(err, TD_ECANCELED, "render: cancelled");
     }
     st->height_err_mean_m = st->height_err_hits ? herr_sum / (double)st->height_err_hits : 0.0;
-    st->total_ms = 1000.0 * (now_s() - t_start);
+    st->total_ms = 1000.0 * (td_clock_s() - t_start);
 out:
     if (ws) {
         for (int i = 0; i < nthreads; i++) {
@@ -932,7 +925,7 @@ td_status td_render_encode(td_render_result *res, const td_scene *s, td_buf *out
 {
     td_status rc = TD_OK;
     uint16_t *u16 = NULL;
-    double t = now_s();
+    double t = td_clock_s();
     size_t npix = (size_t)res->width * (size_t)res->height;
 
     memset(out, 0, sizeof *out);
@@ -979,7 +972,7 @@ td_status td_render_encode(td_render_result *res, const td_scene *s, td_buf *out
 out:
     free(u16);
     if (!rc) {
-        res->stats.stage_ms[TD_STAGE_ENCODE] += 1000.0 * (now_s() - t);
+        res->stats.stage_ms[TD_STAGE_ENCODE] += 1000.0 * (td_clock_s() - t);
         res->stats.stage_ran[TD_STAGE_ENCODE] = 1;
     }
     return rc;
@@ -1000,7 +993,7 @@ td_status td_render_pick(const td_view *v, const td_scene *s, td_pick *out,
 {
     td_status rc = TD_OK;
     ctx c;
-    double t = now_s();
+    double t = td_clock_s();
 
     if (stats)
         memset(stats, 0, sizeof *stats);
@@ -1060,7 +1053,7 @@ td_status td_render_pick(const td_view *v, const td_scene *s, td_pick *out,
         if (stats->height_err_hits)
             stats->height_err_mean_m /= (double)stats->height_err_hits;
         stats->stage_ran[TD_STAGE_PRIMARY] = 1;
-        stats->stage_ms[TD_STAGE_PRIMARY] = 1000.0 * (now_s() - t);
+        stats->stage_ms[TD_STAGE_PRIMARY] = 1000.0 * (td_clock_s() - t);
         stats->total_ms = stats->stage_ms[TD_STAGE_PRIMARY];
     }
 out:

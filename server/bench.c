@@ -17,6 +17,7 @@
  *     render of the same view.
  * Memory: one dataset's grid and structures at a time, except the small Blanca scene. */
 #include "bench.h"
+#include "clock.h"
 #include "bench_int.h"
 
 #include <errno.h>
@@ -81,13 +82,6 @@ void td_bench_opts_default(td_bench_opts *o)
     o->rays_dataset = "trinidad";
 }
 
-double td_bench_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static int cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;
@@ -113,7 +107,7 @@ double td_bench_median(double *v, int n)
 static void progress(const bench_ctx *b, const char *fmt, const char *a, const char *c)
 {
     if (b->o->verbose) {
-        fprintf(stderr, "terrad bench: [%6.1f s] ", td_bench_now() - b->t_start);
+        fprintf(stderr, "terrad bench: [%6.1f s] ", td_clock_s() - b->t_start);
         fprintf(stderr, fmt, a, c);
         fputc('\n', stderr);
     }
@@ -226,7 +220,7 @@ double td_bench_trace_loop(const td_view *v, td_method m, td_surface s, const td
                            double *t, uint32_t *steps, uint64_t *steps_total, uint64_t *hits_total)
 {
     uint64_t st = 0, hits = 0;
-    double t0 = td_bench_now();
+    double t0 = td_clock_s();
     for (size_t k = 0; k < n; k++) {
         td_hit h;
         td_trace(v, m, s, &r[k], &h);
@@ -235,7 +229,7 @@ double td_bench_trace_loop(const td_view *v, td_method m, td_surface s, const td
         st += h.steps;
         hits += h.t < INFINITY;
     }
-    t0 = td_bench_now() - t0;
+    t0 = td_clock_s() - t0;
     *steps_total = st;
     *hits_total = hits;
     return t0;
@@ -468,12 +462,12 @@ static td_status run_speed(bench_ctx *b, bench_ds *d, td_err *err)
         }
         for (int g = 0; g < TD_EMBREE_GEOM_COUNT; g++) {
             for (int w = 0; w < 2; w++) {
-                double t0 = td_bench_now();
+                double t0 = td_clock_s();
                 if (w == 0)
                     td_embree_trace1(emb[g], er, d->n, d->t);
                 else
                     td_embree_trace16(emb[g], er, d->n, d->t);
-                secs[(size_t)(NTD + g * 2 + w) * (size_t)b->runs + (size_t)r] = td_bench_now() - t0;
+                secs[(size_t)(NTD + g * 2 + w) * (size_t)b->runs + (size_t)r] = td_clock_s() - t0;
                 if (r == 0)
                     d->em[g].agree[w] = agreement(d->t, d->ttri, d->n);
             }
@@ -1077,7 +1071,7 @@ td_status td_bench_run(const td_bench_opts *o, td_err *err)
     b->o = o;
     b->runs = o->runs < 1 ? 1 : o->runs;
     b->build_runs = b->runs;
-    b->t_start = td_bench_now();
+    b->t_start = td_clock_s();
     if (o->write_rays) {
         static const char *const names[4] = {"trinidad", "picos", "levi", "procedural"};
         int which = -1;
@@ -1128,7 +1122,7 @@ td_status td_bench_run(const td_bench_opts *o, td_err *err)
     }
     if (rc == TD_OK && (o->sections & (1u << TD_BENCH_EFFECTS)))
         rc = run_effects(b, err);
-    b->total_s = td_bench_now() - b->t_start;
+    b->total_s = td_clock_s() - b->t_start;
     if (rc == TD_OK)
         rc = td_bench_report(b, err);
 out:

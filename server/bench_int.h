@@ -137,7 +137,6 @@ typedef struct bench_ctx {
     bench_effect effect[TD_BENCH_EFFECT_COUNT];
 } bench_ctx;
 
-double td_bench_now(void);
 double td_bench_median(double *v, int n);
 void td_bench_view_camera(const td_grid *g, int k, int nviews, td_scene_camera *c);
 void td_bench_paglieroni_camera(const td_grid *g, int k, td_scene_camera *c);

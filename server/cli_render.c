@@ -14,6 +14,7 @@
  * entry per stage that ran), load_ms, accel_ms, render_ms, total_ms, threads, bytes.
  * Exit status: 0 ok, 1 runtime failure, 2 usage or scene error. */
 #include "cli.h"
+#include "clock.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -22,7 +23,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <time.h>
 
 #include <jansson.h>
 
@@ -48,13 +48,6 @@ static void render_usage(FILE *f)
                "  --stats FILE    write rays by kind and per-stage timings as JSON\n"
                "  --threads N     render threads (default: one per core)\n",
                TERRAD_SOURCE_DIR);
-}
-
-static double now_ms(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return 1e3 * (double)ts.tv_sec + 1e-6 * (double)ts.tv_nsec;
 }
 
 static int is_file(const char *p)
@@ -235,7 +228,7 @@ int td_cli_render(int argc, char **argv)
     td_pick *picks = NULL;
     json_t *stats = NULL, *pjson = NULL;
     char dem_path[4096], drape_path[4096], scene_dir[4096];
-    double t0 = now_ms(), load_ms = 0.0, accel_ms = 0.0;
+    double t0 = (1e3 * td_clock_s()), load_ms = 0.0, accel_ms = 0.0;
 
     memset(&res, 0, sizeof res);
     for (int i = 1; i < argc; i++) {
@@ -321,12 +314,12 @@ int td_cli_render(int argc, char **argv)
     }
     td_dem_opts dopts;
     td_dem_opts_default(&dopts);
-    double t = now_ms();
+    double t = (1e3 * td_clock_s());
     if (td_dem_load(dem_path, &dopts, &g, &err)) {
         fprintf(stderr, "terrad render: %s\n", err.msg);
         goto out;
     }
-    load_ms = now_ms() - t;
+    load_ms = (1e3 * td_clock_s()) - t;
 
     td_method m = scene->quality.method;
     td_accel_opts aopts;
@@ -336,21 +329,21 @@ int td_cli_render(int argc, char **argv)
     aopts.planes = m == TD_METHOD_PARAMETRIC || m == TD_METHOD_AUTO;
     aopts.threads = threads;
     if (aopts.maxmip || aopts.planes) {
-        t = now_ms();
+        t = (1e3 * td_clock_s());
         if (td_accel_build(g, &aopts, &acc, &ast, &err)) {
             fprintf(stderr, "terrad render: %s\n", err.msg);
             goto out;
         }
-        accel_ms = now_ms() - t;
+        accel_ms = (1e3 * td_clock_s()) - t;
     }
     td_view view = {g, acc ? acc->tiles : NULL};
     if (scene->quality.lod) {
-        t = now_ms();
+        t = (1e3 * td_clock_s());
         if (td_lod_build(g, TD_LOD_MAX, &aopts, &lod, &err)) {
             fprintf(stderr, "terrad render: %s\n", err.msg);
             goto out;
         }
-        accel_ms += now_ms() - t;
+        accel_ms += (1e3 * td_clock_s()) - t;
     }
 
     if (scene->image.format == TD_FORMAT_PICK) {
@@ -397,7 +390,7 @@ int td_cli_render(int argc, char **argv)
         json_object_set_new(stats, "samples", json_integer(scene->quality.samples));
         json_object_set_new(stats, "load_ms", json_real(load_ms));
         json_object_set_new(stats, "accel_ms", json_real(accel_ms));
-        json_object_set_new(stats, "total_ms", json_real(now_ms() - t0));
+        json_object_set_new(stats, "total_ms", json_real((1e3 * td_clock_s()) - t0));
         if (json_dump_file(stats, stats_path, JSON_INDENT(2) | JSON_REAL_PRECISION(6))) {
             fprintf(stderr, "terrad render: %s: cannot write the stats\n", stats_path);
             rc = 1;

@@ -17,6 +17,7 @@
  * output and its own counters, so there are no locks.
  * Exit status: 0 ok, 1 runtime failure (load, build, bad input), 2 usage error. */
 #include "cli.h"
+#include "clock.h"
 
 #include <errno.h>
 #include <math.h>
@@ -25,7 +26,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include <jansson.h>
 
@@ -61,13 +61,6 @@ static void trace_usage(FILE *f)
             "  --stats FILE  write JSON statistics (rays, hits, steps, seconds, ...)\n"
             "  --encoding E  PNG height encoding: gray16, terrain-rgb, terrarium, rgb-div\n",
             TD_PLANES_K_DEFAULT);
-}
-
-static double now_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 static double le_double(const unsigned char *p)
@@ -234,12 +227,12 @@ int td_cli_trace(int argc, char **argv)
         threads = td_cpu_count();
 
     /* load and build (not timed as tracing) */
-    t0 = now_seconds();
+    t0 = td_clock_s();
     if (td_dem_load(dem, &dopts, &g, &err) != TD_OK) {
         fprintf(stderr, "terrad trace: %s\n", err.msg);
         goto out;
     }
-    load_s = now_seconds() - t0;
+    load_s = td_clock_s() - t0;
     td_accel_opts_default(&aopts);
     aopts.maxmip = method == TD_METHOD_HIERARCHICAL || method == TD_METHOD_AUTO;
     aopts.planes = method == TD_METHOD_PARAMETRIC || method == TD_METHOD_AUTO;
@@ -295,7 +288,7 @@ int td_cli_trace(int argc, char **argv)
     }
     view.grid = g;
     view.accel = acc ? acc->tiles : NULL;
-    t0 = now_seconds();
+    t0 = td_clock_s();
     for (int j = 0; j < threads; j++) {
         jobs[j].view = &view;
         jobs[j].method = method;
@@ -314,7 +307,7 @@ int td_cli_trace(int argc, char **argv)
     for (int j = 1; j < started; j++)
         pthread_join(th[j], NULL);
     started = 0;
-    secs = now_seconds() - t0;
+    secs = td_clock_s() - t0;
     for (int j = 0; j < threads; j++) {
         steps += jobs[j].steps;
         hits += jobs[j].hits;

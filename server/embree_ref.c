@@ -25,6 +25,7 @@
  * Rays are prepared (clipped and converted in double) apart from tracing, so the
  * benchmark can time Embree at its best, on rays already in its native form. */
 #include "embree_ref.h"
+#include "clock.h"
 
 #include <math.h>
 #include <stdatomic.h>
@@ -32,7 +33,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/types.h>
-#include <time.h>
 
 #include <embree3/rtcore.h>
 
@@ -66,13 +66,6 @@ static bool monitor(void *ptr, ssize_t bytes, bool post)
     while (now > pk && !atomic_compare_exchange_weak(&e->peak, &pk, now)) {
     }
     return true;
-}
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 static double sample(const td_grid *g, int32_t i, int32_t j) { return (double)td_grid_at(g, i, j); }
@@ -233,7 +226,7 @@ td_status td_embree_build_opts(const td_grid *g, const td_embree_opts *o, td_emb
     }
     rtcSetDeviceMemoryMonitorFunction(e->dev, monitor, e);
 
-    t0 = now_s();
+    t0 = td_clock_s();
     e->scene = rtcNewScene(e->dev);
     rtcSetSceneFlags(e->scene, RTC_SCENE_FLAG_ROBUST);
     rtcSetSceneBuildQuality(e->scene, RTC_BUILD_QUALITY_HIGH);
@@ -284,7 +277,7 @@ td_status td_embree_build_opts(const td_grid *g, const td_embree_opts *o, td_emb
         gm = NULL;
     }
     rtcCommitScene(e->scene);
-    stats.build_seconds = now_s() - t0;
+    stats.build_seconds = td_clock_s() - t0;
     if (rtcGetDeviceError(e->dev) != RTC_ERROR_NONE) {
         rc = td_err_set(err, TD_EUNSUPPORTED, "embree: scene build failed (error %d)",
                         (int)rtcGetDeviceError(e->dev));

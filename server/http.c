@@ -18,6 +18,7 @@
  * render 17 ms, of which 0.7 ms fall outside the Server-Timing stages (connection
  * set-up, HTTP, resuming the connection, taking the snapshot). */
 #include "http.h"
+#include "clock.h"
 
 #include <arpa/inet.h>
 #include <microhttpd.h>
@@ -52,13 +53,6 @@ int td_http_status_index(int status)
 int td_http_status_code(int index)
 {
     return index >= 0 && index < TD_HTTP_STATUS_COUNT ? td_http_codes[index] : 0;
-}
-
-double td_http_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
 }
 
 typedef enum td_http_state {
@@ -174,7 +168,7 @@ out:
 const char *td_http_req_method(const td_http_req *q) { return q->method; }
 const char *td_http_req_path(const td_http_req *q) { return q->path; }
 int td_http_req_too_big(const td_http_req *q) { return q->too_big; }
-double td_http_req_age(const td_http_req *q) { return td_http_now() - q->t0; }
+double td_http_req_age(const td_http_req *q) { return td_clock_s() - q->t0; }
 void td_http_req_set_route(td_http_req *q, int route) { q->route = route; }
 
 double td_http_req_queue_wait(const td_http_req *q)
@@ -262,7 +256,7 @@ static void *worker_main(void *arg)
         pthread_mutex_unlock(&h->mu);
         if (!q)
             break;
-        q->t_start = td_http_now();
+        q->t_start = td_clock_s();
         q->fn(q->fn_cls, q, &q->resp, cancelled);
         q->state = TD_REQ_READY;
         pthread_mutex_lock(&h->mu);
@@ -314,7 +308,7 @@ static enum MHD_Result run_handler(td_http *h, td_http_req *q)
         /* Suspend first, then hand over: the worker resumes a suspended connection. */
         MHD_suspend_connection(q->conn);
         pthread_mutex_lock(&h->mu);
-        q->t_enq = td_http_now();
+        q->t_enq = td_clock_s();
         q->next = NULL;
         if (h->tail)
             h->tail->next = q;
@@ -350,7 +344,7 @@ static enum MHD_Result access_cb(void *cls, struct MHD_Connection *conn, const c
         q->h = h;
         q->conn = conn;
         q->route = -1;
-        q->t0 = td_http_now();
+        q->t0 = td_clock_s();
         snprintf(q->method, sizeof q->method, "%s", method);
         *con_cls = q;
         atomic_fetch_add(&h->active, 1);
@@ -395,7 +389,7 @@ static void completed_cb(void *cls, struct MHD_Connection *conn, void **con_cls,
 
     if (!q)
         return;
-    secs = td_http_now() - q->t0;
+    secs = td_clock_s() - q->t0;
     if (toe != MHD_REQUEST_TERMINATED_COMPLETED_OK && q->state != TD_REQ_ANSWERED)
         q->status = 0;
     if (q->route >= 0 && q->route < h->o.nroutes && h->o.route_names)
@@ -523,7 +517,7 @@ int td_http_port(const td_http *h) { return h->port; }
 
 int td_http_stop(td_http *h, double deadline_s)
 {
-    double end = td_http_now() + deadline_s;
+    double end = td_clock_s() + deadline_s;
     int left = 0;
     MHD_socket lfd;
     struct timespec nap = {0, 10 * 1000 * 1000};
@@ -532,7 +526,7 @@ int td_http_stop(td_http *h, double deadline_s)
     pthread_mutex_lock(&h->mu);
     h->stopping = 1;
     pthread_mutex_unlock(&h->mu);
-    while (atomic_load(&h->active) > 0 && td_http_now() < end)
+    while (atomic_load(&h->active) > 0 && td_clock_s() < end)
         nanosleep(&nap, NULL);
     left = atomic_load(&h->active);
     if (left && h->o.on_deadline)
@@ -543,8 +537,8 @@ int td_http_stop(td_http *h, double deadline_s)
         pthread_cond_wait(&h->cv, &h->mu);
     pthread_mutex_unlock(&h->mu);
     /* Let the resumed connections send their answers (bounded). */
-    end = td_http_now() + 1.0;
-    while (atomic_load(&h->active) > 0 && td_http_now() < end)
+    end = td_clock_s() + 1.0;
+    while (atomic_load(&h->active) > 0 && td_clock_s() < end)
         nanosleep(&nap, NULL);
     MHD_stop_daemon(h->d);
     if (lfd != MHD_INVALID_SOCKET)

@@ -127,6 +127,4 @@ int td_http_queue_depth(const td_http *h);
  * number of requests still unfinished at the deadline. */
 int td_http_stop(td_http *h, double deadline_s);
 
-double td_http_now(void); /* monotonic seconds */
-
 #endif

@@ -5,12 +5,12 @@
  * which TD_JOBS_QUEUE_MAX makes impossible in practice). All fields are under one
  * mutex; the progress callback takes it for a few stores per tile. */
 #include "jobs.h"
+#include "clock.h"
 
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "log.h"
 
@@ -45,13 +45,6 @@ struct td_jobs {
     size_t queued;
     int running;
 };
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
-}
 
 static td_job *oldest_queued_locked(td_jobs *j)
 {
@@ -99,7 +92,7 @@ static void *builder_main(void *arg)
         if (j->quit)
             break;
         jb->info.state = TD_JOB_RUNNING;
-        jb->t_start = now_s();
+        jb->t_start = td_clock_s();
         j->queued--;
         j->running = 1;
         spec = jb->spec;
@@ -112,7 +105,7 @@ static void *builder_main(void *arg)
         rc = td_store_preload(j->store, &spec, run_progress, &run, &built, &e);
 
         pthread_mutex_lock(&j->mu);
-        jb->info.elapsed_s = now_s() - jb->t_start;
+        jb->info.elapsed_s = td_clock_s() - jb->t_start;
         jb->info.built = built;
         jb->info.estimate_s = 0;
         if (rc == TD_OK) {
@@ -245,7 +238,7 @@ int td_jobs_get(td_jobs *j, unsigned id, td_job_info *out)
         if (jb->used && jb->info.id == id) {
             *out = jb->info;
             if (jb->info.state == TD_JOB_RUNNING) {
-                out->elapsed_s = now_s() - jb->t_start;
+                out->elapsed_s = td_clock_s() - jb->t_start;
                 out->estimate_s = out->done > 0 && out->total >= out->done
                                       ? out->elapsed_s / (double)out->done *
                                             (double)(out->total - out->done)

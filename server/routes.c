@@ -13,6 +13,7 @@
  * Server-Timing (parse, queue, every render stage that ran, encode). A watchdog thread
  * raises a render's cancel flag at its deadline (--render-timeout) and at shutdown. */
 #include "routes.h"
+#include "clock.h"
 
 #include <ctype.h>
 #include <dirent.h>
@@ -690,7 +691,7 @@ static void *watch_main(void *arg)
     pthread_mutex_lock(&w->mu);
     while (!w->quit) {
         struct timespec ts;
-        double now = td_http_now();
+        double now = td_clock_s();
         for (int i = 0; i < TD_WATCH_SLOTS; i++)
             if (w->slot[i].used && now > w->slot[i].deadline)
                 atomic_store(&w->slot[i].cancel, 1);
@@ -770,7 +771,7 @@ static td_watch_slot *watch_begin(td_app *app, double seconds)
         if (!w->slot[i].used) {
             s = &w->slot[i];
             s->used = 1;
-            s->deadline = td_http_now() + seconds;
+            s->deadline = td_clock_s() + seconds;
             atomic_store(&s->cancel, 0);
         }
     pthread_mutex_unlock(&w->mu);
@@ -943,7 +944,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     td_err e = {{0}};
     td_status rc;
     const td_view *v;
-    double queue_ms = td_http_req_queue_wait(q) * 1e3, depth_scale = 0, t0 = td_http_now();
+    double queue_ms = td_http_req_queue_wait(q) * 1e3, depth_scale = 0, t0 = td_clock_s();
     const td_render_stats *st = NULL;
 
     memset(&res, 0, sizeof res);
@@ -1019,7 +1020,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         uint64_t rays = 0;
         for (int k = 0; k < TD_RAY_KIND_COUNT; k++)
             rays += st->rays[k];
-        td_metrics_render(app->metrics, j->scene.quality.method, td_http_now() - t0, rays, st->steps);
+        td_metrics_render(app->metrics, j->scene.quality.method, td_clock_s() - t0, rays, st->steps);
     }
 out:
     timing_header(r, j, queue_ms, st);
@@ -1106,7 +1107,7 @@ static void h_render(td_app *app, td_http_req *q, td_http_resp *r, int post, int
     td_request_limits lim;
     td_request_error re;
     td_status rc;
-    double t0 = td_http_now();
+    double t0 = td_clock_s();
 
     memset(&re, 0, sizeof re);
     if (!j) {
@@ -1158,7 +1159,7 @@ static void h_render(td_app *app, td_http_req *q, td_http_resp *r, int post, int
         goto out;
     }
     j->kind = pick || j->scene.image.format == TD_FORMAT_PICK ? TD_RK_PICK : TD_RK_RENDER;
-    j->parse_ms = (td_http_now() - t0) * 1e3;
+    j->parse_ms = (td_clock_s() - t0) * 1e3;
     render_defer(app, q, r, j); /* takes j */
     j = NULL;
 out:
