@@ -219,7 +219,7 @@ int td_cli_render(int argc, char **argv)
     td_scene *scene = NULL;
     td_request_limits lim;
     td_request_error rerr;
-    td_err err = {""};
+    td_err err = {0};
     td_grid *g = NULL;
     td_accel *acc = NULL;
     td_lod *lod = NULL;

@@ -362,7 +362,7 @@ static void h_preload(td_app *app, td_http_req *q, td_http_resp *r)
     td_preload_spec spec;
     long idx;
     unsigned id = 0;
-    td_err e = {{0}};
+    td_err e = {0};
     td_job_info ji;
     char field[64];
 
@@ -941,7 +941,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     td_render_stats pst;
     td_pick *picks = NULL;
     td_buf buf = {0};
-    td_err e = {{0}};
+    td_err e = {0};
     td_status rc;
     const td_view *v;
     double queue_ms = td_http_req_queue_wait(q) * 1e3, depth_scale = 0, t0 = td_clock_s();

@@ -20,7 +20,7 @@ static td_grid *terrain(int32_t n, double relief)
 {
     td_terrain_params p;
     td_grid *g = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     td_terrain_params_default(&p);
     p.width = p.height = n;
     p.spacing = 30.0;
@@ -52,7 +52,7 @@ static void test_known_projection(void **state)
     td_grid *g = terrain(33, 100.0);
     td_scene_camera sc;
     td_camera cam;
-    td_err err = {{0}};
+    td_err err = {0};
     double px, py;
     (void)state;
 
@@ -100,7 +100,7 @@ static void test_ray_project_round_trip(void **state)
     td_grid *g = terrain(33, 100.0);
     td_scene_camera sc;
     td_camera cam;
-    td_err err = {{0}};
+    td_err err = {0};
     (void)state;
     pinhole(&sc, 100, -50, 800, 33, -20, 12, 57);
     assert_int_equal(td_camera_setup(&sc, 320, 200, g, &cam, &err), TD_OK);
@@ -123,7 +123,7 @@ static void test_photogrammetric_matches_pinhole(void **state)
     td_grid *g = terrain(33, 100.0);
     td_scene_camera a, b;
     td_camera ca, cb;
-    td_err err = {{0}};
+    td_err err = {0};
     (void)state;
     /* focal 50 mm, pixel 0.05 mm: 1000 px focal length; 800 px wide */
     pinhole(&b, 10, 20, 900, 0, 0, 0, 60);
@@ -155,7 +155,7 @@ static void test_orthographic(void **state)
     td_grid *g = terrain(33, 100.0);
     td_scene s;
     td_camera cam;
-    td_err err = {{0}};
+    td_err err = {0};
     double px, py;
     td_ray r;
     (void)state;
@@ -187,7 +187,7 @@ static void test_positions(void **state)
     td_grid *g = terrain(33, 100.0);
     td_scene_camera sc;
     td_camera cam;
-    td_err err = {{0}};
+    td_err err = {0};
     (void)state;
     pinhole(&sc, 0, 0, 0, 0, 0, 0, 60);
     /* agl over a sample: ground is that sample's height */
@@ -225,7 +225,7 @@ static void test_project_then_pick(void **state)
     td_grid *g = terrain(65, 400.0);
     td_scene s;
     td_camera cam;
-    td_err err = {{0}};
+    td_err err = {0};
     (void)state;
     const int32_t si = 40, sj = 22;
     double P[3] = {si * g->sx, sj * g->sy, td_grid_at(g, si, sj)};

@@ -39,7 +39,7 @@ static td_scene scene;     /* large (pick list): keep it off the stack */
 static int setup(void **state)
 {
     td_terrain_params p;
-    td_err err = {{0}};
+    td_err err = {0};
     (void)state;
     td_terrain_params_default(&p);
     p.width = p.height = 129;
@@ -81,7 +81,7 @@ static void render(const td_scene *s, int threads, td_render_result *res)
 {
     td_view v = {grid, NULL};
     td_render_opts o;
-    td_err err = {{0}};
+    td_err err = {0};
     td_render_opts_default(&o);
     o.threads = threads;
     td_status st = td_render(&v, s, &o, res, &err);
@@ -279,7 +279,7 @@ static void test_depth_matches_pick(void **state)
 {
     td_render_result r;
     td_view v = {grid, NULL};
-    td_err err = {{0}};
+    td_err err = {0};
     td_pick pk[3];
     (void)state;
     base_scene(&scene);
@@ -353,7 +353,7 @@ static void test_curvature(void **state)
 {
     td_terrain_params p;
     td_grid *flat = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     td_pick pk[1];
     td_render_stats st;
     (void)state;
@@ -421,7 +421,7 @@ static void test_curvature(void **state)
 static td_grid *walled_plain(double wall)
 {
     td_grid *g = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     assert_int_equal(td_grid_create(801, 21, 100.0, 100.0, 6, NULL, &g, &err), TD_OK);
     for (int32_t j = 0; j < 21; j++)
         for (int32_t i = 0; i < 801; i++)
@@ -457,7 +457,7 @@ static void test_curvature_shadows(void **state)
         for (int curv = 0; curv < 2; curv++) {
             td_render_result r;
             td_render_opts o;
-            td_err err = {{0}};
+            td_err err = {0};
             td_scene_defaults(&scene);
             scene.camera.x = 1000.0;
             scene.camera.y = -300.0;
@@ -497,7 +497,7 @@ static void test_refusals_and_cancel(void **state)
 {
     td_render_result r;
     td_view v = {grid, NULL};
-    td_err err = {{0}};
+    td_err err = {0};
     td_render_opts o;
     atomic_int cancel;
     (void)state;
@@ -551,7 +551,7 @@ static void test_cli_render(void **state)
     char *argv[] = {"render", scene_path, "-o", out_path, "--stats", stats_path, "--threads", "2", NULL};
     assert_int_equal(td_cli_render(8, argv), 0);
     td_image8 *img = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     assert_int_equal(td_image_load(out_path, 4, 1u << 20, &img, &err), TD_OK);
     assert_int_equal(img->width, 80);
     assert_int_equal(img->height, 60);
@@ -599,7 +599,7 @@ static void test_level_of_detail(void **state)
     td_render_opts o;
     td_lod *levels = NULL;
     td_accel_opts ao;
-    td_err err = {{0}};
+    td_err err = {0};
     (void)state;
     td_accel_opts_default(&ao);
     ao.maxmip = ao.planes = 0;
@@ -669,7 +669,7 @@ static void golden(const char *name, const td_scene *s, const td_image8 *drape)
     td_view v = {grid, NULL};
     td_render_opts o;
     td_render_result r;
-    td_err err = {{0}};
+    td_err err = {0};
     td_buf b;
     char path[1024];
     td_render_opts_default(&o);
