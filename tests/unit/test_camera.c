@@ -178,7 +178,8 @@ static void test_orthographic(void **state)
     /* an empty extent is refused, naming the field */
     s.camera.extent[2] = 50;
     assert_int_equal(td_camera_setup(&s.camera, 200, 100, g, &cam, &err), TD_ERANGE);
-    assert_non_null(strstr(err.msg, "camera.extent"));
+    assert_string_equal(err.field, "camera.extent");
+    assert_memory_equal(err.msg, "camera.extent: ", 15); /* the text still names it */
     td_grid_free(g);
 }
 
@@ -201,12 +202,14 @@ static void test_positions(void **state)
     sc.x = -10;
     assert_int_equal(td_camera_setup(&sc, 10, 10, g, &cam, &err), TD_ERANGE);
     assert_non_null(strstr(err.msg, "agl"));
+    assert_string_equal(err.field, "camera.position.agl");
     /* lon/lat needs a lon/lat georeference */
     sc.pos_kind = TD_POS_LONLAT_ALT;
     sc.lon = 10.001;
     sc.lat = 45.002;
     sc.alt = 1000;
     assert_int_equal(td_camera_setup(&sc, 10, 10, g, &cam, &err), TD_EUNSUPPORTED);
+    assert_string_equal(err.field, "camera.position.lon");
     g->geo.kind = TD_GEO_LONLAT;
     g->geo.x0 = 10.0;
     g->geo.y0 = 45.0;

@@ -10,7 +10,11 @@
  * - Supersampling traces n*n rays per pixel; the image is the same for 1 and 2 threads;
  *   depth agrees with picking; cancellation and unsupported options are refused.
  * - Golden images: small scenes, one per effect, compared by PSNR (>= 35 dB) with
- *   tests/golden/NAME.png. TERRAD_UPDATE_GOLDEN=1 rewrites them (then look at them). */
+ *   tests/golden/NAME.png. TERRAD_UPDATE_GOLDEN=1 rewrites them (then look at them).
+ * - A pick of every pixel traces exactly the render's camera rays (same distances, same
+ *   counts, straight and bent); partial stats add up (td_render_stats_add); td_render
+ *   and td_render_pick hold every row of the table of limits at both ends, naming the
+ *   row's field in err.field. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -26,6 +30,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "limit.h"
 #include "render.h"
 #include "terrain.h"
 
@@ -763,6 +768,222 @@ static void test_golden_images(void **state)
     golden("drape", &s, &chk);
 }
 
+
+/* Partial stats add up: counts and sums add, stages OR, the larger error wins, the mean
+ * is the summed error over the summed hits (the threads' stats, in thread order). */
+static void test_stats_add(void **state)
+{
+    td_render_stats a, b, sum;
+    (void)state;
+    memset(&a, 0, sizeof a);
+    memset(&b, 0, sizeof b);
+    memset(&sum, 0, sizeof sum);
+    a.rays[TD_RAY_PRIMARY] = 10;
+    a.rays[TD_RAY_SHADOW] = 4;
+    a.steps = 100;
+    a.hits = 8;
+    a.curved_rays = 2;
+    a.curved_secondary = 1;
+    a.curve_segments = 7;
+    a.method_rays[TD_METHOD_INCREMENTAL] = 10;
+    a.lod_rays[0] = 9;
+    a.height_err_sum_m = 3.0;
+    a.height_err_max_m = 1.5;
+    a.height_err_hits = 6;
+    a.stage_ran[TD_STAGE_PRIMARY] = 1;
+    a.stage_ms[TD_STAGE_PRIMARY] = 2.0;
+    b.rays[TD_RAY_PRIMARY] = 5;
+    b.rays[TD_RAY_AO] = 20;
+    b.steps = 50;
+    b.hits = 2;
+    b.method_rays[TD_METHOD_HIERARCHICAL] = 5;
+    b.lod_rays[1] = 5;
+    b.height_err_sum_m = 1.0;
+    b.height_err_max_m = 0.5;
+    b.height_err_hits = 2;
+    b.stage_ran[TD_STAGE_AO] = 1;
+    b.stage_ms[TD_STAGE_PRIMARY] = 1.0;
+    b.stage_ms[TD_STAGE_AO] = 4.0;
+    b.threads = 7;
+    b.total_ms = 99.0;
+
+    td_render_stats_add(&sum, &a);
+    assert_float_equal(sum.height_err_mean_m, 0.5, 0.0);
+    td_render_stats_add(&sum, &b);
+    assert_int_equal(sum.rays[TD_RAY_PRIMARY], 15);
+    assert_int_equal(sum.rays[TD_RAY_SHADOW], 4);
+    assert_int_equal(sum.rays[TD_RAY_AO], 20);
+    assert_int_equal(sum.steps, 150);
+    assert_int_equal(sum.hits, 10);
+    assert_int_equal(sum.curved_rays, 2);
+    assert_int_equal(sum.curved_secondary, 1);
+    assert_int_equal(sum.curve_segments, 7);
+    assert_int_equal(sum.method_rays[TD_METHOD_INCREMENTAL], 10);
+    assert_int_equal(sum.method_rays[TD_METHOD_HIERARCHICAL], 5);
+    assert_int_equal(sum.lod_rays[0], 9);
+    assert_int_equal(sum.lod_rays[1], 5);
+    assert_float_equal(sum.height_err_sum_m, 4.0, 0.0);
+    assert_float_equal(sum.height_err_max_m, 1.5, 0.0);
+    assert_int_equal(sum.height_err_hits, 8);
+    assert_float_equal(sum.height_err_mean_m, 4.0 / 8.0, 0.0);
+    assert_true(sum.stage_ran[TD_STAGE_PRIMARY] && sum.stage_ran[TD_STAGE_AO]);
+    assert_false(sum.stage_ran[TD_STAGE_SHADOWS]);
+    assert_float_equal(sum.stage_ms[TD_STAGE_PRIMARY], 3.0, 0.0);
+    assert_float_equal(sum.stage_ms[TD_STAGE_AO], 4.0, 0.0);
+    assert_int_equal(sum.threads, 0); /* the caller's */
+    assert_float_equal(sum.total_ms, 0.0, 0.0);
+
+    /* no hits: the mean is 0, not NaN */
+    memset(&sum, 0, sizeof sum);
+    memset(&a, 0, sizeof a);
+    td_render_stats_add(&sum, &a);
+    assert_float_equal(sum.height_err_mean_m, 0.0, 0.0);
+}
+
+/* Picks every pixel of the scene (w x h <= TD_SCENE_PICK_MAX) and renders its depth on
+ * one thread: the same rays, so the same distances, steps, hits, bent rays and errors. */
+static void pick_all_matches_render(const td_view *v, int32_t w, int32_t h, int want_curved)
+{
+    static td_pick pk[TD_SCENE_PICK_MAX];
+    td_render_stats ps;
+    td_render_result r;
+    td_render_opts o;
+    td_err err = {0};
+    assert_true(w * h <= TD_SCENE_PICK_MAX);
+    scene.image.width = w;
+    scene.image.height = h;
+    scene.image.format = TD_FORMAT_PICK;
+    scene.npick = (int)(w * h);
+    for (int i = 0; i < scene.npick; i++) {
+        scene.pick[i][0] = i % w;
+        scene.pick[i][1] = i / w;
+    }
+    assert_int_equal(td_render_pick(v, &scene, pk, &ps, &err), TD_OK);
+    scene.image.format = TD_FORMAT_DEPTH32F;
+    scene.npick = 0;
+    td_render_opts_default(&o);
+    o.threads = 1;
+    assert_int_equal(td_render(v, &scene, &o, &r, &err), TD_OK);
+    for (int i = 0; i < w * h; i++) {
+        float d = pk[i].hit ? (float)pk[i].distance : INFINITY;
+        if (memcmp(&d, &r.depth[i], sizeof d))
+            print_error("pixel %d: pick %.9g, depth %.9g\n", i, (double)d, (double)r.depth[i]);
+        assert_memory_equal(&d, &r.depth[i], sizeof d);
+    }
+    assert_int_equal(ps.rays[TD_RAY_PRIMARY], r.stats.rays[TD_RAY_PRIMARY]);
+    assert_int_equal(ps.steps, r.stats.steps);
+    assert_int_equal(ps.hits, r.stats.hits);
+    assert_int_equal(ps.curved_rays, r.stats.curved_rays);
+    assert_int_equal(ps.curve_segments, r.stats.curve_segments);
+    assert_int_equal(ps.height_err_hits, r.stats.height_err_hits);
+    assert_float_equal(ps.height_err_max_m, r.stats.height_err_max_m, 0.0);
+    assert_float_equal(ps.height_err_mean_m, r.stats.height_err_mean_m,
+                       1e-12 * r.stats.height_err_mean_m); /* summed in block order */
+    assert_true(ps.hits > 0 && ps.hits < (uint64_t)(w * h));
+    if (want_curved)
+        assert_true(ps.curved_rays > 0 && ps.curve_segments > ps.curved_rays);
+    else
+        assert_int_equal(ps.curved_rays, 0);
+    for (int k = 0; k < TD_METHOD_COUNT; k++)
+        assert_int_equal(ps.method_rays[k], 0); /* a pick does not count them */
+    td_render_result_free(&r);
+}
+
+static void test_pick_traces_the_render_rays(void **state)
+{
+    td_view v = {grid, NULL};
+    td_terrain_params p;
+    td_grid *flat = NULL;
+    td_err err = {0};
+    (void)state;
+    base_scene(&scene);
+    scene.quality.surface = TD_SURFACE_TRIANGLE; /* a height error that is not 0 */
+    pick_all_matches_render(&v, 32, 24, 0);
+
+    /* a long, narrow view over flat ground: the far rays bend (see test_curvature) */
+    td_terrain_params_default(&p);
+    p.width = p.height = 257;
+    p.spacing = 100.0;
+    p.relief_m = 0.0;
+    p.base_m = 100.0;
+    assert_int_equal(td_terrain_generate(&p, 6, &flat, &err), TD_OK);
+    td_view fv = {flat, NULL};
+    td_scene_defaults(&scene);
+    scene.camera.x = 12800.0;
+    scene.camera.y = 0.0;
+    scene.camera.z = 150.0;
+    scene.camera.pitch = -0.3;
+    scene.camera.fov = 2.0;
+    scene.quality.method = TD_METHOD_INCREMENTAL;
+    scene.effects.curvature = 1;
+    pick_all_matches_render(&fv, 64, 16, 1);
+    td_grid_free(flat);
+}
+
+/* Sets the scene field of a row of the table of limits (a new row needs a case). */
+static void set_limited(td_scene *s, td_limit id, double v)
+{
+    switch (id) {
+    case TD_LIMIT_WIDTH: s->image.width = (int32_t)v; break;
+    case TD_LIMIT_HEIGHT: s->image.height = (int32_t)v; break;
+    case TD_LIMIT_SAMPLES: s->quality.samples = (int)v; break;
+    case TD_LIMIT_LOD_PIXELS: s->quality.lod = 1; s->quality.lod_pixels = v; break;
+    case TD_LIMIT_AO_RAYS: s->effects.ambient_occlusion = (int)v; break;
+    case TD_LIMIT_AMBIENT: s->effects.ambient = v; break;
+    case TD_LIMIT_SUN_ELEVATION: s->effects.sun_elevation = v; break;
+    case TD_LIMIT_HAZE_KM: s->effects.haze = 1; s->effects.haze_visibility_km = v; break;
+    case TD_LIMIT_CURVATURE_K: s->effects.curvature = 1; s->effects.curvature_k = v; break;
+    case TD_LIMIT_PICK: s->npick = (int)v; break;
+    default: fail_msg("limit %d: no scene field in this test", (int)id);
+    }
+}
+
+/* td_render (td_render_pick for the pick count) accepts each row's core max and min and
+ * refuses one past either end, with the row's path in err.field. */
+static void test_limits_in_core(void **state)
+{
+    td_view v = {grid, NULL};
+    td_render_opts o;
+    td_render_result r;
+    (void)state;
+    td_render_opts_default(&o);
+    o.threads = 1;
+    for (int id = 0; id < TD_LIMIT_COUNT; id++) {
+        const td_limit_row *l = td_limit_get((td_limit)id);
+        const double ends[4] = {l->min, l->max, l->min - 1.0, l->max + 1.0};
+        for (int k = 0; k < 4; k++) {
+            td_err err = {0};
+            td_status rc;
+            base_scene(&scene);
+            scene.image.width = id == TD_LIMIT_HEIGHT ? 1 : 4; /* cheap, also at 65536 */
+            scene.image.height = id == TD_LIMIT_WIDTH ? 1 : 3;
+            set_limited(&scene, (td_limit)id, ends[k]);
+            if (id == TD_LIMIT_PICK) {
+                static td_pick pk[TD_SCENE_PICK_MAX];
+                memset(scene.pick, 0, sizeof scene.pick);
+                scene.image.format = TD_FORMAT_PICK;
+                rc = td_render_pick(&v, &scene, pk, NULL, &err);
+            } else {
+                rc = td_render(&v, &scene, &o, &r, &err);
+                if (rc == TD_OK)
+                    td_render_result_free(&r);
+            }
+            if (k >= 2) {
+                if (rc != TD_ERANGE || strcmp(err.field, l->path))
+                    print_error("%s = %g: %d %s\n", l->path, ends[k], (int)rc, err.msg);
+                assert_int_equal(rc, TD_ERANGE);
+                assert_string_equal(err.field, l->path);
+                assert_memory_equal(err.msg, l->path, strlen(l->path)); /* the text names it too */
+            } else {
+                /* in range: rendered (lod: refused only for want of coarse levels) */
+                if (rc != (id == TD_LIMIT_LOD_PIXELS ? TD_EUNSUPPORTED : TD_OK))
+                    print_error("%s = %g: %d %s\n", l->path, ends[k], (int)rc, err.msg);
+                assert_int_equal(rc, id == TD_LIMIT_LOD_PIXELS ? TD_EUNSUPPORTED : TD_OK);
+            }
+        }
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -779,6 +1000,9 @@ int main(void)
         cmocka_unit_test(test_level_of_detail),
         cmocka_unit_test(test_cli_render),
         cmocka_unit_test(test_golden_images),
+        cmocka_unit_test(test_stats_add),
+        cmocka_unit_test(test_pick_traces_the_render_rays),
+        cmocka_unit_test(test_limits_in_core),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
