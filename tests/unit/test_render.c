@@ -354,30 +354,39 @@ static void test_depth_matches_pick(void **state)
 
 /* Flat ground, a long shallow view: curvature bends the centre ray so that it meets the
  * ground where a*t^2*cos^2(p) + t*sin(p) + h = 0 says, well beyond the straight hit. */
-static void test_curvature(void **state)
+/* Flat ground 25.6 km square at 100 m, and a long, narrow view over it from the south
+ * edge, 50 m above the ground, 0.3 degrees down: the far camera rays bend. */
+static td_grid *flat_ground_view(td_scene *s)
 {
     td_terrain_params p;
     td_grid *flat = NULL;
     td_err err = {0};
-    td_pick pk[1];
-    td_render_stats st;
-    (void)state;
     td_terrain_params_default(&p);
     p.width = p.height = 257;
     p.spacing = 100.0;
     p.relief_m = 0.0;
     p.base_m = 100.0;
     assert_int_equal(td_terrain_generate(&p, 6, &flat, &err), TD_OK);
+    td_scene_defaults(s);
+    s->camera.x = 12800.0;
+    s->camera.y = 0.0;
+    s->camera.z = 150.0;
+    s->camera.pitch = -0.3;
+    s->camera.fov = 2.0;
+    s->quality.method = TD_METHOD_INCREMENTAL;
+    return flat;
+}
+
+static void test_curvature(void **state)
+{
+    td_grid *flat = flat_ground_view(&scene);
+    td_err err = {0};
+    td_pick pk[1];
+    td_render_stats st;
+    (void)state;
     td_view v = {flat, NULL};
-    td_scene_defaults(&scene);
-    scene.camera.x = 12800.0;
-    scene.camera.y = 0.0;
-    scene.camera.z = 150.0;
-    scene.camera.pitch = -0.3;
-    scene.camera.fov = 2.0;
     scene.image.width = W;
     scene.image.height = H;
-    scene.quality.method = TD_METHOD_INCREMENTAL;
     scene.image.format = TD_FORMAT_PICK;
     scene.npick = 1;
     scene.pick[0][0] = (W - 1) / 2.0;
@@ -892,29 +901,14 @@ static void pick_all_matches_render(const td_view *v, int32_t w, int32_t h, int 
 static void test_pick_traces_the_render_rays(void **state)
 {
     td_view v = {grid, NULL};
-    td_terrain_params p;
-    td_grid *flat = NULL;
-    td_err err = {0};
     (void)state;
     base_scene(&scene);
     scene.quality.surface = TD_SURFACE_TRIANGLE; /* a height error that is not 0 */
     pick_all_matches_render(&v, 32, 24, 0);
 
-    /* a long, narrow view over flat ground: the far rays bend (see test_curvature) */
-    td_terrain_params_default(&p);
-    p.width = p.height = 257;
-    p.spacing = 100.0;
-    p.relief_m = 0.0;
-    p.base_m = 100.0;
-    assert_int_equal(td_terrain_generate(&p, 6, &flat, &err), TD_OK);
+    /* the far rays bend (see test_curvature) */
+    td_grid *flat = flat_ground_view(&scene);
     td_view fv = {flat, NULL};
-    td_scene_defaults(&scene);
-    scene.camera.x = 12800.0;
-    scene.camera.y = 0.0;
-    scene.camera.z = 150.0;
-    scene.camera.pitch = -0.3;
-    scene.camera.fov = 2.0;
-    scene.quality.method = TD_METHOD_INCREMENTAL;
     scene.effects.curvature = 1;
     pick_all_matches_render(&fv, 64, 16, 1);
     td_grid_free(flat);

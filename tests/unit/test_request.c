@@ -279,6 +279,18 @@ static void test_query(void **state)
 }
 
 
+/* Parses the scene the JSON tree root spells (and frees the tree). */
+static td_status parse_tree(json_t *root, const td_request_limits *lim, td_request_error *e)
+{
+    char *text = json_dumps(root, 0);
+    assert_non_null(text);
+    memset(e, 0, sizeof *e);
+    td_status st = td_request_parse_scene(text, strlen(text), lim, &scene, e);
+    free(text);
+    json_decref(root);
+    return st;
+}
+
 /* A scene with one more field, given by its dotted path (a JSON integer when v is whole,
  * so integer fields read it). */
 static td_status parse_field(const char *path, double v, const td_request_limits *lim,
@@ -300,13 +312,7 @@ static td_status parse_field(const char *path, double v, const td_request_limits
         key = next;
     }
     json_object_set_new(o, key, v == floor(v) ? json_integer((json_int_t)v) : json_real(v));
-    char *text = json_dumps(root, 0);
-    assert_non_null(text);
-    memset(e, 0, sizeof *e);
-    td_status st = td_request_parse_scene(text, strlen(text), lim, &scene, e);
-    free(text);
-    json_decref(root);
-    return st;
+    return parse_tree(root, lim, e);
 }
 
 static void accepts(const char *path, double v, const td_request_limits *lim)
@@ -336,13 +342,7 @@ static td_status parse_pick(int n, const td_request_limits *lim, td_request_erro
         json_array_append_new(px, json_pack("[i,i]", i % 640, i / 640));
     json_t *root = json_pack("{s:s,s:{s:{s:i,s:i,s:i}},s:{s:s},s:o}", "dataset", "levi", "camera",
                              "position", "x", 1, "y", 2, "z", 3, "image", "format", "pick", "pick", px);
-    char *text = json_dumps(root, 0);
-    assert_non_null(text);
-    memset(e, 0, sizeof *e);
-    td_status st = td_request_parse_scene(text, strlen(text), lim, &scene, e);
-    free(text);
-    json_decref(root);
-    return st;
+    return parse_tree(root, lim, e);
 }
 
 static void test_limits_table(void **state)
