@@ -121,7 +121,8 @@ void td_render_opts_default(td_render_opts *o);
 void td_render_stats_add(td_render_stats *sum, const td_render_stats *part);
 
 /* Renders the scene. On success the caller owns res's buffers (td_render_result_free).
- * Errors name the scene field at fault. */
+ * An error caused by a scene field names it in err->field (and at the front of the
+ * message); the ranges checked are core's column of limit.h. */
 td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o,
                     td_render_result *res, td_err *err);
 
