@@ -71,7 +71,7 @@ int td_cli_bench(int argc, char **argv)
 {
     int rc = 2;
     td_bench_opts o, defaults;
-    td_err err = {{0}};
+    td_err err = {0};
 
     td_bench_opts_default(&o);
     defaults = o;

@@ -46,7 +46,7 @@ int td_cli_serve(int argc, char **argv)
 {
     int rc = 1, help = 0, loaded = 0, sig = 0, cores = td_cpu_count();
     td_config cfg;
-    td_err e = {{0}};
+    td_err e = {0};
     td_store_opts so;
     td_app app;
     td_http_opts ho;

@@ -167,7 +167,7 @@ int td_cli_trace(int argc, char **argv)
     td_method method = TD_METHOD_AUTO;
     td_surface surface = TD_SURFACE_BILINEAR;
     td_dem_opts dopts;
-    td_err err = {{0}};
+    td_err err = {0};
     td_grid *g = NULL;
     td_accel *acc = NULL;
     td_accel_opts aopts;

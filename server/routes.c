@@ -362,7 +362,7 @@ static void h_preload(td_app *app, td_http_req *q, td_http_resp *r)
     td_preload_spec spec;
     long idx;
     unsigned id = 0;
-    td_err e = {{0}};
+    td_err e = {0};
     td_job_info ji;
     char field[64];
 
@@ -886,23 +886,17 @@ static void timing_header(td_http_resp *r, const td_rjob *j, double queue_ms,
     td_http_resp_header(r, "Server-Timing", "%s", v);
 }
 
-/* A core error: input at fault (400, with the field named before ": ") or not. */
-static void render_error(const td_app *app, td_http_resp *r, td_status rc, const char *msg)
+/* A core error: input at fault (400, with the field core named in e->field) or not. */
+static void render_error(const td_app *app, td_http_resp *r, td_status rc, const td_err *e)
 {
-    char field[128] = "";
-    const char *colon = strstr(msg, ": ");
-    if (colon && (size_t)(colon - msg) < sizeof field && !memchr(msg, ' ', (size_t)(colon - msg))) {
-        memcpy(field, msg, (size_t)(colon - msg));
-        field[colon - msg] = '\0';
-    }
     if (rc == TD_ECANCELED && !atomic_load(&((td_app *)app)->ready))
         api_error(r, TD_AE_STOPPING, NULL, "the server stopped before the render finished");
     else if (rc == TD_ECANCELED)
         api_error(r, TD_AE_TIMEOUT, NULL, "the render did not finish within --render-timeout");
     else if (rc == TD_ENOMEM || rc == TD_EIO)
-        api_error(r, TD_AE_INTERNAL, NULL, "%s", msg);
+        api_error(r, TD_AE_INTERNAL, NULL, "%s", e->msg);
     else
-        api_error(r, TD_AE_BAD_REQUEST, field[0] ? field : NULL, "%s", msg);
+        api_error(r, TD_AE_BAD_REQUEST, e->field[0] ? e->field : NULL, "%s", e->msg);
 }
 
 static json_t *picks_json(const td_scene *s, const td_grid *g, const td_pick *pk, int n)
@@ -941,7 +935,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     td_render_stats pst;
     td_pick *picks = NULL;
     td_buf buf = {0};
-    td_err e = {{0}};
+    td_err e = {0};
     td_status rc;
     const td_view *v;
     double queue_ms = td_http_req_queue_wait(q) * 1e3, depth_scale = 0, t0 = td_clock_s();
@@ -969,7 +963,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         }
         rc = td_render_pick(v, &j->scene, picks, &pst, &e);
         if (rc) {
-            render_error(app, r, rc, e.msg);
+            render_error(app, r, rc, &e);
             goto out;
         }
         st = &pst;
@@ -983,7 +977,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         if (rc == TD_OK)
             rc = td_render_encode(&res, &j->scene, &buf, &depth_scale, &e);
         if (rc) {
-            render_error(app, r, rc, e.msg);
+            render_error(app, r, rc, &e);
             goto out;
         }
         st = &res.stats;

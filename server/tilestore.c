@@ -311,7 +311,7 @@ static int load_one(td_store *s, const char *path, const char *name, const char 
 {
     td_dem_opts o;
     td_grid *g = NULL;
-    td_err e = {{0}};
+    td_err e = {0};
     char qp[600], qm[600];
     td_status rc;
     int ok = 0;
