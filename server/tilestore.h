@@ -19,10 +19,11 @@
  * change or vanish under it. A render's drape (effects.drape) is decoded on first use
  * and kept with its dataset (td_snapshot_drape), immutable and shared the same way.
  *
- * Memory: heights (and kept drapes) count against the budget from load; acceleration is
- * evicted least recently used first (a snapshot marks every tile of its dataset used),
- * pinned tiles never. A preload builds one tile at a time (one builder thread), evicting
- * before it builds, so the budget is never exceeded by more than the tile being built.
+ * Memory: heights count against the budget from load, a kept drape from its first use,
+ * and neither is evicted; acceleration is evicted least recently used first (a snapshot
+ * marks every tile of its dataset used), pinned tiles never. A preload builds one tile
+ * at a time (one builder thread), evicting before it builds, so the budget is never
+ * exceeded by more than the tile being built.
  * A preload is checked up front (tiles, budget against heights + drapes + pinned + kept
  * tiles), builds into a staging list, and publishes every tile at once under the lock;
  * if a build fails the staging list is dropped and the resident tiles stay as they were
@@ -133,7 +134,8 @@ size_t td_snapshot_count(const td_snapshot *snap, td_part_kind kind);
 /* The drape PNG at `path` as RGB (td_render_opts.drape), held by the snapshot until its
  * release: decoded on the dataset's first use of it and kept with the dataset (counted
  * in the budget; when it cannot fit, this snapshot alone keeps it). td_image_load's
- * status and message when it cannot be read. One drape per snapshot. */
+ * status and message when it cannot be read. One drape per snapshot: a second call
+ * drops the first one's reference. */
 td_status td_snapshot_drape(td_snapshot *snap, const char *path, const td_image8 **out,
                             td_err *err);
 void td_snapshot_release(td_snapshot *snap);
