@@ -8,8 +8,9 @@
  *
  * Renders, picks and map tiles run on the HTTP layer's bounded worker queue
  * (td_http_defer): the handler parses and validates on the HTTP thread (so a bad
- * request never takes a queue slot), a full queue answers 503 with Retry-After, and the
- * worker takes a tile-store snapshot, renders, encodes and fills the response with
+ * request never takes a queue slot) and takes the tile-store snapshot (the dataset
+ * resolved once, for the ETag, the drape and the render), a full queue answers 503 with
+ * Retry-After, and the worker renders, encodes and fills the response with
  * Server-Timing (parse, queue, every render stage that ran, encode). A watchdog thread
  * raises a render's cancel flag at its deadline (--render-timeout) and at shutdown. */
 #include "routes.h"
@@ -797,6 +798,7 @@ typedef struct td_rjob {
     int get;           /* GET: ETag and Cache-Control */
     double parse_ms;
     char etag[40];
+    td_snapshot *snap; /* the dataset, acquired by render_defer, released with the job */
     td_scene scene;    /* large (the pick list): the job is heap-allocated */
 } td_rjob;
 
@@ -928,7 +930,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
 {
     td_rjob *j = cls;
     td_app *app = j->app;
-    td_snapshot *snap = NULL;
+    td_snapshot *snap = j->snap;
     td_watch_slot *ws = NULL;
     td_render_opts o;
     td_render_result res;
@@ -946,11 +948,6 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     if (cancelled) {
         td_http_resp_header(r, "Retry-After", "1");
         api_error(r, TD_AE_STOPPING, NULL, "the server is stopping");
-        goto out;
-    }
-    rc = td_store_acquire(app->store, j->scene.dataset, &snap, &e);
-    if (rc) {
-        api_error(r, rc == TD_ENOTFOUND ? TD_AE_UNKNOWN_DATASET : TD_AE_INTERNAL, "dataset", "%s", e.msg);
         goto out;
     }
     v = td_snapshot_view(snap);
@@ -973,7 +970,13 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         o.threads = 1; /* one render per worker; the workers use the cores */
         o.cancel = ws ? &ws->cancel : NULL;
         o.lod = td_snapshot_lod(snap);
-        rc = td_render(v, &j->scene, &o, &res, &e);
+        /* the drape, decoded once and kept with the dataset (a depth image has none) */
+        rc = TD_OK;
+        if (j->scene.effects.drape[0] && j->scene.image.format != TD_FORMAT_DEPTH16 &&
+            j->scene.image.format != TD_FORMAT_DEPTH32F)
+            rc = td_snapshot_drape(snap, j->scene.effects.drape, &o.drape, &e);
+        if (rc == TD_OK)
+            rc = td_render(v, &j->scene, &o, &res, &e);
         if (rc == TD_OK)
             rc = td_render_encode(&res, &j->scene, &buf, &depth_scale, &e);
         if (rc) {
@@ -1030,32 +1033,31 @@ out:
  * 304 for a matching If-None-Match, 503 with Retry-After when the queue is full. */
 static void render_defer(td_app *app, td_http_req *q, td_http_resp *r, td_rjob *j)
 {
-    const td_grid *g = NULL;
-    long idx = td_store_find(app->store, j->scene.dataset);
-    td_dataset_info di;
+    td_err e = {{0}};
+    td_status rc;
     int deferred = 0;
 
-    if (idx < 0) {
-        api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", j->scene.dataset);
+    rc = td_store_acquire(app->store, j->scene.dataset, &j->snap, &e);
+    if (rc) {
+        api_error(r, rc == TD_ENOTFOUND ? TD_AE_UNKNOWN_DATASET : TD_AE_INTERNAL, "dataset", "%s", e.msg);
         goto out;
     }
-    td_store_info(app->store, (size_t)idx, &di);
-    g = di.grid;
     if (j->scene.effects.drape[0]) {
         /* A drape is an id: a PNG beside the dataset's file, never a path. */
         char path[PATH_MAX];
+        const char *dir = td_snapshot_dir(j->snap);
         struct stat st;
-        if ((size_t)snprintf(path, sizeof path, "%s/%s.png", di.dir, j->scene.effects.drape) >=
+        if ((size_t)snprintf(path, sizeof path, "%s/%s.png", dir, j->scene.effects.drape) >=
                 sizeof path || sizeof j->scene.effects.drape <= strlen(path) || stat(path, &st) ||
             !S_ISREG(st.st_mode)) {
             api_error(r, TD_AE_BAD_REQUEST, "effects.drape",
-                      "effects.drape: dataset '%s' has no drape '%s'", di.id, j->scene.effects.drape);
+                      "effects.drape: dataset '%s' has no drape '%s'", j->scene.dataset, j->scene.effects.drape);
             goto out;
         }
         memcpy(j->scene.effects.drape, path, strlen(path) + 1); /* fits: checked above */
     }
     if (j->get && j->kind != TD_RK_TILE)
-        scene_etag(&j->scene, g, j->etag, sizeof j->etag);
+        scene_etag(&j->scene, td_snapshot_view(j->snap)->grid, j->etag, sizeof j->etag);
     if (j->get && etag_matches(q, j->etag)) {
         r->status = 304;
         td_http_resp_header(r, "ETag", "%s", j->etag);
@@ -1073,8 +1075,10 @@ static void render_defer(td_app *app, td_http_req *q, td_http_resp *r, td_rjob *
                       app->cfg->render_workers, app->cfg->queue);
     }
 out:
-    if (!deferred)
+    if (!deferred) {
+        td_snapshot_release(j->snap);
         free(j);
+    }
 }
 
 typedef struct td_qargs {
