@@ -1033,7 +1033,7 @@ out:
  * 304 for a matching If-None-Match, 503 with Retry-After when the queue is full. */
 static void render_defer(td_app *app, td_http_req *q, td_http_resp *r, td_rjob *j)
 {
-    td_err e = {{0}};
+    td_err e = {0};
     td_status rc;
     int deferred = 0;
 
