@@ -185,6 +185,60 @@ void td_camera_ray(const td_camera *cam, double px, double py, td_ray *r)
     r->tmax = INFINITY;
 }
 
+/* Is the image of the vertical direction s (+1 up, -1 down) in front of the camera and
+ * within a pixel of the rectangle? */
+static int vertical_inside(const td_camera *cam, double s, double px0, double py0, double px1,
+                           double py1)
+{
+    double x = s * cam->right[2], y = s * cam->up[2], z = s * cam->fwd[2];
+    int in = 0;
+    if (z > 0.0) {
+        double px = 0.5 * cam->width + cam->focal_px * x / z - 0.5;
+        double py = 0.5 * cam->height - cam->focal_px * y / z - 0.5;
+        in = px >= px0 - 1.0 && px <= px1 + 1.0 && py >= py0 - 1.0 && py <= py1 + 1.0;
+    }
+    return in;
+}
+
+int td_camera_azimuths(const td_camera *cam, double px0, double py0, double px1, double py1,
+                       double *az0, double *az1, double vert[2])
+{
+    int ok = cam->projection == TD_PROJ_PERSPECTIVE && !vertical_inside(cam, 1.0, px0, py0, px1, py1) &&
+             !vertical_inside(cam, -1.0, px0, py0, px1, py1);
+    double ref = 0.0, lo = 0.0, hi = 0.0;
+    for (int k = 0; ok && k < 4; k++) {
+        td_ray r;
+        td_camera_ray(cam, (k & 1) ? px1 : px0, (k & 2) ? py1 : py0, &r);
+        double a = atan2(r.d[1], r.d[0]);
+        if (k == 0)
+            ref = a;
+        a = remainder(a - ref, 2.0 * M_PI);
+        lo = a < lo ? a : lo;
+        hi = a > hi ? a : hi;
+    }
+    ok = ok && hi - lo < M_PI;
+    *az0 = ref + lo;
+    *az1 = ref + hi;
+    if (vert) {
+        /* how a point in front of the rectangle's centre moves in the image as it rises */
+        td_ray r;
+        double p[3], q[3], a[2] = {0.0, 0.0}, b[2] = {0.0, -1.0};
+        td_camera_ray(cam, 0.5 * (px0 + px1), 0.5 * (py0 + py1), &r);
+        for (int k = 0; k < 3; k++)
+            p[k] = q[k] = r.o[k] + r.d[k];
+        q[2] += 1e-3;
+        if (cam->projection == TD_PROJ_PERSPECTIVE && td_camera_project(cam, p, &a[0], &a[1]) &&
+            td_camera_project(cam, q, &b[0], &b[1])) {
+            b[0] -= a[0];
+            b[1] -= a[1];
+        }
+        double len = hypot(b[0], b[1]);
+        vert[0] = len > 0.0 ? b[0] / len : 0.0;
+        vert[1] = len > 0.0 ? b[1] / len : -1.0;
+    }
+    return ok;
+}
+
 int td_camera_project(const td_camera *cam, const double p[3], double *px, double *py)
 {
     int ok = 1;

@@ -35,6 +35,16 @@ td_status td_camera_setup(const td_scene_camera *c, int32_t width, int32_t heigh
 /* The ray through pixel coordinates (px, py); tmin = 0, tmax = +inf. */
 void td_camera_ray(const td_camera *cam, double px, double py, td_ray *r);
 
+/* Bounds the azimuths (atan2(d_y, d_x), radians) of the rays through the rectangle of
+ * pixel coordinates [px0, px1] x [py0, py1]: [*az0, *az1], az1 - az0 < pi. The rays of
+ * one azimuth pass through one half-line from the image of the vertical (the vanishing
+ * point of verticals), so over a rectangle that does not hold that point the extremes are
+ * at its corners. Returns 0 (nothing bounded) when it does hold it (with a pixel's
+ * margin), for an orthographic camera, or when the corners span pi or more. *vert gets
+ * the image direction in which verticals rise at the rectangle's centre (unit). */
+int td_camera_azimuths(const td_camera *cam, double px0, double py0, double px1, double py1,
+                       double *az0, double *az1, double vert[2]);
+
 /* Projects p (dataset frame) to pixel coordinates; returns 0 when p is behind the
  * camera (perspective) and leaves px, py unset, 1 otherwise (the point may still be
  * outside the image). */

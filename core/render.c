@@ -72,11 +72,13 @@
 #include <unistd.h>
 
 #include "effects.h"
+#include "horizon.h"
 #include "limit.h"
 #include "lod.h"
 #include "shade.h"
 
 #define TD_BLOCK 16
+#define TD_SLICES 4 /* wedges a block's camera rays are cut into for the horizon device */
 #define TD_DEG (M_PI / 180.0)
 
 static const char *const td_ray_kind_names[] = {
@@ -111,6 +113,10 @@ void td_render_stats_add(td_render_stats *sum, const td_render_stats *part)
     for (int k = 0; k < TD_RAY_KIND_COUNT; k++)
         sum->rays[k] += part->rays[k];
     sum->steps += part->steps;
+    for (int k = 0; k < TD_RAY_KIND_COUNT; k++)
+        sum->kind_steps[k] += part->kind_steps[k];
+    sum->coherent_rays += part->coherent_rays;
+    sum->horizon_bins += part->horizon_bins;
     sum->hits += part->hits;
     sum->curved_rays += part->curved_rays;
     sum->curved_secondary += part->curved_secondary;
@@ -151,6 +157,7 @@ typedef struct worker {
     ctx *c;
     pthread_t th;
     smp *s;
+    td_horizon hz;                  /* the primary stage's wedge (horizon device) */
     float *scratch[TD_STAGE_COUNT]; /* per sample, for the stages whose row asks for it */
     td_render_stats st;             /* this thread's counts (stage_ms left 0: stage_s) */
     double stage_s[TD_STAGE_COUNT];
@@ -172,6 +179,7 @@ struct ctx {
     atomic_int next;
     const atomic_int *cancel;
     int depth_only;
+    int horizon;     /* camera rays start from their wedge's horizon (see horizon.h) */
     int on[TD_STAGE_COUNT]; /* the stages this render runs (their on_<name>) */
     double sun[3];
     double eps;      /* origin offset along the normal for secondary rays */
@@ -348,13 +356,14 @@ static void offset_origin(const ctx *c, const double p[3], const float n[3], dou
 
 /* A camera ray over the levels of detail (see the top of the file); *level is the level
  * it ended on. Without levels this is one td_trace on the full grid. */
-static void trace_lod(const ctx *c, const td_ray *r, td_hit *hit, int *level, uint64_t *steps)
+static void trace_lod(const ctx *c, const td_ray *r, double t_clear, td_hit *hit, int *level,
+                      uint64_t *steps)
 {
     const td_scene *s = c->s;
     int l = c->ortho_level;
     uint64_t n = 0;
     if (c->nlod == 0 || c->cam.projection == TD_PROJ_ORTHOGRAPHIC) {
-        td_trace(c->views[l], s->quality.method, s->quality.surface, r, hit);
+        td_trace_from(c->views[l], s->quality.method, s->quality.surface, r, t_clear, hit);
         n = hit->steps;
     } else {
         td_ray seg = *r;
@@ -403,17 +412,20 @@ static int camera_bends(const ctx *c, const td_ray *r)
  * Counts the ray, its steps, a bent ray and its chords, a hit and its height error in
  * st; *level is the level it ended on (0 when bent). Returns the hit's height error
  * (NaN for a miss or over a void). */
-static double trace_camera(const ctx *c, const td_ray *r, int bent, td_hit *hit, int *level,
-                           td_render_stats *st)
+static double trace_camera(const ctx *c, const td_ray *r, int bent, double t_clear, td_hit *hit,
+                           int *level, td_render_stats *st)
 {
     double e = NAN;
+    uint64_t steps = 0;
     *level = 0;
     if (bent) {
-        trace_curved(c, c->v, r, 0.25 * c->cam.pixel_angle, hit, &st->steps, &st->curve_segments);
+        trace_curved(c, c->v, r, 0.25 * c->cam.pixel_angle, hit, &steps, &st->curve_segments);
         st->curved_rays++;
     } else {
-        trace_lod(c, r, hit, level, &st->steps);
+        trace_lod(c, r, t_clear, hit, level, &steps);
     }
+    st->steps += steps;
+    st->kind_steps[TD_RAY_PRIMARY] += steps;
     st->rays[TD_RAY_PRIMARY]++;
     if (hit->t < INFINITY) {
         st->hits++;
@@ -440,48 +452,132 @@ static void keep_camera_hit(td_render_stats *st, const td_hit *hit, smp *sm)
 
 /* A shadow or reflection ray on view v: bent about its origin when curvature is on and
  * its run is long enough (see the top of the file), else straight. */
-static void trace_secondary(const ctx *c, worker *w, const td_view *v, const td_ray *r, td_hit *hit)
+static void trace_secondary(const ctx *c, worker *w, td_ray_kind kind, const td_view *v,
+                            const td_ray *r, td_hit *hit)
 {
+    uint64_t steps = 0;
     if (c->curv2 && needs_curve(c, r->o, r->d, c->curv_smin2)) {
-        trace_curved(c, v, r, 0.0, hit, &w->st.steps, &w->st.curve_segments);
+        trace_curved(c, v, r, 0.0, hit, &steps, &w->st.curve_segments);
         w->st.curved_secondary++;
     } else {
         td_trace(v, c->s->quality.method, c->s->quality.surface, r, hit);
-        w->st.steps += hit->steps;
+        steps = hit->steps;
     }
+    w->st.steps += steps;
+    w->st.kind_steps[kind] += steps;
 }
 
 /* ---- The stages: stage_<name> runs on one block, on_<name> says whether the render
  * needs it (asked once per render). Their order is TD_BLOCK_STAGE_LIST's. ---- */
 
-/* Camera rays; those that must bend are flagged for the curvature stage. */
-static void stage_primary(worker *w, const blk *b)
+/* The camera ray of sample i of block b into its sample record (not traced yet). */
+static void camera_sample(const ctx *c, const blk *b, int i, smp *sm)
+{
+    const int n = c->n;
+    td_ray r;
+    int pix = i / (n * n), sub = i % (n * n);
+    double px = b->x0 + pix % b->bw + ((sub % n) + 0.5) / n - 0.5;
+    double py = b->y0 + pix / b->bw + ((sub / n) + 0.5) / n - 0.5;
+    td_camera_ray(&c->cam, px, py, &r);
+    memcpy(sm->o, r.o, sizeof sm->o);
+    memcpy(sm->d, r.d, sizeof sm->d);
+    sm->flags = camera_bends(c, &r) ? F_CURVE : 0; /* bent rays: the curvature stage */
+    sm->level = 0;
+    sm->t = INFINITY;
+    sm->tw = INFINITY;
+    sm->alpha = 0.0f;
+    sm->rgb[0] = sm->rgb[1] = sm->rgb[2] = 0.0f; /* a miss without sky stays transparent black */
+}
+
+/* Traces the straight camera ray of a sample, from t_clear on (+inf: a miss known
+ * without tracing, see horizon.h). */
+static void camera_trace(worker *w, smp *sm, double t_clear)
+{
+    const ctx *c = w->c;
+    td_hit hit;
+    td_ray r = {.tmin = 0.0, .tmax = INFINITY};
+    memcpy(r.o, sm->o, sizeof r.o);
+    memcpy(r.d, sm->d, sizeof r.d);
+    if (t_clear == INFINITY) {
+        memset(&hit, 0, sizeof hit);
+        hit.t = INFINITY;
+        hit.method = c->s->quality.method == TD_METHOD_AUTO ? TD_METHOD_INCREMENTAL : c->s->quality.method;
+        w->st.rays[TD_RAY_PRIMARY]++;
+        sm->level = 0;
+    } else {
+        trace_camera(c, &r, 0, t_clear, &hit, &sm->level, &w->st);
+    }
+    w->st.lod_rays[sm->level]++;
+    keep_camera_hit(&w->st, &hit, sm);
+}
+
+/* One slice of a block, pixels [xa, xb) x [ya, yb), from the horizon of its wedge (see
+ * horizon.h): its samples in order of rising elevation (along `major`: rows when the
+ * slice stands upright in the image, else columns), each ray started where the
+ * horizon says nothing can precede its hit. */
+static void trace_slice(worker *w, const blk *b, int32_t xa, int32_t xb, int32_t ya, int32_t yb,
+                        int rows)
 {
     const ctx *c = w->c;
     const int n = c->n;
-    td_hit hit;
-    td_ray r;
-    for (int i = 0; i < b->ns; i++) {
-        smp *sm = &w->s[i];
-        int pix = i / (n * n), sub = i % (n * n);
-        double px = b->x0 + pix % b->bw + ((sub % n) + 0.5) / n - 0.5;
-        double py = b->y0 + pix / b->bw + ((sub / n) + 0.5) / n - 0.5;
-        td_camera_ray(&c->cam, px, py, &r);
-        memcpy(sm->o, r.o, sizeof sm->o);
-        memcpy(sm->d, r.d, sizeof sm->d);
-        sm->flags = 0;
-        sm->level = 0;
-        sm->t = INFINITY;
-        sm->tw = INFINITY;
-        sm->alpha = 0.0f;
-        sm->rgb[0] = sm->rgb[1] = sm->rgb[2] = 0.0f; /* a miss without sky stays transparent black */
-        if (camera_bends(c, &r)) {
-            sm->flags = F_CURVE;
-            continue;
+    double az0, az1, vert[2];
+    uint32_t bins = 0;
+    int hz_ok = td_camera_azimuths(&c->cam, xa + 0.5 / n - 0.5, ya + 0.5 / n - 0.5, xb - 0.5 / n - 0.5,
+                                   yb - 0.5 / n - 0.5, &az0, &az1, vert) &&
+                td_horizon_begin(&w->hz, c->v, c->cam.o, az0, az1);
+    /* rising elevation: against the image direction in which verticals rise */
+    int up = rows ? vert[1] < 0.0 : vert[0] < 0.0;
+    int32_t nmaj = rows ? (yb - ya) * n : (xb - xa) * n, nmin = rows ? (xb - xa) * n : (yb - ya) * n;
+    for (int32_t a = 0; a < nmaj; a++) {
+        int32_t ma = up ? nmaj - 1 - a : a; /* sample row (or column) in the slice */
+        for (int32_t m = 0; m < nmin; m++) {
+            int32_t sx = rows ? m : ma, sy = rows ? ma : m; /* sample coordinates in the slice */
+            int32_t px = xa - b->x0 + sx / n, py = ya - b->y0 + sy / n;
+            int i = (py * b->bw + px) * n * n + (sy % n) * n + sx % n;
+            smp *sm = &w->s[i];
+            double hk = sqrt(sm->d[0] * sm->d[0] + sm->d[1] * sm->d[1]), t_clear = 0.0;
+            if (sm->flags & F_CURVE)
+                continue;
+            if (hz_ok && hk > 1e-9) {
+                double dc = td_horizon_clear(&w->hz, sm->d[2] / hk, &bins);
+                t_clear = dc == INFINITY ? INFINITY : dc / hk * (1.0 - 1e-12);
+                w->st.coherent_rays++;
+            }
+            camera_trace(w, sm, t_clear);
         }
-        trace_camera(c, &r, 0, &hit, &sm->level, &w->st);
-        w->st.lod_rays[sm->level]++;
-        keep_camera_hit(&w->st, &hit, sm);
+    }
+    w->st.horizon_bins += bins;
+    w->st.steps += bins;
+    w->st.kind_steps[TD_RAY_PRIMARY] += bins;
+}
+
+/* Camera rays. With the horizon device on (perspective, full grid), the block is cut into
+ * TD_SLICES slices across the image direction of the verticals, each traced from its
+ * wedge's horizon; else every ray is traced from its start. Rays that must bend are
+ * flagged for the curvature stage. */
+static void stage_primary(worker *w, const blk *b)
+{
+    const ctx *c = w->c;
+    for (int i = 0; i < b->ns; i++)
+        camera_sample(c, b, i, &w->s[i]);
+    if (c->horizon) {
+        double vert[2], az0, az1;
+        td_camera_azimuths(&c->cam, b->x0, b->y0, b->x1 - 1, b->y1 - 1, &az0, &az1, vert);
+        int rows = fabs(vert[1]) >= fabs(vert[0]); /* verticals run up the image: slices are columns */
+        int32_t len = rows ? b->bw : b->y1 - b->y0;
+        for (int k = 0; k < TD_SLICES; k++) {
+            int32_t s0 = len * k / TD_SLICES, s1 = len * (k + 1) / TD_SLICES;
+            if (s1 <= s0)
+                continue;
+            if (rows)
+                trace_slice(w, b, b->x0 + s0, b->x0 + s1, b->y0, b->y1, 1);
+            else
+                trace_slice(w, b, b->x0, b->x1, b->y0 + s0, b->y0 + s1, 0);
+        }
+    } else {
+        for (int i = 0; i < b->ns; i++)
+            if (!(w->s[i].flags & F_CURVE))
+                camera_trace(w, &w->s[i], 0.0);
     }
 }
 
@@ -505,7 +601,7 @@ static void stage_curvature(worker *w, const blk *b)
         memcpy(r.d, sm->d, sizeof r.d);
         r.tmin = 0.0;
         r.tmax = INFINITY;
-        trace_camera(c, &r, 1, &hit, &sm->level, &w->st);
+        trace_camera(c, &r, 1, 0.0, &hit, &sm->level, &w->st);
         keep_camera_hit(&w->st, &hit, sm);
     }
 }
@@ -544,7 +640,7 @@ static void stage_water(worker *w, const blk *b)
                                             : sm->d[2]);
         r.tmin = 0.0;
         r.tmax = INFINITY;
-        trace_secondary(c, w, c->views[sm->level], &r, &hit);
+        trace_secondary(c, w, TD_RAY_REFLECTION, c->views[sm->level], &r, &hit);
         w->st.rays[TD_RAY_REFLECTION]++;
         float *rf = &refl[4 * i];
         if (hit.t < INFINITY)
@@ -581,7 +677,7 @@ static void stage_shadows(worker *w, const blk *b)
         memcpy(r.d, c->sun, sizeof r.d);
         r.tmin = 0.0;
         r.tmax = INFINITY;
-        trace_secondary(c, w, c->views[sm->level], &r, &hit);
+        trace_secondary(c, w, TD_RAY_SHADOW, c->views[sm->level], &r, &hit);
         w->st.rays[TD_RAY_SHADOW]++;
         lit[i] = hit.t < INFINITY ? 0.0f : 1.0f;
     }
@@ -617,6 +713,7 @@ static void stage_ao(worker *w, const blk *b)
             r.tmax = c->ao_radius;
             td_trace(c->views[sm->level], s->quality.method, s->quality.surface, &r, &hit);
             w->st.steps += hit.steps;
+            w->st.kind_steps[TD_RAY_AO] += hit.steps;
             open += !(hit.t <= c->ao_radius);
         }
         w->st.rays[TD_RAY_AO] += (uint64_t)na;
@@ -939,6 +1036,10 @@ static td_status setup_render(ctx *c, const td_render_opts *o, td_image8 **drape
             goto out;
     }
     c->cancel = o->cancel;
+    /* the horizon bounds the full grid: not for coarse levels (their filtered heights may
+       exceed a bin's cells), not for orthographic views (no eye) */
+    c->horizon = !(o->off & TD_RENDER_OFF_HORIZON) && c->nlod == 0 &&
+                 c->cam.projection == TD_PROJ_PERSPECTIVE;
     c->depth_only = s->image.format == TD_FORMAT_DEPTH16 || s->image.format == TD_FORMAT_DEPTH32F;
     c->bx = (s->image.width + TD_BLOCK - 1) / TD_BLOCK;
     c->by = (s->image.height + TD_BLOCK - 1) / TD_BLOCK;
@@ -1187,7 +1288,7 @@ static void pick_one(const ctx *c, const double px[2], td_pick *pk, td_render_st
     pk->px = px[0];
     pk->py = px[1];
     td_camera_ray(&c->cam, pk->px, pk->py, &r);
-    pk->height_error_m = trace_camera(c, &r, camera_bends(c, &r), &hit, &level, st);
+    pk->height_error_m = trace_camera(c, &r, camera_bends(c, &r), 0.0, &hit, &level, st);
     pk->distance = INFINITY;
     if (hit.t < INFINITY) {
         pk->hit = 1;

@@ -77,6 +77,10 @@ const char *td_stage_name(td_stage s);
 typedef struct td_render_stats {
     uint64_t rays[TD_RAY_KIND_COUNT];
     uint64_t steps;            /* tracer steps over all rays */
+    uint64_t kind_steps[TD_RAY_KIND_COUNT]; /* the same by kind of ray (primary: with the
+                                               horizon bins built for them) */
+    uint64_t coherent_rays;    /* camera rays started from a horizon bound (horizon.h) */
+    uint64_t horizon_bins;     /* horizon bins built for them */
     uint64_t hits;             /* camera samples that hit the terrain */
     uint64_t curved_rays;      /* camera rays traced bent */
     uint64_t curved_secondary; /* shadow and reflection rays traced bent */
@@ -102,7 +106,11 @@ typedef struct td_render_opts {
     uint64_t drape_max_pixels; /* when loading it (0: 64 Mpx) */
     const atomic_int *cancel;  /* polled per block; non-zero -> TD_ECANCELED */
     const td_lod *lod;         /* coarse levels (quality.lod needs them), or NULL */
+    unsigned off;              /* coherence devices turned off (TD_RENDER_OFF_*), for
+                                  measuring what each one is worth; all on by default */
 } td_render_opts;
+
+#define TD_RENDER_OFF_HORIZON 1u /* camera rays each traced from their start */
 
 typedef struct td_render_result {
     int32_t width, height;

@@ -148,6 +148,7 @@ typedef struct walk_state {
     double t;
     double f;  /* z_ray - surface at t on the entry boundary; NaN: not computed yet */
     int entry; /* how the cell was entered */
+    int level; /* max-mipmap level a hierarchical run starts at (-1: the tile's top) */
 } walk_state;
 
 typedef struct hit_rec {
@@ -660,7 +661,9 @@ static int hier_run(const walk *restrict w, const td_tile *tile, const td_tile_a
     int rc = STEP_CONTINUE;
     const td_maxmip *mm = ta->maxmip;
     const box tb = tile_box(tile);
-    int L = mm->levels > 1 ? mm->levels - 1 : mm->levels; /* the tile test covered the top */
+    /* the tile test covered the top; a ray started near its hit (td_trace_from) climbs
+       from the bottom instead */
+    int L = st->level >= 0 ? st->level : (mm->levels > 1 ? mm->levels - 1 : mm->levels);
     uint32_t n = 0;
     while (rc == STEP_CONTINUE && in_box(st, &tb)) {
         n++;
@@ -843,6 +846,7 @@ static int walk_setup(walk *w, const td_grid *g, td_surface s, const td_ray *r, 
     st->cj = cell_along(ray_v(w, t0), w->sv, 0, w->cmax_j);
     st->f = NAN;
     st->entry = ENTRY_START;
+    st->level = -1;
     return t0 <= t1;
 }
 
@@ -891,7 +895,41 @@ static void surface_normal(const walk *w, const hit_rec *h, float n[3])
     n[2] = (float)(nz / len);
 }
 
+/* Cells a ray started from a bound walks plainly before its method takes over. */
+#define TD_NEAR_CELLS 4
+
+static inline int on_grid(const walk *w, const walk_state *st)
+{
+    return st->ci >= 0 && st->cj >= 0 && st->ci <= w->cmax_i && st->cj <= w->cmax_j;
+}
+
+/* Moves the walk's start to the entry boundary of the cell the ray is in at internal time
+ * tc, which the caller knows no hit precedes. From a cell's entry boundary the walk is the
+ * walk from the ray's start, bit for bit: the boundary's f is recomputed by the function
+ * the cell before would have carried it with. Returns 0 when tc is past the end (no hit). */
+static int skip_to(const walk *w, walk_state *st, double tc)
+{
+    int go = 1;
+    if (tc > w->t_end) {
+        go = 0;
+    } else if (tc > st->t) {
+        int32_t ci = cell_along(ray_u(w, tc), w->su, 0, w->cmax_i);
+        int32_t cj = cell_along(ray_v(w, tc), w->sv, 0, w->cmax_j);
+        double teu = entry_u(w, ci), tev = entry_v(w, cj), te = dmax(teu, tev);
+        if (te > st->t) /* else the ray starts in that cell */
+            enter_cell(st, ci, cj, te, crossing(tev, teu), NAN);
+        st->level = 0; /* near the hit: no use testing the tile's big blocks first */
+    }
+    return go;
+}
+
 void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_hit *hit)
+{
+    td_trace_from(v, m, s, r, 0.0, hit);
+}
+
+void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r, double t_clear,
+                   td_hit *hit)
 {
     const td_grid *g = v->grid;
     walk w;
@@ -909,13 +947,20 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
     hit->t = INFINITY;
     hit->ci = hit->cj = -1;
     if (isnan(g->zmin) || (unsigned)m >= TD_METHOD_COUNT || (unsigned)s >= TD_SURFACE_COUNT ||
-        !walk_setup(&w, g, s, r, &scale, &st))
+        !walk_setup(&w, g, s, r, &scale, &st) || !skip_to(&w, &st, t_clear / scale))
         goto out;
     rc = STEP_CONTINUE;
+    /* a ray started from a bound is usually within a cell or two of its hit: the first
+       cells plainly, before any tile or block test */
+    for (int k = 0; k < TD_NEAR_CELLS && st.level == 0 && rc == STEP_CONTINUE && on_grid(&w, &st); k++) {
+        steps++;
+        rc = walk_cell(&w, &st, &hr);
+    }
     while (rc == STEP_CONTINUE) {
         if (tile && in_box(&st, &tb)) {
             rc = method_runs[used](&w, tile, ta, &st, &steps, &hr);
-        } else if (st.ci < 0 || st.cj < 0 || st.ci > w.cmax_i || st.cj > w.cmax_j) {
+            st.level = -1; /* only the tile a skip lands in starts low */
+        } else if (!on_grid(&w, &st)) {
             rc = STEP_END; /* off the grid */
         } else { /* a new tile: one step */
             steps++;

@@ -97,6 +97,13 @@ td_status td_ray_validate(const td_ray *r, td_err *err);
 /* Traces one validated ray. Never allocates; thread-safe for a shared view. */
 void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_hit *hit);
 
+/* td_trace for a ray the caller knows meets nothing before t_clear (units of d; e.g. from
+ * a horizon.h bound): the walk starts at the boundary of the cell the ray is in at
+ * t_clear, so the hit is td_trace's, bit for bit, in fewer steps. A t_clear past the
+ * search's end is a miss; t_clear <= tmin changes nothing. */
+void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r, double t_clear,
+                   td_hit *hit);
+
 /* Surface height at (x, y) in the dataset frame inside cell (ci, cj), NaN on a hole
  * (the `linear` surface has no height of its own: it is evaluated as bilinear here). */
 double td_surface_height(const td_grid *g, td_surface s, int32_t ci, int32_t cj, double x, double y);

@@ -174,7 +174,13 @@ static json_t *stats_json(const td_render_stats *st)
     json_object_set_new(o, "lod_rays", lod);
     json_object_set_new(o, "rays", rays);
     json_object_set_new(o, "stages_ms", stages);
-    json_object_set_new(o, "steps", json_integer((json_int_t)st->steps));
+    json_t *steps = json_object();
+    json_object_set_new(steps, "total", json_integer((json_int_t)st->steps));
+    for (int k = 0; k < TD_RAY_KIND_COUNT; k++)
+        json_object_set_new(steps, td_ray_kind_name((td_ray_kind)k), json_integer((json_int_t)st->kind_steps[k]));
+    json_object_set_new(o, "steps", steps);
+    json_object_set_new(o, "coherent_rays", json_integer((json_int_t)st->coherent_rays));
+    json_object_set_new(o, "horizon_bins", json_integer((json_int_t)st->horizon_bins));
     json_object_set_new(o, "hits", json_integer((json_int_t)st->hits));
     json_object_set_new(o, "curved_rays", json_integer((json_int_t)st->curved_rays));
     json_object_set_new(o, "curved_secondary", json_integer((json_int_t)st->curved_secondary));

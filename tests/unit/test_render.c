@@ -872,6 +872,7 @@ static void pick_all_matches_render(const td_view *v, int32_t w, int32_t h, int 
     scene.npick = 0;
     td_render_opts_default(&o);
     o.threads = 1;
+    /* the render's camera rays from their wedges' horizons: the same depths, bit for bit */
     assert_int_equal(td_render(v, &scene, &o, &r, &err), TD_OK);
     for (int i = 0; i < w * h; i++) {
         float d = pk[i].hit ? (float)pk[i].distance : INFINITY;
@@ -879,6 +880,16 @@ static void pick_all_matches_render(const td_view *v, int32_t w, int32_t h, int 
             print_error("pixel %d: pick %.9g, depth %.9g\n", i, (double)d, (double)r.depth[i]);
         assert_memory_equal(&d, &r.depth[i], sizeof d);
     }
+    assert_int_equal(ps.hits, r.stats.hits);
+    td_render_result_free(&r);
+    /* and traced from their starts, as a pick traces them: the same steps too */
+    o.off = TD_RENDER_OFF_HORIZON;
+    assert_int_equal(td_render(v, &scene, &o, &r, &err), TD_OK);
+    for (int i = 0; i < w * h; i++) {
+        float d = pk[i].hit ? (float)pk[i].distance : INFINITY;
+        assert_memory_equal(&d, &r.depth[i], sizeof d);
+    }
+    assert_int_equal(r.stats.coherent_rays, 0);
     assert_int_equal(ps.rays[TD_RAY_PRIMARY], r.stats.rays[TD_RAY_PRIMARY]);
     assert_int_equal(ps.steps, r.stats.steps);
     assert_int_equal(ps.hits, r.stats.hits);

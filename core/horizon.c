@@ -1,0 +1,238 @@
+/* horizon.c: the conservative horizon of a wedge of camera rays (see horizon.h for the
+ * proof). Called by render.c's primary stage, one wedge per slice of a pixel block.
+ *
+ * Bins, near to far, each a distance range and the running maximum of the elevation
+ * bounds up to it:
+ *
+ *     d[0]=0      d[1]        d[2]                d[3]             ...  d[n]
+ *       | bin 0    | bin 1     | bin 2 (coarse)     | bin 3          |
+ *       p[0]       p[1]        p[2]                 p[3]   (non-decreasing)
+ *
+ * A bin's bound reads at most four max-mipmap blocks a tile it touches (the level is the
+ * one at which its bounding box spans two blocks a side); a tile without a max-mipmap
+ * gives its samples when the box is small, else its zmax. Coarse bins: the extension
+ * keeps a level like the hierarchical walk does (up after a bin it could take whole, down
+ * after one it could not), so a stretch far below the asking ray costs a few bins.
+ *
+ * Measured: see render.c's top comment and docs/accuracy-vs-time.md (camera views). */
+#include "horizon.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <string.h>
+
+#include "maxmip.h"
+
+#define TD_HORIZON_LMAX 8 /* coarsest bin: 2^8 cells deep */
+
+static inline double dmin(double a, double b) { return a < b ? a : b; }
+/* max that drops a NaN (a void) in v */
+static inline float fmax_nan(float m, float v) { return v > m ? v : m; }
+static inline double dmax(double a, double b) { return a > b ? a : b; }
+
+/* Highest sample over the cells [i0, i1] x [j0, j1] (their corners; fmaxf drops a void's
+ * NaN, and a hole's other corners only loosen the bound). */
+static float samples_max(const td_grid *g, int32_t i0, int32_t i1, int32_t j0, int32_t j1)
+{
+    float m = -INFINITY;
+    for (int32_t j = j0; j <= j1 + 1; j++) {
+        const float *row = g->z + (size_t)j * (size_t)g->w;
+        for (int32_t i = i0; i <= i1 + 1; i++)
+            m = fmax_nan(m, row[i]);
+    }
+    return m;
+}
+
+/* Highest corner over the cells [i0, i1] x [j0, j1] of one tile (clipped to it): the
+ * samples themselves for a box of up to 3 x 3 cells, else the max-mipmap blocks of the
+ * finest level at which at most 4 x 4 of them cover it, else the tile's zmax. */
+static float tile_box_max(const td_view *v, const td_tile *t, size_t ti, int32_t i0, int32_t i1,
+                          int32_t j0, int32_t j1)
+{
+    const td_grid *g = v->grid;
+    const td_maxmip *mm = v->accel ? v->accel[ti].maxmip : NULL;
+    int32_t ci0 = i0 > t->i0 ? i0 : t->i0, ci1 = i1 < t->i0 + t->nx - 1 ? i1 : t->i0 + t->nx - 1;
+    int32_t cj0 = j0 > t->j0 ? j0 : t->j0, cj1 = j1 < t->j0 + t->ny - 1 ? j1 : t->j0 + t->ny - 1;
+    float m = t->zmax;
+    if (ci1 - ci0 < 3 && cj1 - cj0 < 3) {
+        m = samples_max(g, ci0, ci1, cj0, cj1);
+    } else if (mm) {
+        int32_t li0 = ci0 - t->i0, li1 = ci1 - t->i0, lj0 = cj0 - t->j0, lj1 = cj1 - t->j0;
+        int L = 1;
+        while (L <= mm->levels && ((li1 >> L) - (li0 >> L) > 3 || (lj1 >> L) - (lj0 >> L) > 3))
+            L++;
+        if (L <= mm->levels) {
+            const float *lev = mm->max + mm->offset[L];
+            size_t dim = (size_t)mm->dim[L];
+            m = -INFINITY;
+            for (int32_t bj = lj0 >> L; bj <= lj1 >> L; bj++)
+                for (int32_t bi = li0 >> L; bi <= li1 >> L; bi++)
+                    m = fmax_nan(m, lev[(size_t)bj * dim + (size_t)bi]);
+        }
+    } else if ((int64_t)(ci1 - ci0 + 1) * (cj1 - cj0 + 1) <= 64) {
+        m = samples_max(g, ci0, ci1, cj0, cj1);
+    }
+    return m;
+}
+
+/* Highest corner over the cells [i0, i1] x [j0, j1] of the grid (clamped; -inf if none). */
+static double box_max(const td_view *v, int32_t i0, int32_t i1, int32_t j0, int32_t j1)
+{
+    const td_grid *g = v->grid;
+    const int tl = g->tile_log2;
+    float m = -INFINITY;
+    i0 = i0 < 0 ? 0 : i0;
+    j0 = j0 < 0 ? 0 : j0;
+    i1 = i1 > g->w - 2 ? g->w - 2 : i1;
+    j1 = j1 > g->h - 2 ? g->h - 2 : j1;
+    for (int32_t tj = j0 >> tl; i0 <= i1 && tj <= j1 >> tl; tj++) {
+        for (int32_t ti = i0 >> tl; ti <= i1 >> tl; ti++) {
+            size_t k = (size_t)tj * (size_t)g->tiles_x + (size_t)ti;
+            m = fmax_nan(m, tile_box_max(v, &g->tiles[k], k, i0, i1, j0, j1));
+        }
+    }
+    return (double)m;
+}
+
+/* Cell index of a coordinate (times 1/spacing), saturated to int32 (the box may reach
+ * far off the grid). */
+static int32_t cell_of(double x, double inv)
+{
+    double c = x * inv;
+    return !(c >= 0.0) ? -1 : (c > 2147483646.0 ? 2147483646 : (int32_t)c); /* NaN: -1 */
+}
+
+/* The elevation bound of the wedge's bin [d0, d1] (see horizon.h). */
+static double bin_bound(const td_horizon *h, double d0, double d1)
+{
+    const double dirs[4][2] = {{1, 0}, {0, 1}, {-1, 0}, {0, -1}};
+    double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY, pad, m, e;
+    const double *c[2] = {h->c0, h->c1};
+    for (int k = 0; k < 4; k++) {
+        double r = (k & 2) ? d1 : d0;
+        double x = h->ex + r * c[k & 1][0], y = h->ey + r * c[k & 1][1];
+        x0 = dmin(x0, x), x1 = dmax(x1, x), y0 = dmin(y0, y), y1 = dmax(y1, y);
+    }
+    for (int k = 0; k < 4; k++) {
+        if (h->axis[k]) {
+            double x = h->ex + d1 * dirs[k][0], y = h->ey + d1 * dirs[k][1];
+            x0 = dmin(x0, x), x1 = dmax(x1, x), y0 = dmin(y0, y), y1 = dmax(y1, y);
+        }
+    }
+    pad = 1e-9 * d1 + 1e-6;
+    m = box_max(h->v, cell_of(x0 - pad, h->isx), cell_of(x1 + pad, h->isx), cell_of(y0 - pad, h->isy),
+                cell_of(y1 + pad, h->isy));
+    if (m == -INFINITY) {
+        e = -INFINITY;
+    } else {
+        double rise = m + h->zeps - h->ez;
+        e = rise >= 0.0 ? (d0 > 0.0 ? rise / d0 : INFINITY) : rise / d1;
+    }
+    return e;
+}
+
+int td_horizon_begin(td_horizon *h, const td_view *v, const double o[3], double az0, double az1)
+{
+    const td_grid *g = v->grid;
+    int ok = az1 >= az0 && az1 - az0 < 0.5 * M_PI && isfinite(az0) && isfinite(az1) && !isnan(g->zmax);
+    memset(h, 0, offsetof(td_horizon, d));
+    if (ok) {
+        double gx = (g->w - 1) * g->sx, gy = (g->h - 1) * g->sy;
+        h->v = v;
+        h->ex = o[0];
+        h->ey = o[1];
+        h->ez = o[2];
+        h->az0 = az0 - 1e-9;
+        h->az1 = az1 + 1e-9;
+        h->c0[0] = cos(h->az0), h->c0[1] = sin(h->az0);
+        h->c1[0] = cos(h->az1), h->c1[1] = sin(h->az1);
+        for (int k = 0; k < 4; k++) { /* axis direction k*pi/2 (mod 2pi) inside the wedge */
+            double a = k * 0.5 * M_PI;
+            a += 2.0 * M_PI * ceil((h->az0 - a) / (2.0 * M_PI));
+            h->axis[k] = a <= h->az1;
+        }
+        h->cell = g->sx < g->sy ? g->sx : g->sy;
+        h->isx = 1.0 / g->sx;
+        h->isy = 1.0 / g->sy;
+        h->width = h->az1 - h->az0;
+        h->zeps = 1e-6 * (1.0 + dmax(fabs((double)g->zmin), fabs((double)g->zmax)));
+        h->ztop = g->zmax;
+        h->dmax = 0.0;
+        for (int k = 0; k < 4; k++)
+            h->dmax = dmax(h->dmax, hypot(((k & 1) ? gx : 0.0) - o[0], ((k & 2) ? gy : 0.0) - o[1]));
+        h->d[0] = 0.0;
+    }
+    h->lev = 1;
+    return ok;
+}
+
+/* Can terrain at horizontal distance d0 or beyond reach elevation e? */
+static int reachable(const td_horizon *h, double d0, double e)
+{
+    double rise = h->ztop + h->zeps - h->ez;
+    double best = rise >= 0.0 ? (d0 > 0.0 ? rise / d0 : INFINITY) : rise / h->dmax;
+    return best >= e;
+}
+
+/* Appends one bin: as deep as the current level allows while it stays below e, else
+ * a fine one. */
+static void append_bin(td_horizon *h, double e)
+{
+    double d0 = h->d[h->n], b, d1;
+    for (;;) {
+        if (h->lev > 0) {
+            d1 = d0 + h->cell * (double)(1 << h->lev);
+            b = bin_bound(h, d0, d1);
+            if (b < e) {
+                h->lev = h->lev < TD_HORIZON_LMAX ? h->lev + 1 : h->lev;
+                break;
+            }
+            h->lev--;
+        } else {
+            d1 = d0 + dmax(h->cell, h->width * d0);
+            b = bin_bound(h, d0, d1);
+            h->lev = b < e; /* coarse again only past where the asking rays start */
+            break;
+        }
+    }
+    h->p[h->n] = h->n > 0 ? dmax(h->p[h->n - 1], b) : b;
+    h->d[++h->n] = d1;
+    h->done = d1 >= h->dmax;
+}
+
+double td_horizon_clear(td_horizon *h, double e, uint32_t *steps)
+{
+    double at = 0.0;
+    double e_lo = e - 1e-12 * (1.0 + fabs(e));
+    uint32_t built = 0;
+    if (!h->v || !(e_lo > -INFINITY)) {
+        at = 0.0;
+    } else if (h->n > 0 && h->p[h->n - 1] >= e_lo) {
+        /* the first bin whose running maximum reaches e: near the last one asked for,
+           since rays come in rising elevation */
+        int k = h->last < h->n ? h->last : h->n - 1;
+        while (k > 0 && h->p[k - 1] >= e_lo)
+            k--;
+        while (h->p[k] < e_lo)
+            k++;
+        h->last = k;
+        at = h->d[k];
+    } else {
+        at = INFINITY;
+        while (!h->done && h->n < TD_HORIZON_BINS) {
+            if (!reachable(h, h->d[h->n], e_lo))
+                break; /* a miss: nothing left can rise to the ray */
+            append_bin(h, e_lo);
+            built++;
+            if (h->p[h->n - 1] >= e_lo) {
+                h->last = h->n - 1;
+                at = h->d[h->n - 1];
+                break;
+            }
+        }
+        if (at == INFINITY && !h->done && h->n == TD_HORIZON_BINS)
+            at = h->d[h->n]; /* out of bins: nothing before their end */
+    }
+    *steps += built;
+    return at;
+}
