@@ -7,8 +7,9 @@
  * their south-based place. Georeference from the geotransform (north-up or south-up;
  * rotated grids are refused), lon/lat when the spatial reference is geographic (spacing
  * in metres at the centre latitude), otherwise projected with the linear unit applied.
- * Voids: the band's nodata value; NaN samples only when nodata is NaN, as in demraw.c.
- * The band's scale and offset, when set, are applied. */
+ * Voids: the band's nodata value; NaN samples only when nodata is NaN, as in demraw.c
+ * (both loaders state their rules as a td_demutil_f32 for td_demutil_f32_row). The band's
+ * scale and offset, when set, are applied. */
 #include "demgdal.h"
 
 #include <string.h>

@@ -78,7 +78,7 @@ static td_status raw_read(const char *path, const td_demside *sc, FILE *f, td_gr
                         .has_nodata = sc->nodata_kind == TD_NODATA_VALUE,
                         .nodata = (float)sc->nodata,
                         .scale = 1.0,
-                        .offset = -0.0, /* heights as they are */
+                        .offset = -0.0, /* with scale 1: every sample as it is */
                         .max_abs = FLT_MAX};
     snprintf(p.nan_why, sizeof p.nan_why, " (if NaN marks voids, say \"nodata\": \"nan\" in %s)",
              sc->path);
