@@ -4,7 +4,7 @@
  * that name the file, and the lookup of a file's extension.
  * See dem.h for the sidecar keys and the precedence opts > sidecar > defaults.
  *
- * Every loader has the same shape: parse the header or sidecar, check the size against
+ * Every loader has the same shape: parse the header, sidecar or name, check the size against
  * the limits (td_demutil_check_limits) before allocating, resolve spacing and
  * georeference, create the grid (td_demutil_create), read the samples row by row
  * (td_demutil_file_row), and hand the grid over with td_demutil_deliver, its one exit. */
