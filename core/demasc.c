@@ -24,7 +24,6 @@
 #include "demasc.h"
 
 #include <ctype.h>
-#include <errno.h>
 #include <float.h>
 #include <math.h>
 #include <stdio.h>
@@ -188,169 +187,226 @@ static td_status asc_prj_read(const char *path, int *kind, double *unit_m, td_er
     return rc;
 }
 
-td_status td_demasc_load(const char *path, const td_dem_opts *o, td_grid **out, td_err *err)
+/* What the header said: kv[key] is valid where seen[key]. */
+typedef struct asc_header {
+    double kv[K_COUNT];
+    int seen[K_COUNT];
+} asc_header;
+
+static td_status asc_open(const char *path, asc_reader **out, td_err *err)
 {
     td_status rc = TD_OK;
-    asc_reader *r = NULL;
-    td_grid *g = NULL;
-    char tok[TD_ASC_TOKEN_MAX], val[TD_ASC_TOKEN_MAX];
-    double kv[K_COUNT];
-    int seen[K_COUNT] = {0};
-    int t, geographic = 0, prj;
-    double unit_m = 1.0;
-    long w = 0, h = 0;
-    double dx = 0, dy = 0, x0, y0, sx = 0, sy = 0;
-    size_t n = 0, k = 0;
-    td_demside sc;
-    td_georef geo;
-
-    *out = NULL;
-    memset(&geo, 0, sizeof geo);
-    r = calloc(1, sizeof *r);
+    asc_reader *r = calloc(1, sizeof *r);
     if (!r) {
         rc = td_err_set(err, TD_ENOMEM, "%s: out of memory", path);
-        goto out;
+    } else {
+        r->line = 1;
+        rc = td_demutil_open(path, &r->f, NULL, err);
     }
-    r->line = 1;
-    r->f = fopen(path, "rb");
-    if (!r->f) {
-        rc = td_err_set(err, TD_EIO, "%s: cannot open (%s)", path, strerror(errno));
-        goto out;
-    }
-    /* Header: key value pairs until a token that does not start with a letter. */
-    for (;;) {
-        int key = -1;
-        t = asc_token(r, tok);
-        if (t == 0) {
-            rc = td_err_set(err, TD_EFORMAT, "%s: ends in the header (no data)", path);
-            goto out;
-        }
-        if (t < 0 || !isalpha((unsigned char)tok[0]))
-            break;
-        for (int q = 0; q < K_COUNT && key < 0; q++)
-            if (!strcasecmp(tok, asc_key_names[q]))
-                key = q;
-        if (key < 0) {
-            rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: unknown header key '%s'", path, r->line, tok);
-            goto out;
-        }
-        if (seen[key]) {
-            rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: header key '%s' given twice", path, r->line,
+    *out = r;
+    return rc;
+}
+
+static void asc_close(asc_reader *r)
+{
+    if (r && r->f)
+        fclose(r->f);
+    free(r);
+}
+
+/* Index of a header key (case-insensitive), or -1. */
+static int asc_key(const char *tok)
+{
+    int key = -1;
+    for (int q = 0; q < K_COUNT && key < 0; q++)
+        if (!strcasecmp(tok, asc_key_names[q]))
+            key = q;
+    return key;
+}
+
+/* Header: key value pairs until a token that does not start with a letter, which is left
+ * in tok as the first data token. */
+static td_status asc_read_header(const char *path, asc_reader *r, asc_header *hd, char *tok,
+                                 td_err *err)
+{
+    td_status rc = TD_OK;
+    char val[TD_ASC_TOKEN_MAX];
+    int t = asc_token(r, tok);
+    memset(hd, 0, sizeof *hd);
+    while (rc == TD_OK && t > 0 && isalpha((unsigned char)tok[0])) {
+        int key = asc_key(tok);
+        if (key < 0)
+            rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: unknown header key '%s'", path, r->line,
                             tok);
-            goto out;
-        }
-        if (asc_token(r, val) != 1 || !td_demutil_parse_double(val, &kv[key])) {
+        else if (hd->seen[key])
+            rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: header key '%s' given twice", path,
+                            r->line, tok);
+        else if (asc_token(r, val) != 1 || !td_demutil_parse_double(val, &hd->kv[key]))
             rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: header key '%s' needs a finite number",
                             path, r->line, tok);
-            goto out;
-        }
-        seen[key] = 1;
+        else
+            hd->seen[key] = 1;
+        if (rc == TD_OK)
+            t = asc_token(r, tok);
     }
-    if (!seen[K_NCOLS] || !seen[K_NROWS]) {
+    if (rc == TD_OK && t == 0)
+        rc = td_err_set(err, TD_EFORMAT, "%s: ends in the header (no data)", path);
+    return rc;
+}
+
+/* ncols and nrows: integers of at least 2, within the limits. */
+static td_status asc_size(const char *path, const td_dem_opts *o, const asc_header *hd,
+                          int32_t *w, int32_t *h, td_err *err)
+{
+    td_status rc = TD_OK;
+    const double nc = hd->kv[K_NCOLS], nr = hd->kv[K_NROWS];
+    if (!hd->seen[K_NCOLS] || !hd->seen[K_NROWS]) {
         rc = td_err_set(err, TD_EFORMAT, "%s: header lacks ncols or nrows", path);
-        goto out;
-    }
-    if (kv[K_NCOLS] != floor(kv[K_NCOLS]) || kv[K_NROWS] != floor(kv[K_NROWS]) ||
-        kv[K_NCOLS] < 2 || kv[K_NROWS] < 2 || kv[K_NCOLS] > INT32_MAX || kv[K_NROWS] > INT32_MAX) {
+    } else if (nc != floor(nc) || nr != floor(nr) || nc < 2 || nr < 2 || nc > INT32_MAX ||
+               nr > INT32_MAX) {
         rc = td_err_set(err, TD_EFORMAT, "%s: ncols %g, nrows %g: need integers of at least 2", path,
-                        kv[K_NCOLS], kv[K_NROWS]);
-        goto out;
+                        nc, nr);
+    } else {
+        *w = (int32_t)nc;
+        *h = (int32_t)nr;
+        rc = td_demutil_check_limits(path, o, *w, *h, err);
     }
-    w = (long)kv[K_NCOLS];
-    h = (long)kv[K_NROWS];
-    rc = td_demutil_check_limits(path, o, (int32_t)w, (int32_t)h, err);
-    if (rc != TD_OK)
-        goto out;
+    return rc;
+}
+
+/* Cell size (cellsize, or dx and dy) and the south-west sample: a corner is half a cell
+ * out from it, a center is the sample itself. */
+static td_status asc_cell(const char *path, const asc_header *hd, td_georef *geo, td_err *err)
+{
+    td_status rc = TD_OK;
+    const int *seen = hd->seen;
+    const double *kv = hd->kv;
     if (seen[K_CELLSIZE] && !seen[K_DX] && !seen[K_DY]) {
-        dx = dy = kv[K_CELLSIZE];
+        geo->dx = geo->dy = kv[K_CELLSIZE];
     } else if (!seen[K_CELLSIZE] && seen[K_DX] && seen[K_DY]) {
-        dx = kv[K_DX];
-        dy = kv[K_DY];
+        geo->dx = kv[K_DX];
+        geo->dy = kv[K_DY];
     } else {
         rc = td_err_set(err, TD_EFORMAT, "%s: header needs cellsize, or dx and dy (not both)", path);
-        goto out;
     }
-    if (!(dx > 0.0 && dy > 0.0)) {
-        rc = td_err_set(err, TD_ERANGE, "%s: cell size %g x %g is not positive", path, dx, dy);
-        goto out;
-    }
-    if (seen[K_XLLCORNER] == seen[K_XLLCENTER] || seen[K_YLLCORNER] == seen[K_YLLCENTER]) {
+    if (rc == TD_OK && !(geo->dx > 0.0 && geo->dy > 0.0))
+        rc = td_err_set(err, TD_ERANGE, "%s: cell size %g x %g is not positive", path, geo->dx,
+                        geo->dy);
+    if (rc == TD_OK &&
+        (seen[K_XLLCORNER] == seen[K_XLLCENTER] || seen[K_YLLCORNER] == seen[K_YLLCENTER]))
         rc = td_err_set(err, TD_EFORMAT,
                         "%s: header needs one of xllcorner/xllcenter and one of yllcorner/yllcenter",
                         path);
-        goto out;
+    if (rc == TD_OK) {
+        geo->x0 = seen[K_XLLCORNER] ? kv[K_XLLCORNER] + 0.5 * geo->dx : kv[K_XLLCENTER];
+        geo->y0 = seen[K_YLLCORNER] ? kv[K_YLLCORNER] + 0.5 * geo->dy : kv[K_YLLCENTER];
     }
-    x0 = seen[K_XLLCORNER] ? kv[K_XLLCORNER] + 0.5 * dx : kv[K_XLLCENTER];
-    y0 = seen[K_YLLCORNER] ? kv[K_YLLCORNER] + 0.5 * dy : kv[K_YLLCENTER];
-    rc = asc_prj_read(path, &prj, &unit_m, err);
+    return rc;
+}
+
+/* Lon/lat or projected (the .prj, else the extent; see the top of the file) and the
+ * spacing in metres. */
+static td_status asc_georef(const char *path, const td_dem_opts *o, const asc_header *hd,
+                            int32_t w, int32_t h, td_georef *geo, double *sx, double *sy,
+                            td_err *err)
+{
+    td_status rc;
+    int geographic, prj;
+    double unit_m = 1.0;
+    td_demside sc;
+
+    memset(geo, 0, sizeof *geo);
+    rc = asc_cell(path, hd, geo, err);
+    if (rc == TD_OK)
+        rc = asc_prj_read(path, &prj, &unit_m, err);
     if (rc != TD_OK)
         goto out;
     if (prj >= 0)
         geographic = prj;
     else
-        geographic = dx < 0.1 && dy < 0.1 && x0 - 0.5 * dx >= -180.0 &&
-                     x0 + ((double)w - 0.5) * dx <= 180.0 && y0 - 0.5 * dy >= -90.0 &&
-                     y0 + ((double)h - 0.5) * dy <= 90.0;
-    geo.kind = geographic ? TD_GEO_LONLAT : TD_GEO_PROJECTED;
-    geo.x0 = x0;
-    geo.y0 = y0;
-    geo.dx = dx;
-    geo.dy = dy;
+        geographic = geo->dx < 0.1 && geo->dy < 0.1 && geo->x0 - 0.5 * geo->dx >= -180.0 &&
+                     geo->x0 + ((double)w - 0.5) * geo->dx <= 180.0 &&
+                     geo->y0 - 0.5 * geo->dy >= -90.0 && geo->y0 + ((double)h - 0.5) * geo->dy <= 90.0;
+    geo->kind = geographic ? TD_GEO_LONLAT : TD_GEO_PROJECTED;
     memset(&sc, 0, sizeof sc);
     if (!geographic) {
         sc.has_spacing = 1;
-        sc.spacing[0] = dx * unit_m;
-        sc.spacing[1] = dy * unit_m;
+        sc.spacing[0] = geo->dx * unit_m;
+        sc.spacing[1] = geo->dy * unit_m;
     }
-    rc = td_demutil_spacing(path, o, &sc, &geo, (int32_t)w, (int32_t)h, &sx, &sy, err);
-    if (rc != TD_OK)
-        goto out;
-    rc = td_demutil_create(path, o, (int32_t)w, (int32_t)h, sx, sy, &g, err);
-    if (rc != TD_OK)
-        goto out;
-    g->geo = geo;
-    n = (size_t)w * (size_t)h; /* checked by td_grid_create */
-    /* Data: tok holds the first data token already. */
-    t = 1;
-    for (k = 0; k < n; k++) {
-        double v;
-        if (k > 0)
-            t = asc_token(r, tok);
-        if (t == 0) {
-            rc = td_err_set(err, TD_EFORMAT, "%s: truncated: %zu of %ld x %ld values", path, k, w, h);
-            goto out;
-        }
-        if (t < 0 || !td_demutil_parse_double(tok, &v)) {
-            rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: '%s' is not a finite number", path,
-                            r->line, tok);
-            goto out;
-        }
-        if (seen[K_NODATA] && v == kv[K_NODATA]) {
-            v = NAN;
-        } else if (fabs(v) > FLT_MAX) {
-            rc = td_err_set(err, TD_ERANGE, "%s: line %ld: %s does not fit a float", path, r->line, tok);
-            goto out;
-        }
-        g->z[(size_t)(h - 1 - (long)(k / (size_t)w)) * (size_t)w + k % (size_t)w] = (float)v;
-    }
-    t = asc_token(r, tok);
-    if (t != 0) {
-        rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: more than %ld x %ld values", path, r->line, w, h);
-        goto out;
-    }
-    if (ferror(r->f)) {
-        rc = td_err_set(err, TD_EIO, "%s: read error", path);
-        goto out;
-    }
-    rc = td_demutil_finish(path, g, err);
+    rc = td_demutil_spacing(path, o, &sc, geo, w, h, sx, sy, err);
 out:
-    if (r && r->f)
-        fclose(r->f);
-    free(r);
-    if (rc != TD_OK) {
-        td_grid_free(g);
-        g = NULL;
-    }
-    *out = g;
     return rc;
+}
+
+/* One data value: a finite decimal; NODATA_value becomes NaN; it must fit a float. */
+static td_status asc_value(const char *path, const asc_reader *r, const asc_header *hd, int t,
+                           const char *tok, float *out, td_err *err)
+{
+    td_status rc = TD_OK;
+    double v;
+    if (t < 0 || !td_demutil_parse_double(tok, &v))
+        rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: '%s' is not a finite number", path, r->line,
+                        tok);
+    else if (hd->seen[K_NODATA] && v == hd->kv[K_NODATA])
+        *out = NAN;
+    else if (fabs(v) > FLT_MAX)
+        rc = td_err_set(err, TD_ERANGE, "%s: line %ld: %s does not fit a float", path, r->line, tok);
+    else
+        *out = (float)v;
+    return rc;
+}
+
+/* Exactly ncols*nrows values, north row first, into their south-based place; tok holds the
+ * first one already. */
+static td_status asc_read_data(const char *path, asc_reader *r, const asc_header *hd, char *tok,
+                               td_grid *g, td_err *err)
+{
+    td_status rc = TD_OK;
+    size_t k = 0;
+    int t = 1;
+    for (int32_t row = 0; row < g->h && rc == TD_OK; row++) {
+        float *dst = td_demutil_file_row(g, row);
+        for (int32_t i = 0; i < g->w && rc == TD_OK; i++, k++) {
+            if (k > 0)
+                t = asc_token(r, tok);
+            if (t == 0)
+                rc = td_err_set(err, TD_EFORMAT, "%s: truncated: %zu of %ld x %ld values", path, k,
+                                (long)g->w, (long)g->h);
+            else
+                rc = asc_value(path, r, hd, t, tok, &dst[i], err);
+        }
+    }
+    if (rc == TD_OK && asc_token(r, tok) != 0)
+        rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: more than %ld x %ld values", path, r->line,
+                        (long)g->w, (long)g->h);
+    if (rc == TD_OK && ferror(r->f))
+        rc = td_err_set(err, TD_EIO, "%s: read error", path);
+    return rc;
+}
+
+td_status td_demasc_load(const char *path, const td_dem_opts *o, td_grid **out, td_err *err)
+{
+    td_status rc;
+    asc_reader *r = NULL;
+    td_grid *g = NULL;
+    asc_header hd;
+    char tok[TD_ASC_TOKEN_MAX];
+    int32_t w = 0, h = 0;
+    double sx = 0, sy = 0;
+    td_georef geo;
+
+    rc = asc_open(path, &r, err);
+    if (rc == TD_OK)
+        rc = asc_read_header(path, r, &hd, tok, err);
+    if (rc == TD_OK)
+        rc = asc_size(path, o, &hd, &w, &h, err);
+    if (rc == TD_OK)
+        rc = asc_georef(path, o, &hd, w, h, &geo, &sx, &sy, err);
+    if (rc == TD_OK)
+        rc = td_demutil_create(path, o, w, h, sx, sy, &geo, &g, err);
+    if (rc == TD_OK)
+        rc = asc_read_data(path, r, &hd, tok, g, err);
+    asc_close(r);
+    return td_demutil_deliver(path, rc, g, out, err);
 }

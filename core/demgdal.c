@@ -7,8 +7,9 @@
  * their south-based place. Georeference from the geotransform (north-up or south-up;
  * rotated grids are refused), lon/lat when the spatial reference is geographic (spacing
  * in metres at the centre latitude), otherwise projected with the linear unit applied.
- * Voids: the band's nodata value; NaN samples only when nodata is NaN, as in demraw.c.
- * The band's scale and offset, when set, are applied. */
+ * Voids: the band's nodata value; NaN samples only when nodata is NaN, as in demraw.c
+ * (both loaders state their rules as a td_demutil_f32 for td_demutil_f32_row). The band's
+ * scale and offset, when set, are applied. */
 #include "demgdal.h"
 
 #include <string.h>
@@ -100,89 +101,88 @@ out:
     return rc;
 }
 
-td_status td_demgdal_load(const char *path, const td_dem_opts *o, td_grid **out, td_err *err)
+/* Opens band 1's dataset and checks its size against the limits. */
+static td_status gdal_open(const char *path, const td_dem_opts *o, GDALDatasetH *ds, int32_t *w,
+                           int32_t *h, td_err *err)
 {
     td_status rc = TD_OK;
+    *ds = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY, NULL, NULL, NULL);
+    if (!*ds) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: GDAL cannot open it as a raster (%s)", path, gdal_msg());
+    } else if (GDALGetRasterCount(*ds) < 1) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: no raster band", path);
+    } else {
+        *w = GDALGetRasterXSize(*ds);
+        *h = GDALGetRasterYSize(*ds);
+        rc = td_demutil_check_limits(path, o, *w, *h, err);
+    }
+    return rc;
+}
+
+/* Band 1 and how it stores heights: its nodata (a NaN nodata makes NaN samples voids),
+ * and metres = value*scale + offset (1 and 0 when unset or not usable). */
+static GDALRasterBandH gdal_band(GDALDatasetH ds, td_demutil_f32 *p)
+{
+    GDALRasterBandH band = GDALGetRasterBand(ds, 1);
+    int has_nodata = 0, has_scale = 0, has_offset = 0;
+    double nodata = GDALGetRasterNoDataValue(band, &has_nodata);
+    double scale = GDALGetRasterScale(band, &has_scale);
+    double offset = GDALGetRasterOffset(band, &has_offset);
+    memset(p, 0, sizeof *p);
+    p->nan_void = has_nodata && isnan(nodata);
+    snprintf(p->nan_why, sizeof p->nan_why, " and the band's nodata is not NaN");
+    p->has_nodata = has_nodata;
+    p->nodata = (float)nodata;
+    p->scale = !has_scale || !isfinite(scale) || scale == 0.0 ? 1.0 : scale;
+    p->offset = !has_offset || !isfinite(offset) ? 0.0 : offset;
+    p->max_abs = 3.0e38;
+    return band;
+}
+
+/* Row by row as float32 into the south-based place (row r of a south-up raster is the
+ * grid's row r). */
+static td_status gdal_read(const char *path, GDALRasterBandH band, const td_demutil_f32 *p,
+                           int south_up, td_grid *g, td_err *err)
+{
+    td_status rc = TD_OK;
+    for (int32_t r = 0; r < g->h && rc == TD_OK; r++) {
+        float *row = south_up ? g->z + (size_t)r * (size_t)g->w : td_demutil_file_row(g, r);
+        if (GDALRasterIO(band, GF_Read, 0, r, g->w, 1, row, g->w, 1, GDT_Float32, 0, 0) != CE_None)
+            rc = td_err_set(err, TD_EIO, "%s: read failed at row %ld (%s)", path, (long)r, gdal_msg());
+        else
+            rc = td_demutil_f32_row(path, p, row, g->w, r, err);
+    }
+    return rc;
+}
+
+td_status td_demgdal_load(const char *path, const td_dem_opts *o, td_grid **out, td_err *err)
+{
+    td_status rc;
     GDALDatasetH ds = NULL;
-    GDALRasterBandH band;
+    GDALRasterBandH band = NULL;
+    td_demutil_f32 p;
     td_grid *g = NULL;
     td_georef geo;
-    double sx = 0, sy = 0, nodata, scale, offset;
-    int has_nodata = 0, has_scale = 0, has_offset = 0, south_up = 0;
-    int32_t w, h;
+    double sx = 0, sy = 0;
+    int south_up = 0;
+    int32_t w = 0, h = 0;
 
-    *out = NULL;
     pthread_once(&td_gdal_once, gdal_init);
     CPLPushErrorHandler(CPLQuietErrorHandler);
     CPLErrorReset();
-    ds = GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY, NULL, NULL, NULL);
-    if (!ds) {
-        rc = td_err_set(err, TD_EFORMAT, "%s: GDAL cannot open it as a raster (%s)", path, gdal_msg());
-        goto out;
-    }
-    if (GDALGetRasterCount(ds) < 1) {
-        rc = td_err_set(err, TD_EFORMAT, "%s: no raster band", path);
-        goto out;
-    }
-    w = GDALGetRasterXSize(ds);
-    h = GDALGetRasterYSize(ds);
-    rc = td_demutil_check_limits(path, o, w, h, err);
-    if (rc != TD_OK)
-        goto out;
-    rc = gdal_georef(path, o, ds, w, h, &geo, &sx, &sy, &south_up, err);
-    if (rc != TD_OK)
-        goto out;
-    band = GDALGetRasterBand(ds, 1);
-    nodata = GDALGetRasterNoDataValue(band, &has_nodata);
-    scale = GDALGetRasterScale(band, &has_scale);
-    offset = GDALGetRasterOffset(band, &has_offset);
-    if (!has_scale || !isfinite(scale) || scale == 0.0)
-        scale = 1.0;
-    if (!has_offset || !isfinite(offset))
-        offset = 0.0;
-    rc = td_demutil_create(path, o, w, h, sx, sy, &g, err);
-    if (rc != TD_OK)
-        goto out;
-    g->geo = geo;
-    for (int32_t r = 0; r < h && rc == TD_OK; r++) {
-        float *row = g->z + (size_t)(south_up ? r : h - 1 - r) * (size_t)w;
-        if (GDALRasterIO(band, GF_Read, 0, r, w, 1, row, w, 1, GDT_Float32, 0, 0) != CE_None) {
-            rc = td_err_set(err, TD_EIO, "%s: read failed at row %ld (%s)", path, (long)r, gdal_msg());
-            break;
-        }
-        for (int32_t i = 0; i < w; i++) {
-            float v = row[i];
-            if (isnan(v)) {
-                if (!(has_nodata && isnan(nodata))) {
-                    rc = td_err_set(err, TD_EFORMAT, "%s: NaN sample at column %ld, row %ld and the band's nodata is not NaN",
-                                    path, (long)i, (long)r);
-                    break;
-                }
-            } else if (has_nodata && v == (float)nodata) {
-                row[i] = NAN;
-            } else {
-                double m = (double)v * scale + offset;
-                if (!isfinite(m) || fabs(m) > 3.0e38) {
-                    rc = td_err_set(err, TD_ERANGE, "%s: sample at column %ld, row %ld is not finite",
-                                    path, (long)i, (long)r);
-                    break;
-                }
-                row[i] = (float)m;
-            }
-        }
+    rc = gdal_open(path, o, &ds, &w, &h, err);
+    if (rc == TD_OK)
+        rc = gdal_georef(path, o, ds, w, h, &geo, &sx, &sy, &south_up, err);
+    if (rc == TD_OK) {
+        band = gdal_band(ds, &p);
+        rc = td_demutil_create(path, o, w, h, sx, sy, &geo, &g, err);
     }
     if (rc == TD_OK)
-        rc = td_demutil_finish(path, g, err);
-out:
+        rc = gdal_read(path, band, &p, south_up, g, err);
     if (ds)
         GDALClose(ds);
     CPLPopErrorHandler();
-    if (rc != TD_OK) {
-        td_grid_free(g);
-        g = NULL;
-    }
-    *out = g;
-    return rc;
+    return td_demutil_deliver(path, rc, g, out, err);
 }
 
 #endif

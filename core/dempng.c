@@ -21,7 +21,6 @@
  * limits before the row buffer or grid is allocated. */
 #include "dempng.h"
 
-#include <errno.h>
 #include <float.h>
 #include <math.h>
 #include <setjmp.h>
@@ -127,14 +126,21 @@ static int decode_row(const png_params *p, const unsigned char *src, int channel
     return ok;
 }
 
+/* What the header leaves after the transformations: one layout per encoding. */
+typedef struct png_shape {
+    int32_t w, h;
+    int interlaced;
+    int channels; /* gray16: 1 or 2 (alpha); the RGB encodings: 3 or 4 (alpha) */
+} png_shape;
+
 /* Reads the pixels into the grid's south-based rows: one row at a time, or, for an
  * interlaced PNG, the whole image first (all passes) within the byte budget. */
-static td_status read_pixels(png_ctx *c, const td_dem_opts *o, const png_params *p, int interlaced,
-                             int channels, int32_t w, int32_t h, td_err *err)
+static td_status read_pixels(png_ctx *c, const td_dem_opts *o, const png_params *p,
+                             const png_shape *s, td_err *err)
 {
     td_status rc = TD_OK;
     size_t rowbytes = png_get_rowbytes(c->png, c->info);
-    size_t nrows = interlaced ? (size_t)h : 1;
+    size_t nrows = s->interlaced ? (size_t)s->h : 1;
 
     if (nrows > SIZE_MAX / rowbytes ||
         (o->limits.max_bytes && (uint64_t)rowbytes * nrows > o->limits.max_bytes)) {
@@ -144,62 +150,82 @@ static td_status read_pixels(png_ctx *c, const td_dem_opts *o, const png_params 
         goto out;
     }
     c->row = malloc(rowbytes * nrows);
-    c->rows = interlaced ? malloc(nrows * sizeof *c->rows) : NULL;
-    if (!c->row || (interlaced && !c->rows)) {
-        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory for %s", c->path, interlaced ? "the image" : "a row");
+    c->rows = s->interlaced ? malloc(nrows * sizeof *c->rows) : NULL;
+    if (!c->row || (s->interlaced && !c->rows)) {
+        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory for %s", c->path,
+                        s->interlaced ? "the image" : "a row");
         goto out;
     }
-    if (interlaced) {
+    if (s->interlaced) {
         for (size_t r = 0; r < nrows; r++)
             c->rows[r] = c->row + r * rowbytes;
         png_read_image(c->png, c->rows);
     }
-    for (int32_t r = 0; r < h && rc == TD_OK; r++) {
-        unsigned char *src = interlaced ? c->rows[r] : c->row;
-        if (!interlaced)
+    for (int32_t r = 0; r < s->h && rc == TD_OK; r++) {
+        unsigned char *src = s->interlaced ? c->rows[r] : c->row;
+        if (!s->interlaced)
             png_read_row(c->png, src, NULL);
-        if (!decode_row(p, src, channels, w, c->g->z + (size_t)(h - 1 - r) * (size_t)w))
+        if (!decode_row(p, src, s->channels, s->w, td_demutil_file_row(c->g, r)))
             rc = td_err_set(err, TD_ERANGE, "%s: row %ld decodes to a height beyond float range", c->path, (long)r);
     }
 out:
     return rc;
 }
 
-static td_status load(png_ctx *c, const td_dem_opts *o, td_err *err)
+/* Opens the file, checks the signature and makes libpng's read and info structs. */
+static td_status png_open(png_ctx *c, td_err *err)
+{
+    td_status rc;
+    unsigned char sig[8];
+
+    rc = td_demutil_open(c->path, &c->f, NULL, err);
+    if (rc == TD_OK && (fread(sig, 1, 8, c->f) != 8 || png_sig_cmp(sig, 0, 8)))
+        rc = td_err_set(err, TD_EFORMAT, "%s: not a PNG file (bad signature)", c->path);
+    if (rc == TD_OK) {
+        c->png = png_create_read_struct(PNG_LIBPNG_VER_STRING, c, png_ctx_error, png_ctx_warning);
+        c->info = c->png ? png_create_info_struct(c->png) : NULL;
+        if (!c->info)
+            rc = td_err_set(err, TD_ENOMEM, "%s: out of memory for libpng", c->path);
+    }
+    return rc;
+}
+
+/* The channels of the transformed layout, or a refusal naming what the file has. */
+static td_status png_channels(const char *path, td_dem_encoding enc, int depth, int ctype,
+                              int *channels, td_err *err)
 {
     td_status rc = TD_OK;
-    const char *path = c->path;
-    td_demside sc;
-    png_params p;
-    unsigned char sig[8];
-    png_uint_32 w = 0, h = 0;
-    int depth = 0, ctype = 0, interlace = 0, channels = 0;
-    double sx = 0, sy = 0;
+    if (enc == TD_ENC_GRAY16) {
+        if (depth != 16 || (ctype != PNG_COLOR_TYPE_GRAY && ctype != PNG_COLOR_TYPE_GRAY_ALPHA))
+            rc = td_err_set(err, TD_EFORMAT,
+                            "%s: encoding gray16 needs a 16-bit grayscale PNG, this one has %d-bit %s",
+                            path, depth, ctype == PNG_COLOR_TYPE_PALETTE ? "palette" :
+                            ctype & PNG_COLOR_MASK_COLOR ? "colour" : "grayscale");
+        else
+            *channels = ctype == PNG_COLOR_TYPE_GRAY ? 1 : 2;
+    } else {
+        if (depth != 8 || (ctype != PNG_COLOR_TYPE_RGB && ctype != PNG_COLOR_TYPE_RGB_ALPHA))
+            rc = td_err_set(err, TD_EFORMAT,
+                            "%s: encoding %s needs an 8-bit RGB, RGBA or palette PNG, this one has %d-bit %s%s",
+                            path, td_dem_encoding_name(enc), depth,
+                            ctype & PNG_COLOR_MASK_COLOR ? "colour" : "grayscale",
+                            ctype & PNG_COLOR_MASK_ALPHA ? " with alpha" : "");
+        else
+            *channels = ctype == PNG_COLOR_TYPE_RGB ? 3 : 4;
+    }
+    return rc;
+}
 
-    rc = td_demutil_sidecar_read(path, 0, 0, &sc, err);
-    if (rc == TD_OK)
-        rc = resolve_params(path, o, &sc, &p, err);
-    if (rc != TD_OK)
-        goto out;
-    c->f = fopen(path, "rb");
-    if (!c->f) {
-        rc = td_err_set(err, TD_EIO, "%s: cannot open (%s)", path, strerror(errno));
-        goto out;
-    }
-    if (fread(sig, 1, 8, c->f) != 8 || png_sig_cmp(sig, 0, 8)) {
-        rc = td_err_set(err, TD_EFORMAT, "%s: not a PNG file (bad signature)", path);
-        goto out;
-    }
-    c->png = png_create_read_struct(PNG_LIBPNG_VER_STRING, c, png_ctx_error, png_ctx_warning);
-    c->info = c->png ? png_create_info_struct(c->png) : NULL;
-    if (!c->info) {
-        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory for libpng", path);
-        goto out;
-    }
-    if (setjmp(c->jmp)) {
-        rc = td_err_set(err, TD_EFORMAT, "%s: corrupt or truncated PNG (libpng: %s)", path, c->msg);
-        goto out;
-    }
+/* IHDR: the size within the limits, then the transformations to one layout per encoding
+ * (palette to RGB, tRNS to alpha, interlace handling). libpng's errors longjmp to the
+ * setjmp in load. */
+static td_status png_header(png_ctx *c, const td_dem_opts *o, const png_params *p, png_shape *s,
+                            td_err *err)
+{
+    td_status rc;
+    png_uint_32 w = 0, h = 0;
+    int depth = 0, ctype = 0, interlace = 0;
+
     /* libpng's own size limits (default 1e6) would refuse big IHDRs as "invalid"; lift them
        to the format's maximum so that our check below refuses them as too big, by name.
        png_read_info allocates nothing per row or pixel. */
@@ -208,62 +234,61 @@ static td_status load(png_ctx *c, const td_dem_opts *o, td_err *err)
     png_set_sig_bytes(c->png, 8);
     png_read_info(c->png, c->info);
     png_get_IHDR(c->png, c->info, &w, &h, &depth, &ctype, &interlace, NULL, NULL);
-    rc = td_demutil_check_limits(path, o, (int32_t)w, (int32_t)h, err);
+    s->w = (int32_t)w;
+    s->h = (int32_t)h;
+    s->interlaced = interlace != PNG_INTERLACE_NONE;
+    rc = td_demutil_check_limits(c->path, o, s->w, s->h, err);
     if (rc != TD_OK)
         goto out;
-    if (p.enc != TD_ENC_GRAY16 && depth <= 8 && ctype == PNG_COLOR_TYPE_PALETTE)
+    if (p->enc != TD_ENC_GRAY16 && depth <= 8 && ctype == PNG_COLOR_TYPE_PALETTE)
         png_set_palette_to_rgb(c->png);
-    if (p.enc != TD_ENC_GRAY16 && depth == 8 && (ctype & PNG_COLOR_MASK_COLOR) &&
+    if (p->enc != TD_ENC_GRAY16 && depth == 8 && (ctype & PNG_COLOR_MASK_COLOR) &&
         png_get_valid(c->png, c->info, PNG_INFO_tRNS))
         png_set_tRNS_to_alpha(c->png);
-    if (interlace != PNG_INTERLACE_NONE)
+    if (s->interlaced)
         (void)png_set_interlace_handling(c->png);
     png_read_update_info(c->png, c->info);
     depth = png_get_bit_depth(c->png, c->info);
     ctype = png_get_color_type(c->png, c->info);
-    if (p.enc == TD_ENC_GRAY16) {
-        if (depth != 16 || (ctype != PNG_COLOR_TYPE_GRAY && ctype != PNG_COLOR_TYPE_GRAY_ALPHA)) {
-            rc = td_err_set(err, TD_EFORMAT,
-                            "%s: encoding gray16 needs a 16-bit grayscale PNG, this one has %d-bit %s",
-                            path, depth, ctype == PNG_COLOR_TYPE_PALETTE ? "palette" :
-                            ctype & PNG_COLOR_MASK_COLOR ? "colour" : "grayscale");
-            goto out;
-        }
-        channels = ctype == PNG_COLOR_TYPE_GRAY ? 1 : 2;
-    } else {
-        if (depth != 8 || (ctype != PNG_COLOR_TYPE_RGB && ctype != PNG_COLOR_TYPE_RGB_ALPHA)) {
-            rc = td_err_set(err, TD_EFORMAT,
-                            "%s: encoding %s needs an 8-bit RGB, RGBA or palette PNG, this one has %d-bit %s%s",
-                            path, td_dem_encoding_name(p.enc), depth,
-                            ctype & PNG_COLOR_MASK_COLOR ? "colour" : "grayscale",
-                            ctype & PNG_COLOR_MASK_ALPHA ? " with alpha" : "");
-            goto out;
-        }
-        channels = ctype == PNG_COLOR_TYPE_RGB ? 3 : 4;
-    }
-    if (png_get_rowbytes(c->png, c->info) != (size_t)w * (size_t)channels * (size_t)(depth / 8)) {
-        rc = td_err_set(err, TD_EFORMAT, "%s: unexpected row size", path);
-        goto out;
-    }
-    if (sc.geo.kind == TD_GEO_LONLAT)
-        td_demutil_georef_from_north(&sc.geo, (int32_t)h);
-    rc = td_demutil_spacing(path, o, &sc, &sc.geo, (int32_t)w, (int32_t)h, &sx, &sy, err);
+    rc = png_channels(c->path, p->enc, depth, ctype, &s->channels, err);
+    if (rc == TD_OK &&
+        png_get_rowbytes(c->png, c->info) != (size_t)w * (size_t)s->channels * (size_t)(depth / 8))
+        rc = td_err_set(err, TD_EFORMAT, "%s: unexpected row size", c->path);
+out:
+    return rc;
+}
+
+/* Everything from the sidecar to the last row, into c->g; the caller frees what c holds.
+ * Only rc is written after setjmp and read after a longjmp. */
+static td_status load(png_ctx *c, const td_dem_opts *o, td_err *err)
+{
+    td_status rc;
+    const char *path = c->path;
+    td_demside sc;
+    png_params p;
+    png_shape s;
+    double sx = 0, sy = 0;
+
+    rc = td_demutil_sidecar_read(path, 0, 0, &sc, err);
+    if (rc == TD_OK)
+        rc = resolve_params(path, o, &sc, &p, err);
+    if (rc == TD_OK)
+        rc = png_open(c, err);
     if (rc != TD_OK)
         goto out;
-    if (sc.geo.kind == TD_GEO_PROJECTED) {
-        sc.geo.dx = sx;
-        sc.geo.dy = sy;
-        td_demutil_georef_from_north(&sc.geo, (int32_t)h);
+    if (setjmp(c->jmp)) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: corrupt or truncated PNG (libpng: %s)", path, c->msg);
+        goto out;
     }
-    rc = td_demutil_create(path, o, (int32_t)w, (int32_t)h, sx, sy, &c->g, err);
-    if (rc != TD_OK)
-        goto out;
-    c->g->geo = sc.geo;
-    rc = read_pixels(c, o, &p, interlace != PNG_INTERLACE_NONE, channels, (int32_t)w, (int32_t)h, err);
-    if (rc != TD_OK)
-        goto out;
-    png_read_end(c->png, NULL);
-    rc = td_demutil_finish(path, c->g, err);
+    rc = png_header(c, o, &p, &s, err);
+    if (rc == TD_OK)
+        rc = td_demutil_side_georef(path, o, &sc, s.w, s.h, &sx, &sy, err);
+    if (rc == TD_OK)
+        rc = td_demutil_create(path, o, s.w, s.h, sx, sy, &sc.geo, &c->g, err);
+    if (rc == TD_OK)
+        rc = read_pixels(c, o, &p, &s, err);
+    if (rc == TD_OK)
+        png_read_end(c->png, NULL);
 out:
     return rc;
 }
@@ -271,26 +296,22 @@ out:
 td_status td_dempng_load(const char *path, const td_dem_opts *o, td_grid **out, td_err *err)
 {
     td_status rc;
+    td_grid *g = NULL;
     png_ctx *c = calloc(1, sizeof *c);
 
-    *out = NULL;
     if (!c) {
         rc = td_err_set(err, TD_ENOMEM, "%s: out of memory", path);
-        goto out;
+    } else {
+        c->path = path;
+        rc = load(c, o, err);
+        if (c->png)
+            png_destroy_read_struct(&c->png, c->info ? &c->info : NULL, NULL);
+        if (c->f)
+            fclose(c->f);
+        free(c->row);
+        free(c->rows);
+        g = c->g;
+        free(c);
     }
-    c->path = path;
-    rc = load(c, o, err);
-    if (c->png)
-        png_destroy_read_struct(&c->png, c->info ? &c->info : NULL, NULL);
-    if (c->f)
-        fclose(c->f);
-    free(c->row);
-    free(c->rows);
-    if (rc == TD_OK)
-        *out = c->g;
-    else
-        td_grid_free(c->g);
-    free(c);
-out:
-    return rc;
+    return td_demutil_deliver(path, rc, g, out, err);
 }

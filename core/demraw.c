@@ -12,8 +12,7 @@
  * always refused. */
 #include "demraw.h"
 
-#include <errno.h>
-#include <math.h>
+#include <float.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -38,94 +37,78 @@ static void swap32(float *v, size_t n)
     }
 }
 
-td_status td_demraw_load(const char *path, const td_dem_opts *o, td_grid **out, td_err *err)
+/* Sidecar, limits, and a file whose size is exactly what the sidecar says: all before any
+ * allocation. */
+static td_status raw_open(const char *path, const td_dem_opts *o, td_demside *sc, FILE **f,
+                          td_err *err)
+{
+    td_status rc;
+    struct stat st;
+    size_t n = 0, want = 0;
+
+    rc = td_demutil_sidecar_read(path, 1, 1, sc, err);
+    if (rc == TD_OK)
+        rc = td_demutil_check_limits(path, o, sc->width, sc->height, err);
+    if (rc == TD_OK)
+        rc = td_demutil_open(path, f, &st, err);
+    if (rc != TD_OK)
+        goto out;
+    if (!td_mul_size((size_t)sc->width, (size_t)sc->height, &n) || !td_mul_size(n, 4, &want)) {
+        rc = td_err_set(err, TD_ETOOBIG, "%s: %ld x %ld samples overflow", path, (long)sc->width,
+                        (long)sc->height);
+    } else if (!S_ISREG(st.st_mode) || (uint64_t)st.st_size != (uint64_t)want) {
+        rc = td_err_set(err, TD_EFORMAT,
+                        "%s: %lld bytes, but its sidecar %s says %ld x %ld float32 = %llu bytes (%s)",
+                        path, (long long)st.st_size, sc->path, (long)sc->width, (long)sc->height,
+                        (unsigned long long)want,
+                        (uint64_t)st.st_size < (uint64_t)want ? "truncated" : "too long");
+    }
+out:
+    return rc;
+}
+
+/* The samples, one row at a time straight into its south-based place. */
+static td_status raw_read(const char *path, const td_demside *sc, FILE *f, td_grid *g,
+                          td_err *err)
 {
     td_status rc = TD_OK;
+    const int little = host_is_little();
+    td_demutil_f32 p = {.nan_void = sc->nodata_kind == TD_NODATA_NAN,
+                        .inf_refused = 1,
+                        .has_nodata = sc->nodata_kind == TD_NODATA_VALUE,
+                        .nodata = (float)sc->nodata,
+                        .scale = 1.0,
+                        .offset = -0.0, /* with scale 1: every sample as it is */
+                        .max_abs = FLT_MAX};
+    snprintf(p.nan_why, sizeof p.nan_why, " (if NaN marks voids, say \"nodata\": \"nan\" in %s)",
+             sc->path);
+    for (int32_t r = 0; r < g->h && rc == TD_OK; r++) {
+        float *row = td_demutil_file_row(g, r);
+        rc = td_demutil_read_row(path, f, row, 4, (size_t)g->w, r, err);
+        if (rc == TD_OK && !little)
+            swap32(row, (size_t)g->w);
+        if (rc == TD_OK)
+            rc = td_demutil_f32_row(path, &p, row, g->w, r, err);
+    }
+    return rc;
+}
+
+td_status td_demraw_load(const char *path, const td_dem_opts *o, td_grid **out, td_err *err)
+{
+    td_status rc;
     td_demside sc;
     td_grid *g = NULL;
     FILE *f = NULL;
-    struct stat st;
-    size_t n = 0, want = 0;
     double sx = 0, sy = 0;
-    const int little = host_is_little();
 
-    *out = NULL;
-    rc = td_demutil_sidecar_read(path, 1, 1, &sc, err);
-    if (rc != TD_OK)
-        goto out;
-    rc = td_demutil_check_limits(path, o, sc.width, sc.height, err);
-    if (rc != TD_OK)
-        goto out;
-    f = fopen(path, "rb");
-    if (!f || fstat(fileno(f), &st) != 0) {
-        rc = td_err_set(err, TD_EIO, "%s: cannot open (%s)", path, strerror(errno));
-        goto out;
-    }
-    if (!td_mul_size((size_t)sc.width, (size_t)sc.height, &n) || !td_mul_size(n, 4, &want)) {
-        rc = td_err_set(err, TD_ETOOBIG, "%s: %ld x %ld samples overflow", path, (long)sc.width,
-                        (long)sc.height);
-        goto out;
-    }
-    if (!S_ISREG(st.st_mode) || (uint64_t)st.st_size != (uint64_t)want) {
-        rc = td_err_set(err, TD_EFORMAT,
-                        "%s: %lld bytes, but its sidecar %s says %ld x %ld float32 = %llu bytes (%s)",
-                        path, (long long)st.st_size, sc.path, (long)sc.width, (long)sc.height,
-                        (unsigned long long)want,
-                        (uint64_t)st.st_size < (uint64_t)want ? "truncated" : "too long");
-        goto out;
-    }
-    if (sc.geo.kind == TD_GEO_LONLAT)
-        td_demutil_georef_from_north(&sc.geo, sc.height);
-    rc = td_demutil_spacing(path, o, &sc, &sc.geo, sc.width, sc.height, &sx, &sy, err);
-    if (rc != TD_OK)
-        goto out;
-    if (sc.geo.kind == TD_GEO_PROJECTED) {
-        sc.geo.dx = sx;
-        sc.geo.dy = sy;
-        td_demutil_georef_from_north(&sc.geo, sc.height);
-    }
-    rc = td_demutil_create(path, o, sc.width, sc.height, sx, sy, &g, err);
-    if (rc != TD_OK)
-        goto out;
-    g->geo = sc.geo;
-    for (int32_t r = 0; r < g->h && rc == TD_OK; r++) {
-        float *row = g->z + (size_t)(g->h - 1 - r) * (size_t)g->w;
-        if (fread(row, 4, (size_t)g->w, f) != (size_t)g->w) {
-            rc = td_err_set(err, TD_EIO, "%s: read failed at row %ld (%s)", path, (long)r,
-                            ferror(f) ? strerror(errno) : "file shrank while reading");
-            break;
-        }
-        if (!little)
-            swap32(row, (size_t)g->w);
-        for (int32_t i = 0; i < g->w; i++) {
-            float v = row[i];
-            if (isnan(v)) {
-                if (sc.nodata_kind != TD_NODATA_NAN) {
-                    rc = td_err_set(err, TD_EFORMAT,
-                                    "%s: NaN sample at column %ld, row %ld (if NaN marks voids, say "
-                                    "\"nodata\": \"nan\" in %s)",
-                                    path, (long)i, (long)r, sc.path);
-                    break;
-                }
-            } else if (isinf(v)) {
-                rc = td_err_set(err, TD_ERANGE, "%s: infinite sample at column %ld, row %ld", path,
-                                (long)i, (long)r);
-                break;
-            } else if (sc.nodata_kind == TD_NODATA_VALUE && v == (float)sc.nodata) {
-                row[i] = NAN;
-            }
-        }
-    }
-    if (rc != TD_OK)
-        goto out;
-    rc = td_demutil_finish(path, g, err);
-out:
+    rc = raw_open(path, o, &sc, &f, err);
+    if (rc == TD_OK)
+        rc = td_demutil_side_georef(path, o, &sc, sc.width, sc.height, &sx, &sy, err);
+    if (rc == TD_OK)
+        rc = td_demutil_create(path, o, sc.width, sc.height, sx, sy, &sc.geo, &g, err);
+    if (rc == TD_OK)
+        rc = raw_read(path, &sc, f, g, err);
     if (f)
         fclose(f);
-    if (rc != TD_OK) {
-        td_grid_free(g);
-        g = NULL;
-    }
-    *out = g;
-    return rc;
+    return td_demutil_deliver(path, rc, g, out, err);
 }

@@ -1,6 +1,6 @@
 /* demutil.c: the parts every DEM loader shares (see demutil.h): the JSON sidecar read
- * with jansson (the only JSON core reads), spacing and georeference resolution, and
- * grid creation/finishing whose messages name the file.
+ * with jansson (the only JSON core reads), spacing and georeference resolution, opening
+ * and row reading, and grid creation/finishing whose messages name the file.
  *
  * The sidecar is read strictly for the keys we use (a wrong type is an error naming the
  * key) and leniently for the rest, so the descriptive JSONs that come with real data
@@ -161,6 +161,17 @@ static td_status side_nodata(td_demside *sc, json_t *root, td_err *err)
     return rc;
 }
 
+/* A key that, when present, must be the string `want` (the only layout we read). */
+static td_status side_fixed(const td_demside *sc, json_t *root, const char *key, const char *want,
+                            td_err *err)
+{
+    td_status rc = TD_OK;
+    json_t *v = json_object_get(root, key);
+    if (v && (!json_is_string(v) || strcmp(json_string_value(v), want)))
+        rc = td_err_set(err, TD_EUNSUPPORTED, "%s: %s must be \"%s\"", sc->path, key, want);
+    return rc;
+}
+
 static td_status side_strings(td_demside *sc, json_t *root, td_err *err)
 {
     td_status rc = TD_OK;
@@ -172,12 +183,10 @@ static td_status side_strings(td_demside *sc, json_t *root, td_err *err)
                             "%s: encoding must be one of gray16, terrain-rgb, terrarium, rgb-div",
                             sc->path);
     }
-    v = json_object_get(root, "dtype");
-    if (rc == TD_OK && v && (!json_is_string(v) || strcmp(json_string_value(v), "float32")))
-        rc = td_err_set(err, TD_EUNSUPPORTED, "%s: dtype must be \"float32\"", sc->path);
-    v = json_object_get(root, "byte_order");
-    if (rc == TD_OK && v && (!json_is_string(v) || strcmp(json_string_value(v), "little")))
-        rc = td_err_set(err, TD_EUNSUPPORTED, "%s: byte_order must be \"little\"", sc->path);
+    if (rc == TD_OK)
+        rc = side_fixed(sc, root, "dtype", "float32", err);
+    if (rc == TD_OK)
+        rc = side_fixed(sc, root, "byte_order", "little", err);
     return rc;
 }
 
@@ -299,7 +308,9 @@ out:
     return rc;
 }
 
-void td_demutil_georef_from_north(td_georef *geo, int32_t h)
+/* Turns a georef whose y0 is the north row (as files store it) into grid.h's south-west
+ * convention, for a grid of h rows. */
+static void georef_from_north(td_georef *geo, int32_t h)
 {
     if (geo->kind != TD_GEO_NONE)
         geo->y0 -= (double)(h - 1) * geo->dy;
@@ -367,20 +378,100 @@ td_status td_demutil_check_limits(const char *path, const td_dem_opts *o, int32_
     return rc;
 }
 
+td_status td_demutil_side_georef(const char *path, const td_dem_opts *o, td_demside *sc,
+                                 int32_t w, int32_t h, double *sx, double *sy, td_err *err)
+{
+    td_status rc;
+    /* a lon/lat origin moves south first: the spacing is taken at its centre latitude */
+    if (sc->geo.kind == TD_GEO_LONLAT)
+        georef_from_north(&sc->geo, h);
+    rc = td_demutil_spacing(path, o, sc, &sc->geo, w, h, sx, sy, err);
+    /* a projected origin has no step of its own until the spacing is known */
+    if (rc == TD_OK && sc->geo.kind == TD_GEO_PROJECTED) {
+        sc->geo.dx = *sx;
+        sc->geo.dy = *sy;
+        georef_from_north(&sc->geo, h);
+    }
+    return rc;
+}
+
 td_status td_demutil_create(const char *path, const td_dem_opts *o, int32_t w, int32_t h,
-                            double sx, double sy, td_grid **out, td_err *err)
+                            double sx, double sy, const td_georef *geo, td_grid **out,
+                            td_err *err)
 {
     int tl = o->tile_log2 ? o->tile_log2 : TD_TILE_LOG2_DEFAULT;
     td_status rc = td_grid_create(w, h, sx, sy, tl, &o->limits, out, err);
     if (rc != TD_OK)
         name_file(path, err);
+    else if (geo)
+        (*out)->geo = *geo;
     return rc;
 }
 
-td_status td_demutil_finish(const char *path, td_grid *g, td_err *err)
+float *td_demutil_file_row(const td_grid *g, int32_t r)
 {
-    td_status rc = td_grid_finish(g, err);
-    if (rc != TD_OK)
-        name_file(path, err);
+    return g->z + (size_t)(g->h - 1 - r) * (size_t)g->w;
+}
+
+td_status td_demutil_open(const char *path, FILE **f, struct stat *st, td_err *err)
+{
+    td_status rc = TD_OK;
+    *f = fopen(path, "rb");
+    if (!*f || (st && fstat(fileno(*f), st) != 0))
+        rc = td_err_set(err, TD_EIO, "%s: cannot open (%s)", path, strerror(errno));
+    return rc;
+}
+
+td_status td_demutil_read_row(const char *path, FILE *f, void *dst, size_t size, size_t n,
+                              int32_t r, td_err *err)
+{
+    td_status rc = TD_OK;
+    if (fread(dst, size, n, f) != n)
+        rc = td_err_set(err, TD_EIO, "%s: read failed at row %ld (%s)", path, (long)r,
+                        ferror(f) ? strerror(errno) : "file shrank while reading");
+    return rc;
+}
+
+td_status td_demutil_f32_row(const char *path, const td_demutil_f32 *p, float *row, int32_t w,
+                             int32_t r, td_err *err)
+{
+    td_status rc = TD_OK;
+    for (int32_t i = 0; i < w && rc == TD_OK; i++) {
+        float v = row[i];
+        double m;
+        if (isnan(v)) {
+            if (!p->nan_void)
+                rc = td_err_set(err, TD_EFORMAT, "%s: NaN sample at column %ld, row %ld%s", path,
+                                (long)i, (long)r, p->nan_why);
+        } else if (isinf(v) && p->inf_refused) {
+            rc = td_err_set(err, TD_ERANGE, "%s: infinite sample at column %ld, row %ld", path,
+                            (long)i, (long)r);
+        } else if (p->has_nodata && v == p->nodata) {
+            row[i] = NAN;
+        } else {
+            m = (double)v * p->scale + p->offset;
+            if (!isfinite(m) || fabs(m) > p->max_abs)
+                rc = td_err_set(err, TD_ERANGE, "%s: sample at column %ld, row %ld is not finite",
+                                path, (long)i, (long)r);
+            else
+                row[i] = (float)m;
+        }
+    }
+    return rc;
+}
+
+td_status td_demutil_deliver(const char *path, td_status rc, td_grid *g, td_grid **out,
+                             td_err *err)
+{
+    if (rc == TD_OK) {
+        rc = td_grid_finish(g, err);
+        if (rc != TD_OK)
+            name_file(path, err);
+    }
+    if (rc != TD_OK) {
+        td_grid_free(g);
+        g = NULL;
+    }
+    *out = g;
     return rc;
 }

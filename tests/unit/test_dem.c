@@ -4,8 +4,10 @@
  * oversized (a header claiming 100000 x 100000), non-numeric and NaN-laden copies made at
  * run time in a temporary directory. A refusal must return the right status, leave no
  * grid, and name the file in its message; under `make test-asan` none may read past a
- * buffer or leak. */
+ * buffer or leak. The loaders' shared helpers (demutil.h) are tested on their own at the
+ * end. */
 #include <dirent.h>
+#include <float.h>
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -14,12 +16,14 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cmocka.h>
 #include <png.h>
 
 #include "dem.h"
+#include "demutil.h"
 
 #ifdef TERRAD_HAVE_GDAL
 #include <cpl_conv.h>
@@ -1250,6 +1254,176 @@ static void test_gdal_geotiff(void **state)
 #endif
 }
 
+/* ---- demutil: the loaders' shared helpers ---------------------------------------------- */
+
+static td_grid *small_grid(int32_t w, int32_t h, const td_georef *geo)
+{
+    td_grid *g = NULL;
+    td_dem_opts o;
+    td_err err = {0};
+    td_dem_opts_default(&o);
+    assert_int_equal(td_demutil_create("x.f32", &o, w, h, 1.0, 2.0, geo, &g, &err), TD_OK);
+    for (size_t k = 0; k < (size_t)w * (size_t)h; k++)
+        g->z[k] = (float)k;
+    return g;
+}
+
+static void test_demutil_rows_and_create(void **state)
+{
+    td_georef geo = {.kind = TD_GEO_PROJECTED, .x0 = 10, .y0 = 20, .dx = 1, .dy = 2, .crs = "c"};
+    td_grid *g = small_grid(3, 4, &geo);
+    td_grid *big = NULL;
+    td_dem_opts o;
+    td_err err = {0};
+    (void)state;
+    /* file row 0 is the north row, the grid's last */
+    assert_ptr_equal(td_demutil_file_row(g, 0), g->z + 3 * 3);
+    assert_ptr_equal(td_demutil_file_row(g, 3), g->z);
+    assert_true(td_demutil_file_row(g, 1)[2] == td_grid_at(g, 2, 2));
+    assert_int_equal(g->geo.kind, TD_GEO_PROJECTED);
+    assert_true(g->geo.x0 == 10.0 && g->geo.dy == 2.0);
+    assert_string_equal(g->geo.crs, "c");
+    td_grid_free(g);
+    g = small_grid(3, 4, NULL);
+    assert_int_equal(g->geo.kind, TD_GEO_NONE);
+    td_grid_free(g);
+    /* a refusal names the file */
+    td_dem_opts_default(&o);
+    o.limits.max_width = 2;
+    assert_int_equal(td_demutil_create("dir/x.f32", &o, 3, 4, 1, 1, NULL, &big, &err), TD_ETOOBIG);
+    assert_null(big);
+    assert_non_null(strstr(err.msg, "dir/x.f32: "));
+}
+
+static void test_demutil_open_and_read_row(void **state)
+{
+    char p[512];
+    unsigned char buf[8];
+    FILE *f = NULL;
+    struct stat st;
+    td_err err = {0};
+    (void)state;
+    tmpfile_path("none.bin", p, sizeof p);
+    assert_int_equal(td_demutil_open(p, &f, &st, &err), TD_EIO);
+    assert_null(f);
+    assert_non_null(strstr(err.msg, ": cannot open ("));
+    assert_non_null(strstr(err.msg, p));
+    tmpfile_path("six.bin", p, sizeof p);
+    spit(p, "abcdef", 6);
+    assert_int_equal(td_demutil_open(p, &f, &st, &err), TD_OK);
+    assert_non_null(f);
+    assert_int_equal(st.st_size, 6);
+    assert_int_equal(td_demutil_read_row(p, f, buf, 2, 2, 0, &err), TD_OK);
+    assert_memory_equal(buf, "abcd", 4);
+    /* two bytes left: row 1 of 4 bytes is short */
+    assert_int_equal(td_demutil_read_row(p, f, buf, 2, 2, 1, &err), TD_EIO);
+    assert_non_null(strstr(err.msg, "read failed at row 1 (file shrank while reading)"));
+    fclose(f);
+    f = NULL;
+    assert_int_equal(td_demutil_open(p, &f, NULL, &err), TD_OK);
+    fclose(f);
+}
+
+static void test_demutil_side_georef(void **state)
+{
+    td_demside sc;
+    td_dem_opts o;
+    td_err err = {0};
+    double sx = 0, sy = 0, ex = 0, ey = 0;
+    (void)state;
+    td_dem_opts_default(&o);
+    /* lon/lat: moved to the south row, spacing at the centre latitude */
+    memset(&sc, 0, sizeof sc);
+    sc.geo = (td_georef){.kind = TD_GEO_LONLAT, .x0 = -105, .y0 = 38, .dx = 0.5, .dy = 0.25};
+    assert_int_equal(td_demutil_side_georef("x.f32", &o, &sc, 5, 5, &sx, &sy, &err), TD_OK);
+    assert_true(sc.geo.y0 == 37.0 && sc.geo.x0 == -105.0 && sc.geo.dy == 0.25);
+    td_grid_lonlat_spacing(37.5, 0.5, 0.25, &ex, &ey);
+    assert_true(sx == ex && sy == ey);
+    /* projected: the spacing becomes the step, then moved south */
+    memset(&sc, 0, sizeof sc);
+    sc.has_spacing = 1;
+    sc.spacing[0] = 2.0;
+    sc.spacing[1] = 3.0;
+    sc.geo = (td_georef){.kind = TD_GEO_PROJECTED, .x0 = 1000, .y0 = 2000};
+    assert_int_equal(td_demutil_side_georef("x.f32", &o, &sc, 4, 3, &sx, &sy, &err), TD_OK);
+    assert_true(sx == 2.0 && sy == 3.0 && sc.geo.dx == 2.0 && sc.geo.dy == 3.0);
+    assert_true(sc.geo.x0 == 1000.0 && sc.geo.y0 == 2000.0 - 2 * 3.0);
+    /* the options win over the sidecar's spacing and set a projected step */
+    memset(&sc, 0, sizeof sc);
+    sc.geo = (td_georef){.kind = TD_GEO_PROJECTED, .x0 = 0, .y0 = 10};
+    o.spacing[0] = 5.0;
+    assert_int_equal(td_demutil_side_georef("x.f32", &o, &sc, 4, 3, &sx, &sy, &err), TD_OK);
+    assert_true(sx == 5.0 && sy == 5.0 && sc.geo.dy == 5.0 && sc.geo.y0 == 0.0);
+    /* no spacing anywhere: refused, the origin left as read */
+    o.spacing[0] = 0.0;
+    memset(&sc, 0, sizeof sc);
+    sc.geo = (td_georef){.kind = TD_GEO_PROJECTED, .x0 = 0, .y0 = 10};
+    assert_int_equal(td_demutil_side_georef("x.f32", &o, &sc, 4, 3, &sx, &sy, &err), TD_EINVAL);
+    assert_true(sc.geo.y0 == 10.0);
+    assert_non_null(strstr(err.msg, "x.f32: spacing unknown"));
+}
+
+static void test_demutil_f32_row(void **state)
+{
+    td_demutil_f32 raw = {.inf_refused = 1, .has_nodata = 1, .nodata = -9999.0f, .scale = 1.0,
+                          .offset = -0.0, .max_abs = FLT_MAX};
+    td_demutil_f32 scaled = {.nan_void = 1, .scale = 0.5, .offset = 10.0, .max_abs = 3.0e38};
+    float row[5] = {-0.0f, 1.5f, -9999.0f, FLT_MAX, NAN};
+    td_err err = {0};
+    (void)state;
+    snprintf(raw.nan_why, sizeof raw.nan_why, " (why)");
+    /* as they are, -0.0 included; nodata is a void; a NaN is refused with the reason */
+    assert_int_equal(td_demutil_f32_row("x.f32", &raw, row, 4, 0, &err), TD_OK);
+    assert_true(row[0] == 0.0f && signbit(row[0]) && row[1] == 1.5f && isnan(row[2]) &&
+                row[3] == FLT_MAX);
+    row[2] = 5.0f;
+    assert_int_equal(td_demutil_f32_row("x.f32", &raw, row, 5, 7, &err), TD_EFORMAT);
+    assert_string_equal(err.msg, "x.f32: NaN sample at column 4, row 7 (why)");
+    /* infinities: refused before nodata when inf_refused */
+    row[0] = INFINITY;
+    raw.nodata = INFINITY;
+    assert_int_equal(td_demutil_f32_row("x.f32", &raw, row, 1, 2, &err), TD_ERANGE);
+    assert_string_equal(err.msg, "x.f32: infinite sample at column 0, row 2");
+    /* scaled: NaN is a void, values scaled, a scaled value beyond max_abs refused */
+    row[0] = 2.0f;
+    row[1] = NAN;
+    assert_int_equal(td_demutil_f32_row("x.tif", &scaled, row, 2, 0, &err), TD_OK);
+    assert_true(row[0] == 11.0f && isnan(row[1]));
+    row[0] = 3.0e38f;
+    scaled.scale = 2.0;
+    assert_int_equal(td_demutil_f32_row("x.tif", &scaled, row, 1, 3, &err), TD_ERANGE);
+    assert_string_equal(err.msg, "x.tif: sample at column 0, row 3 is not finite");
+}
+
+static void test_demutil_deliver(void **state)
+{
+    td_grid *g = small_grid(3, 4, NULL);
+    td_grid *out = (td_grid *)0x1;
+    td_err err = {0};
+    (void)state;
+    /* success: finished (stats) and handed over */
+    assert_int_equal(td_demutil_deliver("x.f32", TD_OK, g, &out, &err), TD_OK);
+    assert_ptr_equal(out, g);
+    assert_true(out->zmin == 0.0f && out->zmax == 11.0f && out->voids == 0);
+    td_grid_free(out);
+    /* an earlier failure: freed (ASan checks), NULL out, status kept */
+    g = small_grid(3, 4, NULL);
+    out = (td_grid *)0x1;
+    td_err_set(&err, TD_EFORMAT, "x.f32: earlier");
+    assert_int_equal(td_demutil_deliver("x.f32", TD_EFORMAT, g, &out, &err), TD_EFORMAT);
+    assert_null(out);
+    assert_string_equal(err.msg, "x.f32: earlier");
+    out = (td_grid *)0x1;
+    assert_int_equal(td_demutil_deliver("x.f32", TD_EIO, NULL, &out, &err), TD_EIO);
+    assert_null(out);
+    /* finish fails: the message names the file */
+    g = small_grid(3, 4, NULL);
+    g->z[5] = INFINITY;
+    assert_int_equal(td_demutil_deliver("dir/x.f32", TD_OK, g, &out, &err), TD_ERANGE);
+    assert_null(out);
+    assert_non_null(strstr(err.msg, "dir/x.f32: infinite height"));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1270,6 +1444,11 @@ int main(void)
         cmocka_unit_test(test_png_palette),
         cmocka_unit_test(test_dispatch),
         cmocka_unit_test(test_gdal_geotiff),
+        cmocka_unit_test(test_demutil_rows_and_create),
+        cmocka_unit_test(test_demutil_open_and_read_row),
+        cmocka_unit_test(test_demutil_side_georef),
+        cmocka_unit_test(test_demutil_f32_row),
+        cmocka_unit_test(test_demutil_deliver),
     };
     return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }
