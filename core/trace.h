@@ -104,6 +104,12 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
 void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r, double t_clear,
                    td_hit *hit);
 
+/* Whether the ray meets the surface in [tmin, tmax] (td_trace's hit is finite), for rays
+ * that leave the surface (shadow and ambient-occlusion rays): it starts with the cells
+ * around its origin and climbs the max-mipmap from the bottom, and computes no hit
+ * point or normal. Adds its steps to *steps. */
+int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r, uint32_t *steps);
+
 /* Surface height at (x, y) in the dataset frame inside cell (ci, cj), NaN on a hole
  * (the `linear` surface has no height of its own: it is evaluated as bilinear here). */
 double td_surface_height(const td_grid *g, td_surface s, int32_t ci, int32_t cj, double x, double y);
