@@ -20,7 +20,9 @@
  * on a sample of the surface hits at tmin on every surface; an origin inside the plane
  * surface's solid column hits at tmin; below a two-sided surface the first crossing is
  * the hit; georeferencing never changes a hit; NaN or inf anywhere in a ray is refused
- * by td_ray_validate. */
+ * by td_ray_validate; every ray's occlusion query (td_occluded, shadow and AO rays) says
+ * hit exactly when the trace does (hc.c); camera rays started from their horizons
+ * (horizon.h) render the depths of the rays traced from their starts, bit for bit. */
 #include <errno.h>
 #include <float.h>
 #include <math.h>
@@ -1023,7 +1025,49 @@ typedef struct hc_cam {
     double fov, pitch, roll;
     int32_t w, h;
     int expect_refusal;
+    int below; /* the camera a quarter of the relief above the lowest sample */
 } hc_cam;
+
+/* One render of the camera with method m and surface sf: no NaN, negative or -inf depth;
+ * and the camera rays started from their horizons (horizon.h, the default) give the depths
+ * of the rays traced from their starts, bit for bit, every pixel. */
+static void camera_render(hc_stats *st, const hc_scene *sc, const hc_cam *c, td_scene *scene,
+                          td_method m, td_surface sf)
+{
+    td_render_opts ro;
+    td_render_result res, plain;
+    td_err err = {0};
+    int64_t npx = (int64_t)c->w * c->h, bad = 0, differ = 0;
+    td_render_opts_default(&ro);
+    ro.threads = 1;
+    scene->quality.method = m;
+    scene->quality.surface = sf;
+    scene->image.format = (m == 0 && sf == 3) ? TD_FORMAT_PNG : TD_FORMAT_DEPTH32F;
+    memset(&res, 0, sizeof res);
+    memset(&plain, 0, sizeof plain);
+    if (!hc_check(st, td_render(&sc->view, scene, &ro, &res, &err) == TD_OK,
+                  "camera fov %g: render %s/%s failed: %s", c->fov, td_method_name(m),
+                  td_surface_name(sf), err.msg))
+        return;
+    for (int64_t q = 0; res.depth && q < npx; q++)
+        bad += !(res.depth[q] == INFINITY || (isfinite(res.depth[q]) && res.depth[q] >= 0.0f));
+    hc_check(st, bad == 0 && (res.depth || res.rgba), "camera fov %g: %s/%s render has %lld NaN/negative/-inf depths",
+             c->fov, td_method_name(m), td_surface_name(sf), (long long)bad);
+    ro.off = TD_RENDER_OFF_HORIZON;
+    if (res.depth && hc_check(st, td_render(&sc->view, scene, &ro, &plain, &err) == TD_OK,
+                              "camera fov %g: plain render %s/%s failed: %s", c->fov, td_method_name(m),
+                              td_surface_name(sf), err.msg)) {
+        for (int64_t q = 0; q < npx; q++)
+            differ += memcmp(&res.depth[q], &plain.depth[q], sizeof(float)) != 0;
+        hc_check(st, differ == 0,
+                 "camera fov %g pitch %g roll %g: %s/%s: %lld pixels differ between the horizon-started "
+                 "and the plain camera rays (%llu of %llu rays started from a horizon)",
+                 c->fov, c->pitch, c->roll, td_method_name(m), td_surface_name(sf), (long long)differ,
+                 (unsigned long long)res.stats.coherent_rays, (unsigned long long)res.stats.rays[TD_RAY_PRIMARY]);
+    }
+    td_render_result_free(&plain);
+    td_render_result_free(&res);
+}
 
 /* One camera over the scene: setup refuses (with a message) or every ray of the image
  * (a subsample of large ones) is valid, unit length and judged like any other ray; its
@@ -1040,7 +1084,7 @@ static void camera_one(hc_stats *st, const hc_scene *sc, const hc_cam *c)
     snprintf(scene.dataset, sizeof scene.dataset, "hardcases");
     scene.camera.x = 0.3 * (sc->g->w - 1) * sc->g->sx;
     scene.camera.y = 0.2 * (sc->g->h - 1) * sc->g->sy;
-    scene.camera.z = sc->g->zmax + 80.0;
+    scene.camera.z = c->below ? sc->g->zmin + 0.25 * (sc->g->zmax - sc->g->zmin) : sc->g->zmax + 80.0;
     scene.camera.heading = 35.0;
     scene.camera.pitch = c->pitch;
     scene.camera.roll = c->roll;
@@ -1070,29 +1114,9 @@ static void camera_one(hc_stats *st, const hc_scene *sc, const hc_cam *c)
             continue;
         hc_run_ray(st, sc, &r, NULL);
     }
-    for (int m = 0; m < TD_METHOD_COUNT; m++) {
-        for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
-            td_render_opts ro;
-            td_render_result res;
-            int bad = 0;
-            td_render_opts_default(&ro);
-            ro.threads = 1;
-            scene.quality.method = (td_method)m;
-            scene.quality.surface = (td_surface)sf;
-            scene.image.format = (m == 0 && sf == 3) ? TD_FORMAT_PNG : TD_FORMAT_DEPTH32F;
-            memset(&res, 0, sizeof res);
-            rc = td_render(&sc->view, &scene, &ro, &res, &err);
-            if (hc_check(st, rc == TD_OK, "camera fov %g: render %s/%s failed: %s", c->fov,
-                         td_method_name((td_method)m), td_surface_name((td_surface)sf), err.msg)) {
-                for (int64_t q = 0; res.depth && q < npx; q++)
-                    bad += !(res.depth[q] == INFINITY || (isfinite(res.depth[q]) && res.depth[q] >= 0.0f));
-                hc_check(st, bad == 0 && (res.depth || res.rgba),
-                         "camera fov %g: %s/%s render has %d NaN/negative/-inf depths", c->fov,
-                         td_method_name((td_method)m), td_surface_name((td_surface)sf), bad);
-            }
-            td_render_result_free(&res);
-        }
-    }
+    for (int m = 0; m < TD_METHOD_COUNT; m++)
+        for (int sf = 0; sf < TD_SURFACE_COUNT; sf++)
+            camera_render(st, sc, c, &scene, (td_method)m, (td_surface)sf);
 }
 
 static void camera_set(hc_stats *st, const hc_cam *cams, size_t n)
@@ -1116,13 +1140,29 @@ static void camera_set(hc_stats *st, const hc_cam *cams, size_t n)
 static int case_camera(hc_stats *st)
 {
     static const hc_cam cams[] = {
-        {60, -30, 0, 1, 1, 0},          {60, -30, 0, 1, 4096, 0},        {60, -30, 0, 4096, 1, 0},
-        {1e-6, -20, 0, 64, 48, 0},      {1e-3, -20, 0, 1, 4096, 0},      {179.999999, -10, 0, 64, 48, 0},
-        {179.9, -10, 0, 4096, 1, 0},    {90, -90, 0, 64, 48, 0},         {90, 90, 0, 64, 48, 0},
-        {60, -90, 180, 32, 32, 0},      {60, 90, -180, 32, 32, 0},       {60, -5, 180, 64, 48, 0},
-        {60, -5, -180, 1, 4096, 0},     {0.0, -20, 0, 8, 8, 1},          {180.0, -20, 0, 8, 8, 1},
-        {-5.0, -20, 0, 8, 8, 1},        {NAN, -20, 0, 8, 8, 1},          {60, -20, 0, 0, 8, 1},
-        {60, 1e6, -1e6, 16, 16, 0},     {1e-20, -20, 0, 16, 16, 0},
+        {60, -30, 0, 1, 1, 0, 0},          {60, -30, 0, 1, 4096, 0, 0},        {60, -30, 0, 4096, 1, 0, 0},
+        {1e-6, -20, 0, 64, 48, 0, 0},      {1e-3, -20, 0, 1, 4096, 0, 0},      {179.999999, -10, 0, 64, 48, 0, 0},
+        {179.9, -10, 0, 4096, 1, 0, 0},    {90, -90, 0, 64, 48, 0, 0},         {90, 90, 0, 64, 48, 0, 0},
+        {60, -90, 180, 32, 32, 0, 0},      {60, 90, -180, 32, 32, 0, 0},       {60, -5, 180, 64, 48, 0, 0},
+        {60, -5, -180, 1, 4096, 0, 0},     {0.0, -20, 0, 8, 8, 1, 0},          {180.0, -20, 0, 8, 8, 1, 0},
+        {-5.0, -20, 0, 8, 8, 1, 0},        {NAN, -20, 0, 8, 8, 1, 0},          {60, -20, 0, 0, 8, 1, 0},
+        {60, 1e6, -1e6, 16, 16, 0, 0},     {1e-20, -20, 0, 16, 16, 0, 0},
+    };
+    camera_set(st, cams, sizeof cams / sizeof cams[0]);
+    return 0;
+}
+
+/* The cameras of the coherence devices (issue 12): level, straight down, the vanishing
+ * point of verticals inside the image (looking steeply down: every azimuth), roll 90,
+ * fov 170, and a camera below the terrain's crests (looking up at slopes, level and
+ * down). Each renders the same depths from horizons as from the rays' starts. */
+static int case_camera_coherence(hc_stats *st)
+{
+    static const hc_cam cams[] = {
+        {60, 0, 0, 64, 48, 0, 0},    {60, -90, 0, 48, 48, 0, 0},  {90, -60, 0, 64, 64, 0, 0},
+        {60, -20, 90, 64, 48, 0, 0}, {60, -20, -90, 48, 64, 0, 0}, {170, -10, 0, 96, 48, 0, 0},
+        {170, -89, 30, 64, 64, 0, 0}, {70, 15, 0, 64, 48, 0, 1},   {70, 0, 0, 64, 48, 0, 1},
+        {70, -30, 45, 64, 48, 0, 1},  {5, -2, 0, 64, 48, 0, 0},   {120, 60, 0, 64, 48, 0, 0},
     };
     camera_set(st, cams, sizeof cams / sizeof cams[0]);
     return 0;
@@ -1133,7 +1173,7 @@ static int case_camera(hc_stats *st)
  * Such a camera's rays must be valid. */
 static int case_camera_tiny_fov(hc_stats *st)
 {
-    static const hc_cam cams[] = {{1e-300, -20, 0, 8, 8, 0}, {1e-160, -20, 0, 1, 1, 0}};
+    static const hc_cam cams[] = {{1e-300, -20, 0, 8, 8, 0, 0}, {1e-160, -20, 0, 1, 1, 0, 0}};
     camera_set(st, cams, sizeof cams / sizeof cams[0]);
     return 0;
 }
@@ -1228,6 +1268,7 @@ static int case_property(hc_stats *st)
     X(validate, "NaN or inf anywhere in a ray is refused")                                 \
     X(camera, "fov near 0/180, pitch +-90, roll +-180, 1x1 and 1x4096 images")             \
     X(camera_tiny_fov, "fov below 1e-150 degrees: valid rays")                                \
+    X(camera_coherence, "level, straight down, vanishing point inside, roll 90, fov 170, below crests: horizons change no depth") \
     X(property, "seeded mix of everything (TERRAD_SEED replays)")
 
 typedef struct hc_case {

@@ -690,6 +690,11 @@ int hc_run_ray(hc_stats *st, const hc_scene *sc, const td_ray *r,
             else if (!same_hit(r, h.t, t_inc))
                 c->vs_incremental++;
             why = rule_violation(sc->g, r, &h);
+            if (!why) { /* the any-hit query of shadow rays answers as the trace does */
+                uint32_t osteps = 0;
+                if (td_occluded(&sc->view, (td_method)m, (td_surface)s, r, &osteps) != (h.t < INFINITY))
+                    why = "td_occluded disagrees with td_trace";
+            }
             v = why ? HC_WRONG : hc_judge(sc, (td_surface)s, r, h.t, &ref_t, &near_t, &strict_t);
             if (why)
                 c->rule++;
