@@ -30,6 +30,7 @@
 #include <time.h>
 
 #include "dem.h"
+#include "hash.h"
 #include "log.h"
 #include "render.h"
 #include "request.h"
@@ -812,15 +813,10 @@ static void request_limits(const td_app *app, td_request_limits *lim)
 static void scene_etag(const td_scene *s, const td_grid *g, char *out, size_t n)
 {
     size_t bytes = offsetof(td_scene, pick) + (size_t)s->npick * sizeof s->pick[0];
-    uint64_t h = 14695981039346656037ULL;
-    const unsigned char *p = (const unsigned char *)s;
-    for (size_t i = 0; i < bytes; i++) {
-        h ^= p[i];
-        h *= 1099511628211ULL;
-    }
+    uint64_t h = td_fnv1a(TD_FNV1A_INIT, s, bytes);
     /* The dataset too: same scene over different heights is a different picture. */
     h ^= (uint64_t)g->w * 2654435761u ^ (uint64_t)g->h ^ (uint64_t)(g->zmax * 1000.0);
-    h *= 1099511628211ULL;
+    h *= TD_FNV1A_PRIME;
     snprintf(out, n, "\"%016llx\"", (unsigned long long)h);
 }
 
@@ -1190,7 +1186,6 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     td_rjob *j = NULL;
     td_dataset_info di;
     double wm, hm, side, t;
-    uint64_t hsh = 14695981039346656037ULL;
 
     if (yl < 5 || strcmp(seg[3] + yl - 4, ".png")) {
         api_error(r, TD_AE_NOT_FOUND, NULL, "tile paths end in {y}.png");
@@ -1245,11 +1240,7 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
          * (same id after a restart) gets new tags. */
         double key[6] = {(double)di.grid->w, (double)di.grid->h, di.grid->sx, di.grid->sy,
                          (double)di.grid->zmin, (double)di.grid->zmax};
-        const unsigned char *kp = (const unsigned char *)key;
-        for (size_t i = 0; i < sizeof key; i++) {
-            hsh ^= kp[i];
-            hsh *= 1099511628211ULL;
-        }
+        uint64_t hsh = td_fnv1a(TD_FNV1A_INIT, key, sizeof key);
         snprintf(j->etag, sizeof j->etag, "\"t%012llx-%ld-%ld-%ld\"",
                  (unsigned long long)(hsh & 0xffffffffffffULL), z, x, y);
     }
