@@ -1,8 +1,8 @@
 /* cli_serve.c: `terrad serve`: reads the settings, loads the demo and --data datasets
- * into the tile store, starts the preload builder, the render watchdog and the HTTP
- * server, then waits for SIGTERM/SIGINT. On a signal it stops accepting, lets requests
- * in flight finish for --shutdown-timeout seconds (then cancels renders still running),
- * and exits 0.
+ * into the tile store, starts the preload builder and the HTTP server (whose workers
+ * render, each with --render-timeout as its deadline), then waits for SIGTERM/SIGINT.
+ * On a signal it stops accepting, lets requests in flight finish for --shutdown-timeout
+ * seconds (then cancels renders still running), and exits 0.
  *
  * Signals are blocked before any thread starts and taken with sigwait() on the main
  * thread, so no handler runs in the middle of a render or a malloc. */
@@ -22,11 +22,6 @@
 #include "metrics.h"
 #include "routes.h"
 #include "tilestore.h"
-
-static void cancel_renders(void *cls)
-{
-    td_routes_cancel_all(cls);
-}
 
 static int log2_of(long v)
 {
@@ -115,7 +110,7 @@ int td_cli_serve(int argc, char **argv)
     snprintf(leaflet, sizeof leaflet, "%s/node_modules/leaflet/dist", cfg.web_dir);
     resolve_dir(leaflet, app.leaflet_dir);
     app.metrics = td_metrics_create(td_route_names, TD_ROUTE_COUNT);
-    if (!app.metrics || td_jobs_start(app.store, &app.jobs, &e) || td_routes_start(&app, &e)) {
+    if (!app.metrics || td_jobs_start(app.store, &app.jobs, &e)) {
         td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg[0] ? e.msg : "out of memory"));
         goto out;
     }
@@ -131,7 +126,7 @@ int td_cli_serve(int argc, char **argv)
     ho.per_ip = (unsigned)cfg.per_ip;
     ho.handler = td_routes_handle;
     ho.done = td_routes_done;
-    ho.on_deadline = cancel_renders;
+    ho.work_timeout_s = cfg.render_timeout_s;
     ho.cls = &app;
     ho.route_names = td_route_names;
     ho.nroutes = TD_ROUTE_COUNT;
@@ -171,7 +166,6 @@ out:
     if (app.http)
         td_http_stop(app.http, 0);
     td_jobs_stop(app.jobs);
-    td_routes_stop(&app);
     td_store_free(app.store);
     td_metrics_free(app.metrics);
     td_config_free(&cfg);

@@ -10,7 +10,7 @@
  * (td_http_defer): the handler parses and validates on the HTTP thread (so a bad
  * request never takes a queue slot), a full queue answers 503 with Retry-After, and the
  * worker takes a tile-store snapshot, renders, encodes and fills the response with
- * Server-Timing (parse, queue, every render stage that ran, encode). A watchdog thread
+ * Server-Timing (parse, queue, every render stage that ran, encode). The HTTP layer
  * raises a render's cancel flag at its deadline (--render-timeout) and at shutdown. */
 #include "routes.h"
 #include "clock.h"
@@ -20,7 +20,6 @@
 #include <errno.h>
 #include <jansson.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -668,126 +667,6 @@ static int split_path(const char *rest, char *buf, size_t cap, char **seg, int m
     return strchr(p, '/') && n == max ? -1 : n;
 }
 
-/* --- render deadlines ------------------------------------------------------------------ */
-
-#define TD_WATCH_SLOTS 256
-
-typedef struct td_watch_slot {
-    atomic_int cancel;
-    double deadline;
-    int used;
-} td_watch_slot;
-
-struct td_watch {
-    pthread_mutex_t mu;
-    pthread_cond_t cv;
-    pthread_t thread;
-    int quit;
-    td_watch_slot slot[TD_WATCH_SLOTS];
-};
-
-static void *watch_main(void *arg)
-{
-    struct td_watch *w = arg;
-    pthread_mutex_lock(&w->mu);
-    while (!w->quit) {
-        struct timespec ts;
-        double now = td_clock_s();
-        for (int i = 0; i < TD_WATCH_SLOTS; i++)
-            if (w->slot[i].used && now > w->slot[i].deadline)
-                atomic_store(&w->slot[i].cancel, 1);
-        clock_gettime(CLOCK_REALTIME, &ts);
-        ts.tv_nsec += 50 * 1000 * 1000;
-        if (ts.tv_nsec >= 1000000000L) {
-            ts.tv_sec++;
-            ts.tv_nsec -= 1000000000L;
-        }
-        pthread_cond_timedwait(&w->cv, &w->mu, &ts);
-    }
-    pthread_mutex_unlock(&w->mu);
-    return NULL;
-}
-
-td_status td_routes_start(td_app *app, td_err *err)
-{
-    td_status rc = TD_OK;
-    struct td_watch *w = calloc(1, sizeof *w);
-    if (!w) {
-        rc = td_err_set(err, TD_ENOMEM, "out of memory for the render watchdog");
-        goto out;
-    }
-    pthread_mutex_init(&w->mu, NULL);
-    pthread_cond_init(&w->cv, NULL);
-    for (int i = 0; i < TD_WATCH_SLOTS; i++)
-        atomic_init(&w->slot[i].cancel, 0);
-    if (pthread_create(&w->thread, NULL, watch_main, w)) {
-        pthread_mutex_destroy(&w->mu);
-        pthread_cond_destroy(&w->cv);
-        free(w);
-        rc = td_err_set(err, TD_ENOMEM, "cannot start the render watchdog");
-        goto out;
-    }
-    app->watch = w;
-out:
-    return rc;
-}
-
-void td_routes_stop(td_app *app)
-{
-    struct td_watch *w = app->watch;
-    if (!w)
-        return;
-    pthread_mutex_lock(&w->mu);
-    w->quit = 1;
-    pthread_cond_signal(&w->cv);
-    pthread_mutex_unlock(&w->mu);
-    pthread_join(w->thread, NULL);
-    pthread_mutex_destroy(&w->mu);
-    pthread_cond_destroy(&w->cv);
-    free(w);
-    app->watch = NULL;
-}
-
-void td_routes_cancel_all(td_app *app)
-{
-    struct td_watch *w = app->watch;
-    if (!w)
-        return;
-    pthread_mutex_lock(&w->mu);
-    for (int i = 0; i < TD_WATCH_SLOTS; i++)
-        if (w->slot[i].used)
-            atomic_store(&w->slot[i].cancel, 1);
-    pthread_mutex_unlock(&w->mu);
-}
-
-/* A slot whose cancel flag the render polls; NULL when all are taken (no deadline). */
-static td_watch_slot *watch_begin(td_app *app, double seconds)
-{
-    struct td_watch *w = app->watch;
-    td_watch_slot *s = NULL;
-    if (!w)
-        return NULL;
-    pthread_mutex_lock(&w->mu);
-    for (int i = 0; i < TD_WATCH_SLOTS && !s; i++)
-        if (!w->slot[i].used) {
-            s = &w->slot[i];
-            s->used = 1;
-            s->deadline = td_clock_s() + seconds;
-            atomic_store(&s->cancel, 0);
-        }
-    pthread_mutex_unlock(&w->mu);
-    return s;
-}
-
-static void watch_end(td_app *app, td_watch_slot *s)
-{
-    if (!s)
-        return;
-    pthread_mutex_lock(&app->watch->mu);
-    s->used = 0;
-    pthread_mutex_unlock(&app->watch->mu);
-}
-
 /* --- renders, picks and map tiles -------------------------------------------------------- */
 
 typedef enum td_rkind { TD_RK_RENDER, TD_RK_PICK, TD_RK_TILE } td_rkind;
@@ -931,7 +810,6 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     td_rjob *j = cls;
     td_app *app = j->app;
     td_snapshot *snap = NULL;
-    td_watch_slot *ws = NULL;
     td_render_opts o;
     td_render_result res;
     td_render_stats pst;
@@ -956,7 +834,6 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         goto out;
     }
     v = td_snapshot_view(snap);
-    ws = watch_begin(app, app->cfg->render_timeout_s);
     if (j->kind == TD_RK_PICK) {
         picks = calloc((size_t)(j->scene.npick ? j->scene.npick : 1), sizeof *picks);
         if (!picks) {
@@ -973,7 +850,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     } else {
         td_render_opts_default(&o);
         o.threads = 1; /* one render per worker; the workers use the cores */
-        o.cancel = ws ? &ws->cancel : NULL;
+        o.cancel = td_http_req_cancel(q); /* raised at --render-timeout (http.c) */
         o.lod = td_snapshot_lod(snap);
         rc = td_render(v, &j->scene, &o, &res, &e);
         if (rc == TD_OK)
@@ -1020,7 +897,6 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     }
 out:
     timing_header(r, j, queue_ms, st);
-    watch_end(app, ws);
     td_render_result_free(&res);
     td_buf_free(&buf);
     free(picks);

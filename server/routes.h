@@ -49,14 +49,7 @@ typedef struct td_app {
     atomic_int ready;  /* /readyz: 1 once serving, 0 again when stopping */
     char web_dir[PATH_MAX];     /* realpath, or "" when absent */
     char leaflet_dir[PATH_MAX]; /* realpath of web/node_modules/leaflet/dist, or "" */
-    struct td_watch *watch;     /* render deadlines (routes.c) */
 } td_app;
-
-/* Starts / stops the watchdog that cancels renders past --render-timeout. */
-td_status td_routes_start(td_app *app, td_err *err);
-void td_routes_stop(td_app *app);
-/* Cancels every render running now (shutdown past its deadline). */
-void td_routes_cancel_all(td_app *app);
 
 /* td_http_handler and td_http_done_fn for td_http_start (cls: the td_app). */
 void td_routes_handle(void *cls, td_http_req *q, td_http_resp *resp);
