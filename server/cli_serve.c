@@ -21,6 +21,7 @@
 #include "log.h"
 #include "metrics.h"
 #include "routes.h"
+#include "static.h"
 #include "tilestore.h"
 
 static int log2_of(long v)
@@ -29,12 +30,6 @@ static int log2_of(long v)
     while ((1L << k) < v)
         k++;
     return k;
-}
-
-static void resolve_dir(const char *path, char *out)
-{
-    if (!path || !*path || !realpath(path, out))
-        out[0] = '\0';
 }
 
 int td_cli_serve(int argc, char **argv)
@@ -46,7 +41,7 @@ int td_cli_serve(int argc, char **argv)
     td_app app;
     td_http_opts ho;
     sigset_t set;
-    char q[600], leaflet[PATH_MAX + 64];
+    char q[600];
 
     memset(&app, 0, sizeof app);
     sigemptyset(&set);
@@ -106,9 +101,7 @@ int td_cli_serve(int argc, char **argv)
     else
         td_log(TD_LOG_INFO, "datasets_ready", "count=%d", loaded);
 
-    resolve_dir(cfg.web_dir, app.web_dir);
-    snprintf(leaflet, sizeof leaflet, "%s/node_modules/leaflet/dist", cfg.web_dir);
-    resolve_dir(leaflet, app.leaflet_dir);
+    td_static_resolve(cfg.web_dir, app.web_dir, app.leaflet_dir);
     app.metrics = td_metrics_create(td_route_names, TD_ROUTE_COUNT);
     if (!app.metrics || td_jobs_start(app.store, &app.jobs, &e)) {
         td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg[0] ? e.msg : "out of memory"));

@@ -33,6 +33,7 @@
 #include "log.h"
 #include "render.h"
 #include "request.h"
+#include "static.h"
 
 const char *const td_route_names[TD_ROUTE_COUNT] = {
 #define TD_X_NAME(e, name) name,
@@ -546,103 +547,14 @@ static void h_evict(td_app *app, const char *id, td_http_resp *r)
     }
 }
 
-/* --- static files -------------------------------------------------------------------- */
+/* --- static files (static.c) ----------------------------------------------------------- */
 
-#define TD_MIME_LIST(X)                                                        \
-    X("html", "text/html; charset=utf-8")                                      \
-    X("htm", "text/html; charset=utf-8")                                       \
-    X("js", "text/javascript; charset=utf-8")                                  \
-    X("mjs", "text/javascript; charset=utf-8")                                 \
-    X("css", "text/css; charset=utf-8")                                        \
-    X("json", "application/json")                                              \
-    X("map", "application/json")                                               \
-    X("txt", "text/plain; charset=utf-8")                                      \
-    X("md", "text/markdown; charset=utf-8")                                    \
-    X("png", "image/png")                                                      \
-    X("jpg", "image/jpeg")                                                     \
-    X("jpeg", "image/jpeg")                                                    \
-    X("gif", "image/gif")                                                      \
-    X("svg", "image/svg+xml")                                                  \
-    X("ico", "image/x-icon")                                                   \
-    X("webp", "image/webp")                                                    \
-    X("woff", "font/woff")                                                     \
-    X("woff2", "font/woff2")                                                   \
-    X("wasm", "application/wasm")
-
-static const char *mime_of(const char *path)
+static void h_static(const char *root, const char *rel, int vendor, td_http_resp *r)
 {
-    static const struct {
-        const char *ext, *type;
-    } types[] = {
-#define TD_X_MIME(ext, type) {ext, type},
-        TD_MIME_LIST(TD_X_MIME)
-#undef TD_X_MIME
-    };
-    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
-    const char *type = "application/octet-stream";
-    if (dot && (!slash || dot > slash))
-        for (size_t i = 0; i < sizeof types / sizeof types[0]; i++)
-            if (!strcasecmp(dot + 1, types[i].ext))
-                type = types[i].type;
-    return type;
-}
-
-/* Serves root/rel, where rel is what follows the route prefix. Refuses empty, `.` and
- * `..` segments, hidden files, and anything whose real path leaves root. */
-static void serve_file(const char *root, const char *rel, int vendor, td_http_resp *r)
-{
-    char path[PATH_MAX], real[PATH_MAX];
-    struct stat st;
-    FILE *f = NULL;
-    char *buf = NULL;
-    size_t rl = strlen(root);
-    const char *seg = rel;
-
-    if (!root[0]) {
-        api_error(r, TD_AE_NOT_FOUND, NULL, "the web page is not installed (no web/ directory)");
-        goto out;
-    }
-    while (*seg) {
-        const char *next = strchr(seg, '/');
-        size_t n = next ? (size_t)(next - seg) : strlen(seg);
-        if ((n == 0 && next) || seg[0] == '.' || memchr(seg, '\\', n)) {
-            api_error(r, TD_AE_NOT_FOUND, NULL, "no such file");
-            goto out;
-        }
-        seg += n + (next ? 1 : 0);
-    }
-    if ((size_t)snprintf(path, sizeof path, "%s/%s", root, *rel ? rel : "index.html") >= sizeof path ||
-        !realpath(path, real) || strncmp(real, root, rl) || real[rl] != '/' || stat(real, &st)) {
-        api_error(r, TD_AE_NOT_FOUND, NULL, "no such file");
-        goto out;
-    }
-    if (S_ISDIR(st.st_mode)) {
-        if ((size_t)snprintf(path, sizeof path, "%s/index.html", real) >= sizeof path ||
-            stat(path, &st) || !S_ISREG(st.st_mode)) {
-            api_error(r, TD_AE_NOT_FOUND, NULL, "no such file");
-            goto out;
-        }
-        snprintf(real, sizeof real, "%s", path);
-    }
-    if (!S_ISREG(st.st_mode) || st.st_size > (64 << 20)) {
-        api_error(r, TD_AE_NOT_FOUND, NULL, "no such file");
-        goto out;
-    }
-    buf = malloc((size_t)st.st_size + 1);
-    f = fopen(real, "rb");
-    if (!buf || !f || fread(buf, 1, (size_t)st.st_size, f) != (size_t)st.st_size) {
-        api_error(r, TD_AE_INTERNAL, NULL, "cannot read the file");
-        goto out;
-    }
-    r->status = 200;
-    td_http_resp_take(r, buf, (size_t)st.st_size, mime_of(real));
-    buf = NULL;
-    td_http_resp_header(r, "Cache-Control", vendor ? "public, max-age=86400" : "no-cache");
-    td_http_resp_header(r, "X-Content-Type-Options", "nosniff");
-out:
-    if (f)
-        fclose(f);
-    free(buf);
+    td_err e = {{0}};
+    td_status rc = td_static_serve(root, rel, vendor, r, &e);
+    if (rc)
+        api_error(r, rc == TD_ENOTFOUND ? TD_AE_NOT_FOUND : TD_AE_INTERNAL, NULL, "%s", e.msg);
 }
 
 /* --- dispatch ------------------------------------------------------------------------ */
@@ -1216,10 +1128,10 @@ static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
         } else {
             api_error(r, TD_AE_NOT_FOUND, NULL, "no such admin route");
         }
-    } else if (!strncmp(path, "/vendor/leaflet/", 16)) {
+    } else if (!strncmp(path, TD_STATIC_VENDOR_PREFIX, strlen(TD_STATIC_VENDOR_PREFIX))) {
         td_http_req_set_route(q, TD_ROUTE_WEB);
         if (get)
-            serve_file(app->leaflet_dir, path + 16, 1, r);
+            h_static(app->leaflet_dir, path + strlen(TD_STATIC_VENDOR_PREFIX), 1, r);
         else
             method_not_allowed(r, "GET, HEAD", m);
     } else if (!strncmp(path, "/v1/", 4) || !strcmp(path, "/v1")) {
@@ -1227,15 +1139,13 @@ static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
         api_error(r, TD_AE_NOT_FOUND, NULL, "no such route: %s", path);
     } else {
         /* the page's own files only: not its tests, build files or node_modules */
-        int page = !strcmp(path, "/") || !strcmp(path, "/index.html") || !strcmp(path, "/style.css") ||
-                   !strncmp(path, "/js/", 4) || !strcmp(path, "/favicon.ico");
         td_http_req_set_route(q, TD_ROUTE_WEB);
         if (!get)
             method_not_allowed(r, "GET, HEAD", m);
-        else if (!page)
+        else if (!td_static_is_page(path))
             api_error(r, TD_AE_NOT_FOUND, NULL, "no such page (the web page is /, /style.css and /js/)");
         else
-            serve_file(app->web_dir, path + 1, 0, r);
+            h_static(app->web_dir, path + 1, 0, r);
     }
 }
 
