@@ -905,24 +905,9 @@ static void h_render(td_app *app, td_http_req *q, td_http_resp *r, int post, int
         if (json_body_check(q, r))
             goto out;
         body = td_http_req_body(q, &len);
-        if (pick) {
-            /* /v1/pick implies image.format "pick": add it when the body leaves it out. */
-            json_t *root = json_loadb(body, len, JSON_REJECT_DUPLICATES, NULL);
-            json_t *img = root ? json_object_get(root, "image") : NULL;
-            char *text = NULL;
-            if (json_is_object(root) && !img)
-                json_object_set_new(root, "image", img = json_object());
-            if (json_is_object(img) && !json_object_get(img, "format")) {
-                json_object_set_new(img, "format", json_string("pick"));
-                text = json_dumps(root, JSON_COMPACT);
-            }
-            rc = text ? td_request_parse_scene(text, strlen(text), &lim, &j->scene, &re)
-                      : td_request_parse_scene(body, len, &lim, &j->scene, &re);
-            free(text);
-            json_decref(root);
-        } else {
-            rc = td_request_parse_scene(body, len, &lim, &j->scene, &re);
-        }
+        /* /v1/pick implies image.format "pick" where the body leaves it out */
+        rc = pick ? td_request_parse_pick(body, len, &lim, &j->scene, &re)
+                  : td_request_parse_scene(body, len, &lim, &j->scene, &re);
     } else {
         td_qargs a;
         memset(&a, 0, sizeof a);
