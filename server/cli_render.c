@@ -9,16 +9,17 @@
  * parameter planes; auto: both) and timed as `accel_ms`.
  *
  * Output: the image in the scene's format (png, depth16, depth32f), or for format pick
- * a JSON array with the terrain point of each pixel. --stats writes JSON: rays {primary,
+ * the JSON answer of POST /v1/pick (answer.c: the dataset as the scene names it, and the
+ * terrain point of each pixel). --stats writes JSON: rays {primary,
  * shadow, reflection, ao}, steps, hits, curved_rays, curved_secondary, curve_segments, height_error_m {mean, max, hits}, stages_ms (one
  * entry per stage that ran), load_ms, accel_ms, render_ms, total_ms, threads, bytes.
  * Exit status: 0 ok, 1 runtime failure, 2 usage or scene error. */
 #include "cli.h"
+#include "answer.h"
 #include "clock.h"
 
 #include <dirent.h>
 #include <errno.h>
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -186,29 +187,6 @@ static json_t *stats_json(const td_render_stats *st)
     return o;
 }
 
-static json_t *pick_json(const td_grid *g, const td_pick *pk, int n)
-{
-    json_t *arr = json_array();
-    for (int i = 0; i < n; i++) {
-        json_t *o = json_pack("{s:f, s:f, s:b}", "px", pk[i].px, "py", pk[i].py, "hit", pk[i].hit);
-        if (pk[i].hit) {
-            json_object_set_new(o, "x", json_real(pk[i].p[0]));
-            json_object_set_new(o, "y", json_real(pk[i].p[1]));
-            json_object_set_new(o, "z", json_real(pk[i].p[2]));
-            json_object_set_new(o, "distance", json_real(pk[i].distance));
-            if (!isnan(pk[i].height_error_m))
-                json_object_set_new(o, "height_error_m", json_real(pk[i].height_error_m));
-            json_object_set_new(o, "cell", json_pack("[i,i]", (int)pk[i].ci, (int)pk[i].cj));
-            if (g->geo.kind == TD_GEO_LONLAT) {
-                json_object_set_new(o, "lon", json_real(g->geo.x0 + pk[i].p[0] / g->sx * g->geo.dx));
-                json_object_set_new(o, "lat", json_real(g->geo.y0 + pk[i].p[1] / g->sy * g->geo.dy));
-            }
-        }
-        json_array_append_new(arr, o);
-    }
-    return arr;
-}
-
 int td_cli_render(int argc, char **argv)
 {
     int rc = 2;
@@ -353,7 +331,7 @@ int td_cli_render(int argc, char **argv)
             fprintf(stderr, "terrad render: %s\n", picks ? err.msg : "no memory");
             goto out;
         }
-        pjson = pick_json(g, picks, scene->npick);
+        pjson = td_answer_picks(scene->dataset, g, picks, scene->npick); /* as /v1/pick */
         text = json_dumps(pjson, JSON_INDENT(2) | JSON_REAL_PRECISION(12));
         if (!text || !write_out(out_path, text, strlen(text))) {
             fprintf(stderr, "terrad render: %s: cannot write\n", out_path);

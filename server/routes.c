@@ -13,6 +13,7 @@
  * Server-Timing (parse, queue, every render stage that ran, encode). The HTTP layer
  * raises a render's cancel flag at its deadline (--render-timeout) and at shutdown. */
 #include "routes.h"
+#include "answer.h"
 #include "clock.h"
 
 #include <ctype.h>
@@ -692,31 +693,6 @@ static void render_error(const td_app *app, td_http_resp *r, td_status rc, const
         api_error(r, TD_AE_BAD_REQUEST, field[0] ? field : NULL, "%s", msg);
 }
 
-static json_t *picks_json(const td_scene *s, const td_grid *g, const td_pick *pk, int n)
-{
-    json_t *arr = json_array();
-    for (int i = 0; arr && i < n; i++) {
-        json_t *o;
-        if (!pk[i].hit) {
-            o = json_pack("{s:[f,f],s:b}", "pixel", pk[i].px, pk[i].py, "hit", 0);
-        } else {
-            o = json_pack("{s:[f,f],s:b,s:{s:f,s:f,s:f},s:f,s:[i,i]}", "pixel", pk[i].px, pk[i].py,
-                          "hit", 1, "point", "x", pk[i].p[0], "y", pk[i].p[1], "z", pk[i].p[2],
-                          "distance", pk[i].distance, "cell", (int)pk[i].ci, (int)pk[i].cj);
-            if (o && !isnan(pk[i].height_error_m))
-                json_object_set_new(o, "height_error_m", json_real(pk[i].height_error_m));
-            if (o && g->geo.kind != TD_GEO_NONE) {
-                double gx = g->geo.x0 + pk[i].p[0] / g->sx * g->geo.dx;
-                double gy = g->geo.y0 + pk[i].p[1] / g->sy * g->geo.dy;
-                json_object_set_new(o, g->geo.kind == TD_GEO_LONLAT ? "lonlat" : "projected",
-                                    json_pack("[f,f]", gx, gy));
-            }
-        }
-        json_array_append_new(arr, o);
-    }
-    return json_pack("{s:s,s:o}", "dataset", s->dataset, "picks", arr);
-}
-
 static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelled)
 {
     td_rjob *j = cls;
@@ -758,7 +734,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
             goto out;
         }
         st = &pst;
-        send_json(r, 200, picks_json(&j->scene, v->grid, picks, j->scene.npick));
+        send_json(r, 200, td_answer_picks(j->scene.dataset, v->grid, picks, j->scene.npick));
     } else {
         td_render_opts_default(&o);
         o.threads = 1; /* one render per worker; the workers use the cores */
