@@ -1129,31 +1129,7 @@ out:
 
 /* --- dispatch ------------------------------------------------------------------------ */
 
-/* Paths whose rest is not one of the forms their rows accept: 404 (any method). */
-static void h_no_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
-{
-    (void)app;
-    (void)q;
-    (void)seg;
-    api_error(r, TD_AE_NOT_FOUND, NULL, "tile paths are /v1/tiles/{dataset}/{z}/{x}/{y}.png");
-}
-
-static void h_no_dataset(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
-{
-    (void)app;
-    (void)q;
-    (void)seg;
-    api_error(r, TD_AE_NOT_FOUND, NULL, "no such route");
-}
-
-static void h_no_admin(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
-{
-    (void)app;
-    (void)q;
-    (void)seg;
-    api_error(r, TD_AE_NOT_FOUND, NULL, "no such admin route");
-}
-
+/* Any other path under /v1: 404 naming it (any method). */
 static void h_no_route(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
     (void)app;
@@ -1188,36 +1164,38 @@ typedef void (*td_handler)(td_app *app, td_http_req *q, td_http_resp *r, char **
  *   Otherwise the path starts with `path` and what follows, split into at most `max`
  *   segments (split_path), has rest's shape: as many segments, `*` any, others equal.
  * Then: the route label is set; admin rows check the bearer token; a row with `allow`
- * refuses other methods (405 + Allow); the handler gets the segments. */
+ * refuses other methods (405 + Allow); the handler gets the segments, or a row without
+ * one answers 404 with `missing` (a path under a known prefix but of no known shape). */
 typedef struct td_route_row {
     td_route route;
     const char *path, *rest;
     int max, admin;
     const char *allow; /* as the Allow header says it; NULL: any method */
     td_handler fn;
+    const char *missing;
 } td_route_row;
 
 static const td_route_row td_routes[] = {
-    {TD_ROUTE_HEALTHZ, "/healthz", NULL, 0, 0, "GET, HEAD", h_healthz},
-    {TD_ROUTE_READYZ, "/readyz", NULL, 0, 0, "GET, HEAD", h_readyz},
-    {TD_ROUTE_METRICS, "/metrics", NULL, 0, 0, "GET, HEAD", h_metrics},
-    {TD_ROUTE_RENDER, "/v1/render", NULL, 0, 0, "GET, HEAD, POST", h_render_route},
-    {TD_ROUTE_PICK, "/v1/pick", NULL, 0, 0, "POST", h_pick},
-    {TD_ROUTE_TILES, "/v1/tiles/", "*/*/*/*", 4, 0, "GET, HEAD", h_tile},
-    {TD_ROUTE_TILES, "/v1/tiles/", "", 0, 0, NULL, h_no_tile},
-    {TD_ROUTE_DATASETS, "/v1/datasets", NULL, 0, 0, "GET, HEAD", h_datasets},
-    {TD_ROUTE_DATASETS, "/v1/datasets/", NULL, 0, 0, "GET, HEAD", h_datasets},
-    {TD_ROUTE_DATASET, "/v1/datasets/", "*", 1, 0, "GET, HEAD", h_dataset},
-    {TD_ROUTE_DATASET, "/v1/datasets/", "", 0, 0, NULL, h_no_dataset},
-    {TD_ROUTE_PRELOAD, "/v1/admin/", "preload", 4, 1, "POST", h_preload},
-    {TD_ROUTE_JOB, "/v1/admin/", "jobs/*", 4, 1, "GET, HEAD", h_job},
-    {TD_ROUTE_JOB, "/v1/admin/jobs/", "", 0, 1, NULL, h_no_admin},
-    {TD_ROUTE_EVICT, "/v1/admin/", "datasets/*/tiles", 4, 1, "DELETE", h_evict},
-    {TD_ROUTE_EVICT, "/v1/admin/", "", 0, 1, NULL, h_no_admin},
-    {TD_ROUTE_WEB, TD_STATIC_VENDOR_PREFIX, "", 0, 0, "GET, HEAD", h_vendor},
-    {TD_ROUTE_UNKNOWN, "/v1", NULL, 0, 0, NULL, h_no_route},
-    {TD_ROUTE_UNKNOWN, "/v1/", "", 0, 0, NULL, h_no_route},
-    {TD_ROUTE_WEB, "/", "", 0, 0, "GET, HEAD", h_page},
+    {TD_ROUTE_HEALTHZ, "/healthz", NULL, 0, 0, "GET, HEAD", h_healthz, NULL},
+    {TD_ROUTE_READYZ, "/readyz", NULL, 0, 0, "GET, HEAD", h_readyz, NULL},
+    {TD_ROUTE_METRICS, "/metrics", NULL, 0, 0, "GET, HEAD", h_metrics, NULL},
+    {TD_ROUTE_RENDER, "/v1/render", NULL, 0, 0, "GET, HEAD, POST", h_render_route, NULL},
+    {TD_ROUTE_PICK, "/v1/pick", NULL, 0, 0, "POST", h_pick, NULL},
+    {TD_ROUTE_TILES, "/v1/tiles/", "*/*/*/*", 4, 0, "GET, HEAD", h_tile, NULL},
+    {TD_ROUTE_TILES, "/v1/tiles/", "", 0, 0, NULL, NULL, "tile paths are /v1/tiles/{dataset}/{z}/{x}/{y}.png"},
+    {TD_ROUTE_DATASETS, "/v1/datasets", NULL, 0, 0, "GET, HEAD", h_datasets, NULL},
+    {TD_ROUTE_DATASETS, "/v1/datasets/", NULL, 0, 0, "GET, HEAD", h_datasets, NULL},
+    {TD_ROUTE_DATASET, "/v1/datasets/", "*", 1, 0, "GET, HEAD", h_dataset, NULL},
+    {TD_ROUTE_DATASET, "/v1/datasets/", "", 0, 0, NULL, NULL, "no such route"},
+    {TD_ROUTE_PRELOAD, "/v1/admin/", "preload", 4, 1, "POST", h_preload, NULL},
+    {TD_ROUTE_JOB, "/v1/admin/", "jobs/*", 4, 1, "GET, HEAD", h_job, NULL},
+    {TD_ROUTE_JOB, "/v1/admin/jobs/", "", 0, 1, NULL, NULL, "no such admin route"},
+    {TD_ROUTE_EVICT, "/v1/admin/", "datasets/*/tiles", 4, 1, "DELETE", h_evict, NULL},
+    {TD_ROUTE_EVICT, "/v1/admin/", "", 0, 1, NULL, NULL, "no such admin route"},
+    {TD_ROUTE_WEB, TD_STATIC_VENDOR_PREFIX, "", 0, 0, "GET, HEAD", h_vendor, NULL},
+    {TD_ROUTE_UNKNOWN, "/v1", NULL, 0, 0, NULL, h_no_route, NULL},
+    {TD_ROUTE_UNKNOWN, "/v1/", "", 0, 0, NULL, h_no_route, NULL},
+    {TD_ROUTE_WEB, "/", "", 0, 0, "GET, HEAD", h_page, NULL},
 };
 
 /* 1 when path matches row w (see td_route_row); the segments are in seg (buf holds them). */
@@ -1274,6 +1252,8 @@ static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
         /* answered: 404 admin_disabled or 401 */
     } else if (w->allow && !method_allowed(w->allow, m)) {
         method_not_allowed(r, w->allow, m);
+    } else if (!w->fn) {
+        api_error(r, TD_AE_NOT_FOUND, NULL, "%s", w->missing);
     } else {
         w->fn(app, q, r, seg);
     }
