@@ -1,8 +1,10 @@
 /* routes.c: the HTTP API (see routes.h and docs/api.md).
  *
- * Dispatch: the path is matched against the route table; a known path with the wrong
- * method gets 405 and an Allow header; admin routes check the bearer token (constant
- * time) before anything else, and are 404 `admin_disabled` when no token is configured.
+ * Dispatch: the path is matched against the rows of td_routes (at the end of the file:
+ * a path and its shape, admin or not, the methods, the handler), first match wins; a
+ * known path with the wrong method gets 405 and an Allow header; admin routes check the
+ * bearer token (constant time) before anything else, and are 404 `admin_disabled` when
+ * no token is configured. A new endpoint is a label in routes.h, a row and a handler.
  * POST bodies must be application/json (415) and fit the cap (413). Errors are JSON
  * {"error": {"code", "field", "message"}}; bad input is always a 4xx, never a 500.
  *
@@ -11,7 +13,9 @@
  * request never takes a queue slot), a full queue answers 503 with Retry-After, and the
  * worker takes a tile-store snapshot, renders, encodes and fills the response with
  * Server-Timing (parse, queue, every render stage that ran, encode). The HTTP layer
- * raises a render's cancel flag at its deadline (--render-timeout) and at shutdown. */
+ * raises a render's cancel flag at its deadline (--render-timeout) and at shutdown.
+ * Elsewhere: the web page's files (static.c), the pick answer (answer.c, shared with
+ * `terrad render`), scene parsing (request.c). */
 #include "routes.h"
 #include "answer.h"
 #include "clock.h"
@@ -27,7 +31,6 @@
 #include <string.h>
 #include <stddef.h>
 #include <sys/stat.h>
-#include <time.h>
 
 #include "dem.h"
 #include "hash.h"

@@ -1,8 +1,9 @@
 /* routes.h: the HTTP API of `terrad serve` (DESIGN.md, docs/api.md): dispatch by path
- * and method, JSON errors, authentication of admin routes, static files of the web
- * page, and the handlers that call the tile store, the job queue and the renderer.
+ * and method, JSON errors, authentication of admin routes, and the handlers that call
+ * the tile store, the job queue, the renderer and the web page's files (static.h).
  *
- * Routes are one X-macro table (enum, label for metrics and the access log). */
+ * Route labels are one X-macro table (enum, label for metrics and the access log); the
+ * paths, methods and handlers are a table in routes.c. */
 #ifndef TD_ROUTES_H
 #define TD_ROUTES_H
 
