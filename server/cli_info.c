@@ -140,7 +140,7 @@ int td_cli_info(int argc, char **argv)
     const char *path = NULL;
     td_dem_opts opts;
     td_grid *g = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     td_status st;
 
     td_dem_opts_default(&opts);

@@ -309,7 +309,7 @@ out:
 static int load_dataset(render_run *run)
 {
     int rc = 1;
-    td_err err = {""};
+    td_err err = {0};
     td_dem_opts dopts;
     td_accel_opts aopts;
     td_accel_stats ast;
@@ -347,7 +347,7 @@ out:
 static int write_picks(const render_run *run, const td_view *view, json_t **stats)
 {
     int rc = 1;
-    td_err err = {""};
+    td_err err = {0};
     td_render_stats pst;
     td_pick *picks = calloc((size_t)run->scene->npick, sizeof *picks);
     json_t *pjson = NULL;
@@ -376,7 +376,7 @@ out:
 static int write_image(const render_run *run, const td_view *view, json_t **stats)
 {
     int rc = 1;
-    td_err err = {""};
+    td_err err = {0};
     td_render_opts ropts;
     td_render_result res;
     td_buf buf = {0};

@@ -38,7 +38,7 @@ static int open_store(const td_config *cfg, td_app *app)
 {
     int rc = -1, loaded = 0;
     td_store_opts so;
-    td_err e = {{0}};
+    td_err e = {0};
     char q[600];
 
     memset(&so, 0, sizeof so);
@@ -78,7 +78,7 @@ out:
 static int start_http(const td_config *cfg, td_app *app)
 {
     td_http_opts ho;
-    td_err e = {{0}};
+    td_err e = {0};
     char q[600];
     int rc = -1;
 
@@ -113,7 +113,7 @@ out:
 /* --preload all: one job per dataset, both structures. */
 static void preload_all(td_app *app)
 {
-    td_err e = {{0}};
+    td_err e = {0};
     char q[600];
     for (size_t i = 0; i < td_store_count(app->store); i++) {
         td_preload_spec sp;
@@ -144,7 +144,7 @@ int td_cli_serve(int argc, char **argv)
 {
     int rc = 1, help = 0, cores = td_cpu_count();
     td_config cfg;
-    td_err e = {{0}};
+    td_err e = {0};
     td_app app;
     sigset_t set;
     char q[600];

@@ -223,7 +223,7 @@ static int parse_args(int argc, char **argv, trace_run *run)
 static int load_dem(trace_run *run)
 {
     int rc = 1;
-    td_err err = {{0}};
+    td_err err = {0};
     td_accel_opts aopts;
     double t0 = td_clock_s();
     if (td_dem_load(run->dem, &run->dopts, &run->g, &err) != TD_OK) {
@@ -249,7 +249,7 @@ out:
 static int read_rays(td_ray **rays_out, size_t *n_out)
 {
     int rc = 1;
-    td_err err = {{0}};
+    td_err err = {0};
     unsigned char *in = NULL;
     size_t len = 0, n = 0, bytes = 0;
     td_ray *rays = NULL;

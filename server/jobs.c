@@ -84,7 +84,7 @@ static void *builder_main(void *arg)
         td_job *jb;
         td_preload_spec spec;
         td_job_run run;
-        td_err e = {{0}};
+        td_err e = {0};
         td_status rc;
         size_t built = 0;
         while (!j->quit && !(jb = oldest_queued_locked(j)))

@@ -517,7 +517,7 @@ static int preload_box(td_app *app, json_t *v, int lonlat, td_http_resp *r, size
     const char *f = lonlat ? "bbox_lonlat" : "bbox";
     double box[4];
     td_dataset_info di;
-    td_err e = {{0}};
+    td_err e = {0};
     int rc = -1;
 
     td_store_info(app->store, dataset, &di);
@@ -576,7 +576,7 @@ static void h_preload(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     size_t *tiles = NULL, ntiles = 0;
     td_preload_spec spec;
     unsigned id = 0;
-    td_err e = {{0}};
+    td_err e = {0};
     td_job_info ji;
 
     (void)seg;
@@ -639,7 +639,7 @@ static void h_evict(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 
 static void h_static(const char *root, const char *rel, int vendor, td_http_resp *r)
 {
-    td_err e = {{0}};
+    td_err e = {0};
     td_status rc = td_static_serve(root, rel, vendor, r, &e);
     if (rc)
         api_error(r, rc == TD_ENOTFOUND ? TD_AE_NOT_FOUND : TD_AE_INTERNAL, NULL, "%s", e.msg);
@@ -781,7 +781,7 @@ static void render_error(const td_app *app, td_http_resp *r, td_status rc, const
 static int work_pick(td_app *app, td_rjob *j, const td_view *v, td_http_resp *r, td_render_stats *st)
 {
     td_pick *picks = calloc((size_t)(j->scene.npick ? j->scene.npick : 1), sizeof *picks);
-    td_err e = {{0}};
+    td_err e = {0};
     td_status rc;
     int ok = 0;
     if (!picks) {
@@ -807,7 +807,7 @@ static int work_image(td_app *app, td_rjob *j, td_http_req *q, td_snapshot *snap
 {
     td_render_opts o;
     td_buf buf = {0};
-    td_err e = {{0}};
+    td_err e = {0};
     td_status rc;
     double depth_scale = 0;
     int ok = 0;
@@ -868,7 +868,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     td_snapshot *snap = NULL;
     td_render_result res;
     td_render_stats pst;
-    td_err e = {{0}};
+    td_err e = {0};
     td_status rc;
     const td_view *v;
     double queue_ms = td_http_req_queue_wait(q) * 1e3, t0 = td_clock_s();

@@ -22,7 +22,7 @@ static double num(json_t *o, const char *key)
 static void test_picks(void **state)
 {
     td_grid *g = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     td_pick pk[3];
     json_t *a, *picks, *o;
     (void)state;

@@ -91,7 +91,7 @@ static void test_page_paths(void **state)
 static void test_serve(void **state)
 {
     td_http_resp r;
-    td_err e = {{0}};
+    td_err e = {0};
     (void)state;
 
     memset(&r, 0, sizeof r);
@@ -122,7 +122,7 @@ static void test_refusals(void **state)
     static const char *const bad[] = {"../etc/passwd", "js/../index.html", ".secret", "js//app.js",
                                       "js\\app.js", "out", "missing.html", "js/./app.js"};
     td_http_resp r;
-    td_err e = {{0}};
+    td_err e = {0};
     (void)state;
 
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
