@@ -52,9 +52,9 @@ static td_status resolve_position(const td_scene_camera *c, const td_grid *g, do
 
     if (c->pos_kind == TD_POS_LONLAT_ALT || c->pos_kind == TD_POS_LONLAT_AGL) {
         if (g->geo.kind != TD_GEO_LONLAT) {
-            rc = td_err_set(err, TD_EUNSUPPORTED,
-                            "camera.position.lon: the dataset has no lon/lat georeference; "
-                            "give x, y in the dataset frame");
+            rc = td_err_field(err, TD_EUNSUPPORTED, "camera.position.lon",
+                              "the dataset has no lon/lat georeference; "
+                              "give x, y in the dataset frame");
             goto out;
         }
         x = (c->lon - g->geo.x0) / g->geo.dx * g->sx;
@@ -69,16 +69,15 @@ static td_status resolve_position(const td_scene_camera *c, const td_grid *g, do
     } else {
         double ground = td_camera_ground(g, x, y);
         if (isnan(ground)) {
-            rc = td_err_set(err, TD_ERANGE,
-                            "camera.position.agl: no ground below (%.1f, %.1f): outside the "
-                            "dataset or over a void",
-                            x, y);
+            rc = td_err_field(err, TD_ERANGE, "camera.position.agl",
+                              "no ground below (%.1f, %.1f): outside the dataset or over a void",
+                              x, y);
             goto out;
         }
         p[2] = ground + c->agl;
     }
     if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
-        rc = td_err_set(err, TD_ERANGE, "camera.position: not a finite point");
+        rc = td_err_field(err, TD_ERANGE, "camera.position", "not a finite point");
 out:
     return rc;
 }
@@ -92,7 +91,7 @@ td_status td_camera_setup(const td_scene_camera *c, int32_t width, int32_t heigh
     out->width = width;
     out->height = height;
     if (width < 1 || height < 1) {
-        rc = td_err_set(err, TD_ERANGE, "image: %d x %d pixels is empty", (int)width, (int)height);
+        rc = td_err_field(err, TD_ERANGE, "image", "%d x %d pixels is empty", (int)width, (int)height);
         goto out;
     }
     if (c->projection == TD_PROJ_ORTHOGRAPHIC) {
@@ -102,8 +101,8 @@ td_status td_camera_setup(const td_scene_camera *c, int32_t width, int32_t heigh
             y1 = (g->h - 1) * g->sy;
         }
         if (!(x1 > x0) || !(y1 > y0) || !isfinite(x0 + x1 + y0 + y1)) {
-            rc = td_err_set(err, TD_ERANGE, "camera.extent: [%g, %g, %g, %g] is empty", x0, y0,
-                            x1, y1);
+            rc = td_err_field(err, TD_ERANGE, "camera.extent", "[%g, %g, %g, %g] is empty", x0, y0,
+                              x1, y1);
             goto out;
         }
         out->x0 = x0;
@@ -128,12 +127,13 @@ td_status td_camera_setup(const td_scene_camera *c, int32_t width, int32_t heigh
         roll = c->swing - 180.0;
         f = c->focal_mm / c->pixel_mm;
         if (!(f > 0.0) || !isfinite(f)) {
-            rc = td_err_set(err, TD_ERANGE, "camera.focal_mm: focal length / pixel size must be positive");
+            rc = td_err_field(err, TD_ERANGE, "camera.focal_mm",
+                              "focal length / pixel size must be positive");
             goto out;
         }
     } else {
         if (!(c->fov > 0.0 && c->fov < 180.0)) {
-            rc = td_err_set(err, TD_ERANGE, "camera.fov: %g is outside (0, 180) degrees", c->fov);
+            rc = td_err_field(err, TD_ERANGE, "camera.fov", "%g is outside (0, 180) degrees", c->fov);
             goto out;
         }
         f = 0.5 * width / tan(0.5 * c->fov * TD_DEG);

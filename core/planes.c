@@ -55,7 +55,13 @@
  * row at a time into the cones (13 bytes of scratch a cell instead of 32; that alone did
  * not change the time: the build is bound by arithmetic, not memory). The EDT's division
  * by a reciprocal table and the slope code from the bits instead of a binary search took
- * trinidad's build (one thread, K = 16) from 0.40 to 0.31 s (medians of 7, interleaved). */
+ * trinidad's build (one thread, K = 16) from 0.40 to 0.31 s (medians of 7, interleaved).
+ *
+ * Stages of td_planes_build, a function each: the cells' highest corners
+ * (td_grid_cell_max) and their range, the dilation (td_planes_max3x3, public so that a
+ * unit test holds it to brute force), the slice sweep (sweep_slices, cone_step per
+ * cell), the slope encoding (encode_slopes). Called per tile by td_accel_build and by
+ * the server's tile store. */
 #include "planes.h"
 
 #include <math.h>
@@ -144,40 +150,48 @@ static inline float slope_up(double s)
     return f;
 }
 
-td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out, td_err *err)
+/* The scratch of one build, allocated and freed together. */
+typedef struct planes_work {
+    float *cell;          /* H: each cell's highest corner, -inf for a hole */
+    float *h3;            /* H's maximum over each cell's 3x3 neighbourhood */
+    uint32_t *col;        /* the slice's column distances (td_edt_columns) */
+    float *sp;            /* slope so far, rounded up; < 0: apex not fixed yet */
+    float *prev;          /* D_{k-1}^2, rounded down */
+    double *zs;           /* the slice heights, exact; zs[slices] = zhi */
+    double *d2;           /* one row's squared distances */
+    td_edt_scratch scratch;
+} planes_work;
+
+static void planes_work_free(planes_work *w)
+{
+    free(w->cell);
+    free(w->h3);
+    free(w->col);
+    free(w->sp);
+    free(w->prev);
+    free(w->zs);
+    free(w->d2);
+    td_edt_scratch_free(&w->scratch);
+}
+
+/* The planes of an nx x ny tile with k slices (shape, no values yet) and the scratch. */
+static td_status planes_alloc(int32_t nx, int32_t ny, int k, td_planes **out, planes_work *w,
+                              td_err *err)
 {
     td_status rc = TD_OK;
-    const td_tile *t = &g->tiles[tile];
-    const int32_t nx = t->nx, ny = t->ny;
     const size_t n = (size_t)nx * (size_t)ny;
-    td_planes *p = NULL;
-    float *cell = NULL;
-    float *h3 = NULL; /* H's maximum over each cell's 3x3 neighbourhood */
-    uint32_t *col = NULL; /* the slice's column distances (td_edt_columns) */
-    float *sp = NULL;     /* slope so far, rounded up; < 0: apex not fixed yet */
-    float *prev = NULL;   /* D_{k-1}^2, rounded down */
-    double *zs = NULL;    /* the slice heights, exact; zs[slices] = zhi */
-    double *d2 = NULL;    /* one row's squared distances */
-    double smax = 0.0;
-    td_edt_scratch scratch = {0};
-    float zlo = INFINITY, zhi = -INFINITY;
-    int slices = k;
+    td_planes *p = calloc(1, sizeof *p);
 
-    *out = NULL;
-    if (k < 1 || k > TD_PLANES_K_MAX) {
-        rc = td_err_set(err, TD_ERANGE, "parameter planes need 1 .. %d slices, not %d", TD_PLANES_K_MAX, k);
-        goto out;
-    }
-    p = calloc(1, sizeof *p);
-    cell = malloc(sizeof(float) * n);
-    h3 = malloc(sizeof(float) * n);
-    col = malloc(sizeof(uint32_t) * n);
-    sp = malloc(sizeof(float) * n);
-    prev = malloc(sizeof(float) * n);
-    zs = malloc(sizeof(double) * ((size_t)k + 1));
-    d2 = malloc(sizeof(double) * (size_t)nx);
-    if (!p || !cell || !h3 || !col || !sp || !prev || !zs || !d2 ||
-        !td_edt_scratch_init(&scratch, nx > ny ? nx : ny)) {
+    memset(w, 0, sizeof *w);
+    w->cell = malloc(sizeof(float) * n);
+    w->h3 = malloc(sizeof(float) * n);
+    w->col = malloc(sizeof(uint32_t) * n);
+    w->sp = malloc(sizeof(float) * n);
+    w->prev = malloc(sizeof(float) * n);
+    w->zs = malloc(sizeof(double) * ((size_t)k + 1));
+    w->d2 = malloc(sizeof(double) * (size_t)nx);
+    if (!p || !w->cell || !w->h3 || !w->col || !w->sp || !w->prev || !w->zs || !w->d2 ||
+        !td_edt_scratch_init(&w->scratch, nx > ny ? nx : ny)) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for parameter planes");
         goto out;
     }
@@ -192,12 +206,141 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
         goto out;
     }
     p->bytes = sizeof *p + sizeof(td_cone) * n + sizeof(float) * ((size_t)k + 1);
+out:
+    *out = p;
+    return rc;
+}
 
-    td_grid_cell_max(g, t, cell);
+void td_planes_max3x3(const float *h, int32_t nx, int32_t ny, float *out)
+{
+    /* separable: rows into out, then columns in place through a rolling copy of the row
+     * above */
+    for (int32_t y = 0; y < ny; y++) {
+        const float *hr = h + (size_t)y * (size_t)nx;
+        float *o = out + (size_t)y * (size_t)nx;
+        for (int32_t x = 0; x < nx; x++) {
+            float m = hr[x];
+            if (x > 0 && hr[x - 1] > m)
+                m = hr[x - 1];
+            if (x + 1 < nx && hr[x + 1] > m)
+                m = hr[x + 1];
+            o[x] = m;
+        }
+    }
+    for (int32_t x = 0; x < nx; x++) {
+        float above = -INFINITY;
+        for (int32_t y = 0; y < ny; y++) {
+            float *o = out + (size_t)y * (size_t)nx + (size_t)x;
+            float here = *o, m = here;
+            if (above > m)
+                m = above;
+            if (y + 1 < ny && o[nx] > m)
+                m = o[nx];
+            above = here;
+            *o = m;
+        }
+    }
+}
+
+/* One cell's cone at slice s (zk its height; d2c its D_s^2, unused at s == slices): fixes
+ * the apex at the first slice the cell is clear of (B(0) = z_{m+1}), or at the top if it
+ * never is; after that, widens the slope to reach the rise since the apex at D_{s-1}. */
+static inline void cone_step(td_planes *p, planes_work *w, size_t c, int s, int slices, double zk,
+                             double d2c)
+{
+    if (w->sp[c] < 0.0f) {
+        if (s == slices || d2c > 0.0) {
+            /* B(0) = z_{m+1}; or D_k = 0 for every slice: flat cone at the top */
+            p->cone[c].apex = (uint8_t)s;
+            w->sp[c] = 0.0f;
+            w->prev[c] = s < slices ? d2_down(d2c) : 0.0f;
+        }
+    } else {
+        /* the staircase rises to z_k at r = D_{k-1}: the slope must reach rise / D_{k-1}.
+         * Compared squared (both sides >= 0; prev holds D^2) so the square root and the
+         * division run only when the slope may grow; the 1e-9 slack takes the candidate
+         * whenever rounding could decide. */
+        double rise = zk - w->zs[p->cone[c].apex], pv = (double)w->prev[c], sc = (double)w->sp[c];
+        if (rise > 0.0 && rise * rise >= sc * sc * pv * (1.0 - 1e-9)) {
+            double need = rise / sqrt(pv);
+            if (need > sc)
+                w->sp[c] = slope_up(need);
+        }
+        if (s < slices)
+            w->prev[c] = d2_down(d2c);
+    }
+}
+
+/* The slice sweep: one pass per slice, a row at a time: the row's distances go straight
+ * into its cells' cones (no nx*ny array of distances is written or read back; the
+ * per-cell state is 9 bytes). prev is rounded down and sp up, which only widens the
+ * bound. Leaves each cell's apex index in p->cone and its slope in w->sp. */
+static void sweep_slices(td_planes *p, planes_work *w, const td_grid *g, float zlo, float zhi,
+                         int slices)
+{
+    const int32_t nx = p->nx, ny = p->ny;
+    for (int s = 0; s <= slices; s++) {
+        /* slice s < slices is a real slice; s == slices is the final step up to zhi */
+        double zk = s == slices ? (double)zhi
+                    : slices == 1 ? (double)zlo
+                                  : (double)zlo + (double)s * ((double)zhi - (double)zlo) / (slices - 1);
+        w->zs[s] = zk;
+        if (s < slices) {
+            p->apex[s] = round_up(zk);
+            /* feature mask H >= z_k dilated by one cell = (3x3 maximum of H) >= z_k */
+            td_edt_columns(w->h3, zk, nx, ny, w->col);
+        }
+        for (int32_t y = 0; y < ny; y++) {
+            const size_t r0 = (size_t)y * (size_t)nx;
+            if (s < slices)
+                td_edt_row(w->col + r0, nx, g->sx * g->sx, g->sy * g->sy, w->d2, &w->scratch);
+            for (int32_t x = 0; x < nx; x++)
+                cone_step(p, w, r0 + (size_t)x, s, slices, zk, w->d2[x]);
+        }
+    }
+}
+
+/* Slope encoding: the tile's scale (a power of two that puts its steepest finite slope
+ * under the top code), then each cell's code, rounded up. */
+static void encode_slopes(td_planes *p, const float *sp)
+{
+    const size_t n = (size_t)p->nx * (size_t)p->ny;
+    double smax = 0.0;
+    for (size_t c = 0; c < n; c++)
+        smax = (double)sp[c] > smax && isfinite(sp[c]) ? (double)sp[c] : smax; /* +inf -> code 255 */
+    if (smax > 0.0) {
+        /* the top code, scale * 59392, is at least 2^ceil(log2(smax)) >= smax */
+        int e = (int)ceil(log2(smax)) - 15;
+        p->slope_scale = ldexp(1.0, e < -1000 ? -1000 : (e > 1000 ? 1000 : e));
+    }
+    for (size_t c = 0; c < n; c++)
+        p->cone[c].slope = slope_code((double)sp[c], p->slope_scale);
+}
+
+td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out, td_err *err)
+{
+    td_status rc = TD_OK;
+    const td_tile *t = &g->tiles[tile];
+    const size_t n = (size_t)t->nx * (size_t)t->ny;
+    td_planes *p = NULL;
+    planes_work w;
+    float zlo = INFINITY, zhi = -INFINITY;
+    int slices = k;
+
+    *out = NULL;
+    memset(&w, 0, sizeof w);
+    if (k < 1 || k > TD_PLANES_K_MAX) {
+        rc = td_err_set(err, TD_ERANGE, "parameter planes need 1 .. %d slices, not %d", TD_PLANES_K_MAX, k);
+        goto out;
+    }
+    rc = planes_alloc(t->nx, t->ny, k, &p, &w, err);
+    if (rc)
+        goto out;
+    td_grid_cell_max(g, t, w.cell);
     for (size_t c = 0; c < n; c++) {
-        if (cell[c] != -INFINITY) {
-            zlo = fminf(zlo, cell[c]);
-            zhi = fmaxf(zhi, cell[c]);
+        if (w.cell[c] != -INFINITY) {
+            zlo = fminf(zlo, w.cell[c]);
+            zhi = fmaxf(zhi, w.cell[c]);
         }
     }
     if (zhi == -INFINITY) { /* all holes: nothing to hit anywhere in the tile */
@@ -211,98 +354,12 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
     for (int s = slices; s <= k; s++)
         p->apex[s] = round_up(zhi); /* the top, and unused entries of a flat tile */
     for (size_t c = 0; c < n; c++)
-        sp[c] = -1.0f; /* apex not fixed yet */
-    /* 3x3 maximum of the cell maxima, separable: rows into h3, then columns in place
-     * through a rolling copy of the row above */
-    for (int32_t y = 0; y < ny; y++) {
-        const float *hr = cell + (size_t)y * (size_t)nx;
-        float *o = h3 + (size_t)y * (size_t)nx;
-        for (int32_t x = 0; x < nx; x++) {
-            float m = hr[x];
-            if (x > 0 && hr[x - 1] > m)
-                m = hr[x - 1];
-            if (x + 1 < nx && hr[x + 1] > m)
-                m = hr[x + 1];
-            o[x] = m;
-        }
-    }
-    for (int32_t x = 0; x < nx; x++) {
-        float above = -INFINITY;
-        for (int32_t y = 0; y < ny; y++) {
-            float *o = h3 + (size_t)y * (size_t)nx + (size_t)x;
-            float here = *o, m = here;
-            if (above > m)
-                m = above;
-            if (y + 1 < ny && o[nx] > m)
-                m = o[nx];
-            above = here;
-            *o = m;
-        }
-    }
-
-    /* One pass per slice, a row at a time: the row's distances go straight into its
-     * cells' cones (no nx*ny array of distances is written or read back; the per-cell
-     * state is 9 bytes). prev is rounded down and sp up, which only widens the bound. */
-    for (int s = 0; s <= slices; s++) {
-        /* slice s < slices is a real slice; s == slices is the final step up to zhi */
-        double zk = s == slices ? (double)zhi
-                    : slices == 1 ? (double)zlo
-                                  : (double)zlo + (double)s * ((double)zhi - (double)zlo) / (slices - 1);
-        zs[s] = zk;
-        if (s < slices) {
-            p->apex[s] = round_up(zk);
-            /* feature mask H >= z_k dilated by one cell = (3x3 maximum of H) >= z_k */
-            td_edt_columns(h3, zk, nx, ny, col);
-        }
-        for (int32_t y = 0; y < ny; y++) {
-            const size_t r0 = (size_t)y * (size_t)nx;
-            if (s < slices)
-                td_edt_row(col + r0, nx, g->sx * g->sx, g->sy * g->sy, d2, &scratch);
-            for (int32_t x = 0; x < nx; x++) {
-                const size_t c = r0 + (size_t)x;
-                if (sp[c] < 0.0f) {
-                    if (s == slices || d2[x] > 0.0) {
-                        /* B(0) = z_{m+1}; or D_k = 0 for every slice: flat cone at the top */
-                        p->cone[c].apex = (uint8_t)s;
-                        sp[c] = 0.0f;
-                        prev[c] = s < slices ? d2_down(d2[x]) : 0.0f;
-                    }
-                } else {
-                    /* the staircase rises to z_k at r = D_{k-1}: the slope must reach
-                     * rise / D_{k-1}. Compared squared (both sides >= 0; prev holds D^2)
-                     * so the square root and the division run only when the slope may
-                     * grow; the 1e-9 slack takes the candidate whenever rounding could
-                     * decide. */
-                    double rise = zk - zs[p->cone[c].apex], pv = (double)prev[c], sc = (double)sp[c];
-                    if (rise > 0.0 && rise * rise >= sc * sc * pv * (1.0 - 1e-9)) {
-                        double need = rise / sqrt(pv);
-                        if (need > sc)
-                            sp[c] = slope_up(need);
-                    }
-                    if (s < slices)
-                        prev[c] = d2_down(d2[x]);
-                }
-            }
-        }
-    }
-    for (size_t c = 0; c < n; c++)
-        smax = (double)sp[c] > smax && isfinite(sp[c]) ? (double)sp[c] : smax; /* +inf -> code 255 */
-    if (smax > 0.0) {
-        /* the top code, scale * 59392, is at least 2^ceil(log2(smax)) >= smax */
-        int e = (int)ceil(log2(smax)) - 15;
-        p->slope_scale = ldexp(1.0, e < -1000 ? -1000 : (e > 1000 ? 1000 : e));
-    }
-    for (size_t c = 0; c < n; c++)
-        p->cone[c].slope = slope_code((double)sp[c], p->slope_scale);
+        w.sp[c] = -1.0f; /* apex not fixed yet */
+    td_planes_max3x3(w.cell, t->nx, t->ny, w.h3);
+    sweep_slices(p, &w, g, zlo, zhi, slices);
+    encode_slopes(p, w.sp);
 out:
-    free(cell);
-    free(h3);
-    free(col);
-    free(sp);
-    free(prev);
-    free(zs);
-    free(d2);
-    td_edt_scratch_free(&scratch);
+    planes_work_free(&w);
     if (rc != TD_OK) {
         td_planes_free(p);
         p = NULL;

@@ -39,6 +39,13 @@ static inline double td_cone_slope(const td_planes *p, td_cone c)
 }
 
 td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out, td_err *err);
+
+/* The build's dilation: out[c] = the maximum of h over cell c's 3x3 neighbourhood (the
+ * cell and its eight neighbours inside the nx x ny array; nothing beyond its edges
+ * counts, so a tile never looks into the next). With h the cells' highest corners (-inf
+ * for holes), {out >= z} is {h >= z} dilated by one cell: what turns the EDT's
+ * centre distances into footprint gaps (planes.c). out must not overlap h. */
+void td_planes_max3x3(const float *h, int32_t nx, int32_t ny, float *out);
 void td_planes_free(td_planes *p);
 
 #endif

@@ -4,23 +4,28 @@
  * Parallelism: the image is cut into 16 x 16 pixel blocks; every thread (the caller
  * plus threads-1 pthreads) claims the next block with one atomic increment and runs the
  * whole pipeline on it in its own scratch, then writes the block's pixels, which no
- * other thread touches. No lock anywhere; counters and stage times live in the
- * worker's own struct (padded to a cache line) and are added up after the join.
- * Blocks rather than rows: a block's samples share tiles and cache lines for every
- * pass, and blocks balance the load between sky (cheap) and terrain (dear) well.
+ * other thread touches. No lock anywhere; counters (a td_render_stats) and stage times
+ * live in the worker's own struct (padded to a cache line) and are added up after the
+ * join by td_render_stats_add. Blocks rather than rows: a block's samples share tiles
+ * and cache lines for every pass, and blocks balance the load between sky (cheap) and
+ * terrain (dear) well.
+ *
+ * The pipeline is a table (after libuv's uv_run): one row a stage, built from
+ * TD_BLOCK_STAGE_LIST, each with its function stage_<name>(worker, block) and its
+ * predicate on_<name>(ctx). The predicates are asked once per render (ctx.on); a block
+ * runs the enabled stages in order, each timed on its own, so an absent effect's loop is
+ * never entered and its scratch never allocated.
  *
  * Per-thread scratch, allocated once per render (n = samples per axis):
- *   smp[16*16*n*n]          ray, hit, colour of each sample            always
- *   lit[..]  (float)        direct sunlight 0/1                        shadows only
- *   occl[..] (float)        unoccluded fraction                        ao only
- *   refl[..] (4 floats)     reflected colour + Fresnel weight          water only
- * Passes over a block run stage by stage, so each stage is timed on its own and an
- * absent effect's loop is never entered.
+ *   smp[16*16*n*n]              ray, hit, colour of each sample      always
+ *   scratch[stage][16*16*n*n*k] k floats a sample, from the stage's row in the list:
+ *                               shadows: direct sunlight 0/1; ao: unoccluded fraction;
+ *                               water: reflected colour + Fresnel weight
  *
  * Earth curvature and refraction: a point at horizontal distance h from the camera
  * appears lower by a*h^2 with a = (1 - k) / 2R. Lowering the terrain by a*h^2 is the
  * same as bending the camera ray up by a*h^2, so the ray becomes the parabola
- * q(t) = o + t*d + (0, 0, a*(t*|d_xy|)^2), which the tracer (straight rays only) sees
+ * p(t) = o + t*d + (0, 0, a*(t*|d_xy|)^2), which the tracer (straight rays only) sees
  * as a chain of chords. A chord over a horizontal run D departs from the parabola by at
  * most a*D^2/4; the run is chosen so that this stays under a quarter of the pixel's
  * footprint at that distance (and at least 0.5 m), so the chain is never off by more
@@ -51,7 +56,11 @@
  * camera ray hit, so they start on the surface they were shaded with. The stats count
  * camera rays by the level they ended on; the error against lod off is measured by the
  * benchmark (PSNR, hit distance) and bounded in test_render. Curved rays and picks use
- * the full grid. */
+ * the full grid.
+ *
+ * Render and pick trace a camera ray with the same function (trace_camera: bent or
+ * straight, over the levels of detail where the render has them, its hit and height
+ * error counted in the stats), so a pick answers what the render drew. */
 #include "render.h"
 #include "clock.h"
 
@@ -63,6 +72,7 @@
 #include <unistd.h>
 
 #include "effects.h"
+#include "limit.h"
 #include "lod.h"
 #include "shade.h"
 
@@ -76,7 +86,7 @@ static const char *const td_ray_kind_names[] = {
 };
 
 static const char *const td_stage_names[] = {
-#define TD_X_NAME(e, name) name,
+#define TD_X_NAME(e, name, scratch) #name,
     TD_STAGE_LIST(TD_X_NAME)
 #undef TD_X_NAME
 };
@@ -94,6 +104,31 @@ const char *td_stage_name(td_stage s)
 void td_render_opts_default(td_render_opts *o)
 {
     memset(o, 0, sizeof *o);
+}
+
+void td_render_stats_add(td_render_stats *sum, const td_render_stats *part)
+{
+    for (int k = 0; k < TD_RAY_KIND_COUNT; k++)
+        sum->rays[k] += part->rays[k];
+    sum->steps += part->steps;
+    sum->hits += part->hits;
+    sum->curved_rays += part->curved_rays;
+    sum->curved_secondary += part->curved_secondary;
+    sum->curve_segments += part->curve_segments;
+    for (int k = 0; k < TD_METHOD_COUNT; k++)
+        sum->method_rays[k] += part->method_rays[k];
+    for (int k = 0; k <= TD_LOD_MAX; k++)
+        sum->lod_rays[k] += part->lod_rays[k];
+    sum->height_err_sum_m += part->height_err_sum_m;
+    sum->height_err_max_m = part->height_err_max_m > sum->height_err_max_m ? part->height_err_max_m
+                                                                           : sum->height_err_max_m;
+    sum->height_err_hits += part->height_err_hits;
+    sum->height_err_mean_m =
+        sum->height_err_hits ? sum->height_err_sum_m / (double)sum->height_err_hits : 0.0;
+    for (int k = 0; k < TD_STAGE_COUNT; k++) {
+        sum->stage_ms[k] += part->stage_ms[k];
+        sum->stage_ran[k] |= part->stage_ran[k];
+    }
 }
 
 enum { F_HIT = 1, F_WATER = 2, F_CURVE = 4 };
@@ -116,14 +151,9 @@ typedef struct worker {
     ctx *c;
     pthread_t th;
     smp *s;
-    float *lit, *occl, *refl;
-    uint64_t rays[TD_RAY_KIND_COUNT], steps, hits, curved, curved2, segs;
-    double herr_sum, herr_max; /* camera hits' distance from the exact surface */
-    uint64_t herr_n;
-    uint64_t method_rays[TD_METHOD_COUNT];
-    uint64_t lod_rays[TD_LOD_MAX + 1];
+    float *scratch[TD_STAGE_COUNT]; /* per sample, for the stages whose row asks for it */
+    td_render_stats st;             /* this thread's counts (stage_ms left 0: stage_s) */
     double stage_s[TD_STAGE_COUNT];
-    int ran[TD_STAGE_COUNT];
     int cancelled;
     char pad[64];
 } worker;
@@ -142,6 +172,7 @@ struct ctx {
     atomic_int next;
     const atomic_int *cancel;
     int depth_only;
+    int on[TD_STAGE_COUNT]; /* the stages this render runs (their on_<name>) */
     double sun[3];
     double eps;      /* origin offset along the normal for secondary rays */
     double zlo, zspan;
@@ -156,6 +187,12 @@ struct ctx {
     uint8_t *rgba;
     float *depth;
 };
+
+/* The block a stage works on: pixels [x0, x1) x [y0, y1), bw wide, ns samples. */
+typedef struct blk {
+    int32_t x0, y0, x1, y1, bw;
+    int ns;
+} blk;
 
 static inline double dmin_(double a, double b) { return a < b ? a : b; }
 static inline double dmax_(double a, double b) { return a > b ? a : b; }
@@ -204,7 +241,7 @@ static int needs_curve(const ctx *c, const double o[3], const double d[3], doubl
 /* The drop a secondary ray must reach to be bent, and its chords' tolerance (metres). */
 #define TD_CURVE_EPS2 0.5
 
-/* A ray bent about its origin, q(t) = o + t*d + (0, 0, a*(t*|d_xy|)^2), as a chain of
+/* A ray bent about its origin, p(t) = o + t*d + (0, 0, a*(t*|d_xy|)^2), as a chain of
  * straight chords on view v (see the top of the file), each within max(0.5 m,
  * eps_per_t * t) of the parabola. On a hit, hit->t is the distance along the unbent
  * ray's parameter, hit->p the terrain point. */
@@ -219,22 +256,22 @@ static void trace_curved(const ctx *c, const td_view *v, const td_ray *r, double
     if (!clip_xy(c, r->o, r->d, &t0, &t1) || !(dxy > 0.0))
         return;
     double tc = t0;
-    double qc[3];
+    double pc[3];
     for (int k = 0; k < 3; k++)
-        qc[k] = r->o[k] + tc * r->d[k];
-    qc[2] += a * (tc * dxy) * (tc * dxy);
+        pc[k] = r->o[k] + tc * r->d[k];
+    pc[2] += a * (tc * dxy) * (tc * dxy);
     while (tc < t1) {
         double eps = fmax(TD_CURVE_EPS2, eps_per_t * tc);
         double run = sqrt(4.0 * eps / a); /* horizontal */
         double tn = fmin(t1, tc + run / dxy);
-        double qn[3];
+        double pn[3];
         for (int k = 0; k < 3; k++)
-            qn[k] = r->o[k] + tn * r->d[k];
-        qn[2] += a * (tn * dxy) * (tn * dxy);
+            pn[k] = r->o[k] + tn * r->d[k];
+        pn[2] += a * (tn * dxy) * (tn * dxy);
         td_ray seg;
         for (int k = 0; k < 3; k++) {
-            seg.o[k] = qc[k];
-            seg.d[k] = qn[k] - qc[k];
+            seg.o[k] = pc[k];
+            seg.d[k] = pn[k] - pc[k];
         }
         seg.tmin = 0.0;
         seg.tmax = 1.0;
@@ -247,23 +284,23 @@ static void trace_curved(const ctx *c, const td_view *v, const td_ray *r, double
         }
         hit->t = INFINITY;
         /* above every height and climbing: the parabola only climbs faster */
-        if (qn[2] > c->zmax && r->d[2] + 2.0 * a * dxy * dxy * tn > 0.0)
+        if (pn[2] > c->zmax && r->d[2] + 2.0 * a * dxy * dxy * tn > 0.0)
             return;
         tc = tn;
-        memcpy(qc, qn, sizeof qc);
+        memcpy(pc, pn, sizeof pc);
     }
 }
 
 /* Distance to the water plane along the (possibly bent) camera ray, inside the grid;
  * +inf if none. */
-static double water_distance(const ctx *c, const smp *q)
+static double water_distance(const ctx *c, const smp *sm)
 {
     double L = c->s->effects.water_level, tw = INFINITY;
-    double oz = q->o[2] - L, dz = q->d[2];
+    double oz = sm->o[2] - L, dz = sm->d[2];
     if (oz > 0.0) {
-        if (q->flags & F_CURVE) {
+        if (sm->flags & F_CURVE) {
             /* a*dxy^2 t^2 + dz t + oz = 0, smallest positive root */
-            double A = c->curv_a * (q->d[0] * q->d[0] + q->d[1] * q->d[1]);
+            double A = c->curv_a * (sm->d[0] * sm->d[0] + sm->d[1] * sm->d[1]);
             double disc = dz * dz - 4.0 * A * oz;
             if (dz < 0.0 && disc >= 0.0)
                 tw = (2.0 * oz) / (-dz + sqrt(disc));
@@ -271,7 +308,7 @@ static double water_distance(const ctx *c, const smp *q)
             tw = oz / -dz;
         }
         if (isfinite(tw)) {
-            double x = q->o[0] + tw * q->d[0], y = q->o[1] + tw * q->d[1];
+            double x = sm->o[0] + tw * sm->d[0], y = sm->o[1] + tw * sm->d[1];
             if (x < 0.0 || y < 0.0 || x > c->gx1 || y > c->gy1)
                 tw = INFINITY;
         }
@@ -341,32 +378,63 @@ static void trace_lod(const ctx *c, const td_ray *r, td_hit *hit, int *level, ui
 
 /* How far a camera ray's hit lies above or below the exact surface (bilinear, full grid)
  * at its x, y: what the scene's surface and level of detail cost in accuracy, reported
- * with every render. One interpolation per hit. */
-static void note_error(const ctx *c, worker *w, const double p[3])
+ * with every render and pick. One interpolation per hit. NaN (and nothing counted) over
+ * a void. */
+static double note_error(const ctx *c, const double p[3], td_render_stats *st)
 {
-    double z;
+    double z, e = NAN;
     if (td_grid_bilinear(c->v->grid, p[0], p[1], &z, NULL)) {
-        double e = fabs(p[2] - z);
-        w->herr_sum += e;
-        w->herr_max = e > w->herr_max ? e : w->herr_max;
-        w->herr_n++;
+        e = fabs(p[2] - z);
+        st->height_err_sum_m += e;
+        st->height_err_max_m = e > st->height_err_max_m ? e : st->height_err_max_m;
+        st->height_err_hits++;
     }
+    return e;
+}
+
+/* Whether the camera ray r is traced bent (see the top of the file). */
+static int camera_bends(const ctx *c, const td_ray *r)
+{
+    return c->curv && needs_curve(c, r->o, r->d, c->curv_smin);
+}
+
+/* One camera ray, as render and pick trace it: bent on the full grid (bent, from
+ * camera_bends), else straight over the levels of detail the ctx has (none for a pick).
+ * Counts the ray, its steps, a bent ray and its chords, a hit and its height error in
+ * st; *level is the level it ended on (0 when bent). Returns the hit's height error
+ * (NaN for a miss or over a void). */
+static double trace_camera(const ctx *c, const td_ray *r, int bent, td_hit *hit, int *level,
+                           td_render_stats *st)
+{
+    double e = NAN;
+    *level = 0;
+    if (bent) {
+        trace_curved(c, c->v, r, 0.25 * c->cam.pixel_angle, hit, &st->steps, &st->curve_segments);
+        st->curved_rays++;
+    } else {
+        trace_lod(c, r, hit, level, &st->steps);
+    }
+    st->rays[TD_RAY_PRIMARY]++;
+    if (hit->t < INFINITY) {
+        st->hits++;
+        e = note_error(c, hit->p, st);
+    }
+    return e;
 }
 
 /* A camera ray's result into its sample: the method it ended with, and on a hit the
- * point, normal, cell and how far the point is from the exact surface. */
-static void keep_camera_hit(const ctx *c, worker *w, const td_hit *hit, smp *q)
+ * point, normal and cell. */
+static void keep_camera_hit(td_render_stats *st, const td_hit *hit, smp *sm)
 {
     if ((unsigned)hit->method < TD_METHOD_COUNT)
-        w->method_rays[hit->method]++;
+        st->method_rays[hit->method]++;
     if (hit->t < INFINITY) {
-        q->flags |= F_HIT;
-        q->t = hit->t;
-        memcpy(q->p, hit->p, sizeof q->p);
-        memcpy(q->n, hit->n, sizeof q->n);
-        q->ci = hit->ci;
-        q->cj = hit->cj;
-        note_error(c, w, hit->p);
+        sm->flags |= F_HIT;
+        sm->t = hit->t;
+        memcpy(sm->p, hit->p, sizeof sm->p);
+        memcpy(sm->n, hit->n, sizeof sm->n);
+        sm->ci = hit->ci;
+        sm->cj = hit->cj;
     }
 }
 
@@ -375,254 +443,307 @@ static void keep_camera_hit(const ctx *c, worker *w, const td_hit *hit, smp *q)
 static void trace_secondary(const ctx *c, worker *w, const td_view *v, const td_ray *r, td_hit *hit)
 {
     if (c->curv2 && needs_curve(c, r->o, r->d, c->curv_smin2)) {
-        trace_curved(c, v, r, 0.0, hit, &w->steps, &w->segs);
-        w->curved2++;
+        trace_curved(c, v, r, 0.0, hit, &w->st.steps, &w->st.curve_segments);
+        w->st.curved_secondary++;
     } else {
         td_trace(v, c->s->quality.method, c->s->quality.surface, r, hit);
-        w->steps += hit->steps;
+        w->st.steps += hit->steps;
     }
 }
 
-static void run_block(worker *w, int b)
+/* ---- The stages: stage_<name> runs on one block, on_<name> says whether the render
+ * needs it (asked once per render). Their order is TD_BLOCK_STAGE_LIST's. ---- */
+
+/* Camera rays; those that must bend are flagged for the curvature stage. */
+static void stage_primary(worker *w, const blk *b)
 {
-    ctx *c = w->c;
-    const td_scene *s = c->s;
+    const ctx *c = w->c;
     const int n = c->n;
-    int32_t bx = b % c->bx, by = b / c->bx;
-    int32_t x0 = bx * TD_BLOCK, y0 = by * TD_BLOCK;
-    int32_t x1 = x0 + TD_BLOCK < c->cam.width ? x0 + TD_BLOCK : c->cam.width;
-    int32_t y1 = y0 + TD_BLOCK < c->cam.height ? y0 + TD_BLOCK : c->cam.height;
-    int32_t bw = x1 - x0;
-    int ns = (int)(bw * (y1 - y0) * n * n);
-    double t;
     td_hit hit;
     td_ray r;
-
-    /* primary */
-    t = td_clock_s();
-    for (int i = 0; i < ns; i++) {
-        smp *q = &w->s[i];
+    for (int i = 0; i < b->ns; i++) {
+        smp *sm = &w->s[i];
         int pix = i / (n * n), sub = i % (n * n);
-        double px = x0 + pix % bw + ((sub % n) + 0.5) / n - 0.5;
-        double py = y0 + pix / bw + ((sub / n) + 0.5) / n - 0.5;
+        double px = b->x0 + pix % b->bw + ((sub % n) + 0.5) / n - 0.5;
+        double py = b->y0 + pix / b->bw + ((sub / n) + 0.5) / n - 0.5;
         td_camera_ray(&c->cam, px, py, &r);
-        memcpy(q->o, r.o, sizeof q->o);
-        memcpy(q->d, r.d, sizeof q->d);
-        q->flags = 0;
-        q->level = 0;
-        q->t = INFINITY;
-        q->tw = INFINITY;
-        q->alpha = 0.0f;
-        q->rgb[0] = q->rgb[1] = q->rgb[2] = 0.0f; /* a miss without sky stays transparent black */
-        w->rays[TD_RAY_PRIMARY]++;
-        if (c->curv && needs_curve(c, r.o, r.d, c->curv_smin)) {
-            q->flags = F_CURVE;
+        memcpy(sm->o, r.o, sizeof sm->o);
+        memcpy(sm->d, r.d, sizeof sm->d);
+        sm->flags = 0;
+        sm->level = 0;
+        sm->t = INFINITY;
+        sm->tw = INFINITY;
+        sm->alpha = 0.0f;
+        sm->rgb[0] = sm->rgb[1] = sm->rgb[2] = 0.0f; /* a miss without sky stays transparent black */
+        if (camera_bends(c, &r)) {
+            sm->flags = F_CURVE;
             continue;
         }
-        trace_lod(c, &r, &hit, &q->level, &w->steps);
-        w->lod_rays[q->level]++;
-        keep_camera_hit(c, w, &hit, q);
+        trace_camera(c, &r, 0, &hit, &sm->level, &w->st);
+        w->st.lod_rays[sm->level]++;
+        keep_camera_hit(&w->st, &hit, sm);
     }
-    w->stage_s[TD_STAGE_PRIMARY] += td_clock_s() - t;
-    w->ran[TD_STAGE_PRIMARY] = 1;
+}
 
-    if (c->curv) {
-        t = td_clock_s();
-        for (int i = 0; i < ns; i++) {
-            smp *q = &w->s[i];
-            if (!(q->flags & F_CURVE))
-                continue;
-            memcpy(r.o, q->o, sizeof r.o);
-            memcpy(r.d, q->d, sizeof r.d);
+static int on_primary(const ctx *c)
+{
+    (void)c;
+    return 1;
+}
+
+/* The camera rays the primary stage flagged, traced bent. */
+static void stage_curvature(worker *w, const blk *b)
+{
+    const ctx *c = w->c;
+    td_hit hit;
+    td_ray r;
+    for (int i = 0; i < b->ns; i++) {
+        smp *sm = &w->s[i];
+        if (!(sm->flags & F_CURVE))
+            continue;
+        memcpy(r.o, sm->o, sizeof r.o);
+        memcpy(r.d, sm->d, sizeof r.d);
+        r.tmin = 0.0;
+        r.tmax = INFINITY;
+        trace_camera(c, &r, 1, &hit, &sm->level, &w->st);
+        keep_camera_hit(&w->st, &hit, sm);
+    }
+}
+
+static int on_curvature(const ctx *c)
+{
+    return c->curv;
+}
+
+/* Samples whose ray meets the water before the terrain: the reflection ray, its colour
+ * and Fresnel weight into the stage's scratch. */
+static void stage_water(worker *w, const blk *b)
+{
+    const ctx *c = w->c;
+    const td_scene *s = c->s;
+    float *refl = w->scratch[TD_STAGE_WATER];
+    td_hit hit;
+    td_ray r;
+    for (int i = 0; i < b->ns; i++) {
+        smp *sm = &w->s[i];
+        double tw = water_distance(c, sm);
+        if (!(tw < sm->t))
+            continue;
+        sm->flags |= F_WATER;
+        sm->tw = tw;
+        /* reflection: from the water point, the ray mirrored in the plane */
+        double wp[3];
+        for (int k = 0; k < 3; k++)
+            wp[k] = sm->o[k] + tw * sm->d[k];
+        wp[2] = s->effects.water_level + 0.01;
+        memcpy(r.o, wp, sizeof r.o);
+        r.d[0] = sm->d[0];
+        r.d[1] = sm->d[1];
+        /* a bent camera ray meets the water with the parabola's slope there */
+        r.d[2] = fabs((sm->flags & F_CURVE) ? sm->d[2] + 2.0 * c->curv_a * (sm->d[0] * sm->d[0] + sm->d[1] * sm->d[1]) * tw
+                                            : sm->d[2]);
+        r.tmin = 0.0;
+        r.tmax = INFINITY;
+        trace_secondary(c, w, c->views[sm->level], &r, &hit);
+        w->st.rays[TD_RAY_REFLECTION]++;
+        float *rf = &refl[4 * i];
+        if (hit.t < INFINITY)
+            shade_plain(c, &hit, sm->level, rf);
+        else
+            td_sky_color(r.d, c->sun, 1, rf);
+        rf[3] = (float)td_water_fresnel(fabs(sm->d[2]));
+    }
+}
+
+static int on_water(const ctx *c)
+{
+    return !c->depth_only && c->s->effects.water;
+}
+
+/* One ray toward the sun per dry hit facing it: 1 lit, 0 shadowed, into the scratch. */
+static void stage_shadows(worker *w, const blk *b)
+{
+    const ctx *c = w->c;
+    float *lit = w->scratch[TD_STAGE_SHADOWS];
+    td_hit hit;
+    td_ray r;
+    for (int i = 0; i < b->ns; i++) {
+        smp *sm = &w->s[i];
+        lit[i] = 0.0f;
+        if ((sm->flags & (F_HIT | F_WATER)) != F_HIT || c->sun[2] <= 0.0)
+            continue;
+        float nn[3];
+        memcpy(nn, sm->n, sizeof nn);
+        /* a face turned away from the sun is dark whatever lies between */
+        if (nn[0] * c->sun[0] + nn[1] * c->sun[1] + nn[2] * c->sun[2] <= 0.0)
+            continue;
+        offset_origin(c, sm->p, nn, r.o);
+        memcpy(r.d, c->sun, sizeof r.d);
+        r.tmin = 0.0;
+        r.tmax = INFINITY;
+        trace_secondary(c, w, c->views[sm->level], &r, &hit);
+        w->st.rays[TD_RAY_SHADOW]++;
+        lit[i] = hit.t < INFINITY ? 0.0f : 1.0f;
+    }
+}
+
+static int on_shadows(const ctx *c)
+{
+    return !c->depth_only && c->s->effects.shadows;
+}
+
+/* N hemisphere rays per dry hit: the unoccluded fraction into the scratch. */
+static void stage_ao(worker *w, const blk *b)
+{
+    const ctx *c = w->c;
+    const td_scene *s = c->s;
+    const int n = c->n, na = s->effects.ambient_occlusion;
+    float *occl = w->scratch[TD_STAGE_AO];
+    td_hit hit;
+    td_ray r;
+    for (int i = 0; i < b->ns; i++) {
+        smp *sm = &w->s[i];
+        occl[i] = 1.0f;
+        if ((sm->flags & (F_HIT | F_WATER)) != F_HIT)
+            continue;
+        int pix = i / (n * n), sub = i % (n * n);
+        uint32_t gx = (uint32_t)(b->x0 + pix % b->bw), gy = (uint32_t)(b->y0 + pix / b->bw);
+        uint32_t seed = td_hash32(gx * 73856093u ^ gy * 19349663u ^ (uint32_t)sub * 83492791u);
+        int open = 0;
+        offset_origin(c, sm->p, sm->n, r.o);
+        for (int k = 0; k < na; k++) {
+            td_ao_direction(sm->n, k, na, seed, r.d);
             r.tmin = 0.0;
-            r.tmax = INFINITY;
-            trace_curved(c, c->v, &r, 0.25 * c->cam.pixel_angle, &hit, &w->steps, &w->segs);
-            w->curved++;
-            keep_camera_hit(c, w, &hit, q);
+            r.tmax = c->ao_radius;
+            td_trace(c->views[sm->level], s->quality.method, s->quality.surface, &r, &hit);
+            w->st.steps += hit.steps;
+            open += !(hit.t <= c->ao_radius);
         }
-        w->stage_s[TD_STAGE_CURVATURE] += td_clock_s() - t;
-        w->ran[TD_STAGE_CURVATURE] = 1;
+        w->st.rays[TD_RAY_AO] += (uint64_t)na;
+        occl[i] = (float)open / (float)na;
     }
+}
 
-    if (!c->depth_only && s->effects.water) {
-        t = td_clock_s();
-        for (int i = 0; i < ns; i++) {
-            smp *q = &w->s[i];
-            double tw = water_distance(c, q);
-            if (!(tw < q->t))
-                continue;
-            q->flags |= F_WATER;
-            q->tw = tw;
-            /* reflection: from the water point, the ray mirrored in the plane */
-            double wp[3];
+static int on_ao(const ctx *c)
+{
+    return !c->depth_only && c->s->effects.ambient_occlusion > 0;
+}
+
+/* Colour of every sample that hit something: albedo, normal, sun and ambient, with the
+ * shadow, AO and water stages' results where they ran. */
+static void stage_shade(worker *w, const blk *b)
+{
+    const ctx *c = w->c;
+    const float *lits = w->scratch[TD_STAGE_SHADOWS], *occls = w->scratch[TD_STAGE_AO];
+    const float *refl = w->scratch[TD_STAGE_WATER];
+    for (int i = 0; i < b->ns; i++) {
+        smp *sm = &w->s[i];
+        if (!(sm->flags & (F_HIT | F_WATER)))
+            continue;
+        float col[3] = {0.0f, 0.0f, 0.0f};
+        if (sm->flags & F_HIT) {
+            td_hit h;
+            memcpy(h.p, sm->p, sizeof h.p);
+            memcpy(h.n, sm->n, sizeof h.n);
+            h.ci = sm->ci;
+            h.cj = sm->cj;
+            float alb[3], nn[3];
+            albedo_of(c, h.p, alb);
+            normal_of(c, &h, sm->level, nn);
+            /* the floor under water is not shadowed or occluded (no rays for it) */
+            int dry = !(sm->flags & F_WATER);
+            double lit = lits && dry ? lits[i] : 1.0;
+            double occ = occls && dry ? occls[i] : 1.0;
+            td_shade_light(alb, nn, c->sun, c->s->effects.ambient, occ, lit, col);
+        }
+        if (sm->flags & F_WATER) {
+            float under[3];
+            double path = (sm->flags & F_HIT) ? sm->t - sm->tw : 1e4;
+            td_water_tint(col, path, under);
+            const float *rf = &refl[4 * i];
             for (int k = 0; k < 3; k++)
-                wp[k] = q->o[k] + tw * q->d[k];
-            wp[2] = s->effects.water_level + 0.01;
-            memcpy(r.o, wp, sizeof r.o);
-            r.d[0] = q->d[0];
-            r.d[1] = q->d[1];
-            /* a bent camera ray meets the water with the parabola's slope there */
-            r.d[2] = fabs((q->flags & F_CURVE) ? q->d[2] + 2.0 * c->curv_a * (q->d[0] * q->d[0] + q->d[1] * q->d[1]) * tw
-                                               : q->d[2]);
-            r.tmin = 0.0;
-            r.tmax = INFINITY;
-            trace_secondary(c, w, c->views[q->level], &r, &hit);
-            w->rays[TD_RAY_REFLECTION]++;
-            float *rf = &w->refl[4 * i];
-            if (hit.t < INFINITY)
-                shade_plain(c, &hit, q->level, rf);
-            else
-                td_sky_color(r.d, c->sun, 1, rf);
-            rf[3] = (float)td_water_fresnel(fabs(q->d[2]));
+                col[k] = rf[3] * rf[k] + (1.0f - rf[3]) * under[k];
         }
-        w->stage_s[TD_STAGE_WATER] += td_clock_s() - t;
-        w->ran[TD_STAGE_WATER] = 1;
+        memcpy(sm->rgb, col, sizeof col);
+        sm->alpha = 1.0f;
     }
+}
 
-    if (!c->depth_only && s->effects.shadows) {
-        t = td_clock_s();
-        for (int i = 0; i < ns; i++) {
-            smp *q = &w->s[i];
-            w->lit[i] = 0.0f;
-            if ((q->flags & (F_HIT | F_WATER)) != F_HIT || c->sun[2] <= 0.0)
-                continue;
-            float nn[3];
-            memcpy(nn, q->n, sizeof nn);
-            /* a face turned away from the sun is dark whatever lies between */
-            if (nn[0] * c->sun[0] + nn[1] * c->sun[1] + nn[2] * c->sun[2] <= 0.0)
-                continue;
-            offset_origin(c, q->p, nn, r.o);
-            memcpy(r.d, c->sun, sizeof r.d);
-            r.tmin = 0.0;
-            r.tmax = INFINITY;
-            trace_secondary(c, w, c->views[q->level], &r, &hit);
-            w->rays[TD_RAY_SHADOW]++;
-            w->lit[i] = hit.t < INFINITY ? 0.0f : 1.0f;
-        }
-        w->stage_s[TD_STAGE_SHADOWS] += td_clock_s() - t;
-        w->ran[TD_STAGE_SHADOWS] = 1;
+static int on_shade(const ctx *c)
+{
+    return !c->depth_only;
+}
+
+/* Aerial perspective over the distance to the terrain or the water. */
+static void stage_haze(worker *w, const blk *b)
+{
+    const ctx *c = w->c;
+    const td_scene *s = c->s;
+    for (int i = 0; i < b->ns; i++) {
+        smp *sm = &w->s[i];
+        if (!(sm->flags & (F_HIT | F_WATER)))
+            continue;
+        double dist = (sm->flags & F_WATER) ? sm->tw : sm->t;
+        double zend = (sm->flags & F_WATER) ? s->effects.water_level : sm->p[2];
+        double tr = td_haze_transmittance(c->beta0, sm->o[2] - c->zref, zend - c->zref, dist);
+        double hd[3] = {sm->d[0], sm->d[1], 0.0};
+        float hc[3];
+        td_sky_color(hd, c->sun, 0, hc);
+        for (int k = 0; k < 3; k++)
+            sm->rgb[k] = (float)(sm->rgb[k] * tr + hc[k] * (1.0 - tr));
     }
+}
 
-    if (!c->depth_only && s->effects.ambient_occlusion > 0) {
-        int na = s->effects.ambient_occlusion;
-        t = td_clock_s();
-        for (int i = 0; i < ns; i++) {
-            smp *q = &w->s[i];
-            w->occl[i] = 1.0f;
-            if ((q->flags & (F_HIT | F_WATER)) != F_HIT)
-                continue;
-            int pix = i / (n * n), sub = i % (n * n);
-            uint32_t gx = (uint32_t)(x0 + pix % bw), gy = (uint32_t)(y0 + pix / bw);
-            uint32_t seed = td_hash32(gx * 73856093u ^ gy * 19349663u ^ (uint32_t)sub * 83492791u);
-            int open = 0;
-            offset_origin(c, q->p, q->n, r.o);
-            for (int k = 0; k < na; k++) {
-                td_ao_direction(q->n, k, na, seed, r.d);
-                r.tmin = 0.0;
-                r.tmax = c->ao_radius;
-                td_trace(c->views[q->level], s->quality.method, s->quality.surface, &r, &hit);
-                w->steps += hit.steps;
-                open += !(hit.t <= c->ao_radius);
-            }
-            w->rays[TD_RAY_AO] += (uint64_t)na;
-            w->occl[i] = (float)open / (float)na;
-        }
-        w->stage_s[TD_STAGE_AO] += td_clock_s() - t;
-        w->ran[TD_STAGE_AO] = 1;
+static int on_haze(const ctx *c)
+{
+    return !c->depth_only && c->s->effects.haze;
+}
+
+/* The background of the samples that hit nothing. */
+static void stage_sky(worker *w, const blk *b)
+{
+    const ctx *c = w->c;
+    for (int i = 0; i < b->ns; i++) {
+        smp *sm = &w->s[i];
+        if (sm->flags & (F_HIT | F_WATER))
+            continue;
+        td_sky_color(sm->d, c->sun, 1, sm->rgb);
+        sm->alpha = 1.0f;
     }
+}
 
-    if (!c->depth_only) {
-        t = td_clock_s();
-        for (int i = 0; i < ns; i++) {
-            smp *q = &w->s[i];
-            if (!(q->flags & (F_HIT | F_WATER)))
-                continue;
-            float col[3] = {0.0f, 0.0f, 0.0f};
-            if (q->flags & F_HIT) {
-                td_hit h;
-                memcpy(h.p, q->p, sizeof h.p);
-                memcpy(h.n, q->n, sizeof h.n);
-                h.ci = q->ci;
-                h.cj = q->cj;
-                float alb[3], nn[3];
-                albedo_of(c, h.p, alb);
-                normal_of(c, &h, q->level, nn);
-                /* the floor under water is not shadowed or occluded (no rays for it) */
-                int dry = !(q->flags & F_WATER);
-                double lit = w->lit && dry ? w->lit[i] : 1.0;
-                double occ = w->occl && dry ? w->occl[i] : 1.0;
-                td_shade_light(alb, nn, c->sun, s->effects.ambient, occ, lit, col);
-            }
-            if (q->flags & F_WATER) {
-                float under[3];
-                double path = (q->flags & F_HIT) ? q->t - q->tw : 1e4;
-                td_water_tint(col, path, under);
-                const float *rf = &w->refl[4 * i];
-                for (int k = 0; k < 3; k++)
-                    col[k] = rf[3] * rf[k] + (1.0f - rf[3]) * under[k];
-            }
-            memcpy(q->rgb, col, sizeof col);
-            q->alpha = 1.0f;
-        }
-        w->stage_s[TD_STAGE_SHADE] += td_clock_s() - t;
-        w->ran[TD_STAGE_SHADE] = 1;
-    }
+static int on_sky(const ctx *c)
+{
+    return !c->depth_only && c->s->effects.sky;
+}
 
-    if (!c->depth_only && s->effects.haze) {
-        t = td_clock_s();
-        for (int i = 0; i < ns; i++) {
-            smp *q = &w->s[i];
-            if (!(q->flags & (F_HIT | F_WATER)))
-                continue;
-            double dist = (q->flags & F_WATER) ? q->tw : q->t;
-            double zend = (q->flags & F_WATER) ? s->effects.water_level : q->p[2];
-            double tr = td_haze_transmittance(c->beta0, q->o[2] - c->zref, zend - c->zref, dist);
-            double hd[3] = {q->d[0], q->d[1], 0.0};
-            float hc[3];
-            td_sky_color(hd, c->sun, 0, hc);
-            for (int k = 0; k < 3; k++)
-                q->rgb[k] = (float)(q->rgb[k] * tr + hc[k] * (1.0 - tr));
-        }
-        w->stage_s[TD_STAGE_HAZE] += td_clock_s() - t;
-        w->ran[TD_STAGE_HAZE] = 1;
-    }
-
-    if (!c->depth_only && s->effects.sky) {
-        t = td_clock_s();
-        for (int i = 0; i < ns; i++) {
-            smp *q = &w->s[i];
-            if (q->flags & (F_HIT | F_WATER))
-                continue;
-            td_sky_color(q->d, c->sun, 1, q->rgb);
-            q->alpha = 1.0f;
-        }
-        w->stage_s[TD_STAGE_SKY] += td_clock_s() - t;
-        w->ran[TD_STAGE_SKY] = 1;
-    }
-
-    /* resolve */
-    t = td_clock_s();
-    for (int32_t y = y0; y < y1; y++) {
-        for (int32_t x = x0; x < x1; x++) {
-            int pix = (int)((y - y0) * bw + (x - x0));
-            const smp *q = &w->s[pix * n * n];
+/* n x n samples -> one pixel: the nearest distance (depth formats) or the alpha-weighted
+ * mean colour, gamma 2 and 8 bits. */
+static void stage_resolve(worker *w, const blk *b)
+{
+    const ctx *c = w->c;
+    const int n = c->n;
+    for (int32_t y = b->y0; y < b->y1; y++) {
+        for (int32_t x = b->x0; x < b->x1; x++) {
+            int pix = (int)((y - b->y0) * b->bw + (x - b->x0));
+            const smp *sm = &w->s[pix * n * n];
             size_t o = (size_t)y * (size_t)c->cam.width + (size_t)x;
             if (c->depth_only) {
                 /* the nearest visible surface: with water, its surface where it is nearer */
                 double best = INFINITY;
                 for (int k = 0; k < n * n; k++) {
-                    if ((q[k].flags & F_HIT) && q[k].t < best)
-                        best = q[k].t;
-                    if (s->effects.water)
-                        best = dmin_(best, water_distance(c, &q[k]));
+                    if ((sm[k].flags & F_HIT) && sm[k].t < best)
+                        best = sm[k].t;
+                    if (c->s->effects.water)
+                        best = dmin_(best, water_distance(c, &sm[k]));
                 }
                 c->depth[o] = (float)best;
             } else {
                 double acc[3] = {0.0, 0.0, 0.0}, a = 0.0;
                 for (int k = 0; k < n * n; k++) {
-                    a += q[k].alpha;
+                    a += sm[k].alpha;
                     for (int ch = 0; ch < 3; ch++)
-                        acc[ch] += q[k].alpha * q[k].rgb[ch];
+                        acc[ch] += sm[k].alpha * sm[k].rgb[ch];
                 }
                 uint8_t *dst = c->rgba + 4 * o;
                 for (int ch = 0; ch < 3; ch++) {
@@ -633,10 +754,49 @@ static void run_block(worker *w, int b)
             }
         }
     }
-    for (int i = 0; i < ns; i++)
-        w->hits += (w->s[i].flags & F_HIT) != 0;
-    w->stage_s[TD_STAGE_RESOLVE] += td_clock_s() - t;
-    w->ran[TD_STAGE_RESOLVE] = 1;
+}
+
+static int on_resolve(const ctx *c)
+{
+    (void)c;
+    return 1;
+}
+
+typedef struct stage_op {
+    td_stage id;
+    void (*run)(worker *w, const blk *b);
+    int (*enabled)(const ctx *c);
+    int scratch; /* floats per sample it fills for later stages */
+} stage_op;
+
+static const stage_op stage_ops[] = {
+#define TD_X_OP(e, name, scratch) {e, stage_##name, on_##name, scratch},
+    TD_BLOCK_STAGE_LIST(TD_X_OP)
+#undef TD_X_OP
+};
+
+#define TD_NSTAGE_OPS ((int)(sizeof stage_ops / sizeof stage_ops[0]))
+
+/* One block through the stages this render runs, each timed on its own. */
+static void run_block(worker *w, int bi)
+{
+    const ctx *c = w->c;
+    blk b;
+    b.x0 = (bi % c->bx) * TD_BLOCK;
+    b.y0 = (bi / c->bx) * TD_BLOCK;
+    b.x1 = b.x0 + TD_BLOCK < c->cam.width ? b.x0 + TD_BLOCK : c->cam.width;
+    b.y1 = b.y0 + TD_BLOCK < c->cam.height ? b.y0 + TD_BLOCK : c->cam.height;
+    b.bw = b.x1 - b.x0;
+    b.ns = (int)(b.bw * (b.y1 - b.y0) * c->n * c->n);
+    for (int k = 0; k < TD_NSTAGE_OPS; k++) {
+        const stage_op *op = &stage_ops[k];
+        if (!c->on[op->id])
+            continue;
+        double t = td_clock_s();
+        op->run(w, &b);
+        w->stage_s[op->id] += td_clock_s() - t;
+        w->st.stage_ran[op->id] = 1;
+    }
 }
 
 static void *work(void *arg)
@@ -662,37 +822,37 @@ static int cpu_count(void)
     return n < 1 ? 1 : (n > 256 ? 256 : (int)n);
 }
 
-/* Checks the fields core relies on (the request parser checks them too, with limits;
- * this keeps td_render safe for any caller). */
+/* Checks the fields core relies on, against the core column of limit.h (the request
+ * parser checks the same rows with the service's column; this keeps td_render safe for
+ * any caller). */
 static td_status check_scene(const td_scene *s, td_err *err)
 {
-    td_status rc = TD_OK;
     const td_scene_effects *e = &s->effects;
-    if (s->image.width < 1 || s->image.height < 1 || s->image.width > 65536 ||
-        s->image.height > 65536)
-        rc = td_err_set(err, TD_ERANGE, "image.width: %d x %d is outside 1 .. 65536",
-                        (int)s->image.width, (int)s->image.height);
-    else if (s->quality.samples < 1 || s->quality.samples > 8)
-        rc = td_err_set(err, TD_ERANGE, "quality.samples: %d is outside 1 .. 8", s->quality.samples);
-    else if (s->quality.lod && !(s->quality.lod_pixels >= 0.25 && s->quality.lod_pixels <= 64.0))
-        rc = td_err_set(err, TD_ERANGE, "quality.lod: %g pixels per coarse cell is outside 0.25 .. 64",
-                        s->quality.lod_pixels);
-    else if ((unsigned)s->quality.method >= TD_METHOD_COUNT ||
-             (unsigned)s->quality.surface >= TD_SURFACE_COUNT)
-        rc = td_err_set(err, TD_EINVAL, "quality.method: unknown method or surface");
-    else if (s->image.format == TD_FORMAT_PICK)
-        rc = td_err_set(err, TD_EINVAL, "image.format: pick is answered by td_render_pick");
-    else if (e->ambient_occlusion < 0 || e->ambient_occlusion > 1024)
-        rc = td_err_set(err, TD_ERANGE, "effects.ambient_occlusion: %d is outside 0 .. 1024",
-                        e->ambient_occlusion);
-    else if (e->haze && !(e->haze_visibility_km > 0.0 && isfinite(e->haze_visibility_km)))
-        rc = td_err_set(err, TD_ERANGE, "effects.haze.visibility_km: must be positive");
-    else if (!(e->ambient >= 0.0 && e->ambient <= 1.0))
-        rc = td_err_set(err, TD_ERANGE, "effects.ambient: %g is outside 0 .. 1", e->ambient);
-    else if (!isfinite(e->sun_azimuth) || !(e->sun_elevation >= -90.0 && e->sun_elevation <= 90.0))
-        rc = td_err_set(err, TD_ERANGE, "effects.sun.elevation: outside -90 .. 90");
-    else if (e->curvature && !(e->curvature_k > -1.0 && e->curvature_k < 1.0))
-        rc = td_err_set(err, TD_ERANGE, "effects.curvature.k: %g is outside (-1, 1)", e->curvature_k);
+    td_status rc = td_limit_check(TD_LIMIT_WIDTH, s->image.width, err);
+    if (!rc)
+        rc = td_limit_check(TD_LIMIT_HEIGHT, s->image.height, err);
+    if (!rc)
+        rc = td_limit_check(TD_LIMIT_SAMPLES, s->quality.samples, err);
+    if (!rc && s->quality.lod)
+        rc = td_limit_check(TD_LIMIT_LOD_PIXELS, s->quality.lod_pixels, err);
+    if (!rc && (unsigned)s->quality.method >= TD_METHOD_COUNT)
+        rc = td_err_field(err, TD_EINVAL, "quality.method", "unknown method %d", (int)s->quality.method);
+    if (!rc && (unsigned)s->quality.surface >= TD_SURFACE_COUNT)
+        rc = td_err_field(err, TD_EINVAL, "quality.surface", "unknown surface %d", (int)s->quality.surface);
+    if (!rc && s->image.format == TD_FORMAT_PICK)
+        rc = td_err_field(err, TD_EINVAL, "image.format", "pick is answered by td_render_pick");
+    if (!rc)
+        rc = td_limit_check(TD_LIMIT_AO_RAYS, e->ambient_occlusion, err);
+    if (!rc && e->haze)
+        rc = td_limit_check(TD_LIMIT_HAZE_KM, e->haze_visibility_km, err);
+    if (!rc)
+        rc = td_limit_check(TD_LIMIT_AMBIENT, e->ambient, err);
+    if (!rc && !isfinite(e->sun_azimuth))
+        rc = td_err_field(err, TD_ERANGE, "effects.sun.azimuth", "must be a finite number");
+    if (!rc)
+        rc = td_limit_check(TD_LIMIT_SUN_ELEVATION, e->sun_elevation, err);
+    if (!rc && e->curvature)
+        rc = td_limit_check(TD_LIMIT_CURVATURE_K, e->curvature_k, err);
     return rc;
 }
 
@@ -745,7 +905,8 @@ static td_status setup_lod(ctx *c, const td_lod *lod, td_err *err)
     const td_grid *g = c->v->grid;
     double cell = g->sx < g->sy ? g->sx : g->sy;
     if (!lod) {
-        rc = td_err_set(err, TD_EUNSUPPORTED, "quality.lod: no coarse levels are resident for this dataset");
+        rc = td_err_field(err, TD_EUNSUPPORTED, "quality.lod",
+                          "no coarse levels are resident for this dataset");
     } else {
         c->nlod = lod->levels;
         for (int l = 1; l <= lod->levels; l++)
@@ -764,6 +925,140 @@ static td_status setup_lod(ctx *c, const td_lod *lod, td_err *err)
     return rc;
 }
 
+
+/* The rest of a render's ctx after setup_ctx: levels of detail, blocks, the stages it
+ * runs (their predicates, asked once here), the drape (*drape when loaded here: the
+ * caller frees it) and the effects' constants. */
+static td_status setup_render(ctx *c, const td_render_opts *o, td_image8 **drape, td_err *err)
+{
+    td_status rc = TD_OK;
+    const td_scene *s = c->s;
+    if (s->quality.lod) {
+        rc = setup_lod(c, o->lod, err);
+        if (rc)
+            goto out;
+    }
+    c->cancel = o->cancel;
+    c->depth_only = s->image.format == TD_FORMAT_DEPTH16 || s->image.format == TD_FORMAT_DEPTH32F;
+    c->bx = (s->image.width + TD_BLOCK - 1) / TD_BLOCK;
+    c->by = (s->image.height + TD_BLOCK - 1) / TD_BLOCK;
+    c->nblocks = (int)(c->bx * c->by);
+    atomic_init(&c->next, 0);
+    for (int k = 0; k < TD_NSTAGE_OPS; k++)
+        c->on[stage_ops[k].id] = stage_ops[k].enabled(c);
+
+    if (!c->depth_only && s->effects.drape[0]) {
+        if (o->drape) {
+            c->drape = o->drape;
+        } else {
+            td_err lerr = {0};
+            rc = td_image_load(s->effects.drape, 3,
+                               o->drape_max_pixels ? o->drape_max_pixels : 64u << 20, drape, &lerr);
+            if (rc) {
+                td_err_field(err, rc, "effects.drape", "%s", lerr.msg);
+                goto out;
+            }
+            c->drape = *drape;
+        }
+    }
+    if (c->on[TD_STAGE_HAZE]) {
+        c->beta0 = td_haze_beta(s->effects.haze_visibility_km);
+        c->zref = c->zlo;
+    }
+    if (s->effects.ambient_occlusion > 0)
+        c->ao_radius = s->effects.ao_radius > 0.0 ? s->effects.ao_radius
+                                                  : 16.0 * fmax(c->v->grid->sx, c->v->grid->sy);
+out:
+    return rc;
+}
+
+/* The output: an RGBA8 image, or a float depth image for the depth formats. */
+static td_status alloc_image(ctx *c, td_render_result *res, td_err *err)
+{
+    td_status rc = TD_OK;
+    const td_scene *s = c->s;
+    size_t npix = (size_t)s->image.width * (size_t)s->image.height, bytes;
+    if (c->depth_only) {
+        if (!td_mul_size(npix, sizeof(float), &bytes) || !(res->depth = malloc(bytes)))
+            rc = td_err_set(err, TD_ENOMEM, "render: no memory for a %d x %d depth image",
+                            (int)s->image.width, (int)s->image.height);
+    } else {
+        if (!td_mul_size(npix, 4, &bytes) || !(res->rgba = malloc(bytes)))
+            rc = td_err_set(err, TD_ENOMEM, "render: no memory for a %d x %d image",
+                            (int)s->image.width, (int)s->image.height);
+    }
+    c->rgba = res->rgba;
+    c->depth = res->depth;
+    res->width = s->image.width;
+    res->height = s->image.height;
+    return rc;
+}
+
+static void free_workers(worker *ws, int nthreads)
+{
+    for (int i = 0; ws && i < nthreads; i++) {
+        free(ws[i].s);
+        for (int k = 0; k < TD_STAGE_COUNT; k++)
+            free(ws[i].scratch[k]);
+    }
+    free(ws);
+}
+
+/* nthreads workers, each with its samples and the scratch of the stages that run (the
+ * sizes from the stage table). *out is set even on failure, for free_workers. */
+static td_status alloc_workers(ctx *c, int nthreads, worker **out, td_err *err)
+{
+    td_status rc = TD_OK;
+    size_t nsmp = (size_t)TD_BLOCK * TD_BLOCK * (size_t)(c->n * c->n);
+    worker *ws = calloc((size_t)nthreads, sizeof *ws);
+    if (!ws) {
+        rc = td_err_set(err, TD_ENOMEM, "render: no memory for %d workers", nthreads);
+        goto out;
+    }
+    for (int i = 0; i < nthreads && !rc; i++) {
+        worker *w = &ws[i];
+        w->c = c;
+        w->s = malloc(nsmp * sizeof *w->s);
+        int ok = w->s != NULL;
+        for (int k = 0; k < TD_NSTAGE_OPS && ok; k++) {
+            const stage_op *op = &stage_ops[k];
+            if (op->scratch > 0 && c->on[op->id])
+                ok = (w->scratch[op->id] = malloc(nsmp * (size_t)op->scratch * sizeof(float))) != NULL;
+        }
+        if (!ok)
+            rc = td_err_set(err, TD_ENOMEM, "render: no memory for per-thread scratch");
+    }
+out:
+    *out = ws;
+    return rc;
+}
+
+/* Runs the workers (the caller's thread is the first; a thread that cannot be started
+ * leaves its share to the others) and adds their stats into st in thread order. */
+static td_status run_workers(worker *ws, int nthreads, td_render_stats *st, td_err *err)
+{
+    td_status rc = TD_OK;
+    int started;
+    for (started = 1; started < nthreads; started++) {
+        if (pthread_create(&ws[started].th, NULL, work, &ws[started]) != 0)
+            break; /* run with the threads we got */
+    }
+    work(&ws[0]);
+    for (int i = 1; i < started; i++)
+        pthread_join(ws[i].th, NULL);
+
+    st->threads = started;
+    for (int i = 0; i < started; i++) {
+        worker *w = &ws[i];
+        for (int k = 0; k < TD_STAGE_COUNT; k++)
+            w->st.stage_ms[k] = 1000.0 * w->stage_s[k] / started;
+        td_render_stats_add(st, &w->st);
+        if (w->cancelled)
+            rc = td_err_set(err, TD_ECANCELED, "render: cancelled");
+    }
+    return rc;
+}
+
 td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o,
                     td_render_result *res, td_err *err)
 {
@@ -772,8 +1067,7 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
     ctx *c = NULL;
     worker *ws = NULL;
     td_image8 *drape = NULL;
-    int nthreads = 0, started = 0;
-    size_t npix = 0, nsmp = 0, bytes;
+    int nthreads = 0;
     double t_start = td_clock_s();
 
     memset(res, 0, sizeof *res);
@@ -790,129 +1084,22 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
         goto out;
     }
     rc = setup_ctx(c, v, s, err);
+    if (!rc)
+        rc = setup_render(c, o, &drape, err);
+    if (!rc)
+        rc = alloc_image(c, res, err);
     if (rc)
         goto out;
-    if (s->quality.lod) {
-        rc = setup_lod(c, o->lod, err);
-        if (rc)
-            goto out;
-    }
-    c->cancel = o->cancel;
-    c->depth_only = s->image.format == TD_FORMAT_DEPTH16 || s->image.format == TD_FORMAT_DEPTH32F;
-    c->bx = (s->image.width + TD_BLOCK - 1) / TD_BLOCK;
-    c->by = (s->image.height + TD_BLOCK - 1) / TD_BLOCK;
-    c->nblocks = (int)(c->bx * c->by);
-    atomic_init(&c->next, 0);
-    npix = (size_t)s->image.width * (size_t)s->image.height;
-    nsmp = (size_t)TD_BLOCK * TD_BLOCK * (size_t)(c->n * c->n);
-
-    if (!c->depth_only && s->effects.drape[0]) {
-        if (o->drape) {
-            c->drape = o->drape;
-        } else {
-            rc = td_image_load(s->effects.drape, 3,
-                               o->drape_max_pixels ? o->drape_max_pixels : 64u << 20, &drape, err);
-            if (rc)
-                goto out;
-            c->drape = drape;
-        }
-    }
-    if (!c->depth_only && s->effects.haze) {
-        c->beta0 = td_haze_beta(s->effects.haze_visibility_km);
-        c->zref = c->zlo;
-    }
-    if (s->effects.ambient_occlusion > 0)
-        c->ao_radius = s->effects.ao_radius > 0.0 ? s->effects.ao_radius
-                                                  : 16.0 * fmax(v->grid->sx, v->grid->sy);
-
-    if (c->depth_only) {
-        if (!td_mul_size(npix, sizeof(float), &bytes) || !(res->depth = malloc(bytes))) {
-            rc = td_err_set(err, TD_ENOMEM, "render: no memory for a %d x %d depth image",
-                            (int)s->image.width, (int)s->image.height);
-            goto out;
-        }
-    } else {
-        if (!td_mul_size(npix, 4, &bytes) || !(res->rgba = malloc(bytes))) {
-            rc = td_err_set(err, TD_ENOMEM, "render: no memory for a %d x %d image",
-                            (int)s->image.width, (int)s->image.height);
-            goto out;
-        }
-    }
-    c->rgba = res->rgba;
-    c->depth = res->depth;
-    res->width = s->image.width;
-    res->height = s->image.height;
-
     nthreads = o->threads > 0 ? o->threads : cpu_count();
     if (nthreads > c->nblocks)
         nthreads = c->nblocks;
-    ws = calloc((size_t)nthreads, sizeof *ws);
-    if (!ws) {
-        rc = td_err_set(err, TD_ENOMEM, "render: no memory for %d workers", nthreads);
+    rc = alloc_workers(c, nthreads, &ws, err);
+    if (rc)
         goto out;
-    }
-    for (int i = 0; i < nthreads; i++) {
-        worker *w = &ws[i];
-        w->c = c;
-        w->s = malloc(nsmp * sizeof *w->s);
-        int ok = w->s != NULL;
-        if (ok && !c->depth_only && s->effects.shadows)
-            ok = (w->lit = malloc(nsmp * sizeof *w->lit)) != NULL;
-        if (ok && !c->depth_only && s->effects.ambient_occlusion > 0)
-            ok = (w->occl = malloc(nsmp * sizeof *w->occl)) != NULL;
-        if (ok && !c->depth_only && s->effects.water)
-            ok = (w->refl = malloc(4 * nsmp * sizeof *w->refl)) != NULL;
-        if (!ok) {
-            rc = td_err_set(err, TD_ENOMEM, "render: no memory for per-thread scratch");
-            goto out;
-        }
-    }
-    for (started = 1; started < nthreads; started++) {
-        if (pthread_create(&ws[started].th, NULL, work, &ws[started]) != 0)
-            break; /* run with the threads we got */
-    }
-    work(&ws[0]);
-    for (int i = 1; i < started; i++)
-        pthread_join(ws[i].th, NULL);
-
-    td_render_stats *st = &res->stats;
-    double herr_sum = 0.0;
-    st->threads = started;
-    for (int i = 0; i < started; i++) {
-        worker *w = &ws[i];
-        for (int k = 0; k < TD_RAY_KIND_COUNT; k++)
-            st->rays[k] += w->rays[k];
-        st->steps += w->steps;
-        st->hits += w->hits;
-        for (int k = 0; k <= TD_LOD_MAX; k++)
-            st->lod_rays[k] += w->lod_rays[k];
-        st->curved_rays += w->curved;
-        st->curved_secondary += w->curved2;
-        herr_sum += w->herr_sum;
-        st->height_err_max_m = w->herr_max > st->height_err_max_m ? w->herr_max : st->height_err_max_m;
-        st->height_err_hits += w->herr_n;
-        st->curve_segments += w->segs;
-        for (int k = 0; k < TD_METHOD_COUNT; k++)
-            st->method_rays[k] += w->method_rays[k];
-        for (int k = 0; k < TD_STAGE_COUNT; k++) {
-            st->stage_ms[k] += 1000.0 * w->stage_s[k] / started;
-            st->stage_ran[k] |= w->ran[k];
-        }
-        if (w->cancelled)
-            rc = td_err_set(err, TD_ECANCELED, "render: cancelled");
-    }
-    st->height_err_mean_m = st->height_err_hits ? herr_sum / (double)st->height_err_hits : 0.0;
-    st->total_ms = 1000.0 * (td_clock_s() - t_start);
+    rc = run_workers(ws, nthreads, &res->stats, err);
+    res->stats.total_ms = 1000.0 * (td_clock_s() - t_start);
 out:
-    if (ws) {
-        for (int i = 0; i < nthreads; i++) {
-            free(ws[i].s);
-            free(ws[i].lit);
-            free(ws[i].occl);
-            free(ws[i].refl);
-        }
-        free(ws);
-    }
+    free_workers(ws, nthreads);
     td_image_free(drape);
     free(c);
     if (rc)
@@ -931,13 +1118,13 @@ td_status td_render_encode(td_render_result *res, const td_scene *s, td_buf *out
     memset(out, 0, sizeof *out);
     if (s->image.format == TD_FORMAT_PNG) {
         if (!res->rgba) {
-            rc = td_err_set(err, TD_EINVAL, "image.format: the render holds no colour image");
+            rc = td_err_field(err, TD_EINVAL, "image.format", "the render holds no colour image");
             goto out;
         }
         rc = td_image_encode_rgba(res->rgba, res->width, res->height, out, err);
     } else if (s->image.format == TD_FORMAT_DEPTH32F || s->image.format == TD_FORMAT_DEPTH16) {
         if (!res->depth) {
-            rc = td_err_set(err, TD_EINVAL, "image.format: the render holds no depth image");
+            rc = td_err_field(err, TD_EINVAL, "image.format", "the render holds no depth image");
             goto out;
         }
         if (s->image.format == TD_FORMAT_DEPTH32F) {
@@ -957,8 +1144,8 @@ td_status td_render_encode(td_render_result *res, const td_scene *s, td_buf *out
             goto out;
         }
         for (size_t i = 0; i < npix; i++) {
-            double q = res->depth[i] / scale;
-            u16[i] = isfinite(res->depth[i]) ? (uint16_t)fmin(65534.0, floor(q + 0.5)) : 65535;
+            double units = res->depth[i] / scale;
+            u16[i] = isfinite(res->depth[i]) ? (uint16_t)fmin(65534.0, floor(units + 0.5)) : 65535;
         }
         char val[64];
         snprintf(val, sizeof val, "%.17g", scale);
@@ -966,8 +1153,8 @@ td_status td_render_encode(td_render_result *res, const td_scene *s, td_buf *out
             *depth_scale_out = scale;
         rc = td_image_encode_gray16(u16, res->width, res->height, "depth_scale_m", val, out, err);
     } else {
-        rc = td_err_set(err, TD_EINVAL, "image.format: %s is not an image encoding",
-                        td_format_name(s->image.format));
+        rc = td_err_field(err, TD_EINVAL, "image.format", "%s is not an image encoding",
+                          td_format_name(s->image.format));
     }
 out:
     free(u16);
@@ -988,70 +1175,50 @@ void td_render_result_free(td_render_result *res)
     }
 }
 
+
+/* One picked pixel: its camera ray traced as the render traces it (no levels of
+ * detail: a pick names the point of the full grid). */
+static void pick_one(const ctx *c, const double px[2], td_pick *pk, td_render_stats *st)
+{
+    td_ray r;
+    td_hit hit;
+    int level;
+    memset(pk, 0, sizeof *pk);
+    pk->px = px[0];
+    pk->py = px[1];
+    td_camera_ray(&c->cam, pk->px, pk->py, &r);
+    pk->height_error_m = trace_camera(c, &r, camera_bends(c, &r), &hit, &level, st);
+    pk->distance = INFINITY;
+    if (hit.t < INFINITY) {
+        pk->hit = 1;
+        memcpy(pk->p, hit.p, sizeof pk->p);
+        pk->distance = hit.t;
+        pk->ci = hit.ci;
+        pk->cj = hit.cj;
+    }
+}
+
 td_status td_render_pick(const td_view *v, const td_scene *s, td_pick *out,
                          td_render_stats *stats, td_err *err)
 {
-    td_status rc = TD_OK;
+    td_status rc;
+    td_render_stats acc;
     ctx c;
     double t = td_clock_s();
 
+    memset(&acc, 0, sizeof acc);
     if (stats)
         memset(stats, 0, sizeof *stats);
-    if (s->npick < 0 || s->npick > TD_SCENE_PICK_MAX) {
-        rc = td_err_set(err, TD_ERANGE, "pick: %d pixels is outside 0 .. %d", s->npick,
-                        TD_SCENE_PICK_MAX);
-        goto out;
-    }
-    rc = setup_ctx(&c, v, s, err);
+    rc = td_limit_check(TD_LIMIT_PICK, s->npick, err);
+    if (!rc)
+        rc = setup_ctx(&c, v, s, err);
     if (rc)
         goto out;
-    for (int i = 0; i < s->npick; i++) {
-        td_ray r;
-        td_hit hit;
-        td_pick *pk = &out[i];
-        uint64_t steps = 0, segs = 0;
-        memset(pk, 0, sizeof *pk);
-        pk->px = s->pick[i][0];
-        pk->py = s->pick[i][1];
-        td_camera_ray(&c.cam, pk->px, pk->py, &r);
-        if (c.curv && needs_curve(&c, r.o, r.d, c.curv_smin)) {
-            trace_curved(&c, v, &r, 0.25 * c.cam.pixel_angle, &hit, &steps, &segs);
-            if (stats) {
-                stats->curved_rays++;
-                stats->curve_segments += segs;
-            }
-        } else {
-            td_trace(v, s->quality.method, s->quality.surface, &r, &hit);
-            steps = hit.steps;
-        }
-        if (stats) {
-            stats->rays[TD_RAY_PRIMARY]++;
-            stats->steps += steps;
-        }
-        pk->distance = INFINITY;
-        pk->height_error_m = NAN;
-        if (hit.t < INFINITY) {
-            double z;
-            pk->hit = 1;
-            memcpy(pk->p, hit.p, sizeof pk->p);
-            pk->distance = hit.t;
-            pk->ci = hit.ci;
-            pk->cj = hit.cj;
-            if (td_grid_bilinear(v->grid, hit.p[0], hit.p[1], &z, NULL))
-                pk->height_error_m = fabs(hit.p[2] - z);
-            if (stats)
-                stats->hits++;
-            if (stats && !isnan(pk->height_error_m)) {
-                stats->height_err_mean_m += pk->height_error_m; /* a sum until the end */
-                stats->height_err_max_m = fmax(stats->height_err_max_m, pk->height_error_m);
-                stats->height_err_hits++;
-            }
-        }
-    }
+    for (int i = 0; i < s->npick; i++)
+        pick_one(&c, s->pick[i], &out[i], &acc);
     if (stats) {
+        td_render_stats_add(stats, &acc);
         stats->threads = 1;
-        if (stats->height_err_hits)
-            stats->height_err_mean_m /= (double)stats->height_err_hits;
         stats->stage_ran[TD_STAGE_PRIMARY] = 1;
         stats->stage_ms[TD_STAGE_PRIMARY] = 1000.0 * (td_clock_s() - t);
         stats->total_ms = stats->stage_ms[TD_STAGE_PRIMARY];

@@ -36,17 +36,26 @@
     X(TD_RAY_REFLECTION, "reflection")                                         \
     X(TD_RAY_AO, "ao")
 
+/* The stages: enum, name (the `stages_ms` key and the Server-Timing entry; in render.c
+ * also the stem of the stage's two functions: stage_<name> runs it on one block,
+ * on_<name> says whether the scene needs it), and the floats of per-sample scratch the
+ * stage fills for later ones (allocated only when it runs). The block stages run in
+ * this order on every 16 x 16 block; encode runs once on the whole image
+ * (td_render_encode). A new stage is a row here and those two functions. */
+#define TD_BLOCK_STAGE_LIST(X)                                                 \
+    X(TD_STAGE_PRIMARY, primary, 0)                                            \
+    X(TD_STAGE_CURVATURE, curvature, 0)                                        \
+    X(TD_STAGE_WATER, water, 4)                                                \
+    X(TD_STAGE_SHADOWS, shadows, 1)                                            \
+    X(TD_STAGE_AO, ao, 1)                                                      \
+    X(TD_STAGE_SHADE, shade, 0)                                                \
+    X(TD_STAGE_HAZE, haze, 0)                                                  \
+    X(TD_STAGE_SKY, sky, 0)                                                    \
+    X(TD_STAGE_RESOLVE, resolve, 0)
+
 #define TD_STAGE_LIST(X)                                                       \
-    X(TD_STAGE_PRIMARY, "primary")                                             \
-    X(TD_STAGE_CURVATURE, "curvature")                                         \
-    X(TD_STAGE_WATER, "water")                                                 \
-    X(TD_STAGE_SHADOWS, "shadows")                                             \
-    X(TD_STAGE_AO, "ao")                                                       \
-    X(TD_STAGE_SHADE, "shade")                                                 \
-    X(TD_STAGE_HAZE, "haze")                                                   \
-    X(TD_STAGE_SKY, "sky")                                                     \
-    X(TD_STAGE_RESOLVE, "resolve")                                             \
-    X(TD_STAGE_ENCODE, "encode")
+    TD_BLOCK_STAGE_LIST(X)                                                     \
+    X(TD_STAGE_ENCODE, encode, 0)
 
 typedef enum td_ray_kind {
 #define TD_X_ENUM(e, name) e,
@@ -56,7 +65,7 @@ typedef enum td_ray_kind {
 } td_ray_kind;
 
 typedef enum td_stage {
-#define TD_X_ENUM(e, name) e,
+#define TD_X_ENUM(e, name, scratch) e,
     TD_STAGE_LIST(TD_X_ENUM)
 #undef TD_X_ENUM
     TD_STAGE_COUNT
@@ -77,8 +86,9 @@ typedef struct td_render_stats {
     uint64_t lod_rays[TD_LOD_MAX + 1]; /* camera rays by the level of detail they ended on */
     /* How far the picture is from the exact one: the camera hits' height above or below
      * the bilinear surface of the full grid at their x, y (0 up to rounding for bilinear
-     * without level of detail), mean and max over the hits measured. */
-    double height_err_mean_m, height_err_max_m;
+     * without level of detail), mean and max over the hits measured. The sum is kept so
+     * that partial stats add up (td_render_stats_add); the mean is sum / hits. */
+    double height_err_mean_m, height_err_max_m, height_err_sum_m;
     uint64_t height_err_hits;
     int stage_ran[TD_STAGE_COUNT];
     double stage_ms[TD_STAGE_COUNT];
@@ -104,8 +114,15 @@ typedef struct td_render_result {
 
 void td_render_opts_default(td_render_opts *o);
 
+/* Adds part's counts, sums and stage times to sum, ORs the stages that ran, keeps the
+ * larger height error and sets sum's mean to its height-error sum over its hits (0
+ * without hits). threads and total_ms are left alone. How td_render gathers its
+ * threads' stats, in thread order, and how td_render_pick fills its own. */
+void td_render_stats_add(td_render_stats *sum, const td_render_stats *part);
+
 /* Renders the scene. On success the caller owns res's buffers (td_render_result_free).
- * Errors name the scene field at fault. */
+ * An error caused by a scene field names it in err->field (and at the front of the
+ * message); the ranges checked are core's column of limit.h. */
 td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o,
                     td_render_result *res, td_err *err);
 
@@ -129,7 +146,10 @@ typedef struct td_pick {
 } td_pick;
 
 /* Traces one camera ray per pixel of s->pick (integers are pixel centres), with the
- * scene's camera, method, surface and curvature; fills out[0 .. s->npick). */
+ * scene's camera, method, surface and curvature, as td_render traces its camera rays
+ * (on the full grid: no level of detail); fills out[0 .. s->npick). stats (may be NULL)
+ * counts what a render counts for its camera rays (rays, steps, hits, bent rays, height
+ * error), but neither methods nor lod_rays. */
 td_status td_render_pick(const td_view *v, const td_scene *s, td_pick *out,
                          td_render_stats *stats, td_err *err);
 

@@ -35,6 +35,21 @@ td_status td_err_set(td_err *err, td_status st, const char *fmt, ...)
         va_start(ap, fmt);
         vsnprintf(err->msg, sizeof err->msg, fmt, ap);
         va_end(ap);
+        err->field[0] = '\0';
+    }
+    return st;
+}
+
+td_status td_err_field(td_err *err, td_status st, const char *field, const char *fmt, ...)
+{
+    if (err) {
+        va_list ap;
+        int n = snprintf(err->msg, sizeof err->msg, "%s: ", field);
+        size_t used = n < 0 ? 0 : ((size_t)n < sizeof err->msg ? (size_t)n : sizeof err->msg - 1);
+        va_start(ap, fmt);
+        vsnprintf(err->msg + used, sizeof err->msg - used, fmt, ap);
+        va_end(ap);
+        snprintf(err->field, sizeof err->field, "%s", field);
     }
     return st;
 }

@@ -29,18 +29,29 @@ typedef enum td_status {
 } td_status;
 
 /* Caller-supplied error record: functions that fail fill `msg` with a reason that
- * names the file or field at fault. A NULL td_err is allowed everywhere. */
+ * names the file or field at fault. When a field of the caller's input is at fault
+ * (a scene's `quality.samples`), `field` holds its JSON path, so a caller answers with
+ * it without reading the text (the HTTP error's `field`); else it is "". A NULL td_err
+ * is allowed everywhere. */
 typedef struct td_err {
     char msg[512];
+    char field[64];
 } td_err;
 
 const char *td_status_text(td_status st);
 const char *td_status_json(td_status st);
 
-/* Formats the message into err (if non-NULL) and returns st, so a failing path can
- * write `rc = td_err_set(err, TD_EFORMAT, "%s: ...", path); goto out;`. */
+/* Formats the message into err (if non-NULL), clears its field and returns st, so a
+ * failing path can write `rc = td_err_set(err, TD_EFORMAT, "%s: ...", path); goto out;`. */
 td_status td_err_set(td_err *err, td_status st, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
+
+/* The same for an input field at fault: err->field = field, and the message is
+ * "field: " followed by the formatted text, so whoever prints only the message still
+ * reads which field. `rc = td_err_field(err, TD_ERANGE, "quality.samples", "%d is
+ * outside 1 .. 8", n);` */
+td_status td_err_field(td_err *err, td_status st, const char *field, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
 
 /* Index of `name` in the n names of an X-macro table, or -1 (also for a NULL name). */
 int td_name_index(const char *const *names, int n, const char *name);

@@ -13,6 +13,16 @@
  * Each iteration of the walk is one step: a tile test, a block test, a cone step or a
  * cell intersection. Counters live in locals and are written once at the end.
  *
+ * One place for each thing (a new surface, lattice or method is a row and its functions):
+ *   surfaces[]     one row per surface: its patch, its height under a ray, its
+ *                  intersection over one cell, its normal's gradient, solid or two-sided;
+ *   crossing()     the tie rule (below) that picks the boundary a ray leaves a cell by;
+ *   enter_cell()   the only write of the walk's position; advance() moves to the
+ *                  neighbour across a crossing, leave_box_at() past a skipped box;
+ *   cell_test()    the one cell intersection, walk_cell() its quick rejection;
+ *   method_runs[]  how each method crosses a tile; tile_enter() enters a tile (skip it
+ *                  whole, or pick the method); td_trace() ends the walk off the grid.
+ *
  * Watertightness. The crossing test is a sign test on f(t) = z_ray(t) - surface(t).
  * Inside a cell the triangle and linear surfaces make f linear in t (on each side of
  * the diagonal), the bilinear surface quadratic. On a cell edge all three surfaces are
@@ -106,13 +116,19 @@ td_status td_ray_validate(const td_ray *r, td_err *err)
     return rc;
 }
 
+/* The walk's helpers are small and on the hot path of every step: always inlined. */
+#define TD_HOT static inline __attribute__((always_inline))
+
 /* ------------------------------------------------------------------------------------ */
-/* The walk's invariant data for one ray.                                              */
+/* The walk's invariant data for one ray, and where it stands.                          */
+
+typedef struct surface_ops surface_ops;
 
 typedef struct walk {
     const td_grid *g;
-    const td_tile_accel *accel;
-    td_surface surf;
+    const float *z;    /* g->z, and its row stride g->w */
+    size_t stride;
+    const surface_ops *surf;
     double ou, ov, oz; /* origin: cell units (u = x/sx, v = y/sy), metres */
     double du, dv, dz; /* direction per unit of internal t */
     double iu, iv;     /* reciprocals (+inf where the component is zero) */
@@ -123,7 +139,8 @@ typedef struct walk {
     int32_t cmax_i, cmax_j; /* last cell index: w-2, h-2 */
 } walk;
 
-/* Where the walk stands: a cell, the time it entered it, and f there if known. */
+/* How the walk entered its cell: at the ray's start, or across a sample column (u), a
+ * sample row (v) or both at once (a sample point). */
 enum { ENTRY_START, ENTRY_U, ENTRY_V, ENTRY_UV };
 
 typedef struct walk_state {
@@ -138,6 +155,15 @@ typedef struct hit_rec {
     int32_t ci, cj;
     int wall; /* plane surface: 0 top, ENTRY_U or ENTRY_V for a wall */
 } hit_rec;
+
+/* The ray over one cell: what a surface's intersection needs. */
+typedef struct cell_seg {
+    int32_t ci, cj;
+    double c[4];     /* corners z00, z10, z01, z11 */
+    double ta, tb;   /* the span, entry to exit (or to the end of the search) */
+    int entry, exit; /* how the ray enters and leaves (ENTRY_START: it ends inside) */
+    double fa, fb;   /* f at ta (NaN: not known) and at tb (set by the f surfaces) */
+} cell_seg;
 
 enum { STEP_CONTINUE, STEP_HIT, STEP_END };
 
@@ -157,13 +183,45 @@ static inline double sample(const td_grid *g, int32_t i, int32_t j)
     return (double)g->z[(size_t)j * (size_t)g->w + (size_t)i];
 }
 
-/* Time the ray reaches the sample line u = k (or v = k). */
-static inline double time_u(const walk *w, double k) { return w->su ? (k - w->ou) * w->iu : INFINITY; }
-static inline double time_v(const walk *w, double k) { return w->sv ? (k - w->ov) * w->iv : INFINITY; }
+static inline void corners(const td_grid *g, int32_t ci, int32_t cj, double c[4])
+{
+    c[0] = sample(g, ci, cj);
+    c[1] = sample(g, ci + 1, cj);
+    c[2] = sample(g, ci, cj + 1);
+    c[3] = sample(g, ci + 1, cj + 1);
+}
 
-/* Exit times of cell (ci, cj). */
-static inline double exit_u(const walk *w, int32_t ci) { return time_u(w, (double)(ci + (w->su > 0))); }
-static inline double exit_v(const walk *w, int32_t cj) { return time_v(w, (double)(cj + (w->sv > 0))); }
+/* Time the ray reaches the sample line u = k (or v = k). */
+static inline double time_u(const walk *w, double k)
+{
+    return w->su ? (k - w->ou) * w->iu : INFINITY;
+}
+
+static inline double time_v(const walk *w, double k)
+{
+    return w->sv ? (k - w->ov) * w->iv : INFINITY;
+}
+
+/* Entry and exit times of cell column ci (row cj); -inf entry for a ray parallel to it. */
+static inline double entry_u(const walk *w, int32_t ci)
+{
+    return w->su ? time_u(w, (double)(ci + (w->su < 0))) : -INFINITY;
+}
+
+static inline double entry_v(const walk *w, int32_t cj)
+{
+    return w->sv ? time_v(w, (double)(cj + (w->sv < 0))) : -INFINITY;
+}
+
+static inline double exit_u(const walk *w, int32_t ci)
+{
+    return time_u(w, (double)(ci + (w->su > 0)));
+}
+
+static inline double exit_v(const walk *w, int32_t cj)
+{
+    return time_v(w, (double)(cj + (w->sv > 0)));
+}
 
 /* The cell index along one axis that contains the ray just after time t. */
 static inline int32_t cell_along(double pos, int s, int32_t lo, int32_t hi)
@@ -181,6 +239,9 @@ static inline int32_t cell_along(double pos, int s, int32_t lo, int32_t hi)
     return c;
 }
 
+/* ------------------------------------------------------------------------------------ */
+/* Cell boundaries: the heights every surface shares there.                             */
+
 /* Height on the sample column I between rows J and J+1 (param from the ray's v). */
 static inline double edge_u_height(const walk *w, int32_t I, int32_t J, double t)
 {
@@ -195,63 +256,86 @@ static inline double edge_v_height(const walk *w, int32_t I, int32_t J, double t
     return a + (b - a) * clamp01(ray_u(w, t) - (double)I);
 }
 
-/* Interior height of a surface at local (a, b) of a cell with corners c[4] = z00, z10,
- * z01, z11. The linear surface is handled by its caller. */
-static inline double interior_height(td_surface s, const double c[4], double a, double b)
+/* The surface height where the ray crosses boundary `kind` of cell (ci, cj), on its
+ * entry side (`side` 0) or its exit side (1). A crossing is one boundary seen from both
+ * cells: the entry side of a cell is the exit side of the one before it, and both call
+ * this with the same sample indices, so the two values are the same bits. */
+static inline double boundary_height(const walk *w, int32_t ci, int32_t cj, int kind, int side,
+                                     double t)
 {
+    const int eu = side ? w->su > 0 : w->su < 0, ev = side ? w->sv > 0 : w->sv < 0;
     double h;
-    if (s == TD_SURFACE_TRIANGLE) {
-        if (a + b <= 1.0)
-            h = c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b;
-        else
-            h = c[3] + (c[2] - c[3]) * (1.0 - a) + (c[1] - c[3]) * (1.0 - b);
-    } else if (s == TD_SURFACE_PLANE) {
-        h = dmax(dmax(c[0], c[1]), dmax(c[2], c[3]));
-    } else {
-        h = c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b + (c[0] - c[1] - c[2] + c[3]) * a * b;
-    }
+    if (kind == ENTRY_U)
+        h = edge_u_height(w, ci + eu, cj, t);
+    else if (kind == ENTRY_V)
+        h = edge_v_height(w, ci, cj + ev, t);
+    else
+        h = sample(w->g, ci + eu, cj + ev);
     return h;
 }
 
-/* The linear surface (Qu 3.1) of cell (ci, cj) at time t: linear along the ray between
- * the heights where the ray's line enters and leaves the cell's footprint. */
-static double linear_height(const walk *w, int32_t ci, int32_t cj, const double c[4], double t)
+/* ------------------------------------------------------------------------------------ */
+/* The surfaces, one row each in `surfaces` below.                                      */
+
+/* A patch's height at local (a, b) in [0, 1]^2 of a cell with corners c[4]. */
+static double plane_patch(const double c[4], double a, double b)
+{
+    (void)a;
+    (void)b;
+    return dmax(dmax(c[0], c[1]), dmax(c[2], c[3]));
+}
+
+static double triangle_patch(const double c[4], double a, double b)
 {
     double h;
-    double tu0 = w->su ? time_u(w, (double)(ci + (w->su < 0))) : -INFINITY;
-    double tv0 = w->sv ? time_v(w, (double)(cj + (w->sv < 0))) : -INFINITY;
-    double tu1 = exit_u(w, ci), tv1 = exit_v(w, cj);
+    if (a + b <= 1.0)
+        h = c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b;
+    else
+        h = c[3] + (c[2] - c[3]) * (1.0 - a) + (c[1] - c[3]) * (1.0 - b);
+    return h;
+}
+
+static double bilinear_patch(const double c[4], double a, double b)
+{
+    return c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b + (c[0] - c[1] - c[2] + c[3]) * a * b;
+}
+
+/* Height under the ray at time t inside the cell, for the patch surfaces. */
+static double patch_under(const walk *w, const cell_seg *s, double t);
+
+/* The linear surface (Qu 3.1) under the ray at time t: linear along the ray between the
+ * heights where the ray's line enters and leaves the cell's footprint. */
+static double linear_under(const walk *w, const cell_seg *s, double t)
+{
+    double h;
+    double tu0 = entry_u(w, s->ci), tv0 = entry_v(w, s->cj);
+    double tu1 = exit_u(w, s->ci), tv1 = exit_v(w, s->cj);
     double tin = dmax(tu0, tv0), tout = dmin(tu1, tv1);
     if (!(tout > tin) || !isfinite(tin) || !isfinite(tout)) {
         /* vertical ray or a ray that only touches the cell: the surface under it */
-        h = interior_height(TD_SURFACE_BILINEAR, c, clamp01(ray_u(w, t) - ci), clamp01(ray_v(w, t) - cj));
+        h = bilinear_patch(s->c, clamp01(ray_u(w, t) - s->ci), clamp01(ray_v(w, t) - s->cj));
     } else {
-        double hin = tu0 >= tv0 ? edge_u_height(w, ci + (w->su < 0), cj, tin)
-                                : edge_v_height(w, ci, cj + (w->sv < 0), tin);
-        double hout = tu1 <= tv1 ? edge_u_height(w, ci + (w->su > 0), cj, tout)
-                                 : edge_v_height(w, ci, cj + (w->sv > 0), tout);
+        double hin = boundary_height(w, s->ci, s->cj, tu0 >= tv0 ? ENTRY_U : ENTRY_V, 0, tin);
+        double hout = boundary_height(w, s->ci, s->cj, tu1 <= tv1 ? ENTRY_U : ENTRY_V, 1, tout);
         h = hin + (hout - hin) * clamp01((t - tin) / (tout - tin));
     }
     return h;
 }
 
-/* f = z_ray - surface at time t where the walk entered cell (ci, cj) by `entry`. The
- * boundary cases are the functions that the neighbour's exit uses. */
-static double entry_f(const walk *w, int32_t ci, int32_t cj, const double c[4], double t, int entry)
+/* f = z_ray - surface at both ends of the segment: on a boundary, the shared boundary
+ * height (f carried from the cell before when known); inside the cell (the ray starts or
+ * ends there), the surface's own height under the ray. */
+typedef double (*under_fn)(const walk *w, const cell_seg *s, double t);
+
+static void seg_f(const walk *w, cell_seg *s, under_fn under)
 {
-    double h;
-    if (entry == ENTRY_U) {
-        h = edge_u_height(w, ci + (w->su < 0), cj, t);
-    } else if (entry == ENTRY_V) {
-        h = edge_v_height(w, ci, cj + (w->sv < 0), t);
-    } else if (entry == ENTRY_UV) {
-        h = sample(w->g, ci + (w->su < 0), cj + (w->sv < 0));
-    } else if (w->surf == TD_SURFACE_LINEAR) {
-        h = linear_height(w, ci, cj, c, t);
-    } else {
-        h = interior_height(w->surf, c, clamp01(ray_u(w, t) - ci), clamp01(ray_v(w, t) - cj));
-    }
-    return ray_z(w, t) - h;
+    if (isnan(s->fa))
+        s->fa = ray_z(w, s->ta) - (s->entry == ENTRY_START
+                                       ? under(w, s, s->ta)
+                                       : boundary_height(w, s->ci, s->cj, s->entry, 0, s->ta));
+    s->fb = ray_z(w, s->tb) - (s->exit == ENTRY_START
+                                   ? under(w, s, s->tb)
+                                   : boundary_height(w, s->ci, s->cj, s->exit, 1, s->tb));
 }
 
 /* First t in [ta, tb] where the linear f goes from fa to fb through zero. */
@@ -268,22 +352,51 @@ static inline int seg_hit(double ta, double fa, double tb, double fb, double *t)
     return hit;
 }
 
+/* Plane surface: a solid column under the cell's highest corner. */
+static int plane_cross(const walk *w, cell_seg *s, hit_rec *h)
+{
+    int hit = 0;
+    double top = plane_patch(s->c, 0.0, 0.0);
+    double za = ray_z(w, s->ta), zb = ray_z(w, s->tb);
+    h->wall = 0;
+    if (za <= top) {
+        h->t = s->ta;
+        h->wall = za < top && (s->entry == ENTRY_U || s->entry == ENTRY_V) ? s->entry : 0;
+        hit = 1;
+    } else if (zb <= top) {
+        /* descending (zb < za): the time the ray comes down to the top */
+        double th = s->ta + (za - top) / -w->dz;
+        h->t = th < s->ta ? s->ta : (th > s->tb ? s->tb : th);
+        hit = 1;
+    }
+    return hit;
+}
+
+/* Linear surface: f is linear along the ray by construction. */
+static int linear_cross(const walk *w, cell_seg *s, hit_rec *h)
+{
+    seg_f(w, s, linear_under);
+    return seg_hit(s->ta, s->fa, s->tb, s->fb, &h->t);
+}
+
 /* Triangle surface: split the segment where it crosses the diagonal a + b = 1 (from
  * the south-east corner (i+1, j) to the north-west corner (i, j+1)); f is linear on
  * each part, and the value on the diagonal is shared by both. */
-static int triangle_hit(const walk *w, int32_t ci, int32_t cj, const double c[4], double ta,
-                        double fa, double tb, double fb, double *t)
+static int triangle_cross(const walk *w, cell_seg *s, hit_rec *h)
 {
     int hit;
-    double sa = (ray_u(w, ta) - ci) + (ray_v(w, ta) - cj) - 1.0;
-    double sb = (ray_u(w, tb) - ci) + (ray_v(w, tb) - cj) - 1.0;
+    const double *c = s->c;
+    double sa, sb;
+    seg_f(w, s, patch_under);
+    sa = (ray_u(w, s->ta) - s->ci) + (ray_v(w, s->ta) - s->cj) - 1.0;
+    sb = (ray_u(w, s->tb) - s->ci) + (ray_v(w, s->tb) - s->cj) - 1.0;
     if ((sa < 0.0 && sb > 0.0) || (sa > 0.0 && sb < 0.0)) {
-        double td = ta + (tb - ta) * (sa / (sa - sb));
-        double bd = clamp01(ray_v(w, td) - cj);
+        double td = s->ta + (s->tb - s->ta) * (sa / (sa - sb));
+        double bd = clamp01(ray_v(w, td) - s->cj);
         double fd = ray_z(w, td) - (c[1] + (c[2] - c[1]) * bd);
-        hit = seg_hit(ta, fa, td, fd, t) || seg_hit(td, fd, tb, fb, t);
+        hit = seg_hit(s->ta, s->fa, td, fd, &h->t) || seg_hit(td, fd, s->tb, s->fb, &h->t);
     } else {
-        hit = seg_hit(ta, fa, tb, fb, t);
+        hit = seg_hit(s->ta, s->fa, s->tb, s->fb, &h->t);
     }
     return hit;
 }
@@ -292,20 +405,21 @@ static int triangle_hit(const walk *w, int32_t ci, int32_t cj, const double c[4]
  * patch's twist and B fixed by the shared end values, so the quadratic agrees with both
  * boundary values exactly. Roots in the cancellation-free form q = -(B + sign(B) sqrt)/2,
  * r1 = q/A, r2 = fa/q. No iteration, no sampling. */
-static int bilinear_hit(const walk *w, const double c[4], double ta, double fa, double tb,
-                        double fb, double *t)
+static int bilinear_cross(const walk *w, cell_seg *sg, hit_rec *h)
 {
     int hit = 0;
-    double L = tb - ta;
-    double k = c[0] - c[1] - c[2] + c[3];
-    double A = -k * w->du * w->dv;
+    double ta, fa, fb, L, k, A;
+    seg_f(w, sg, patch_under);
+    ta = sg->ta, fa = sg->fa, fb = sg->fb, L = sg->tb - sg->ta;
+    k = sg->c[0] - sg->c[1] - sg->c[2] + sg->c[3];
+    A = -k * w->du * w->dv;
     if (fa == 0.0) {
-        *t = ta;
+        h->t = ta;
         hit = 1;
     } else if (!(L > 0.0)) {
         hit = 0;
     } else if (A == 0.0 || fabs(A) * L * L <= 1e-12 * (fabs(fa) + fabs(fb))) {
-        hit = seg_hit(ta, fa, tb, fb, t);
+        hit = seg_hit(ta, fa, sg->tb, fb, &h->t);
     } else {
         double B = (fb - fa - A * L * L) / L;
         int change = (fa > 0.0) != (fb > 0.0) || fb == 0.0;
@@ -323,222 +437,246 @@ static int bilinear_hit(const walk *w, const double c[4], double ta, double fa, 
                 /* rounding put the root just outside: take the nearest admissible one */
                 s = change ? L * (fa / (fa - fb)) : smin;
             }
-            *t = ta + s;
+            h->t = ta + s;
             hit = 1;
         }
     }
     return hit;
 }
 
-/* Plane surface: a solid column under the cell's highest corner. */
-static int plane_hit(const walk *w, const double c[4], double ta, double tb, int entry, double *t,
-                     int *wall)
+/* Height gradient (dz/da, dz/db per cell) at local (a, b). */
+static void triangle_gradient(const double c[4], double a, double b, double g[2])
 {
-    int hit = 0;
-    double top = dmax(dmax(c[0], c[1]), dmax(c[2], c[3]));
-    double za = ray_z(w, ta), zb = ray_z(w, tb);
-    if (za <= top) {
-        *t = ta;
-        *wall = za < top && (entry == ENTRY_U || entry == ENTRY_V) ? entry : 0;
-        hit = 1;
-    } else if (zb <= top) {
-        /* descending (zb < za): the time the ray comes down to the top */
-        double th = ta + (za - top) / -w->dz;
-        *t = th < ta ? ta : (th > tb ? tb : th);
-        *wall = 0;
-        hit = 1;
+    if (a + b <= 1.0) {
+        g[0] = c[1] - c[0];
+        g[1] = c[2] - c[0];
+    } else {
+        g[0] = c[3] - c[2];
+        g[1] = c[3] - c[1];
     }
-    return hit;
+}
+
+static void bilinear_gradient(const double c[4], double a, double b, double g[2])
+{
+    double k = c[0] - c[1] - c[2] + c[3];
+    g[0] = (c[1] - c[0]) + k * b;
+    g[1] = (c[2] - c[0]) + k * a;
+}
+
+/* One surface: its patch (also what td_surface_height reports), the height under a ray
+ * inside a cell, the intersection over a cell's segment, the gradient of its normal
+ * (NULL: the plane's top or wall), and whether it is a solid column (the plane: nothing
+ * below its top is outside it, so no lower bound may clip or skip a ray). A new surface
+ * is a row here and its functions. */
+struct surface_ops {
+    double (*patch)(const double c[4], double a, double b);
+    double (*under)(const walk *w, const cell_seg *s, double t);
+    int (*cross)(const walk *w, cell_seg *s, hit_rec *h);
+    void (*gradient)(const double c[4], double a, double b, double g[2]);
+    int solid;
+};
+
+static const surface_ops surfaces[TD_SURFACE_COUNT] = {
+    [TD_SURFACE_PLANE] = {plane_patch, patch_under, plane_cross, NULL, 1},
+    /* the linear surface has no patch of its own: as a height field it is bilinear */
+    [TD_SURFACE_LINEAR] = {bilinear_patch, linear_under, linear_cross, bilinear_gradient, 0},
+    [TD_SURFACE_TRIANGLE] = {triangle_patch, patch_under, triangle_cross, triangle_gradient, 0},
+    [TD_SURFACE_BILINEAR] = {bilinear_patch, patch_under, bilinear_cross, bilinear_gradient, 0},
+};
+
+static double patch_under(const walk *w, const cell_seg *s, double t)
+{
+    return w->surf->patch(s->c, clamp01(ray_u(w, t) - s->ci), clamp01(ray_v(w, t) - s->cj));
+}
+
+/* ------------------------------------------------------------------------------------ */
+/* The cell walk: the one place the walk moves from cell to cell.                       */
+
+/* The tie rule watertightness depends on: leaving at tu == tv is crossing the sample
+ * point itself (both indices move), never one line and then the other. */
+static inline int crossing(double tu, double tv)
+{
+    return tu < tv ? ENTRY_U : (tv < tu ? ENTRY_V : ENTRY_UV);
+}
+
+/* Puts the walk in cell (ci, cj), entered at time t across `entry` with f (NaN: to be
+ * recomputed by the same boundary function). The cell may be off the grid: every method
+ * stops at its tile's edge, and td_trace ends the walk there. */
+TD_HOT int enter_cell(walk_state *restrict st, int32_t ci, int32_t cj, double t, int entry,
+                      double f)
+{
+    st->ci = ci;
+    st->cj = cj;
+    st->t = t;
+    st->f = f;
+    st->entry = entry;
+    return STEP_CONTINUE;
+}
+
+/* Into the neighbour across the crossing `kind` at time t, carrying f. */
+TD_HOT int advance(const walk *restrict w, walk_state *restrict st, int kind, double t, double f)
+{
+    return enter_cell(st, st->ci + (kind != ENTRY_V ? w->su : 0),
+                      st->cj + (kind != ENTRY_U ? w->sv : 0), t, kind, f);
 }
 
 /* Intersects the current cell over [st->t, its exit] and either reports a hit or moves
  * the state to the next cell (carrying f across the shared boundary). */
-static int step_cell(const walk *w, walk_state *st, hit_rec *hit)
+static int cell_test(const walk *restrict w, walk_state *restrict st, hit_rec *hit)
 {
     int rc = STEP_CONTINUE;
-    const int32_t ci = st->ci, cj = st->cj;
-    double tu = exit_u(w, ci), tv = exit_v(w, cj);
-    double tb = dmin(tu, tv);
-    int exit_kind = tu < tv ? ENTRY_U : (tv < tu ? ENTRY_V : ENTRY_UV);
-    double c[4] = {sample(w->g, ci, cj), sample(w->g, ci + 1, cj), sample(w->g, ci, cj + 1),
-                   sample(w->g, ci + 1, cj + 1)};
-    int hole = isnan(c[0] + c[1] + c[2] + c[3]);
-    double fb = NAN;
-
-    if (tb >= w->t_end) {
-        tb = w->t_end;
-        exit_kind = ENTRY_START; /* the ray ends inside the cell: interior value */
+    double tu = exit_u(w, st->ci), tv = exit_v(w, st->cj);
+    cell_seg s = {.ci = st->ci, .cj = st->cj, .ta = st->t, .tb = dmin(tu, tv), .entry = st->entry,
+                  .exit = crossing(tu, tv), .fa = st->f, .fb = NAN};
+    corners(w->g, s.ci, s.cj, s.c);
+    if (s.tb >= w->t_end) {
+        s.tb = w->t_end;
+        s.exit = ENTRY_START; /* the ray ends inside the cell: interior value */
     }
-    if (!hole && tb >= st->t) {
+    if (!isnan(s.c[0] + s.c[1] + s.c[2] + s.c[3]) && s.tb >= s.ta) {
         /* Quick rejection: the ray stays strictly above the highest corner (or, for the
          * two-sided surfaces, strictly below the lowest) over the whole segment. f is
-         * then not carried; the next cell recomputes it with the same edge function,
+         * then not carried; the next cell recomputes it with the same boundary function,
          * bit for bit. */
-        double za = ray_z(w, st->t), zb = ray_z(w, tb);
-        double top = dmax(dmax(c[0], c[1]), dmax(c[2], c[3]));
-        double bottom = dmin(dmin(c[0], c[1]), dmin(c[2], c[3]));
-        int clear = dmin(za, zb) > top || (w->surf != TD_SURFACE_PLANE && dmax(za, zb) < bottom);
-        double t = 0.0;
-        int found = 0;
-        if (clear) {
-            found = 0;
-        } else if (w->surf == TD_SURFACE_PLANE) {
-            int wall = 0;
-            found = plane_hit(w, c, st->t, tb, st->entry, &t, &wall);
-            hit->wall = wall;
-        } else {
-            double fa = isnan(st->f) ? entry_f(w, ci, cj, c, st->t, st->entry) : st->f;
-            if (exit_kind == ENTRY_U)
-                fb = zb - edge_u_height(w, ci + (w->su > 0), cj, tb);
-            else if (exit_kind == ENTRY_V)
-                fb = zb - edge_v_height(w, ci, cj + (w->sv > 0), tb);
-            else if (exit_kind == ENTRY_UV)
-                fb = zb - sample(w->g, ci + (w->su > 0), cj + (w->sv > 0));
-            else
-                fb = entry_f(w, ci, cj, c, tb, ENTRY_START);
-            if (w->surf == TD_SURFACE_BILINEAR)
-                found = bilinear_hit(w, c, st->t, fa, tb, fb, &t);
-            else if (w->surf == TD_SURFACE_TRIANGLE)
-                found = triangle_hit(w, ci, cj, c, st->t, fa, tb, fb, &t);
-            else
-                found = seg_hit(st->t, fa, tb, fb, &t);
-        }
-        if (found) {
-            hit->t = t;
-            hit->ci = ci;
-            hit->cj = cj;
+        double za = ray_z(w, s.ta), zb = ray_z(w, s.tb);
+        double top = dmax(dmax(s.c[0], s.c[1]), dmax(s.c[2], s.c[3]));
+        double bottom = dmin(dmin(s.c[0], s.c[1]), dmin(s.c[2], s.c[3]));
+        int clear = dmin(za, zb) > top || (!w->surf->solid && dmax(za, zb) < bottom);
+        if (!clear && w->surf->cross(w, &s, hit)) {
+            hit->ci = s.ci;
+            hit->cj = s.cj;
             rc = STEP_HIT;
         }
     }
-    if (rc == STEP_CONTINUE) {
-        if (exit_kind == ENTRY_START) {
-            rc = STEP_END;
-        } else {
-            st->ci += (exit_kind != ENTRY_V) ? w->su : 0;
-            st->cj += (exit_kind != ENTRY_U) ? w->sv : 0;
-            st->t = tb;
-            st->f = fb; /* NaN after a hole: recomputed by the same edge function */
-            st->entry = exit_kind;
-            if (st->ci < 0 || st->cj < 0 || st->ci > w->cmax_i || st->cj > w->cmax_j)
-                rc = STEP_END;
-        }
+    if (rc == STEP_CONTINUE) /* NaN f after a hole or a clear cell: recomputed */
+        rc = s.exit == ENTRY_START ? STEP_END : advance(w, st, s.exit, s.tb, s.fb);
+    return rc;
+}
+
+/* One step of the walk: a cell the ray passes strictly above costs two exit times, four
+ * loads and a compare here (a hole's NaN corners either fail the compare or drop out of
+ * the maximum, and a hole may be passed either way); every other cell goes through
+ * cell_test, which reaches the same verdict on a clear cell. */
+TD_HOT int walk_cell(const walk *restrict w, walk_state *restrict st, hit_rec *hit)
+{
+    int rc;
+    double tu = exit_u(w, st->ci), tv = exit_v(w, st->cj);
+    double tb = dmin(tu, tv);
+    const size_t W = w->stride;
+    const float *s0 = w->z + (size_t)st->cj * W + (size_t)st->ci;
+    if (tb < w->t_end &&
+        dmin(ray_z(w, st->t), ray_z(w, tb)) >
+            dmax(dmax((double)s0[0], (double)s0[1]), dmax((double)s0[W], (double)s0[W + 1])))
+        rc = advance(w, st, crossing(tu, tv), tb, NAN);
+    else
+        rc = cell_test(w, st, hit);
+    return rc;
+}
+
+/* ------------------------------------------------------------------------------------ */
+/* Boxes of cells: tiles and max-mipmap blocks.                                         */
+
+typedef struct box {
+    int32_t ulo, uhi, vlo, vhi; /* cells [ulo, uhi) x [vlo, vhi) */
+} box;
+
+static inline box tile_box(const td_tile *t)
+{
+    box b = {t->i0, t->i0 + t->nx, t->j0, t->j0 + t->ny};
+    return b;
+}
+
+static inline int in_box(const walk_state *st, const box *b)
+{
+    return (uint32_t)(st->ci - b->ulo) < (uint32_t)(b->uhi - b->ulo) &&
+           (uint32_t)(st->cj - b->vlo) < (uint32_t)(b->vhi - b->vlo);
+}
+
+/* Exit times of the box along each axis. */
+static inline double box_exit_u(const walk *w, const box *b)
+{
+    return time_u(w, (double)(w->su > 0 ? b->uhi : b->ulo));
+}
+
+static inline double box_exit_v(const walk *w, const box *b)
+{
+    return time_v(w, (double)(w->sv > 0 ? b->vhi : b->vlo));
+}
+
+/* Moves the walk to the cell after the box, which the ray leaves at min(tu, tv) (the
+ * box's exit times). Every skip ends here. */
+TD_HOT int leave_box_at(const walk *restrict w, walk_state *restrict st, const box *b, double tu,
+                        double tv)
+{
+    int rc = STEP_END;
+    double tx = dmin(tu, tv);
+    if (tx < w->t_end) {
+        int kind = crossing(tu, tv);
+        int32_t ci = kind != ENTRY_V ? (w->su > 0 ? b->uhi : b->ulo - 1)
+                                     : cell_along(ray_u(w, tx), w->su, b->ulo, b->uhi - 1);
+        int32_t cj = kind != ENTRY_U ? (w->sv > 0 ? b->vhi : b->vlo - 1)
+                                     : cell_along(ray_v(w, tx), w->sv, b->vlo, b->vhi - 1);
+        rc = enter_cell(st, ci, cj, dmax(tx, st->t), kind, NAN);
     }
     return rc;
 }
 
-/* The incremental walk through one tile. A cell the ray passes strictly above costs two
- * exit times, four loads and a compare here (a hole's NaN corners either fail the
- * compare or drop out of the maximum, and a hole may be passed either way); every other
- * cell goes through step_cell. Returns when the walk hits, ends, or leaves the tile. */
-static int walk_run(const walk *w, walk_state *st, const td_tile *tile, uint32_t *steps,
-                    hit_rec *hit)
+TD_HOT int leave_box(const walk *restrict w, walk_state *restrict st, const box *b)
+{
+    return leave_box_at(w, st, b, box_exit_u(w, b), box_exit_v(w, b));
+}
+
+/* ------------------------------------------------------------------------------------ */
+/* The methods: how each crosses one tile. They return when the walk hits, ends, or      */
+/* leaves the tile; each test is one step.                                               */
+
+typedef int (*method_run)(const walk *restrict w, const td_tile *tile, const td_tile_accel *ta,
+                          walk_state *restrict st, uint32_t *steps, hit_rec *hit);
+
+/* Incremental: every cell. */
+static int walk_run(const walk *restrict w, const td_tile *tile, const td_tile_accel *ta,
+                    walk_state *restrict st, uint32_t *steps, hit_rec *hit)
 {
     int rc = STEP_CONTINUE;
-    const int32_t ilo = tile->i0, ihi = tile->i0 + tile->nx, jlo = tile->j0, jhi = tile->j0 + tile->ny;
-    const size_t W = (size_t)w->g->w;
+    const box tb = tile_box(tile);
+    walk_state s = *st;
     uint32_t n = 0;
-    while (rc == STEP_CONTINUE && st->ci >= ilo && st->ci < ihi && st->cj >= jlo && st->cj < jhi) {
-        const int32_t ci = st->ci, cj = st->cj;
-        double tu = exit_u(w, ci), tv = exit_v(w, cj);
-        double tb = dmin(tu, tv);
+    (void)ta;
+    while (rc == STEP_CONTINUE && in_box(&s, &tb)) {
         n++;
-        if (tb < w->t_end) {
-            const float *s0 = w->g->z + (size_t)cj * W + (size_t)ci;
-            double top = dmax(dmax((double)s0[0], (double)s0[1]), dmax((double)s0[W], (double)s0[W + 1]));
-            if (dmin(ray_z(w, st->t), ray_z(w, tb)) > top) {
-                int kind = tu < tv ? ENTRY_U : (tv < tu ? ENTRY_V : ENTRY_UV);
-                st->ci += kind != ENTRY_V ? w->su : 0;
-                st->cj += kind != ENTRY_U ? w->sv : 0;
-                st->t = tb;
-                st->f = NAN;
-                st->entry = kind;
-                if (st->ci < 0 || st->cj < 0 || st->ci > w->cmax_i || st->cj > w->cmax_j)
-                    rc = STEP_END;
-                continue;
-            }
-        }
-        rc = step_cell(w, st, hit);
+        rc = walk_cell(w, &s, hit);
     }
+    *st = s;
     *steps += n;
     return rc;
 }
 
-/* Moves the walk to the cell after the box of cells [ulo, uhi) x [vlo, vhi) that the
- * ray leaves at time `tx` (computed from the same box). Used by every skip. */
-static inline int leave_box_at(const walk *w, walk_state *st, int32_t ulo, int32_t uhi,
-                               int32_t vlo, int32_t vhi, double tu, double tv)
+/* Hierarchical: test the block of the current level that holds the current cell; skip
+ * it if the ray stays above its maximum up to the block's exit (and go up a level), else
+ * descend a level; at level 0 walk the cell. */
+static int hier_run(const walk *restrict w, const td_tile *tile, const td_tile_accel *ta,
+                    walk_state *restrict st, uint32_t *steps, hit_rec *hit)
 {
     int rc = STEP_CONTINUE;
-    double tx = dmin(tu, tv);
-    if (!(tx < w->t_end)) {
-        rc = STEP_END;
-    } else {
-        int kind = tu < tv ? ENTRY_U : (tv < tu ? ENTRY_V : ENTRY_UV);
-        st->ci = kind != ENTRY_V ? (w->su > 0 ? uhi : ulo - 1)
-                                 : cell_along(ray_u(w, tx), w->su, ulo, uhi - 1);
-        st->cj = kind != ENTRY_U ? (w->sv > 0 ? vhi : vlo - 1)
-                                 : cell_along(ray_v(w, tx), w->sv, vlo, vhi - 1);
-        st->t = tx > st->t ? tx : st->t;
-        st->f = NAN;
-        st->entry = kind;
-        if (st->ci < 0 || st->cj < 0 || st->ci > w->cmax_i || st->cj > w->cmax_j)
-            rc = STEP_END;
-    }
-    return rc;
-}
-
-/* Exit times of the box [ulo, uhi) x [vlo, vhi) along each axis. */
-static inline double box_exit_u(const walk *w, int32_t ulo, int32_t uhi)
-{
-    return w->su > 0 ? time_u(w, (double)uhi) : time_u(w, (double)ulo);
-}
-
-static inline double box_exit_v(const walk *w, int32_t vlo, int32_t vhi)
-{
-    return w->sv > 0 ? time_v(w, (double)vhi) : time_v(w, (double)vlo);
-}
-
-static int leave_box(const walk *w, walk_state *st, int32_t ulo, int32_t uhi, int32_t vlo,
-                     int32_t vhi)
-{
-    return leave_box_at(w, st, ulo, uhi, vlo, vhi, box_exit_u(w, ulo, uhi), box_exit_v(w, vlo, vhi));
-}
-
-static inline int in_tile(const walk_state *st, const td_tile *t)
-{
-    return st->ci >= t->i0 && st->cj >= t->j0 && st->ci < t->i0 + t->nx && st->cj < t->j0 + t->ny;
-}
-
-/* ------------------------------------------------------------------------------------ */
-/* The methods' skips.                                                                  */
-
-/* Hierarchical, through one tile: test the block of the current level that holds the
- * current cell; skip it if the ray stays above its maximum up to the block's exit (and go
- * up a level), else descend a level; at level 0 intersect the cell. Every test is one
- * step. Returns when the walk hits, ends, or leaves the tile. */
-static int hier_run(const walk *w, const td_tile *tile, const td_maxmip *mm, walk_state *st,
-                    uint32_t *steps, hit_rec *hit)
-{
-    int rc = STEP_CONTINUE;
+    const td_maxmip *mm = ta->maxmip;
+    const box tb = tile_box(tile);
     int L = mm->levels > 1 ? mm->levels - 1 : mm->levels; /* the tile test covered the top */
-    const int32_t ti1 = tile->i0 + tile->nx, tj1 = tile->j0 + tile->ny;
     uint32_t n = 0;
-    while (rc == STEP_CONTINUE && in_tile(st, tile)) {
+    while (rc == STEP_CONTINUE && in_box(st, &tb)) {
         n++;
         if (L == 0) {
-            rc = step_cell(w, st, hit);
+            rc = cell_test(w, st, hit);
             L = 1;
         } else {
-            int32_t bi = (st->ci - tile->i0) >> L, bj = (st->cj - tile->j0) >> L;
+            int32_t bi = (st->ci - tb.ulo) >> L, bj = (st->cj - tb.vlo) >> L;
             float m = mm->max[mm->offset[L] + (size_t)bj * (size_t)mm->dim[L] + (size_t)bi];
-            int32_t ulo = tile->i0 + (bi << L), vlo = tile->j0 + (bj << L);
-            int32_t uhi = ulo + ((int32_t)1 << L), vhi = vlo + ((int32_t)1 << L);
-            uhi = uhi < ti1 ? uhi : ti1;
-            vhi = vhi < tj1 ? vhi : tj1;
-            double tu = box_exit_u(w, ulo, uhi), tv = box_exit_v(w, vlo, vhi);
+            box b = {tb.ulo + (bi << L), 0, tb.vlo + (bj << L), 0};
+            b.uhi = b.ulo + ((int32_t)1 << L) < tb.uhi ? b.ulo + ((int32_t)1 << L) : tb.uhi;
+            b.vhi = b.vlo + ((int32_t)1 << L) < tb.vhi ? b.vlo + ((int32_t)1 << L) : tb.vhi;
+            double tu = box_exit_u(w, &b), tv = box_exit_v(w, &b);
             double tx = dmin(dmin(tu, tv), w->t_end);
             if (dmin(ray_z(w, st->t), ray_z(w, tx)) > (double)m + w->zeps) {
-                rc = leave_box_at(w, st, ulo, uhi, vlo, vhi, tu, tv);
+                rc = leave_box_at(w, st, &b, tu, tv);
                 L = L < mm->levels ? L + 1 : L;
             } else {
                 L--;
@@ -549,20 +687,20 @@ static int hier_run(const walk *w, const td_tile *tile, const td_maxmip *mm, wal
     return rc;
 }
 
-/* Parametric, through one tile: if the ray is above the current cell's cone, jump to the
- * entry boundary of the cell where it would meet the cone (or out of the tile); else
- * intersect the cell (Paglieroni's incremental jump-start). Every jump or cell is one
- * step. Returns when the walk hits, ends, or leaves the tile. */
-static int cone_run(const walk *w, const td_tile *tile, const td_planes *pl, walk_state *st,
-                    uint32_t *steps, hit_rec *hit)
+/* Parametric: if the ray is above the current cell's cone, jump to the entry boundary
+ * of the cell where it would meet the cone (or out of the tile); else walk the cell
+ * (Paglieroni's incremental jump-start). */
+static int cone_run(const walk *restrict w, const td_tile *tile, const td_tile_accel *ta,
+                    walk_state *restrict st, uint32_t *steps, hit_rec *hit)
 {
     int rc = STEP_CONTINUE;
-    const int32_t ulo = tile->i0, uhi = tile->i0 + tile->nx, vlo = tile->j0, vhi = tile->j0 + tile->ny;
-    const double txu = box_exit_u(w, ulo, uhi), txv = box_exit_v(w, vlo, vhi);
+    const td_planes *pl = ta->planes;
+    const box tb = tile_box(tile);
+    const double txu = box_exit_u(w, &tb), txv = box_exit_v(w, &tb);
     const double tx = dmin(dmin(txu, txv), w->t_end);
     uint32_t n = 0;
-    while (rc == STEP_CONTINUE && in_tile(st, tile)) {
-        size_t idx = (size_t)(st->cj - vlo) * (size_t)pl->nx + (size_t)(st->ci - ulo);
+    while (rc == STEP_CONTINUE && in_box(st, &tb)) {
+        size_t idx = (size_t)(st->cj - tb.vlo) * (size_t)pl->nx + (size_t)(st->ci - tb.ulo);
         const td_cone cone = pl->cone[idx];
         double zp = td_cone_apex(pl, cone), sp = td_cone_slope(pl, cone);
         double above = ray_z(w, st->t) - zp - w->zeps;
@@ -574,30 +712,32 @@ static int cone_run(const walk *w, const td_tile *tile, const td_planes *pl, wal
             double closing = (w->hs > 0.0 ? sp * w->hs : 0.0) - w->dz;
             double tl = closing > 0.0 ? st->t + above / closing : INFINITY;
             if (tl >= tx) {
-                rc = leave_box_at(w, st, ulo, uhi, vlo, vhi, txu, txv);
+                rc = leave_box_at(w, st, &tb, txu, txv);
                 jumped = 1;
             } else {
-                int32_t ci = cell_along(ray_u(w, tl), w->su, ulo, uhi - 1);
-                int32_t cj = cell_along(ray_v(w, tl), w->sv, vlo, vhi - 1);
-                double teu = w->su ? time_u(w, (double)(ci + (w->su < 0))) : -INFINITY;
-                double tev = w->sv ? time_v(w, (double)(cj + (w->sv < 0))) : -INFINITY;
+                int32_t ci = cell_along(ray_u(w, tl), w->su, tb.ulo, tb.uhi - 1);
+                int32_t cj = cell_along(ray_v(w, tl), w->sv, tb.vlo, tb.vhi - 1);
+                double teu = entry_u(w, ci), tev = entry_v(w, cj);
                 double te = dmax(teu, tev);
                 if ((ci != st->ci || cj != st->cj) && te > st->t) {
-                    st->ci = ci;
-                    st->cj = cj;
-                    st->t = te;
-                    st->f = NAN;
-                    st->entry = teu > tev ? ENTRY_U : (tev > teu ? ENTRY_V : ENTRY_UV);
+                    /* the later of the two entry times is the crossing into the cell */
+                    rc = enter_cell(st, ci, cj, te, crossing(tev, teu), NAN);
                     jumped = 1;
                 }
             }
         }
         if (!jumped)
-            rc = step_cell(w, st, hit);
+            rc = cell_test(w, st, hit);
     }
     *steps += n;
     return rc;
 }
+
+static const method_run method_runs[TD_METHOD_COUNT] = {
+    [TD_METHOD_INCREMENTAL] = walk_run,
+    [TD_METHOD_HIERARCHICAL] = hier_run,
+    [TD_METHOD_PARAMETRIC] = cone_run,
+};
 
 /* `auto`, per tile and ray: a tile crossed by fewer cells than this is walked
  * incrementally (the skips' bookkeeping costs more than the cells it would save);
@@ -609,8 +749,7 @@ static int cone_run(const walk *w, const td_tile *tile, const td_planes *pl, wal
  * planes are used where they are all that is resident. */
 #define TD_AUTO_MIN_CELLS 6.0
 
-static td_method choose_method(const walk *w, td_method m, const td_tile_accel *ta,
-                               double cells_crossed)
+static td_method choose_method(td_method m, const td_tile_accel *ta, double cells_crossed)
 {
     td_method used = m;
     if (m == TD_METHOD_AUTO) {
@@ -627,11 +766,11 @@ static td_method choose_method(const walk *w, td_method m, const td_tile_accel *
     } else if (m == TD_METHOD_PARAMETRIC && !(ta && ta->planes)) {
         used = TD_METHOD_INCREMENTAL;
     }
-    (void)w;
     return used;
 }
 
 /* ------------------------------------------------------------------------------------ */
+/* td_trace: ray setup, the walk over tiles, the hit.                                   */
 
 /* Clips [t0, t1] to the slab lo <= o + d t <= hi. */
 static void clip_slab(double o, double d, double lo, double hi, double *t0, double *t1)
@@ -652,33 +791,99 @@ static void clip_slab(double o, double d, double lo, double hi, double *t0, doub
     }
 }
 
+/* Sets up the walk for a ray (see Precision at the top) and clips it to the grid's box
+ * (the plane surface's columns reach down forever). Returns 0 if nothing is left. */
+static int walk_setup(walk *w, const td_grid *g, td_surface s, const td_ray *r, double *scale,
+                      walk_state *st)
+{
+    int exp2 = 0;
+    double dlen = dmax(fabs(r->d[0]), dmax(fabs(r->d[1]), fabs(r->d[2])));
+    double d[3], t0, t1;
+
+    *scale = 1.0;
+    if (!(dlen > 0.0))
+        return 0;
+    if (dlen < 0x1p-20 || dlen > 0x1p20) { /* only extreme directions need rescaling */
+        frexp(dlen, &exp2);
+        *scale = ldexp(1.0, -exp2); /* exact power of two: d*scale and t/scale are exact */
+    }
+    for (int i = 0; i < 3; i++) {
+        d[i] = r->d[i] * *scale;
+        if (fabs(d[i]) < 1e-200)
+            d[i] = 0.0;
+    }
+    w->g = g;
+    w->z = g->z;
+    w->stride = (size_t)g->w;
+    w->surf = &surfaces[s];
+    w->ou = r->o[0] / g->sx;
+    w->ov = r->o[1] / g->sy;
+    w->oz = r->o[2];
+    w->du = d[0] / g->sx;
+    w->dv = d[1] / g->sy;
+    w->dz = d[2];
+    w->su = w->du > 0.0 ? 1 : (w->du < 0.0 ? -1 : 0);
+    w->sv = w->dv > 0.0 ? 1 : (w->dv < 0.0 ? -1 : 0);
+    w->iu = w->su ? 1.0 / w->du : INFINITY;
+    w->iv = w->sv ? 1.0 / w->dv : INFINITY;
+    w->hs = sqrt(d[0] * d[0] + d[1] * d[1]); /* no overflow: |d| <= 2^21 after scaling */
+    w->cmax_i = g->w - 2;
+    w->cmax_j = g->h - 2;
+    w->zeps = 1e-6 * (1.0 + dmax(fabs((double)g->zmin), fabs((double)g->zmax)));
+
+    t0 = r->tmin / *scale;
+    t1 = r->tmax / *scale;
+    clip_slab(w->ou, w->du, 0.0, (double)(g->w - 1), &t0, &t1);
+    clip_slab(w->ov, w->dv, 0.0, (double)(g->h - 1), &t0, &t1);
+    clip_slab(w->oz, w->dz, w->surf->solid ? -INFINITY : (double)g->zmin - w->zeps,
+              (double)g->zmax + w->zeps, &t0, &t1);
+    w->t_end = t1;
+    st->t = t0;
+    st->ci = cell_along(ray_u(w, t0), w->su, 0, w->cmax_i);
+    st->cj = cell_along(ray_v(w, t0), w->sv, 0, w->cmax_j);
+    st->f = NAN;
+    st->entry = ENTRY_START;
+    return t0 <= t1;
+}
+
+/* The walk enters a new tile (one step): skips it whole if the ray passes above it (or
+ * below it, for the two-sided surfaces) or it holds no sample; else says which method
+ * crosses it. Returns STEP_CONTINUE with *tile set, or what leaving the tile gave. */
+static int tile_enter(const walk *w, const td_view *v, td_method m, walk_state *st,
+                      const td_tile **tile, const td_tile_accel **ta, td_method *used)
+{
+    int rc = STEP_CONTINUE;
+    const td_tile *now = td_grid_tile_of_cell(w->g, st->ci, st->cj);
+    const box b = tile_box(now);
+    double tx = dmin(dmin(box_exit_u(w, &b), box_exit_v(w, &b)), w->t_end);
+    double za = ray_z(w, st->t), zb = ray_z(w, tx);
+    *tile = now;
+    if (dmin(za, zb) > (double)now->zmax + w->zeps || now->zmax < now->zmin ||
+        (!w->surf->solid && dmax(za, zb) < (double)now->zmin - w->zeps)) {
+        rc = leave_box(w, st, &b);
+    } else {
+        *ta = v->accel ? &v->accel[now - w->g->tiles] : NULL;
+        double cells = fabs(ray_u(w, tx) - ray_u(w, st->t)) + fabs(ray_v(w, tx) - ray_v(w, st->t));
+        *used = choose_method(m, *ta, cells);
+    }
+    return rc;
+}
+
+/* Unit normal of the surface that was hit, facing up. */
 static void surface_normal(const walk *w, const hit_rec *h, float n[3])
 {
     const td_grid *g = w->g;
-    double c[4] = {sample(g, h->ci, h->cj), sample(g, h->ci + 1, h->cj), sample(g, h->ci, h->cj + 1),
-                   sample(g, h->ci + 1, h->cj + 1)};
-    double a = clamp01(ray_u(w, h->t) - h->ci), b = clamp01(ray_v(w, h->t) - h->cj);
-    double ga, gb, nx, ny, nz = 1.0, len;
-    if (w->surf == TD_SURFACE_PLANE) {
+    double nx, ny, nz = 1.0, len;
+    if (!w->surf->gradient) { /* the plane's top, or the wall the ray came through */
         nx = h->wall == ENTRY_U ? -(double)w->su : 0.0;
         ny = h->wall == ENTRY_V ? -(double)w->sv : 0.0;
         nz = h->wall ? 0.0 : 1.0;
     } else {
-        if (w->surf == TD_SURFACE_TRIANGLE) {
-            if (a + b <= 1.0) {
-                ga = c[1] - c[0];
-                gb = c[2] - c[0];
-            } else {
-                ga = c[3] - c[2];
-                gb = c[3] - c[1];
-            }
-        } else {
-            double k = c[0] - c[1] - c[2] + c[3];
-            ga = (c[1] - c[0]) + k * b;
-            gb = (c[2] - c[0]) + k * a;
-        }
-        nx = -ga / g->sx;
-        ny = -gb / g->sy;
+        double c[4], gr[2];
+        corners(g, h->ci, h->cj, c);
+        w->surf->gradient(c, clamp01(ray_u(w, h->t) - h->ci), clamp01(ray_v(w, h->t) - h->cj), gr);
+        nx = -gr[0] / g->sx;
+        ny = -gr[1] / g->sy;
     }
     len = sqrt(nx * nx + ny * ny + nz * nz);
     n[0] = (float)(nx / len);
@@ -695,94 +900,27 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
     uint32_t steps = 0;
     int rc = STEP_END;
     td_method used = m == TD_METHOD_AUTO ? TD_METHOD_INCREMENTAL : m;
-    int exp2 = 0;
     double scale = 1.0;
-    double dlen = dmax(fabs(r->d[0]), dmax(fabs(r->d[1]), fabs(r->d[2])));
-    double d[3], t0, t1;
+    const td_tile *tile = NULL;
+    const td_tile_accel *ta = NULL;
+    box tb = {0, 0, 0, 0};
 
     memset(hit, 0, sizeof *hit);
     hit->t = INFINITY;
     hit->ci = hit->cj = -1;
-    if (isnan(g->zmin) || !(dlen > 0.0))
+    if (isnan(g->zmin) || (unsigned)m >= TD_METHOD_COUNT || (unsigned)s >= TD_SURFACE_COUNT ||
+        !walk_setup(&w, g, s, r, &scale, &st))
         goto out;
-
-    /* Scale the direction by a power of two (exact) so its largest component is ~1. */
-    if (dlen < 0x1p-20 || dlen > 0x1p20) { /* only extreme directions need rescaling */
-        frexp(dlen, &exp2);
-        scale = ldexp(1.0, -exp2); /* exact power of two: d*scale and t/scale are exact */
-    }
-    for (int i = 0; i < 3; i++) {
-        d[i] = r->d[i] * scale;
-        if (fabs(d[i]) < 1e-200)
-            d[i] = 0.0;
-    }
-    w.g = g;
-    w.accel = v->accel;
-    w.surf = s;
-    w.ou = r->o[0] / g->sx;
-    w.ov = r->o[1] / g->sy;
-    w.oz = r->o[2];
-    w.du = d[0] / g->sx;
-    w.dv = d[1] / g->sy;
-    w.dz = d[2];
-    w.su = w.du > 0.0 ? 1 : (w.du < 0.0 ? -1 : 0);
-    w.sv = w.dv > 0.0 ? 1 : (w.dv < 0.0 ? -1 : 0);
-    w.iu = w.su ? 1.0 / w.du : INFINITY;
-    w.iv = w.sv ? 1.0 / w.dv : INFINITY;
-    w.hs = sqrt(d[0] * d[0] + d[1] * d[1]); /* no overflow: |d| <= 2^21 after scaling */
-    w.cmax_i = g->w - 2;
-    w.cmax_j = g->h - 2;
-    w.zeps = 1e-6 * (1.0 + dmax(fabs((double)g->zmin), fabs((double)g->zmax)));
-
-    /* Clip to the grid's box (the plane surface's columns reach down forever). */
-    t0 = r->tmin / scale;
-    t1 = r->tmax / scale;
-    clip_slab(w.ou, w.du, 0.0, (double)(g->w - 1), &t0, &t1);
-    clip_slab(w.ov, w.dv, 0.0, (double)(g->h - 1), &t0, &t1);
-    clip_slab(w.oz, w.dz, s == TD_SURFACE_PLANE ? -INFINITY : (double)g->zmin - w.zeps,
-              (double)g->zmax + w.zeps, &t0, &t1);
-    if (!(t0 <= t1))
-        goto out;
-    w.t_end = t1;
-
-    st.t = t0;
-    st.ci = cell_along(ray_u(&w, t0), w.su, 0, w.cmax_i);
-    st.cj = cell_along(ray_v(&w, t0), w.sv, 0, w.cmax_j);
-    st.f = NAN;
-    st.entry = ENTRY_START;
-
-    {
-        const td_tile *tile = NULL;
-        const td_tile_accel *ta = NULL;
-        rc = STEP_CONTINUE;
-        while (rc == STEP_CONTINUE) {
-            if (!tile || st.ci < tile->i0 || st.cj < tile->j0 || st.ci >= tile->i0 + tile->nx ||
-                st.cj >= tile->j0 + tile->ny) {
-                const td_tile *now = td_grid_tile_of_cell(g, st.ci, st.cj);
-                /* A new tile: skip it whole if the ray passes above or below it. */
-                int32_t ulo = now->i0, uhi = now->i0 + now->nx, vlo = now->j0, vhi = now->j0 + now->ny;
-                double tx = dmin(dmin(w.su > 0 ? time_u(&w, uhi) : time_u(&w, ulo),
-                                      w.sv > 0 ? time_v(&w, vhi) : time_v(&w, vlo)),
-                                 w.t_end);
-                double za = ray_z(&w, st.t), zb = ray_z(&w, tx);
-                tile = now;
-                steps++;
-                if (dmin(za, zb) > (double)now->zmax + w.zeps || now->zmax < now->zmin ||
-                    (s != TD_SURFACE_PLANE && dmax(za, zb) < (double)now->zmin - w.zeps)) {
-                    rc = leave_box(&w, &st, ulo, uhi, vlo, vhi);
-                    continue;
-                }
-                ta = v->accel ? &v->accel[now - g->tiles] : NULL;
-                used = choose_method(&w, m, ta,
-                                     fabs(ray_u(&w, tx) - ray_u(&w, st.t)) + fabs(ray_v(&w, tx) - ray_v(&w, st.t)));
-            }
-            if (used == TD_METHOD_HIERARCHICAL) {
-                rc = hier_run(&w, tile, ta->maxmip, &st, &steps, &hr);
-            } else if (used == TD_METHOD_PARAMETRIC) {
-                rc = cone_run(&w, tile, ta->planes, &st, &steps, &hr);
-            } else {
-                rc = walk_run(&w, &st, tile, &steps, &hr);
-            }
+    rc = STEP_CONTINUE;
+    while (rc == STEP_CONTINUE) {
+        if (tile && in_box(&st, &tb)) {
+            rc = method_runs[used](&w, tile, ta, &st, &steps, &hr);
+        } else if (st.ci < 0 || st.cj < 0 || st.ci > w.cmax_i || st.cj > w.cmax_j) {
+            rc = STEP_END; /* off the grid */
+        } else { /* a new tile: one step */
+            steps++;
+            rc = tile_enter(&w, v, m, &st, &tile, &ta, &used);
+            tb = tile_box(tile);
         }
     }
     if (rc == STEP_HIT) {
@@ -804,12 +942,11 @@ out:
 double td_surface_height(const td_grid *g, td_surface s, int32_t ci, int32_t cj, double x, double y)
 {
     double h = NAN;
-    if (ci >= 0 && cj >= 0 && ci < g->w - 1 && cj < g->h - 1) {
-        double c[4] = {sample(g, ci, cj), sample(g, ci + 1, cj), sample(g, ci, cj + 1),
-                       sample(g, ci + 1, cj + 1)};
+    if ((unsigned)s < TD_SURFACE_COUNT && ci >= 0 && cj >= 0 && ci < g->w - 1 && cj < g->h - 1) {
+        double c[4];
+        corners(g, ci, cj, c);
         if (!(isnan(c[0]) || isnan(c[1]) || isnan(c[2]) || isnan(c[3])))
-            h = interior_height(s == TD_SURFACE_LINEAR ? TD_SURFACE_BILINEAR : s, c,
-                                clamp01(x / g->sx - ci), clamp01(y / g->sy - cj));
+            h = surfaces[s].patch(c, clamp01(x / g->sx - ci), clamp01(y / g->sy - cj));
     }
     return h;
 }

@@ -29,6 +29,7 @@
 
 #include "accel.h"
 #include "dem.h"
+#include "limit.h"
 #include "render.h"
 #include "request.h"
 
@@ -243,10 +244,10 @@ static void cli_limits(td_request_limits *lim)
     td_request_limits_default(lim);
     lim->max_width = lim->max_height = 16384;
     lim->max_pixels = (uint64_t)16384 * 16384;
-    lim->max_samples = 8;
+    lim->max_samples = (int)td_limit_get(TD_LIMIT_SAMPLES)->max; /* what core accepts */
     lim->max_samples_total = (uint64_t)1 << 32;
-    lim->max_ao_rays = 1024;
-    lim->max_pick = TD_SCENE_PICK_MAX;
+    lim->max_ao_rays = (int)td_limit_get(TD_LIMIT_AO_RAYS)->max;
+    lim->max_pick = (int)td_limit_get(TD_LIMIT_PICK)->max;
     lim->allow_paths = 1;
 }
 

@@ -12,6 +12,7 @@
  * way. Rejected alternative: a JSON schema library (no Debian package fits, and the
  * messages would not name our fields the way the HTTP contract wants). */
 #include "request.h"
+#include "limit.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -22,15 +23,27 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* The range of a field from the table of limits (core/limit.h): its min, and the
+ * service's max for the fields td_request_limits does not hold. */
+static double lim_min(td_limit id)
+{
+    return td_limit_get(id)->min;
+}
+
+static double lim_api(td_limit id)
+{
+    return td_limit_get(id)->api_max;
+}
+
 void td_request_limits_default(td_request_limits *lim)
 {
-    lim->max_width = 4096;
-    lim->max_height = 4096;
+    lim->max_width = (int32_t)lim_api(TD_LIMIT_WIDTH);
+    lim->max_height = (int32_t)lim_api(TD_LIMIT_HEIGHT);
     lim->max_pixels = 16u << 20;
-    lim->max_samples = 4;
+    lim->max_samples = (int)lim_api(TD_LIMIT_SAMPLES);
     lim->max_samples_total = 64u << 20;
-    lim->max_ao_rays = 64;
-    lim->max_pick = 256;
+    lim->max_ao_rays = (int)lim_api(TD_LIMIT_AO_RAYS);
+    lim->max_pick = (int)lim_api(TD_LIMIT_PICK);
     lim->allow_paths = 0;
 }
 
@@ -445,9 +458,11 @@ static int parse_image(pctx *p, json_t *img, td_scene *s)
     int rc = check_keys(p, img, keys);
     long long w = s->image.width, h = s->image.height;
     const char *fmt = NULL;
-    if (!rc && integer(p, img, "width", 1, p->lim->max_width, &w) < 0)
+    if (!rc && integer(p, img, "width", (long long)lim_min(TD_LIMIT_WIDTH), p->lim->max_width,
+                       &w) < 0)
         rc = -1;
-    if (!rc && integer(p, img, "height", 1, p->lim->max_height, &h) < 0)
+    if (!rc && integer(p, img, "height", (long long)lim_min(TD_LIMIT_HEIGHT), p->lim->max_height,
+                       &h) < 0)
         rc = -1;
     if (!rc && string(p, img, "format", &fmt) < 0)
         rc = -1;
@@ -487,12 +502,14 @@ static int parse_quality(pctx *p, json_t *q, td_scene *s)
             rc = fail(p, TD_EINVAL, "'%.40s' is not plane, linear, triangle or bilinear", sf);
         pop(p, old);
     }
-    if (!rc && integer(p, q, "samples", 1, p->lim->max_samples, &n) < 0)
+    if (!rc && integer(p, q, "samples", (long long)lim_min(TD_LIMIT_SAMPLES), p->lim->max_samples,
+                       &n) < 0)
         rc = -1;
     s->quality.samples = (int)n;
-    /* lod: true/false, or a number: pixels one coarse cell may span (0.25 .. 64) */
+    /* lod: true/false, or a number: pixels one coarse cell may span */
     if (!rc && json_is_number(json_object_get(q, "lod"))) {
-        if (num(p, q, "lod", 0.25, 64.0, &s->quality.lod_pixels) < 0)
+        if (num(p, q, "lod", lim_min(TD_LIMIT_LOD_PIXELS), lim_api(TD_LIMIT_LOD_PIXELS),
+                &s->quality.lod_pixels) < 0)
             rc = -1;
         s->quality.lod = 1;
     } else if (!rc && boolean(p, q, "lod", &s->quality.lod) < 0) {
@@ -559,20 +576,23 @@ static int parse_effects(pctx *p, json_t *fx, td_scene *s)
         rc = check_keys(p, o, k2);
         if (!rc && num(p, o, "azimuth", -TD_ANGLE, TD_ANGLE, &e->sun_azimuth) < 0)
             rc = -1;
-        if (!rc && num(p, o, "elevation", -90.0, 90.0, &e->sun_elevation) < 0)
+        if (!rc && num(p, o, "elevation", lim_min(TD_LIMIT_SUN_ELEVATION),
+                       lim_api(TD_LIMIT_SUN_ELEVATION), &e->sun_elevation) < 0)
             rc = -1;
         pop(p, old);
     }
-    if (!rc && num(p, fx, "ambient", 0.0, 1.0, &e->ambient) < 0)
+    if (!rc && num(p, fx, "ambient", lim_min(TD_LIMIT_AMBIENT), lim_api(TD_LIMIT_AMBIENT),
+                   &e->ambient) < 0)
         rc = -1;
     if (!rc && boolean(p, fx, "shadows", &e->shadows) < 0)
         rc = -1;
     if (!rc && boolean(p, fx, "sky", &e->sky) < 0)
         rc = -1;
-    if (!rc && (switch_number(p, fx, "haze", &e->haze, "visibility_km", 0.01, 10000.0,
-                              &e->haze_visibility_km) < 0 ||
+    if (!rc && (switch_number(p, fx, "haze", &e->haze, "visibility_km", lim_min(TD_LIMIT_HAZE_KM),
+                              lim_api(TD_LIMIT_HAZE_KM), &e->haze_visibility_km) < 0 ||
                 switch_number(p, fx, "water", &e->water, "level", -1e5, 1e5, &e->water_level) < 0 ||
-                switch_number(p, fx, "curvature", &e->curvature, "k", -0.99, 0.99, &e->curvature_k) < 0))
+                switch_number(p, fx, "curvature", &e->curvature, "k", lim_min(TD_LIMIT_CURVATURE_K),
+                              lim_api(TD_LIMIT_CURVATURE_K), &e->curvature_k) < 0))
         rc = -1;
     /* ambient_occlusion: N, or {"rays": N, "radius": metres} */
     json_t *ao = json_object_get(fx, "ambient_occlusion");
@@ -581,7 +601,8 @@ static int parse_effects(pctx *p, json_t *fx, td_scene *s)
         long long n = 8;
         old = push(p, "ambient_occlusion");
         rc = check_keys(p, ao, k2);
-        if (!rc && integer(p, ao, "rays", 0, p->lim->max_ao_rays, &n) < 0)
+        if (!rc && integer(p, ao, "rays", (long long)lim_min(TD_LIMIT_AO_RAYS),
+                           p->lim->max_ao_rays, &n) < 0)
             rc = -1;
         if (!rc && num(p, ao, "radius", 0.001, 1e6, &e->ao_radius) < 0)
             rc = -1;
@@ -589,7 +610,8 @@ static int parse_effects(pctx *p, json_t *fx, td_scene *s)
         pop(p, old);
     } else if (!rc && ao) {
         long long n = 0;
-        if (integer(p, fx, "ambient_occlusion", 0, p->lim->max_ao_rays, &n) < 0)
+        if (integer(p, fx, "ambient_occlusion", (long long)lim_min(TD_LIMIT_AO_RAYS),
+                    p->lim->max_ao_rays, &n) < 0)
             rc = -1;
         e->ambient_occlusion = (int)n;
     }

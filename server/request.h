@@ -16,13 +16,16 @@
 
 #include "scene.h"
 
+/* Defaults of the members that core/limit.h has a row for: the row's api_max (a caller
+ * may raise them up to its max, what td_render accepts); the other ranges of scene
+ * fields are the table's, not settable here. */
 typedef struct td_request_limits {
-    int32_t max_width, max_height; /* pixels per side (default 4096) */
+    int32_t max_width, max_height; /* pixels per side */
     uint64_t max_pixels;           /* width * height (default 16 Mpx) */
-    int max_samples;               /* n of n x n supersampling, <= 8 (default 4) */
+    int max_samples;               /* n of n x n supersampling */
     uint64_t max_samples_total;    /* width * height * n * n (default 64 M) */
-    int max_ao_rays;               /* (default 64) */
-    int max_pick;                  /* pixels in one pick (default 256, <= TD_SCENE_PICK_MAX) */
+    int max_ao_rays;
+    int max_pick;                  /* pixels in one pick (<= TD_SCENE_PICK_MAX) */
     int allow_paths;               /* dataset and drape may be file paths (CLI); else they
                                       must be ids: [A-Za-z0-9_.-], not starting with '.' */
 } td_request_limits;

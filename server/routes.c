@@ -10,8 +10,9 @@
  *
  * Renders, picks and map tiles run on the HTTP layer's bounded worker queue
  * (td_http_defer): the handler parses and validates on the HTTP thread (so a bad
- * request never takes a queue slot), a full queue answers 503 with Retry-After, and the
- * worker takes a tile-store snapshot, renders, encodes and fills the response with
+ * request never takes a queue slot) and takes the tile-store snapshot (the dataset
+ * resolved once, for the ETag, the drape and the render), a full queue answers 503 with
+ * Retry-After, and the worker renders, encodes and fills the response with
  * Server-Timing (parse, queue, every render stage that ran, encode). The HTTP layer
  * raises a render's cancel flag at its deadline (--render-timeout) and at shutdown.
  * Elsewhere: the web page's files (static.c), the pick answer (answer.c, shared with
@@ -673,6 +674,7 @@ typedef struct td_rjob {
     int get;           /* GET: ETag and Cache-Control */
     double parse_ms;
     char etag[40];
+    td_snapshot *snap; /* the dataset, acquired by render_defer, released with the job */
     td_scene scene;    /* large (the pick list): the job is heap-allocated */
 } td_rjob;
 
@@ -757,23 +759,17 @@ static void timing_header(td_http_resp *r, const td_rjob *j, double queue_ms,
     td_http_resp_header(r, "Server-Timing", "%s", v);
 }
 
-/* A core error: input at fault (400, with the field named before ": ") or not. */
-static void render_error(const td_app *app, td_http_resp *r, td_status rc, const char *msg)
+/* A core error: input at fault (400, with the field core named in e->field) or not. */
+static void render_error(const td_app *app, td_http_resp *r, td_status rc, const td_err *e)
 {
-    char field[128] = "";
-    const char *colon = strstr(msg, ": ");
-    if (colon && (size_t)(colon - msg) < sizeof field && !memchr(msg, ' ', (size_t)(colon - msg))) {
-        memcpy(field, msg, (size_t)(colon - msg));
-        field[colon - msg] = '\0';
-    }
     if (rc == TD_ECANCELED && !atomic_load(&((td_app *)app)->ready))
         api_error(r, TD_AE_STOPPING, NULL, "the server stopped before the render finished");
     else if (rc == TD_ECANCELED)
         api_error(r, TD_AE_TIMEOUT, NULL, "the render did not finish within --render-timeout");
     else if (rc == TD_ENOMEM || rc == TD_EIO)
-        api_error(r, TD_AE_INTERNAL, NULL, "%s", msg);
+        api_error(r, TD_AE_INTERNAL, NULL, "%s", e->msg);
     else
-        api_error(r, TD_AE_BAD_REQUEST, field[0] ? field : NULL, "%s", msg);
+        api_error(r, TD_AE_BAD_REQUEST, e->field[0] ? e->field : NULL, "%s", e->msg);
 }
 
 /* A pick: 200 with the picks' JSON and their stats in *st; else r holds the error.
@@ -790,7 +786,7 @@ static int work_pick(td_app *app, td_rjob *j, const td_view *v, td_http_resp *r,
     }
     rc = td_render_pick(v, &j->scene, picks, st, &e);
     if (rc) {
-        render_error(app, r, rc, e.msg);
+        render_error(app, r, rc, &e);
         goto out;
     }
     send_json(r, 200, td_answer_picks(j->scene.dataset, v->grid, picks, j->scene.npick));
@@ -816,11 +812,17 @@ static int work_image(td_app *app, td_rjob *j, td_http_req *q, td_snapshot *snap
     o.threads = 1; /* one render per worker; the workers use the cores */
     o.cancel = td_http_req_cancel(q); /* raised at --render-timeout (http.c) */
     o.lod = td_snapshot_lod(snap);
-    rc = td_render(td_snapshot_view(snap), &j->scene, &o, res, &e);
+    /* the drape, decoded once and kept with the dataset (a depth image has none) */
+    rc = TD_OK;
+    if (j->scene.effects.drape[0] && j->scene.image.format != TD_FORMAT_DEPTH16 &&
+        j->scene.image.format != TD_FORMAT_DEPTH32F)
+        rc = td_snapshot_drape(snap, j->scene.effects.drape, &o.drape, &e);
+    if (rc == TD_OK)
+        rc = td_render(td_snapshot_view(snap), &j->scene, &o, res, &e);
     if (rc == TD_OK)
         rc = td_render_encode(res, &j->scene, &buf, &depth_scale, &e);
     if (rc) {
-        render_error(app, r, rc, e.msg);
+        render_error(app, r, rc, &e);
         goto out;
     }
     r->status = 200;
@@ -859,17 +861,16 @@ static void work_headers(const td_rjob *j, const td_render_stats *st, td_http_re
     }
 }
 
-/* The worker's part of a render, pick or map tile (td_http_defer): a store snapshot, the
- * work, its headers and metrics, Server-Timing whatever the outcome; frees the job. */
+/* The worker's part of a render, pick or map tile (td_http_defer): on the job's store
+ * snapshot, the work, its headers and metrics, Server-Timing whatever the outcome; frees
+ * the job and releases the snapshot. */
 static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelled)
 {
     td_rjob *j = cls;
     td_app *app = j->app;
-    td_snapshot *snap = NULL;
+    td_snapshot *snap = j->snap;
     td_render_result res;
     td_render_stats pst;
-    td_err e = {0};
-    td_status rc;
     const td_view *v;
     double queue_ms = td_http_req_queue_wait(q) * 1e3, t0 = td_clock_s();
     const td_render_stats *st = NULL;
@@ -879,11 +880,6 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     if (cancelled) {
         td_http_resp_header(r, "Retry-After", "1");
         api_error(r, TD_AE_STOPPING, NULL, "the server is stopping");
-        goto out;
-    }
-    rc = td_store_acquire(app->store, j->scene.dataset, &snap, &e);
-    if (rc) {
-        api_error(r, rc == TD_ENOTFOUND ? TD_AE_UNKNOWN_DATASET : TD_AE_INTERNAL, "dataset", "%s", e.msg);
         goto out;
     }
     v = td_snapshot_view(snap);
@@ -914,32 +910,31 @@ out:
  * 304 for a matching If-None-Match, 503 with Retry-After when the queue is full. */
 static void render_defer(td_app *app, td_http_req *q, td_http_resp *r, td_rjob *j)
 {
-    const td_grid *g = NULL;
-    long idx = td_store_find(app->store, j->scene.dataset);
-    td_dataset_info di;
+    td_err e = {0};
+    td_status rc;
     int deferred = 0;
 
-    if (idx < 0) {
-        api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", j->scene.dataset);
+    rc = td_store_acquire(app->store, j->scene.dataset, &j->snap, &e);
+    if (rc) {
+        api_error(r, rc == TD_ENOTFOUND ? TD_AE_UNKNOWN_DATASET : TD_AE_INTERNAL, "dataset", "%s", e.msg);
         goto out;
     }
-    td_store_info(app->store, (size_t)idx, &di);
-    g = di.grid;
     if (j->scene.effects.drape[0]) {
         /* A drape is an id: a PNG beside the dataset's file, never a path. */
         char path[PATH_MAX];
+        const char *dir = td_snapshot_dir(j->snap);
         struct stat st;
-        if ((size_t)snprintf(path, sizeof path, "%s/%s.png", di.dir, j->scene.effects.drape) >=
+        if ((size_t)snprintf(path, sizeof path, "%s/%s.png", dir, j->scene.effects.drape) >=
                 sizeof path || sizeof j->scene.effects.drape <= strlen(path) || stat(path, &st) ||
             !S_ISREG(st.st_mode)) {
             api_error(r, TD_AE_BAD_REQUEST, "effects.drape",
-                      "effects.drape: dataset '%s' has no drape '%s'", di.id, j->scene.effects.drape);
+                      "effects.drape: dataset '%s' has no drape '%s'", j->scene.dataset, j->scene.effects.drape);
             goto out;
         }
         memcpy(j->scene.effects.drape, path, strlen(path) + 1); /* fits: checked above */
     }
     if (j->get && j->kind != TD_RK_TILE)
-        scene_etag(&j->scene, g, j->etag, sizeof j->etag);
+        scene_etag(&j->scene, td_snapshot_view(j->snap)->grid, j->etag, sizeof j->etag);
     if (j->get && etag_matches(q, j->etag)) {
         r->status = 304;
         td_http_resp_header(r, "ETag", "%s", j->etag);
@@ -957,8 +952,10 @@ static void render_defer(td_app *app, td_http_req *q, td_http_resp *r, td_rjob *
                       app->cfg->render_workers, app->cfg->queue);
     }
 out:
-    if (!deferred)
+    if (!deferred) {
+        td_snapshot_release(j->snap);
         free(j);
+    }
 }
 
 typedef struct td_qargs {

@@ -1,15 +1,26 @@
 /* tilestore.c: datasets, per-tile reference-counted acceleration, LRU under a memory
- * budget, preload and the disk cache (see tilestore.h for the model).
+ * budget, preload, the disk cache and the datasets' decoded drapes (see tilestore.h for
+ * the model). Called by the daemon's routes and admin jobs, and by `terrad serve` at
+ * start; tests/server/test_tilestore.c drives it alone (also under ThreadSanitizer).
  *
  * Layout:
  *   td_store { mu, clock, resident_bytes, ds[] }
- *     td_ds { id, grid, slots[ntiles] }
- *       td_slot { mm, pl : td_part*, stamp (LRU clock), pinned, job (in a running preload) }
- *         td_part { atomic refs, kind, maxmip | planes, bytes }   immutable once built
- * Slots are read and written under `mu` only; a part's refcount is atomic so that
- * snapshots release without the lock. LRU picks the smallest stamp by a scan over all
- * slots (a few thousand at most here); rejected: an intrusive list, which needs the same
- * lock and more code for no measurable gain at this size.
+ *     td_ds { id, grid, lod, slots[ntiles], counters, drapes }
+ *       td_slot { part[TD_PART_COUNT], stamp (LRU clock), pinned, job (in a running preload) }
+ *         td_part { atomic refs, kind, object, bytes }   immutable once built
+ *       td_drape { atomic refs, path, RGB image, bytes } immutable, kept for the store's life
+ * Slots and counters are read and written under `mu` only; a part's refcount is atomic
+ * so that snapshots release without the lock. A dataset's counters (tiles per kind,
+ * resident and pinned tiles, bytes) change with its slots in slot_put_locked and
+ * slot_pin_locked, so reading them walks nothing. LRU picks the smallest stamp by a
+ * scan over all slots (a few thousand at most here); rejected: an intrusive list, which
+ * needs the same lock and more code for no measurable gain at this size.
+ *
+ * Kinds: everything that differs between a max-mipmap and parameter planes is in
+ * td_part_ops (build, free, byte bound, hand-over to a view, the cache payload's shape
+ * and pieces), one row per TD_PART_LIST entry; the slot, snapshot, cache and preload
+ * code loops over kinds. A third kind is a row of TD_PART_LIST (tilestore.h) and its
+ * seven functions here, named after it (see TD_X_OPS).
  *
  * Measured (demo data, 64-cell tiles, 262 parts, one run each on a shared 2-core box):
  * building every part took 0.28 s, reading them back from the disk cache 0.011 s. */
@@ -21,6 +32,7 @@
 #include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -32,7 +44,18 @@
 #include "maxmip.h"
 #include "planes.h"
 
-typedef enum td_part_kind { TD_PART_MAXMIP = 0, TD_PART_PLANES = 1 } td_part_kind;
+/* The most pixels of a drape: td_render's own limit when it loads one itself
+ * (td_render_opts.drape_max_pixels 0). */
+#define TD_STORE_DRAPE_MAX_PIXELS (64u << 20)
+
+#define TD_X_CHECK(K, name, ext)                                                                \
+    _Static_assert(offsetof(td_preload_spec, name) == offsetof(td_preload_spec, build[TD_PART_##K]), \
+                   "td_preload_spec." #name " is build[TD_PART_" #K "]");                      \
+    _Static_assert(offsetof(td_dataset_info, name##_tiles) ==                                   \
+                       offsetof(td_dataset_info, part_tiles[TD_PART_##K]),                      \
+                   "td_dataset_info." #name "_tiles is part_tiles[TD_PART_" #K "]");
+TD_PART_LIST(TD_X_CHECK)
+#undef TD_X_CHECK
 
 typedef struct td_part {
     atomic_int refs;
@@ -42,11 +65,19 @@ typedef struct td_part {
 } td_part;
 
 typedef struct td_slot {
-    td_part *mm, *pl;
+    td_part *part[TD_PART_COUNT];
     uint64_t stamp;
-    int pinned;
+    int pinned; /* only while resident */
     int job;
 } td_slot;
+
+typedef struct td_drape {
+    atomic_int refs;
+    struct td_drape *next; /* the dataset's kept drapes */
+    td_image8 *img;
+    uint64_t bytes;
+    char path[];
+} td_drape;
 
 typedef struct td_ds {
     char id[TD_STORE_ID_MAX + 1];
@@ -59,15 +90,20 @@ typedef struct td_ds {
     td_slot *slots;
     uint64_t grid_bytes;
     uint64_t fingerprint; /* of heights and tiling, for the disk cache */
+    /* kept with the slots (store lock) */
+    size_t resident_tiles, pinned_tiles, part_tiles[TD_PART_COUNT];
+    uint64_t accel_bytes, drape_bytes;
+    td_drape *drapes;
 } td_ds;
 
 struct td_store {
     td_store_opts o;
     char *cache_dir;
-    pthread_mutex_t mu;       /* slots, clock, resident_bytes, counters */
+    int param[TD_PART_COUNT]; /* each kind's build parameter (planes: K) */
+    pthread_mutex_t mu;       /* slots, drapes, clock, resident_bytes, counters */
     pthread_mutex_t preload;  /* one preload at a time */
     uint64_t clock;
-    uint64_t resident_bytes;  /* grids + parts in slots */
+    uint64_t resident_bytes;  /* grids + parts in slots + kept drapes */
     uint64_t tiles_built, tiles_evicted, cache_hits, cache_misses;
     td_ds *ds;
     size_t nds;
@@ -75,11 +111,224 @@ struct td_store {
 
 struct td_snapshot {
     td_view view;
-    const td_lod *lod;
+    td_store *store;
+    size_t ds;
     td_tile_accel *accel;
     td_part **parts;
     size_t nparts;
-    size_t nmm, npl;
+    size_t count[TD_PART_COUNT];
+    td_drape *drape;
+};
+
+/* --- the kinds of part: per-kind operations --------------------------------------- */
+
+#define TD_CACHE_MAGIC "TDACCEL"
+#define TD_CACHE_VERSION 3u /* 2: planes stored as interleaved cones; 3: quantised cones */
+
+/* A cache file: this header, then the payload (the kind's pieces in order). The layout
+ * is version 3's: `param` was named planes_k, and the shape fields (levels, dim, offset,
+ * slope_scale) are each kind's to fill. */
+typedef struct td_cache_hdr {
+    char magic[8];
+    uint32_t version, kind;
+    uint64_t fingerprint;
+    uint32_t tile_log2, param; /* the kind's build parameter (planes: K; maxmip: 0) */
+    uint64_t tile;
+    int32_t nx, ny;
+    int32_t levels, pad;
+    int32_t dim[17];
+    int32_t pad2;
+    uint64_t offset[17];
+    double slope_scale; /* planes */
+    uint64_t payload;   /* bytes after the header */
+    uint64_t checksum;
+} td_cache_hdr;
+
+/* One contiguous piece of a part's payload. */
+typedef struct td_piece {
+    void *ptr;
+    size_t len;
+} td_piece;
+
+#define TD_PIECES_MAX 4
+
+typedef struct td_part_ops {
+    const char *name, *ext;
+    /* the kind's build parameter from the store's options */
+    int (*param)(const td_store_opts *o);
+    /* builds tile's structure: the object and its resident bytes */
+    td_status (*build)(const td_grid *g, size_t tile, int param, void **obj, size_t *bytes,
+                       td_err *err);
+    void (*free)(void *obj);
+    /* an upper bound of the part's bytes, for the preload's up-front budget check */
+    uint64_t (*bound)(const td_tile *t, int tile_log2, int param);
+    /* hands the object to a view's record of the tile */
+    void (*attach)(td_tile_accel *a, const void *obj);
+    /* cache write: fills h's shape fields, lists the payload's pieces; returns how many */
+    int (*pieces)(void *obj, td_cache_hdr *h, td_piece *pc);
+    /* cache read: checks h's shape fields (the common ones already match), makes an
+     * object whose pieces the payload fills; returns NULL, or why not */
+    const char *(*alloc)(const td_cache_hdr *h, void **obj, size_t *bytes, td_piece *pc,
+                         int *npc);
+} td_part_ops;
+
+/* max-mipmaps (maxmip.h) */
+
+static int maxmip_param(const td_store_opts *o)
+{
+    (void)o;
+    return 0;
+}
+
+static td_status maxmip_build(const td_grid *g, size_t tile, int param, void **obj,
+                              size_t *bytes, td_err *err)
+{
+    td_maxmip *m = NULL;
+    td_status rc = td_maxmip_build(g, tile, &m, err);
+    (void)param;
+    *obj = m;
+    *bytes = m ? m->bytes : 0;
+    return rc;
+}
+
+static void maxmip_free(void *obj) { td_maxmip_free(obj); }
+
+static uint64_t maxmip_bound(const td_tile *t, int tile_log2, int param)
+{
+    uint64_t tt = (uint64_t)1 << tile_log2;
+    (void)t;
+    (void)param;
+    return sizeof(td_maxmip) + sizeof(float) * (tt * tt / 3 + 64);
+}
+
+static void maxmip_attach(td_tile_accel *a, const void *obj) { a->maxmip = obj; }
+
+static int maxmip_pieces(void *obj, td_cache_hdr *h, td_piece *pc)
+{
+    td_maxmip *m = obj;
+    h->levels = m->levels;
+    for (int i = 0; i < 17; i++) {
+        h->dim[i] = m->dim[i];
+        h->offset[i] = m->offset[i];
+    }
+    pc[0].ptr = m->max;
+    pc[0].len = (m->bytes - sizeof *m) / sizeof(float) * sizeof(float);
+    return 1;
+}
+
+static const char *maxmip_alloc(const td_cache_hdr *h, void **obj, size_t *bytes, td_piece *pc,
+                                int *npc)
+{
+    const char *why = NULL;
+    td_maxmip *m = calloc(1, sizeof *m);
+    *obj = m;
+    if (!m || h->levels < 0 || h->levels > 16 || h->payload % sizeof(float)) {
+        why = "bad shape";
+        goto out;
+    }
+    for (int L = 1; L <= h->levels; L++) {
+        size_t end = (size_t)h->offset[L] + (size_t)h->dim[L] * (size_t)h->dim[L];
+        if (h->dim[L] < 0 || end * sizeof(float) > h->payload) {
+            why = "bad shape";
+            goto out;
+        }
+    }
+    m->levels = h->levels;
+    for (int i = 0; i < 17; i++) {
+        m->dim[i] = h->dim[i];
+        m->offset[i] = (size_t)h->offset[i];
+    }
+    m->max = malloc(h->payload ? h->payload : 1);
+    if (!m->max) {
+        why = "out of memory";
+        goto out;
+    }
+    m->bytes = sizeof *m + h->payload;
+    *bytes = m->bytes;
+    pc[0].ptr = m->max;
+    pc[0].len = h->payload;
+    *npc = 1;
+out:
+    return why;
+}
+
+/* parameter planes (planes.h) */
+
+static int planes_param(const td_store_opts *o) { return o->planes_k; }
+
+static td_status planes_build(const td_grid *g, size_t tile, int param, void **obj,
+                              size_t *bytes, td_err *err)
+{
+    td_planes *p = NULL;
+    td_status rc = td_planes_build(g, tile, param, &p, err);
+    *obj = p;
+    *bytes = p ? p->bytes : 0;
+    return rc;
+}
+
+static void planes_free(void *obj) { td_planes_free(obj); }
+
+static uint64_t planes_bound(const td_tile *t, int tile_log2, int param)
+{
+    (void)tile_log2;
+    return sizeof(td_planes) + sizeof(td_cone) * (uint64_t)t->nx * (uint64_t)t->ny +
+           sizeof(float) * ((uint64_t)param + 1);
+}
+
+static void planes_attach(td_tile_accel *a, const void *obj) { a->planes = obj; }
+
+static int planes_pieces(void *obj, td_cache_hdr *h, td_piece *pc)
+{
+    td_planes *p = obj;
+    h->levels = p->k;
+    h->slope_scale = p->slope_scale;
+    pc[0].ptr = p->cone;
+    pc[0].len = (size_t)p->nx * (size_t)p->ny * sizeof(td_cone);
+    pc[1].ptr = p->apex;
+    pc[1].len = ((size_t)p->k + 1) * sizeof(float);
+    return 2;
+}
+
+static const char *planes_alloc(const td_cache_hdr *h, void **obj, size_t *bytes, td_piece *pc,
+                                int *npc)
+{
+    const char *why = NULL;
+    td_planes *p = calloc(1, sizeof *p);
+    size_t n = (size_t)h->nx * (size_t)h->ny * sizeof(td_cone);
+    size_t na = ((size_t)h->param + 1) * sizeof(float);
+    *obj = p;
+    if (!p || h->payload != n + na || h->levels != (int32_t)h->param || !(h->slope_scale > 0.0) ||
+        !isfinite(h->slope_scale)) {
+        why = "bad shape";
+        goto out;
+    }
+    p->k = h->levels;
+    p->nx = h->nx;
+    p->ny = h->ny;
+    p->slope_scale = h->slope_scale;
+    p->cone = malloc(n ? n : 1);
+    p->apex = malloc(na);
+    if (!p->cone || !p->apex) {
+        why = "out of memory";
+        goto out;
+    }
+    p->bytes = sizeof *p + n + na;
+    *bytes = p->bytes;
+    pc[0].ptr = p->cone;
+    pc[0].len = n;
+    pc[1].ptr = p->apex;
+    pc[1].len = na;
+    *npc = 2;
+out:
+    return why;
+}
+
+static const td_part_ops td_part_ops_of[TD_PART_COUNT] = {
+#define TD_X_OPS(K, name, ext)                                                                  \
+    [TD_PART_##K] = {#name, ext, name##_param, name##_build, name##_free, name##_bound,         \
+                     name##_attach, name##_pieces, name##_alloc},
+    TD_PART_LIST(TD_X_OPS)
+#undef TD_X_OPS
 };
 
 /* --- parts ------------------------------------------------------------------------ */
@@ -99,10 +348,7 @@ static td_part *part_new(td_part_kind kind, void *ptr, size_t bytes)
 static void part_unref(td_part *p)
 {
     if (p && atomic_fetch_sub_explicit(&p->refs, 1, memory_order_acq_rel) == 1) {
-        if (p->kind == TD_PART_MAXMIP)
-            td_maxmip_free(p->ptr);
-        else
-            td_planes_free(p->ptr);
+        td_part_ops_of[p->kind].free(p->ptr);
         free(p);
     }
 }
@@ -110,6 +356,104 @@ static void part_unref(td_part *p)
 static void part_ref(td_part *p)
 {
     atomic_fetch_add_explicit(&p->refs, 1, memory_order_relaxed);
+}
+
+static void drape_unref(td_drape *dr)
+{
+    if (dr && atomic_fetch_sub_explicit(&dr->refs, 1, memory_order_acq_rel) == 1) {
+        td_image_free(dr->img);
+        free(dr);
+    }
+}
+
+/* --- slots (store lock held) ------------------------------------------------------ */
+
+static int slot_resident(const td_slot *sl)
+{
+    int any = 0;
+    for (int k = 0; k < TD_PART_COUNT; k++)
+        any |= sl->part[k] != NULL;
+    return any;
+}
+
+/* Puts part p (NULL: none) in the slot as its kind-k part, dropping the store's
+ * reference to the one it replaces; keeps the store's and the dataset's counters. A
+ * slot left with no part is unpinned. */
+static void slot_put_locked(td_store *s, td_ds *d, td_slot *sl, td_part_kind k, td_part *p)
+{
+    td_part *old = sl->part[k];
+    int was = slot_resident(sl), now;
+    if (old) {
+        s->resident_bytes -= old->bytes;
+        d->accel_bytes -= old->bytes;
+        d->part_tiles[k]--;
+        part_unref(old);
+    }
+    sl->part[k] = p;
+    if (p) {
+        s->resident_bytes += p->bytes;
+        d->accel_bytes += p->bytes;
+        d->part_tiles[k]++;
+    }
+    now = slot_resident(sl);
+    d->resident_tiles = d->resident_tiles + (size_t)now - (size_t)was;
+    if (!now && sl->pinned) {
+        sl->pinned = 0;
+        d->pinned_tiles--;
+    }
+}
+
+/* Pins a resident slot. */
+static void slot_pin_locked(td_ds *d, td_slot *sl)
+{
+    if (slot_resident(sl) && !sl->pinned) {
+        sl->pinned = 1;
+        d->pinned_tiles++;
+    }
+}
+
+/* Drops a slot's parts. */
+static void slot_clear_locked(td_store *s, td_ds *d, td_slot *sl)
+{
+    if (slot_resident(sl))
+        s->tiles_evicted++;
+    for (int k = 0; k < TD_PART_COUNT; k++)
+        slot_put_locked(s, d, sl, (td_part_kind)k, NULL);
+}
+
+/* Evicts the least recently used unpinned tile outside the running preload; 0 if none. */
+static int evict_lru_locked(td_store *s)
+{
+    td_slot *best = NULL;
+    td_ds *bd = NULL;
+    for (size_t d = 0; d < s->nds; d++)
+        for (size_t t = 0; t < s->ds[d].ntiles; t++) {
+            td_slot *sl = &s->ds[d].slots[t];
+            if (slot_resident(sl) && !sl->pinned && !sl->job && (!best || sl->stamp < best->stamp)) {
+                best = sl;
+                bd = &s->ds[d];
+            }
+        }
+    if (best)
+        slot_clear_locked(s, bd, best);
+    return best != NULL;
+}
+
+/* Bytes a preload must leave alone: heights, kept drapes, and the parts of pinned tiles
+ * and of tiles in the running preload. */
+static uint64_t kept_bytes_locked(const td_store *s)
+{
+    uint64_t kept = 0;
+    for (size_t k = 0; k < s->nds; k++) {
+        const td_ds *d = &s->ds[k];
+        kept += d->grid_bytes + d->drape_bytes;
+        for (size_t t = 0; t < d->ntiles; t++) {
+            const td_slot *sl = &d->slots[t];
+            for (int j = 0; j < TD_PART_COUNT && (sl->pinned || sl->job); j++)
+                kept += sl->part[j] ? sl->part[j]->bytes : 0;
+        }
+    }
+    return kept;
 }
 
 /* --- store ------------------------------------------------------------------------ */
@@ -140,6 +484,8 @@ td_status td_store_create(const td_store_opts *o, td_store **out, td_err *err)
         }
     }
     s->o.cache_dir = s->cache_dir;
+    for (int k = 0; k < TD_PART_COUNT; k++)
+        s->param[k] = td_part_ops_of[k].param(&s->o);
     pthread_mutex_init(&s->mu, NULL);
     pthread_mutex_init(&s->preload, NULL);
     *out = s;
@@ -157,13 +503,18 @@ void td_store_free(td_store *s)
     if (!s)
         return;
     for (size_t d = 0; d < s->nds; d++) {
-        for (size_t t = 0; t < s->ds[d].ntiles; t++) {
-            part_unref(s->ds[d].slots[t].mm);
-            part_unref(s->ds[d].slots[t].pl);
+        td_ds *ds = &s->ds[d];
+        for (size_t t = 0; t < ds->ntiles; t++)
+            for (int k = 0; k < TD_PART_COUNT; k++)
+                part_unref(ds->slots[t].part[k]);
+        while (ds->drapes) {
+            td_drape *next = ds->drapes->next;
+            drape_unref(ds->drapes);
+            ds->drapes = next;
         }
-        free(s->ds[d].slots);
-        td_lod_free(s->ds[d].lod);
-        td_grid_free(s->ds[d].grid);
+        free(ds->slots);
+        td_lod_free(ds->lod);
+        td_grid_free(ds->grid);
     }
     free(s->ds);
     free(s->cache_dir);
@@ -283,6 +634,7 @@ out:
     td_lod_free(lod);
     td_grid_free(g);
     return rc;
+
 }
 
 static void set_file(td_store *s, const char *id, const char *path, const char *file)
@@ -311,7 +663,7 @@ static int load_one(td_store *s, const char *path, const char *name, const char 
 {
     td_dem_opts o;
     td_grid *g = NULL;
-    td_err e = {{0}};
+    td_err e = {0};
     char qp[600], qm[600];
     td_status rc;
     int ok = 0;
@@ -436,14 +788,12 @@ void td_store_info(td_store *s, size_t idx, td_dataset_info *out)
     out->ntiles = d->ntiles;
     out->grid_bytes = d->grid_bytes;
     pthread_mutex_lock(&s->mu);
-    for (size_t t = 0; t < d->ntiles; t++) {
-        const td_slot *sl = &d->slots[t];
-        out->resident_tiles += sl->mm || sl->pl;
-        out->maxmip_tiles += sl->mm != NULL;
-        out->planes_tiles += sl->pl != NULL;
-        out->pinned_tiles += sl->pinned && (sl->mm || sl->pl);
-        out->accel_bytes += (sl->mm ? sl->mm->bytes : 0) + (sl->pl ? sl->pl->bytes : 0);
-    }
+    out->resident_tiles = d->resident_tiles;
+    for (int k = 0; k < TD_PART_COUNT; k++)
+        out->part_tiles[k] = d->part_tiles[k];
+    out->pinned_tiles = d->pinned_tiles;
+    out->accel_bytes = d->accel_bytes;
+    out->drape_bytes = d->drape_bytes;
     pthread_mutex_unlock(&s->mu);
 }
 
@@ -455,8 +805,7 @@ void td_store_stats_get(td_store *s, td_store_stats *st)
     pthread_mutex_lock(&s->mu);
     for (size_t d = 0; d < s->nds; d++) {
         st->total_tiles += s->ds[d].ntiles;
-        for (size_t t = 0; t < s->ds[d].ntiles; t++)
-            st->resident_tiles += s->ds[d].slots[t].mm || s->ds[d].slots[t].pl;
+        st->resident_tiles += s->ds[d].resident_tiles;
     }
     st->resident_bytes = s->resident_bytes;
     st->tiles_built = s->tiles_built;
@@ -485,33 +834,30 @@ td_status td_store_acquire(td_store *s, const char *id, td_snapshot **out, td_er
     snap = calloc(1, sizeof *snap);
     if (snap) {
         snap->accel = calloc(d->ntiles, sizeof *snap->accel);
-        snap->parts = calloc(2 * d->ntiles, sizeof *snap->parts);
+        snap->parts = calloc(d->ntiles, TD_PART_COUNT * sizeof *snap->parts);
     }
     if (!snap || !snap->accel || !snap->parts) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for a snapshot of '%s'", d->id);
         goto out;
     }
+    snap->store = s;
+    snap->ds = (size_t)idx;
     snap->view.grid = d->grid;
-    snap->lod = d->lod;
     snap->view.accel = snap->accel;
     pthread_mutex_lock(&s->mu);
     stamp = ++s->clock;
     for (size_t t = 0; t < d->ntiles; t++) {
         td_slot *sl = &d->slots[t];
-        if (sl->mm) {
-            part_ref(sl->mm);
-            snap->parts[snap->nparts++] = sl->mm;
-            snap->accel[t].maxmip = sl->mm->ptr;
-            snap->nmm++;
+        for (int k = 0; k < TD_PART_COUNT; k++) {
+            td_part *p = sl->part[k];
+            if (p) {
+                part_ref(p);
+                snap->parts[snap->nparts++] = p;
+                td_part_ops_of[k].attach(&snap->accel[t], p->ptr);
+                snap->count[k]++;
+                sl->stamp = stamp;
+            }
         }
-        if (sl->pl) {
-            part_ref(sl->pl);
-            snap->parts[snap->nparts++] = sl->pl;
-            snap->accel[t].planes = sl->pl->ptr;
-            snap->npl++;
-        }
-        if (sl->mm || sl->pl)
-            sl->stamp = stamp;
     }
     pthread_mutex_unlock(&s->mu);
     *out = snap;
@@ -523,11 +869,13 @@ out:
 
 const td_view *td_snapshot_view(const td_snapshot *snap) { return &snap->view; }
 
-const td_lod *td_snapshot_lod(const td_snapshot *snap) { return snap->lod; }
+const td_lod *td_snapshot_lod(const td_snapshot *snap) { return snap->store->ds[snap->ds].lod; }
 
-size_t td_snapshot_count(const td_snapshot *snap, int planes)
+const char *td_snapshot_dir(const td_snapshot *snap) { return snap->store->ds[snap->ds].dir; }
+
+size_t td_snapshot_count(const td_snapshot *snap, td_part_kind kind)
 {
-    return planes ? snap->npl : snap->nmm;
+    return (unsigned)kind < TD_PART_COUNT ? snap->count[kind] : 0;
 }
 
 void td_snapshot_release(td_snapshot *snap)
@@ -536,45 +884,112 @@ void td_snapshot_release(td_snapshot *snap)
         return;
     for (size_t i = 0; i < snap->nparts; i++)
         part_unref(snap->parts[i]);
+    drape_unref(snap->drape);
     free(snap->parts);
     free(snap->accel);
     free(snap);
 }
 
-/* --- eviction --------------------------------------------------------------------- */
+/* --- drapes ----------------------------------------------------------------------- */
 
-/* Drops a slot's parts (store lock held). */
-static void slot_clear_locked(td_store *s, td_slot *sl)
+/* The dataset's kept drape decoded from `path`, with a reference for the caller; NULL if
+ * none is kept. */
+static td_drape *drape_find_locked(td_ds *d, const char *path)
 {
-    if (sl->mm || sl->pl)
-        s->tiles_evicted++;
-    if (sl->mm) {
-        s->resident_bytes -= sl->mm->bytes;
-        part_unref(sl->mm);
-        sl->mm = NULL;
-    }
-    if (sl->pl) {
-        s->resident_bytes -= sl->pl->bytes;
-        part_unref(sl->pl);
-        sl->pl = NULL;
-    }
-    sl->pinned = 0;
+    td_drape *dr = d->drapes;
+    while (dr && strcmp(dr->path, path))
+        dr = dr->next;
+    if (dr)
+        atomic_fetch_add_explicit(&dr->refs, 1, memory_order_relaxed);
+    return dr;
 }
 
-/* Evicts the least recently used unpinned tile outside the running preload; 0 if none. */
-static int evict_lru_locked(td_store *s)
+static td_status drape_decode(const char *path, td_drape **out, td_err *err)
 {
-    td_slot *best = NULL;
-    for (size_t d = 0; d < s->nds; d++)
-        for (size_t t = 0; t < s->ds[d].ntiles; t++) {
-            td_slot *sl = &s->ds[d].slots[t];
-            if ((sl->mm || sl->pl) && !sl->pinned && !sl->job && (!best || sl->stamp < best->stamp))
-                best = sl;
+    td_status rc;
+    td_image8 *img = NULL;
+    size_t len = strlen(path) + 1;
+
+    *out = NULL;
+    rc = td_image_load(path, 3, TD_STORE_DRAPE_MAX_PIXELS, &img, err);
+    if (rc)
+        goto out;
+    *out = malloc(sizeof **out + len);
+    if (!*out) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for the drape %s", path);
+        goto out;
+    }
+    atomic_init(&(*out)->refs, 1);
+    (*out)->next = NULL;
+    (*out)->img = img;
+    (*out)->bytes = sizeof **out + len + sizeof *img +
+                    (uint64_t)img->width * (uint64_t)img->height * (uint64_t)img->channels;
+    memcpy((*out)->path, path, len);
+    img = NULL;
+out:
+    td_image_free(img);
+    return rc;
+}
+
+/* Keeps a new drape with its dataset (a reference of its own) if the budget has room
+ * for it after evicting acceleration least recently used first; 0 if it has not. */
+static int drape_keep_locked(td_store *s, td_ds *d, td_drape *dr)
+{
+    int kept;
+    while (s->resident_bytes + dr->bytes > s->o.budget_bytes && evict_lru_locked(s))
+        ;
+    kept = s->resident_bytes + dr->bytes <= s->o.budget_bytes;
+    if (kept) {
+        atomic_fetch_add_explicit(&dr->refs, 1, memory_order_relaxed);
+        dr->next = d->drapes;
+        d->drapes = dr;
+        d->drape_bytes += dr->bytes;
+        s->resident_bytes += dr->bytes;
+    }
+    return kept;
+}
+
+td_status td_snapshot_drape(td_snapshot *snap, const char *path, const td_image8 **out,
+                            td_err *err)
+{
+    td_status rc = TD_OK;
+    td_store *s = snap->store;
+    td_ds *d = &s->ds[snap->ds];
+    td_drape *dr, *mine = NULL;
+    int kept = 1;
+
+    *out = NULL;
+    pthread_mutex_lock(&s->mu);
+    dr = drape_find_locked(d, path);
+    pthread_mutex_unlock(&s->mu);
+    if (!dr) {
+        /* decoded without the lock; a render that decoded it meanwhile wins */
+        rc = drape_decode(path, &mine, err);
+        if (rc)
+            goto out;
+        pthread_mutex_lock(&s->mu);
+        dr = drape_find_locked(d, path);
+        if (!dr) {
+            dr = mine;
+            mine = NULL;
+            kept = drape_keep_locked(s, d, dr);
         }
-    if (best)
-        slot_clear_locked(s, best);
-    return best != NULL;
+        pthread_mutex_unlock(&s->mu);
+    }
+    if (!kept) {
+        char q[600];
+        td_log(TD_LOG_WARN, "drape_not_kept", "dataset=%s path=%s bytes=%llu reason=\"over the memory budget\"",
+               d->id, td_log_quote(q, sizeof q, path), (unsigned long long)dr->bytes);
+    }
+    drape_unref(snap->drape);
+    snap->drape = dr;
+    *out = dr->img;
+out:
+    drape_unref(mine);
+    return rc;
 }
+
+/* --- eviction --------------------------------------------------------------------- */
 
 void td_store_evict_dataset(td_store *s, size_t idx, size_t *evicted)
 {
@@ -582,8 +997,8 @@ void td_store_evict_dataset(td_store *s, size_t idx, size_t *evicted)
     size_t n = 0;
     pthread_mutex_lock(&s->mu);
     for (size_t t = 0; t < d->ntiles; t++) {
-        n += d->slots[t].mm || d->slots[t].pl;
-        slot_clear_locked(s, &d->slots[t]);
+        n += (size_t)slot_resident(&d->slots[t]);
+        slot_clear_locked(s, d, &d->slots[t]);
     }
     pthread_mutex_unlock(&s->mu);
     *evicted = n;
@@ -591,34 +1006,16 @@ void td_store_evict_dataset(td_store *s, size_t idx, size_t *evicted)
 
 /* --- disk cache ------------------------------------------------------------------- */
 
-#define TD_CACHE_MAGIC "TDACCEL"
-#define TD_CACHE_VERSION 3u /* 2: planes stored as interleaved cones; 3: quantised cones */
-
-typedef struct td_cache_hdr {
-    char magic[8];
-    uint32_t version, kind;
-    uint64_t fingerprint;
-    uint32_t tile_log2, planes_k;
-    uint64_t tile;
-    int32_t nx, ny;
-    int32_t levels, pad;
-    int32_t dim[17];
-    int32_t pad2;
-    uint64_t offset[17];
-    double slope_scale; /* planes */
-    uint64_t payload;   /* bytes after the header */
-    uint64_t checksum;
-} td_cache_hdr;
-
 static int cache_path(const td_store *s, const td_ds *d, size_t tile, td_part_kind kind,
                       char *out, size_t n)
 {
     int w = snprintf(out, n, "%s/%s-%016llx-t%d-%zu.%s", s->cache_dir, d->id,
                      (unsigned long long)d->fingerprint, s->o.tile_log2, tile,
-                     kind == TD_PART_MAXMIP ? "mm" : "pl");
+                     td_part_ops_of[kind].ext);
     return w > 0 && (size_t)w < n;
 }
 
+/* The header's fields common to every kind, as a file for this part must have them. */
 static void cache_hdr_init(const td_store *s, const td_ds *d, size_t tile, td_part_kind kind,
                            td_cache_hdr *h)
 {
@@ -629,10 +1026,18 @@ static void cache_hdr_init(const td_store *s, const td_ds *d, size_t tile, td_pa
     h->kind = kind;
     h->fingerprint = d->fingerprint;
     h->tile_log2 = (uint32_t)s->o.tile_log2;
-    h->planes_k = kind == TD_PART_PLANES ? (uint32_t)s->o.planes_k : 0;
+    h->param = (uint32_t)s->param[kind];
     h->tile = tile;
     h->nx = t->nx;
     h->ny = t->ny;
+}
+
+static uint64_t pieces_checksum(const td_piece *pc, int npc)
+{
+    uint64_t h = TD_FNV_INIT;
+    for (int i = 0; i < npc; i++)
+        h = fnv1a(h, pc[i].ptr, pc[i].len);
+    return h;
 }
 
 /* Writes a part to the cache through a temporary file and rename (no torn files). */
@@ -640,37 +1045,22 @@ static void cache_write(const td_store *s, const td_ds *d, size_t tile, const td
 {
     char path[PATH_MAX], tmp[PATH_MAX + 16];
     td_cache_hdr h;
+    td_piece pc[TD_PIECES_MAX];
     FILE *f = NULL;
-    int ok = 0;
+    int ok, npc;
 
     if (!s->cache_dir || !cache_path(s, d, tile, p->kind, path, sizeof path))
         return;
     snprintf(tmp, sizeof tmp, "%s.%ld.tmp", path, (long)getpid());
     cache_hdr_init(s, d, tile, p->kind, &h);
-    if (p->kind == TD_PART_MAXMIP) {
-        const td_maxmip *m = p->ptr;
-        size_t floats = (m->bytes - sizeof *m) / sizeof(float);
-        h.levels = m->levels;
-        for (int i = 0; i < 17; i++) {
-            h.dim[i] = m->dim[i];
-            h.offset[i] = m->offset[i];
-        }
-        h.payload = floats * sizeof(float);
-        h.checksum = fnv1a(TD_FNV_INIT, m->max, h.payload);
-        f = fopen(tmp, "wb");
-        ok = f && fwrite(&h, sizeof h, 1, f) == 1 && fwrite(m->max, 1, h.payload, f) == h.payload;
-    } else {
-        const td_planes *pl = p->ptr;
-        size_t n = (size_t)pl->nx * (size_t)pl->ny * sizeof(td_cone);
-        size_t na = ((size_t)pl->k + 1) * sizeof(float);
-        h.levels = pl->k;
-        h.slope_scale = pl->slope_scale;
-        h.payload = n + na;
-        h.checksum = fnv1a(fnv1a(TD_FNV_INIT, pl->cone, n), pl->apex, na);
-        f = fopen(tmp, "wb");
-        ok = f && fwrite(&h, sizeof h, 1, f) == 1 && fwrite(pl->cone, 1, n, f) == n &&
-             fwrite(pl->apex, 1, na, f) == na;
-    }
+    npc = td_part_ops_of[p->kind].pieces(p->ptr, &h, pc);
+    for (int i = 0; i < npc; i++)
+        h.payload += pc[i].len;
+    h.checksum = pieces_checksum(pc, npc);
+    f = fopen(tmp, "wb");
+    ok = f && fwrite(&h, sizeof h, 1, f) == 1;
+    for (int i = 0; i < npc && ok; i++)
+        ok = fwrite(pc[i].ptr, 1, pc[i].len, f) == pc[i].len;
     if (f && fclose(f))
         ok = 0;
     if (!ok || rename(tmp, path)) {
@@ -685,11 +1075,14 @@ static td_part *cache_read(td_store *s, const td_ds *d, size_t tile, td_part_kin
 {
     char path[PATH_MAX], q[600];
     td_cache_hdr h, want;
+    td_piece pc[TD_PIECES_MAX];
     FILE *f = NULL;
     struct stat st;
     td_part *part = NULL;
     void *obj = NULL;
+    size_t bytes = 0;
     const char *why = NULL;
+    int npc = 0;
 
     if (!s->cache_dir || !cache_path(s, d, tile, kind, path, sizeof path) || stat(path, &st))
         goto out;
@@ -701,7 +1094,7 @@ static td_part *cache_read(td_store *s, const td_ds *d, size_t tile, td_part_kin
     }
     if (memcmp(h.magic, want.magic, sizeof h.magic) || h.version != want.version ||
         h.kind != want.kind || h.fingerprint != want.fingerprint ||
-        h.tile_log2 != want.tile_log2 || h.planes_k != want.planes_k || h.tile != want.tile ||
+        h.tile_log2 != want.tile_log2 || h.param != want.param || h.tile != want.tile ||
         h.nx != want.nx || h.ny != want.ny) {
         why = "header does not match (version, dataset or tiling changed)";
         goto out;
@@ -710,68 +1103,24 @@ static td_part *cache_read(td_store *s, const td_ds *d, size_t tile, td_part_kin
         why = "size does not match the header";
         goto out;
     }
-    if (kind == TD_PART_MAXMIP) {
-        td_maxmip *m = calloc(1, sizeof *m);
-        obj = m;
-        if (!m || h.levels < 0 || h.levels > 16 || h.payload % sizeof(float)) {
-            why = "bad shape";
-            goto out;
-        }
-        for (int L = 1; L <= h.levels; L++) {
-            size_t end = (size_t)h.offset[L] + (size_t)h.dim[L] * (size_t)h.dim[L];
-            if (h.dim[L] < 0 || end * sizeof(float) > h.payload) {
-                why = "bad shape";
-                goto out;
-            }
-        }
-        m->levels = h.levels;
-        for (int i = 0; i < 17; i++) {
-            m->dim[i] = h.dim[i];
-            m->offset[i] = (size_t)h.offset[i];
-        }
-        m->max = malloc(h.payload ? h.payload : 1);
-        if (!m->max || fread(m->max, 1, h.payload, f) != h.payload ||
-            fnv1a(TD_FNV_INIT, m->max, h.payload) != h.checksum) {
+    why = td_part_ops_of[kind].alloc(&h, &obj, &bytes, pc, &npc);
+    if (why)
+        goto out;
+    for (int i = 0; i < npc && !why; i++)
+        if (fread(pc[i].ptr, 1, pc[i].len, f) != pc[i].len)
             why = "checksum mismatch or short payload";
-            goto out;
-        }
-        m->bytes = sizeof *m + h.payload;
-        part = part_new(kind, m, m->bytes);
-    } else {
-        td_planes *p = calloc(1, sizeof *p);
-        size_t n = (size_t)h.nx * (size_t)h.ny * sizeof(td_cone);
-        size_t na = ((size_t)s->o.planes_k + 1) * sizeof(float);
-        obj = p;
-        if (!p || h.payload != n + na || h.levels != s->o.planes_k || !(h.slope_scale > 0.0) ||
-            !isfinite(h.slope_scale)) {
-            why = "bad shape";
-            goto out;
-        }
-        p->k = h.levels;
-        p->nx = h.nx;
-        p->ny = h.ny;
-        p->slope_scale = h.slope_scale;
-        p->cone = malloc(n ? n : 1);
-        p->apex = malloc(na);
-        if (!p->cone || !p->apex || fread(p->cone, 1, n, f) != n || fread(p->apex, 1, na, f) != na ||
-            fnv1a(fnv1a(TD_FNV_INIT, p->cone, n), p->apex, na) != h.checksum) {
-            why = "checksum mismatch or short payload";
-            goto out;
-        }
-        p->bytes = sizeof *p + n + na;
-        part = part_new(kind, p, p->bytes);
-    }
+    if (!why && pieces_checksum(pc, npc) != h.checksum)
+        why = "checksum mismatch or short payload";
+    if (why)
+        goto out;
+    part = part_new(kind, obj, bytes);
     if (part)
         obj = NULL;
 out:
     if (f)
         fclose(f);
-    if (obj) {
-        if (kind == TD_PART_MAXMIP)
-            td_maxmip_free(obj);
-        else
-            td_planes_free(obj);
-    }
+    if (obj)
+        td_part_ops_of[kind].free(obj);
     if (why)
         td_log(TD_LOG_WARN, "cache_rejected", "path=%s reason=\"%s\"", td_log_quote(q, sizeof q, path), why);
     pthread_mutex_lock(&s->mu);
@@ -785,43 +1134,28 @@ out:
 
 /* --- preload ---------------------------------------------------------------------- */
 
-/* Upper bound of a part's bytes, for the up-front budget check. */
-static uint64_t part_bound(const td_store *s, const td_tile *t, td_part_kind kind)
-{
-    uint64_t tt = (uint64_t)1 << s->o.tile_log2;
-    if (kind == TD_PART_MAXMIP)
-        return sizeof(td_maxmip) + sizeof(float) * (tt * tt / 3 + 64);
-    return sizeof(td_planes) + sizeof(td_cone) * (uint64_t)t->nx * (uint64_t)t->ny +
-           sizeof(float) * ((uint64_t)s->o.planes_k + 1);
-}
-
 typedef struct td_stage_tile {
     size_t tile;
-    int want_mm, want_pl; /* what to build for this tile */
-    td_part *mm, *pl;     /* built, not yet published */
+    int want[TD_PART_COUNT];      /* what to build for this tile */
+    td_part *part[TD_PART_COUNT]; /* built, not yet published */
 } td_stage_tile;
 
+/* The i-th tile a preload names. */
+static size_t spec_tile(const td_preload_spec *p, size_t i) { return p->tiles ? p->tiles[i] : i; }
+
+/* Builds one part, or reads it from the cache (and writes what it built there). */
 static td_status build_part(td_store *s, td_ds *d, size_t tile, td_part_kind kind,
                             td_part **out, td_err *err)
 {
     td_status rc = TD_OK;
+    const td_part_ops *ops = &td_part_ops_of[kind];
     void *obj = NULL;
     size_t bytes = 0;
 
     *out = cache_read(s, d, tile, kind);
     if (*out)
         goto out;
-    if (kind == TD_PART_MAXMIP) {
-        td_maxmip *m = NULL;
-        rc = td_maxmip_build(d->grid, tile, &m, err);
-        obj = m;
-        bytes = m ? m->bytes : 0;
-    } else {
-        td_planes *p = NULL;
-        rc = td_planes_build(d->grid, tile, s->o.planes_k, &p, err);
-        obj = p;
-        bytes = p ? p->bytes : 0;
-    }
+    rc = ops->build(d->grid, tile, s->param[kind], &obj, &bytes, err);
     if (rc)
         goto out;
     *out = part_new(kind, obj, bytes);
@@ -835,43 +1169,161 @@ static td_status build_part(td_store *s, td_ds *d, size_t tile, td_part_kind kin
     pthread_mutex_unlock(&s->mu);
     cache_write(s, d, tile, *out);
 out:
-    if (obj) {
-        if (kind == TD_PART_MAXMIP)
-            td_maxmip_free(obj);
-        else
-            td_planes_free(obj);
-    }
+    if (obj)
+        ops->free(obj);
     return rc;
 }
 
-td_status td_store_preload(td_store *s, const td_preload_spec *p, td_preload_progress cb,
-                           void *cls, size_t *built, td_err *err)
+/* The request itself: a dataset, something to build, tiles that exist. */
+static td_status preload_check(const td_store *s, const td_preload_spec *p, td_err *err)
 {
     td_status rc = TD_OK;
-    td_ds *d;
-    size_t n = 0, nstage = 0;
-    td_stage_tile *stage = NULL;
-    uint64_t fixed = 0, need = 0, staged = 0;
-    int marked = 0;
+    const td_ds *d;
+    int any = 0;
 
-    *built = 0;
-    pthread_mutex_lock(&s->preload);
+    for (int k = 0; k < TD_PART_COUNT; k++)
+        any |= p->build[k];
     if (p->dataset >= s->nds) {
         rc = td_err_set(err, TD_ENOTFOUND, "unknown dataset");
         goto out;
     }
-    if (!p->maxmip && !p->planes) {
+    if (!any) {
         rc = td_err_set(err, TD_EINVAL, "build: nothing to build (maxmip and planes both off)");
         goto out;
     }
     d = &s->ds[p->dataset];
-    n = p->tiles ? p->ntiles : d->ntiles;
-    for (size_t i = 0; p->tiles && i < n; i++)
+    for (size_t i = 0; p->tiles && i < p->ntiles; i++)
         if (p->tiles[i] >= d->ntiles) {
             rc = td_err_set(err, TD_EINVAL, "tiles[%zu]: tile %zu does not exist (dataset '%s' has %zu)",
                             i, p->tiles[i], d->id, d->ntiles);
             goto out;
         }
+out:
+    return rc;
+}
+
+/* Marks the n requested tiles as in this preload (so LRU leaves them), stages what to
+ * build, and checks the budget up front: heights + drapes + pinned tiles + requested
+ * tiles we keep + the bound of what we build. The tiles stay marked on failure too. */
+static td_status preload_mark(td_store *s, const td_preload_spec *p, size_t n,
+                              td_stage_tile *stage, size_t *nstage, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_ds *d = &s->ds[p->dataset];
+    uint64_t need = 0, kept;
+
+    *nstage = 0;
+    pthread_mutex_lock(&s->mu);
+    for (size_t i = 0; i < n; i++) {
+        size_t t = spec_tile(p, i);
+        td_slot *sl = &d->slots[t];
+        td_stage_tile *st = &stage[*nstage];
+        int any = 0;
+        if (sl->job)
+            continue; /* listed twice */
+        sl->job = 1;
+        for (int k = 0; k < TD_PART_COUNT; k++) {
+            st->want[k] = p->build[k] && (!sl->part[k] || p->rebuild);
+            if (st->want[k])
+                need += td_part_ops_of[k].bound(&d->grid->tiles[t], s->o.tile_log2, s->param[k]);
+            any |= st->want[k];
+        }
+        if (any) {
+            st->tile = t;
+            (*nstage)++;
+        }
+    }
+    kept = kept_bytes_locked(s);
+    pthread_mutex_unlock(&s->mu);
+    if (kept + need > s->o.budget_bytes)
+        rc = td_err_set(err, TD_ETOOBIG,
+                        "memory budget exceeded: %zu tiles of '%s' need up to %llu bytes, and "
+                        "heights + pinned + kept tiles already take %llu of %llu bytes "
+                        "(raise --memory-mb, or preload fewer tiles)",
+                        *nstage, d->id, (unsigned long long)need, (unsigned long long)kept,
+                        (unsigned long long)s->o.budget_bytes);
+    return rc;
+}
+
+/* Builds the staged parts, kind by kind, each after evicting what it needs to fit
+ * (resident + staged + this part within the budget). */
+static td_status preload_build(td_store *s, td_ds *d, td_stage_tile *stage, size_t nstage,
+                               td_preload_progress cb, void *cls, td_err *err)
+{
+    td_status rc = TD_OK;
+    uint64_t staged = 0;
+
+    for (int k = 0; k < TD_PART_COUNT; k++) {
+        const td_part_ops *ops = &td_part_ops_of[k];
+        for (size_t i = 0; i < nstage; i++) {
+            uint64_t bound;
+            if (!stage[i].want[k])
+                continue;
+            if (cb && cb(cls, ops->name, i, nstage)) {
+                rc = td_err_set(err, TD_ECANCELED, "preload cancelled (server stopping)");
+                goto out;
+            }
+            bound = ops->bound(&d->grid->tiles[stage[i].tile], s->o.tile_log2, s->param[k]);
+            pthread_mutex_lock(&s->mu);
+            while (s->resident_bytes + staged + bound > s->o.budget_bytes && evict_lru_locked(s))
+                ;
+            pthread_mutex_unlock(&s->mu);
+            rc = build_part(s, d, stage[i].tile, (td_part_kind)k, &stage[i].part[k], err);
+            if (rc)
+                goto out;
+            staged += stage[i].part[k]->bytes;
+        }
+    }
+out:
+    return rc;
+}
+
+/* Puts every staged part in its slot at once, then pins the requested tiles if asked. */
+static void preload_publish(td_store *s, const td_preload_spec *p, size_t n,
+                            td_stage_tile *stage, size_t nstage)
+{
+    td_ds *d = &s->ds[p->dataset];
+    pthread_mutex_lock(&s->mu);
+    for (size_t i = 0; i < nstage; i++) {
+        td_slot *sl = &d->slots[stage[i].tile];
+        for (int k = 0; k < TD_PART_COUNT; k++)
+            if (stage[i].part[k]) {
+                slot_put_locked(s, d, sl, (td_part_kind)k, stage[i].part[k]);
+                stage[i].part[k] = NULL;
+            }
+        sl->stamp = ++s->clock;
+    }
+    for (size_t i = 0; i < n && p->pin; i++)
+        slot_pin_locked(d, &d->slots[spec_tile(p, i)]);
+    pthread_mutex_unlock(&s->mu);
+}
+
+/* Unmarks the requested tiles and evicts down to the budget. */
+static void preload_unmark(td_store *s, const td_preload_spec *p, size_t n)
+{
+    td_ds *d = &s->ds[p->dataset];
+    pthread_mutex_lock(&s->mu);
+    for (size_t i = 0; i < n; i++)
+        d->slots[spec_tile(p, i)].job = 0;
+    while (s->resident_bytes > s->o.budget_bytes && evict_lru_locked(s))
+        ;
+    pthread_mutex_unlock(&s->mu);
+}
+
+td_status td_store_preload(td_store *s, const td_preload_spec *p, td_preload_progress cb,
+                           void *cls, size_t *built, td_err *err)
+{
+    td_status rc;
+    size_t n = 0, nstage = 0;
+    td_stage_tile *stage = NULL;
+    int marked = 0;
+
+    *built = 0;
+    pthread_mutex_lock(&s->preload);
+    rc = preload_check(s, p, err);
+    if (rc)
+        goto out;
+    n = p->tiles ? p->ntiles : s->ds[p->dataset].ntiles;
     if (cb)
         cb(cls, "checking", 0, n);
     stage = calloc(n ? n : 1, sizeof *stage);
@@ -879,112 +1331,23 @@ td_status td_store_preload(td_store *s, const td_preload_spec *p, td_preload_pro
         rc = td_err_set(err, TD_ENOMEM, "out of memory for %zu tiles", n);
         goto out;
     }
-    /* Mark the requested tiles, decide what to build, check the budget up front:
-     * heights + pinned tiles + requested tiles we keep + the bound of what we build. */
-    pthread_mutex_lock(&s->mu);
-    for (size_t i = 0; i < n; i++) {
-        size_t t = p->tiles ? p->tiles[i] : i;
-        td_slot *sl = &d->slots[t];
-        int want_mm = p->maxmip && (!sl->mm || p->rebuild);
-        int want_pl = p->planes && (!sl->pl || p->rebuild);
-        if (sl->job)
-            continue; /* listed twice */
-        sl->job = 1;
-        if (want_mm || want_pl) {
-            stage[nstage].tile = t;
-            stage[nstage].want_mm = want_mm;
-            stage[nstage].want_pl = want_pl;
-            nstage++;
-            need += (want_mm ? part_bound(s, &d->grid->tiles[t], TD_PART_MAXMIP) : 0) +
-                    (want_pl ? part_bound(s, &d->grid->tiles[t], TD_PART_PLANES) : 0);
-        }
-    }
     marked = 1;
-    for (size_t k = 0; k < s->nds; k++) {
-        fixed += s->ds[k].grid_bytes;
-        for (size_t t = 0; t < s->ds[k].ntiles; t++) {
-            td_slot *sl = &s->ds[k].slots[t];
-            if (sl->pinned || sl->job)
-                fixed += (sl->mm ? sl->mm->bytes : 0) + (sl->pl ? sl->pl->bytes : 0);
-        }
-    }
-    pthread_mutex_unlock(&s->mu);
-    if (fixed + need > s->o.budget_bytes) {
-        rc = td_err_set(err, TD_ETOOBIG,
-                        "memory budget exceeded: %zu tiles of '%s' need up to %llu bytes, and "
-                        "heights + pinned + kept tiles already take %llu of %llu bytes "
-                        "(raise --memory-mb, or preload fewer tiles)",
-                        nstage, d->id, (unsigned long long)need, (unsigned long long)fixed,
-                        (unsigned long long)s->o.budget_bytes);
+    rc = preload_mark(s, p, n, stage, &nstage, err);
+    if (rc)
         goto out;
-    }
-    for (int kind = 0; kind < 2; kind++) {
-        for (size_t i = 0; i < nstage; i++) {
-            td_part **slotp = kind == TD_PART_MAXMIP ? &stage[i].mm : &stage[i].pl;
-            uint64_t bound;
-            if (!(kind == TD_PART_MAXMIP ? stage[i].want_mm : stage[i].want_pl))
-                continue;
-            if (cb && cb(cls, kind == TD_PART_MAXMIP ? "maxmip" : "planes", i, nstage)) {
-                rc = td_err_set(err, TD_ECANCELED, "preload cancelled (server stopping)");
-                goto out;
-            }
-            /* Make room first: resident + staged + this tile within the budget. */
-            bound = part_bound(s, &d->grid->tiles[stage[i].tile], (td_part_kind)kind);
-            pthread_mutex_lock(&s->mu);
-            while (s->resident_bytes + staged + bound > s->o.budget_bytes && evict_lru_locked(s))
-                ;
-            pthread_mutex_unlock(&s->mu);
-            rc = build_part(s, d, stage[i].tile, (td_part_kind)kind, slotp, err);
-            if (rc)
-                goto out;
-            staged += (*slotp)->bytes;
-        }
-    }
+    rc = preload_build(s, &s->ds[p->dataset], stage, nstage, cb, cls, err);
+    if (rc)
+        goto out;
     if (cb)
         cb(cls, "publishing", nstage, nstage);
-    pthread_mutex_lock(&s->mu);
-    for (size_t i = 0; i < nstage; i++) {
-        td_slot *sl = &d->slots[stage[i].tile];
-        if (stage[i].mm) {
-            if (sl->mm) {
-                s->resident_bytes -= sl->mm->bytes;
-                part_unref(sl->mm);
-            }
-            sl->mm = stage[i].mm;
-            s->resident_bytes += sl->mm->bytes;
-            stage[i].mm = NULL;
-        }
-        if (stage[i].pl) {
-            if (sl->pl) {
-                s->resident_bytes -= sl->pl->bytes;
-                part_unref(sl->pl);
-            }
-            sl->pl = stage[i].pl;
-            s->resident_bytes += sl->pl->bytes;
-            stage[i].pl = NULL;
-        }
-        sl->stamp = ++s->clock;
-    }
-    for (size_t i = 0; i < n; i++) {
-        td_slot *sl = &d->slots[p->tiles ? p->tiles[i] : i];
-        if (p->pin && (sl->mm || sl->pl))
-            sl->pinned = 1;
-    }
+    preload_publish(s, p, n, stage, nstage);
     *built = nstage;
-    pthread_mutex_unlock(&s->mu);
 out:
-    if (marked) {
-        pthread_mutex_lock(&s->mu);
-        for (size_t i = 0; i < n; i++)
-            d->slots[p->tiles ? p->tiles[i] : i].job = 0;
-        while (s->resident_bytes > s->o.budget_bytes && evict_lru_locked(s))
-            ;
-        pthread_mutex_unlock(&s->mu);
-    }
-    for (size_t i = 0; stage && i < nstage; i++) {
-        part_unref(stage[i].mm); /* left over only when the preload failed */
-        part_unref(stage[i].pl);
-    }
+    if (marked)
+        preload_unmark(s, p, n);
+    for (size_t i = 0; stage && i < nstage; i++)
+        for (int k = 0; k < TD_PART_COUNT; k++)
+            part_unref(stage[i].part[k]); /* left over only when the preload failed */
     free(stage);
     pthread_mutex_unlock(&s->preload);
     return rc;

@@ -6,22 +6,28 @@
  * without a lock. What changes at run time is, per tile, which acceleration is
  * resident. Each built structure is immutable and reference-counted (C11 atomics):
  *
- *   store --(1 ref)--> part {refs, maxmip | planes, bytes} <--(1 ref each)-- snapshots
+ *   store --(1 ref)--> part {refs, kind, object, bytes} <--(1 ref each)-- snapshots
+ *
+ * A tile holds at most one part of each kind (TD_PART_LIST: max-mipmap, planes); a new
+ * kind is one row there and one row of per-kind operations in tilestore.c.
  *
  * A render takes a snapshot (td_store_acquire): the td_view it traces plus one
- * reference to every part resident at that instant. A preload that replaces a tile, or
- * an eviction, only swaps the store's pointer under the store lock and drops the
- * store's reference; the part is freed by whoever drops the last one, so a render never
- * sees a structure change or vanish under it.
+ * reference to every part resident at that instant, and the dataset's fixed fields
+ * (grid, levels of detail, directory). A preload that replaces a tile, or an eviction,
+ * only swaps the store's pointer under the store lock and drops the store's reference;
+ * the part is freed by whoever drops the last one, so a render never sees a structure
+ * change or vanish under it. A render's drape (effects.drape) is decoded on first use
+ * and kept with its dataset (td_snapshot_drape), immutable and shared the same way.
  *
- * Memory: heights count against the budget from load; acceleration is evicted least
- * recently used first (a snapshot marks every tile of its dataset used), pinned tiles
- * never. A preload builds one tile at a time (one builder thread), evicting before it
- * builds, so the budget is never exceeded by more than the tile being built. A preload
- * is checked up front (tiles, budget against heights + pinned + kept tiles), builds into
- * a staging list, and publishes every tile at once under the lock; if a build fails the
- * staging list is dropped and the resident tiles stay as they were (apart from LRU
- * evictions made to fit the budget, which only lose cached work).
+ * Memory: heights count against the budget from load, a kept drape from its first use,
+ * and neither is evicted; acceleration is evicted least recently used first (a snapshot
+ * marks every tile of its dataset used), pinned tiles never. A preload builds one tile
+ * at a time (one builder thread), evicting before it builds, so the budget is never
+ * exceeded by more than the tile being built.
+ * A preload is checked up front (tiles, budget against heights + drapes + pinned + kept
+ * tiles), builds into a staging list, and publishes every tile at once under the lock;
+ * if a build fails the staging list is dropped and the resident tiles stay as they were
+ * (apart from LRU evictions made to fit the budget, which only lose cached work).
  *
  * With a cache directory, built parts are also written to disk (header with magic,
  * version, kind, dataset fingerprint, tile and shape, payload size and an FNV-1a
@@ -32,10 +38,25 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "image.h"
 #include "lod.h"
 #include "trace.h"
 
 #define TD_STORE_ID_MAX 64
+
+/* X(KIND, name, ext): the structures a tile can hold. TD_PART_KIND indexes per-kind
+ * arrays; `name` is the preload phase, the admin API's word and the field names below
+ * (spec.maxmip, info.maxmip_tiles); `ext` ends the kind's cache files. */
+#define TD_PART_LIST(X)     \
+    X(MAXMIP, maxmip, "mm") \
+    X(PLANES, planes, "pl")
+
+typedef enum td_part_kind {
+#define TD_X_ENUM(K, name, ext) TD_PART_##K,
+    TD_PART_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_PART_COUNT
+} td_part_kind;
 
 typedef struct td_store td_store;
 typedef struct td_snapshot td_snapshot;
@@ -55,8 +76,17 @@ typedef struct td_dataset_info {
     const td_grid *grid;
     size_t ntiles;
     size_t resident_tiles;  /* with any acceleration */
-    size_t maxmip_tiles, planes_tiles, pinned_tiles;
+    union {                 /* tiles holding each kind, by name or by kind */
+        struct {
+#define TD_X_FIELD(K, name, ext) size_t name##_tiles;
+            TD_PART_LIST(TD_X_FIELD)
+#undef TD_X_FIELD
+        };
+        size_t part_tiles[TD_PART_COUNT];
+    };
+    size_t pinned_tiles;
     uint64_t grid_bytes, accel_bytes;
+    uint64_t drape_bytes;   /* decoded drapes kept with the dataset */
 } td_dataset_info;
 
 typedef struct td_store_stats {
@@ -86,28 +116,47 @@ td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_
 size_t td_store_count(const td_store *s);
 /* Index of a dataset, or -1. */
 long td_store_find(const td_store *s, const char *id);
+/* A few stores under the store lock: the counters are kept as tiles change. */
 void td_store_info(td_store *s, size_t idx, td_dataset_info *out);
 void td_store_stats_get(td_store *s, td_store_stats *st);
 
-/* The dataset's grid and every acceleration part resident now, held until release. */
+/* The dataset's grid and every acceleration part resident now, held until release:
+ * everything a render needs of its dataset, resolved once. TD_ENOTFOUND for an
+ * unknown id. */
 td_status td_store_acquire(td_store *s, const char *id, td_snapshot **out, td_err *err);
 const td_view *td_snapshot_view(const td_snapshot *snap);
 /* The dataset's levels of detail (td_render_opts.lod). */
 const td_lod *td_snapshot_lod(const td_snapshot *snap);
-/* Tiles of the snapshot with maxmip / planes. */
-size_t td_snapshot_count(const td_snapshot *snap, int planes);
+/* The directory of the dataset's file ("" for a dataset added as a grid). */
+const char *td_snapshot_dir(const td_snapshot *snap);
+/* Tiles of the snapshot holding a part of this kind. */
+size_t td_snapshot_count(const td_snapshot *snap, td_part_kind kind);
+/* The drape PNG at `path` as RGB (td_render_opts.drape), held by the snapshot until its
+ * release: decoded on the dataset's first use of it and kept with the dataset (counted
+ * in the budget; when it cannot fit, this snapshot alone keeps it). td_image_load's
+ * status and message when it cannot be read. One drape per snapshot: a second call
+ * drops the first one's reference. */
+td_status td_snapshot_drape(td_snapshot *snap, const char *path, const td_image8 **out,
+                            td_err *err);
 void td_snapshot_release(td_snapshot *snap);
 
 typedef struct td_preload_spec {
     size_t dataset;       /* index */
     const size_t *tiles;  /* tile indices, or NULL for all */
     size_t ntiles;
-    int maxmip, planes;   /* what to build (at least one) */
+    union {               /* what to build (at least one), by name or by kind */
+        struct {
+#define TD_X_FIELD(K, name, ext) int name;
+            TD_PART_LIST(TD_X_FIELD)
+#undef TD_X_FIELD
+        };
+        int build[TD_PART_COUNT];
+    };
     int pin;              /* pinned tiles are never evicted by LRU */
     int rebuild;          /* replace resident parts instead of keeping them */
 } td_preload_spec;
 
-/* phase: "checking", "maxmip", "planes", "publishing"; done of total tiles. A non-zero
+/* phase: "checking", a kind's name ("maxmip", "planes"), "publishing"; done of total. A non-zero
  * return cancels the preload (TD_ECANCELED) before its next tile. */
 typedef int (*td_preload_progress)(void *cls, const char *phase, size_t done, size_t total);
 

@@ -74,7 +74,7 @@ int main(int argc, char **argv)
 {
     int rc = 2;
     td_bench_opts o, defaults;
-    td_err err = {{0}};
+    td_err err = {0};
 
     td_bench_opts_default(&o);
     defaults = o;

@@ -560,7 +560,7 @@ static int case_georef(hc_stats *st)
             char name[32];
             td_dem_opts o;
             td_grid *g = NULL;
-            td_err err = {{0}};
+            td_err err = {0};
             td_status rc;
             snprintf(name, sizeof name, "geo%d", k);
             if (!hc_check(st, write_f32(dir, name, w, h, z, origins[k], path, sizeof path), "write %s", path))
@@ -856,7 +856,7 @@ static void aim_down(hc_stats *st, const hc_scene *sc, const double d[3])
     const td_grid *g = sc->g;
     td_ray r;
     td_hit hits[TD_SURFACE_COUNT][TD_METHOD_COUNT];
-    td_err err = {{0}};
+    td_err err = {0};
     hc_ray_set(&r, 0.4 * (g->w - 1) * g->sx, 0.55 * (g->h - 1) * g->sy, g->zmax + 20.0, d[0], d[1], d[2]);
     if (td_ray_validate(&r, &err) != TD_OK) {
         hc_check(st, err.msg[0] != '\0', "direction (%a, %a, %a) refused without a message", d[0], d[1], d[2]);
@@ -1033,7 +1033,7 @@ static void camera_one(hc_stats *st, const hc_scene *sc, const hc_cam *c)
 {
     td_scene scene;
     td_camera cam;
-    td_err err = {{0}};
+    td_err err = {0};
     td_status rc;
     int64_t npx = (int64_t)c->w * c->h, stride = npx > 512 ? npx / 512 : 1;
     td_scene_defaults(&scene);
@@ -1060,7 +1060,7 @@ static void camera_one(hc_stats *st, const hc_scene *sc, const hc_cam *c)
     }
     for (int64_t q = 0; q < npx; q += stride) {
         td_ray r;
-        td_err rerr = {{0}};
+        td_err rerr = {0};
         double px = (double)(q % c->w), py = (double)(q / c->w), n;
         td_camera_ray(&cam, px, py, &r);
         n = sqrt(r.d[0] * r.d[0] + r.d[1] * r.d[1] + r.d[2] * r.d[2]);

@@ -83,7 +83,7 @@ void hc_terrain_defaults(hc_terrain_params *p, hc_terrain kind)
 td_grid *hc_grid_from(int32_t w, int32_t h, double sx, double sy, int tile_log2, const float *z)
 {
     td_grid *g = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     if (td_grid_create(w, h, sx, sy, tile_log2, NULL, &g, &err) == TD_OK) {
         memcpy(g->z, z, (size_t)w * (size_t)h * sizeof(float));
         if (td_grid_finish(g, &err) != TD_OK) {
@@ -459,7 +459,7 @@ int hc_scene_init(hc_scene *sc, const char *label, td_grid *g, int k)
 {
     int rc = g ? 0 : 1;
     td_accel_opts o;
-    td_err err = {{0}};
+    td_err err = {0};
     memset(sc, 0, sizeof *sc);
     snprintf(sc->label, sizeof sc->label, "%s", label);
     sc->g = g;

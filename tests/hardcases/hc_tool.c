@@ -183,7 +183,7 @@ static td_grid *load(const char *path)
 {
     td_dem_opts o;
     td_grid *g = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     td_dem_opts_default(&o);
     if (td_dem_load(path, &o, &g, &err) != TD_OK)
         fprintf(stderr, "hc_tool: %s\n", err.msg);

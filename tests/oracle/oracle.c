@@ -679,7 +679,7 @@ int main(int argc, char **argv)
     const char *name = argc > 1 && argv[1][0] != '-' ? argv[1] : "procedural";
     const char *dem = NULL, *out_rays = NULL, *check_rays = NULL, *check_hits = NULL;
     td_surface check_sf = TD_SURFACE_TRIANGLE;
-    td_err err = {{0}};
+    td_err err = {0};
     td_grid *g = NULL;
     td_accel *acc = NULL;
     td_accel_opts ao;

@@ -1,10 +1,12 @@
 /* test_tilestore.c: the tile store on its own (no HTTP): dataset ids and directory
  * scanning (nothing outside the directory), the memory budget with LRU and pinning,
- * failed preloads leaving resident tiles alone, the disk cache (hit, and rejection of a
- * corrupted file), and the concurrency contract: renders tracing through snapshots
- * while another thread rebuilds and evicts tiles see every hit exactly as the
- * incremental tracer does. Built twice: plainly (and under ASan by `make test`), and
- * with ThreadSanitizer (test_tilestore_tsan). */
+ * the dataset counters kept as tiles change (against a count over a snapshot), failed
+ * preloads leaving resident tiles alone, the disk cache (hit, and rejection of a
+ * corrupted file), drapes decoded once and kept within the budget, and the concurrency
+ * contract: renders tracing through snapshots (and sharing a drape) while another
+ * thread rebuilds and evicts tiles see every hit exactly as the incremental tracer
+ * does. Built twice: plainly (and under ASan by `make test`), and with
+ * ThreadSanitizer (test_tilestore_tsan). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -20,6 +22,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "image.h"
 #include "maxmip.h"
 #include "planes.h"
 #include "terrain.h"
@@ -65,6 +68,52 @@ static uint64_t tile_bytes(const td_grid *g)
     td_maxmip_free(m);
     td_planes_free(p);
     return b;
+}
+
+/* A preload of dataset 0: tiles (NULL: all of them), what to build, pin, rebuild. */
+static td_preload_spec spec(const size_t *tiles, size_t n, int maxmip, int planes, int pin,
+                            int rebuild)
+{
+    td_preload_spec p;
+    memset(&p, 0, sizeof p);
+    p.tiles = tiles;
+    p.ntiles = n;
+    p.maxmip = maxmip;
+    p.planes = planes;
+    p.pin = pin;
+    p.rebuild = rebuild;
+    return p;
+}
+
+/* The dataset's counters (kept as tiles change) against a count over a snapshot. */
+static void check_counters(td_store *s, size_t idx)
+{
+    td_dataset_info di;
+    td_snapshot *snap = NULL;
+    td_err e;
+    const td_view *v;
+    size_t resident = 0, mm = 0, pl = 0;
+    uint64_t bytes = 0;
+    td_store_info(s, idx, &di);
+    assert_int_equal(td_store_acquire(s, di.id, &snap, &e), TD_OK);
+    v = td_snapshot_view(snap);
+    for (size_t t = 0; t < di.ntiles; t++) {
+        const td_tile_accel *a = &v->accel[t];
+        resident += a->maxmip || a->planes;
+        mm += a->maxmip != NULL;
+        pl += a->planes != NULL;
+        bytes += (a->maxmip ? a->maxmip->bytes : 0) + (a->planes ? a->planes->bytes : 0);
+    }
+    assert_int_equal(di.resident_tiles, resident);
+    assert_int_equal(di.maxmip_tiles, mm);
+    assert_int_equal(di.planes_tiles, pl);
+    assert_int_equal(di.part_tiles[TD_PART_MAXMIP], mm);
+    assert_int_equal(di.part_tiles[TD_PART_PLANES], pl);
+    assert_int_equal(td_snapshot_count(snap, TD_PART_MAXMIP), mm);
+    assert_int_equal(td_snapshot_count(snap, TD_PART_PLANES), pl);
+    assert_int_equal(di.accel_bytes, bytes);
+    assert_true(di.pinned_tiles <= resident);
+    td_snapshot_release(snap);
 }
 
 static void test_ids(void **state)
@@ -179,9 +228,9 @@ static void test_budget_lru_pin(void **state)
     td_dataset_info di;
     td_err e;
     size_t built, first[6] = {0, 1, 2, 3, 4, 5}, second[6] = {10, 11, 12, 13, 14, 15}, pinned[2] = {20, 21};
-    td_preload_spec all = {0, NULL, 0, 1, 1, 0, 0};
-    td_preload_spec a = {0, first, 6, 1, 1, 0, 0}, b = {0, second, 6, 1, 1, 0, 0};
-    td_preload_spec pin = {0, pinned, 2, 1, 1, 1, 0};
+    td_preload_spec all = spec(NULL, 0, 1, 1, 0, 0);
+    td_preload_spec a = spec(first, 6, 1, 1, 0, 0), b = spec(second, 6, 1, 1, 0, 0);
+    td_preload_spec pin = spec(pinned, 2, 1, 1, 1, 0);
     (void)state;
     assert_int_equal(td_store_add_grid(s, "t", "api", g, &e), TD_OK);
     /* 64 tiles cannot fit: refused up front, nothing built. */
@@ -205,6 +254,7 @@ static void test_budget_lru_pin(void **state)
     assert_true(st.tiles_evicted >= 4);
     td_store_info(s, 0, &di);
     assert_int_equal(di.pinned_tiles, 2);
+    check_counters(s, 0);
     {
         td_snapshot *snap = NULL;
         const td_view *v;
@@ -220,7 +270,7 @@ static void test_budget_lru_pin(void **state)
     /* A bad tile index is refused before anything changes. */
     {
         size_t bad[2] = {30, 64};
-        td_preload_spec x = {0, bad, 2, 1, 1, 0, 0};
+        td_preload_spec x = spec(bad, 2, 1, 1, 0, 0);
         td_store_stats_get(s, &st);
         assert_int_equal(td_store_preload(s, &x, NULL, NULL, &built, &e), TD_EINVAL);
         assert_non_null(strstr(e.msg, "tiles[1]"));
@@ -231,6 +281,9 @@ static void test_budget_lru_pin(void **state)
     td_store_stats_get(s, &st);
     assert_int_equal(st.resident_tiles, 0);
     assert_int_equal(st.resident_bytes, gb);
+    check_counters(s, 0);
+    td_store_info(s, 0, &di);
+    assert_int_equal(di.pinned_tiles, 0);
     assert_int_equal(td_store_acquire(s, "nope", &(td_snapshot *){NULL}, &e), TD_ENOTFOUND);
     td_store_free(s);
 }
@@ -243,7 +296,7 @@ static void test_disk_cache(void **state)
     td_store_stats st;
     td_err e;
     size_t built, one[1] = {9};
-    td_preload_spec all = {0, NULL, 0, 1, 1, 0, 0}, p9 = {0, one, 1, 1, 1, 0, 1};
+    td_preload_spec all = spec(NULL, 0, 1, 1, 0, 0), p9 = spec(one, 1, 1, 1, 0, 1);
     td_snapshot *b = NULL;
     (void)state;
     snprintf(dir, sizeof dir, "%s/terrad-cache-%ld", P_tmpdir, (long)getpid());
@@ -334,8 +387,8 @@ static void test_failed_preload_publishes_nothing(void **state)
     td_store *s = store_new(256u << 20, NULL);
     td_err e;
     size_t built, four[4] = {0, 1, 2, 3}, eight[8] = {0, 1, 2, 3, 4, 5, 6, 7};
-    td_preload_spec first = {0, four, 4, 1, 0, 0, 0};         /* maxmip of tiles 0..3 */
-    td_preload_spec second = {0, eight, 8, 1, 1, 0, 1};       /* rebuild both on 0..7 */
+    td_preload_spec first = spec(four, 4, 1, 0, 0, 0);   /* maxmip of tiles 0..3 */
+    td_preload_spec second = spec(eight, 8, 1, 1, 0, 1); /* rebuild both on 0..7 */
     td_snapshot *a = NULL, *b = NULL;
     int calls = 0;
     td_store_stats st;
@@ -351,7 +404,7 @@ static void test_failed_preload_publishes_nothing(void **state)
         assert_ptr_equal(td_snapshot_view(a)->accel[t].maxmip, td_snapshot_view(b)->accel[t].maxmip);
         assert_null(td_snapshot_view(b)->accel[t].planes);
     }
-    assert_int_equal(td_snapshot_count(b, 0), 4);
+    assert_int_equal(td_snapshot_count(b, TD_PART_MAXMIP), 4);
     td_store_stats_get(s, &st);
     assert_int_equal(st.resident_tiles, 4);
     assert_int_equal(st.resident_bytes, dataset_bytes(td_snapshot_view(b)->grid) +
@@ -359,6 +412,90 @@ static void test_failed_preload_publishes_nothing(void **state)
     td_snapshot_release(a);
     td_snapshot_release(b);
     td_store_free(s);
+}
+
+/* Writes a w x h PNG whose pixel (x, y) is (x * 20, y * 30, 7) to path. */
+static void write_png(const char *path, int32_t w, int32_t h)
+{
+    uint8_t *rgba = malloc((size_t)w * (size_t)h * 4);
+    td_buf b = {0};
+    td_err e;
+    FILE *f;
+    assert_non_null(rgba);
+    for (int32_t y = 0; y < h; y++)
+        for (int32_t x = 0; x < w; x++) {
+            uint8_t *px = rgba + ((size_t)y * (size_t)w + (size_t)x) * 4;
+            px[0] = (uint8_t)(x * 20);
+            px[1] = (uint8_t)(y * 30);
+            px[2] = 7;
+            px[3] = 255;
+        }
+    assert_int_equal(td_image_encode_rgba(rgba, w, h, &b, &e), TD_OK);
+    f = fopen(path, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(b.data, 1, b.len, f), b.len);
+    fclose(f);
+    td_buf_free(&b);
+    free(rgba);
+}
+
+static void test_drape(void **state)
+{
+    /* A drape is decoded on first use and kept with its dataset, counted in the budget;
+     * over the budget a snapshot keeps its own copy; a missing file is an error. */
+    td_grid *g = terrain(13), *g2 = terrain(13);
+    uint64_t gb = dataset_bytes(g);
+    td_store *s = store_new(gb + (1u << 20), NULL), *tight = store_new(gb + 100, NULL);
+    td_snapshot *a = NULL, *b = NULL, *c = NULL;
+    const td_image8 *ia = NULL, *ib = NULL, *ic = NULL;
+    td_dataset_info di;
+    td_store_stats st;
+    td_err e;
+    char path[256];
+    (void)state;
+    snprintf(path, sizeof path, "%s/terrad-drape-%ld.png", P_tmpdir, (long)getpid());
+    write_png(path, 8, 6);
+    assert_int_equal(td_store_add_grid(s, "t", "api", g, &e), TD_OK);
+    assert_int_equal(td_store_add_grid(tight, "t", "api", g2, &e), TD_OK);
+    assert_int_equal(td_store_acquire(s, "t", &a, &e), TD_OK);
+    assert_string_equal(td_snapshot_dir(a), "");
+    assert_int_equal(td_snapshot_drape(a, path, &ia, &e), TD_OK);
+    assert_int_equal(ia->width, 8);
+    assert_int_equal(ia->height, 6);
+    assert_int_equal(ia->channels, 3);
+    assert_int_equal(ia->px[(5 * 8 + 3) * 3 + 0], 60);
+    assert_int_equal(ia->px[(5 * 8 + 3) * 3 + 1], 150);
+    assert_int_equal(ia->px[(5 * 8 + 3) * 3 + 2], 7);
+    td_store_info(s, 0, &di);
+    assert_true(di.drape_bytes >= 8 * 6 * 3);
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.resident_bytes, gb + di.drape_bytes);
+    /* decoded once: the next render shares it, also after the first released it */
+    td_snapshot_release(a);
+    assert_int_equal(td_store_acquire(s, "t", &b, &e), TD_OK);
+    assert_int_equal(td_snapshot_drape(b, path, &ib, &e), TD_OK);
+    assert_ptr_equal(ib, ia);
+    assert_int_equal(td_snapshot_drape(b, "/nonexistent/drape.png", &ic, &e), TD_EFORMAT);
+    assert_null(ic);
+    assert_non_null(strstr(e.msg, "/nonexistent/drape.png"));
+    td_snapshot_release(b);
+
+    /* no room: each snapshot decodes its own, nothing is kept */
+    assert_int_equal(td_store_acquire(tight, "t", &a, &e), TD_OK);
+    assert_int_equal(td_store_acquire(tight, "t", &c, &e), TD_OK);
+    assert_int_equal(td_snapshot_drape(a, path, &ia, &e), TD_OK);
+    assert_int_equal(td_snapshot_drape(c, path, &ic, &e), TD_OK);
+    assert_ptr_not_equal(ia, ic);
+    assert_memory_equal(ia->px, ic->px, 8 * 6 * 3);
+    td_store_info(tight, 0, &di);
+    assert_int_equal(di.drape_bytes, 0);
+    td_store_stats_get(tight, &st);
+    assert_int_equal(st.resident_bytes, gb);
+    td_snapshot_release(a);
+    td_snapshot_release(c);
+    td_store_free(s);
+    td_store_free(tight);
+    unlink(path);
 }
 
 /* --- concurrency ------------------------------------------------------------------------ */
@@ -373,6 +510,8 @@ typedef struct shared {
     atomic_int mismatches, snapshots, with_accel;
     uint64_t budget, slack;
     atomic_int over_budget;
+    char drape[256]; /* every snapshot asks for it: decoded once, kept, shared */
+    atomic_int bad_drapes;
 } shared;
 
 static int same_t(double a, double b)
@@ -392,8 +531,14 @@ static void *reader(void *arg)
         if (td_store_acquire(sh->s, "t", &snap, &e) != TD_OK)
             continue;
         v = td_snapshot_view(snap);
-        if (td_snapshot_count(snap, 0) + td_snapshot_count(snap, 1) > 0)
+        if (td_snapshot_count(snap, TD_PART_MAXMIP) + td_snapshot_count(snap, TD_PART_PLANES) > 0)
             atomic_fetch_add(&sh->with_accel, 1);
+        {
+            const td_image8 *img = NULL;
+            if (td_snapshot_drape(snap, sh->drape, &img, &e) != TD_OK || img->width != 8 ||
+                img->px[(5 * 8 + 3) * 3] != 60)
+                atomic_fetch_add(&sh->bad_drapes, 1);
+        }
         for (int i = 0; i < NRAYS; i++) {
             td_hit h;
             td_trace(v, methods[k % 3], TD_SURFACE_BILINEAR, &sh->rays[i], &h);
@@ -424,6 +569,8 @@ static void test_concurrent_snapshots(void **state)
     sh->budget = gb + 24 * tb + tb;
     sh->slack = tb;
     sh->s = store_new(sh->budget, NULL);
+    snprintf(sh->drape, sizeof sh->drape, "%s/terrad-drape-c%ld.png", P_tmpdir, (long)getpid());
+    write_png(sh->drape, 8, 6);
     plain.grid = g;
     plain.accel = NULL;
     for (int i = 0; i < NRAYS; i++) {
@@ -451,7 +598,7 @@ static void test_concurrent_snapshots(void **state)
     for (int round = 0; round < 12; round++) {
         size_t tiles[16];
         td_store_stats st;
-        td_preload_spec p = {0, tiles, 16, 1, 1, round % 4 == 3, 1};
+        td_preload_spec p = spec(tiles, 16, 1, 1, round % 4 == 3, 1);
         for (int k = 0; k < 16; k++)
             tiles[k] = (size_t)((round * 16 + k * 5) % 64);
         assert_int_equal(td_store_preload(sh->s, &p, NULL, NULL, &built, &e), TD_OK);
@@ -469,6 +616,9 @@ static void test_concurrent_snapshots(void **state)
     assert_int_equal(atomic_load(&sh->mismatches), 0);
     assert_int_equal(atomic_load(&sh->over_budget), 0);
     assert_true(atomic_load(&sh->snapshots) >= 6);
+    assert_int_equal(atomic_load(&sh->bad_drapes), 0);
+    check_counters(sh->s, 0);
+    unlink(sh->drape);
     td_store_free(sh->s);
     free(sh);
 }
@@ -481,6 +631,7 @@ int main(void)
         cmocka_unit_test(test_budget_lru_pin),
         cmocka_unit_test(test_disk_cache),
         cmocka_unit_test(test_failed_preload_publishes_nothing),
+        cmocka_unit_test(test_drape),
         cmocka_unit_test(test_concurrent_snapshots),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

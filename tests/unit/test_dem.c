@@ -73,7 +73,7 @@ static void spit_text(const char *path, const char *text) { spit(path, text, str
 static td_grid *load_ok(const char *path, const td_dem_opts *o)
 {
     td_grid *g = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     td_status st = td_dem_load(path, o, &g, &err);
     if (st != TD_OK)
         print_message("unexpected refusal: %s\n", err.msg);
@@ -87,7 +87,7 @@ static td_grid *load_ok(const char *path, const td_dem_opts *o)
 static void refused(const char *path, const td_dem_opts *o, td_status want)
 {
     td_grid *g = (td_grid *)0x1;
-    td_err err = {{0}};
+    td_err err = {0};
     td_status st = td_dem_load(path, o, &g, &err);
     print_message("  refused %s: [%s] %s\n", strrchr(path, '/') + 1, td_status_json(st), err.msg);
     if (want == TD_OK)
@@ -329,7 +329,7 @@ static void test_asc_variants(void **state)
     refused(p, NULL, TD_EFORMAT);
     {
         td_grid *none = NULL;
-        td_err err = {{0}};
+        td_err err = {0};
         assert_int_equal(td_dem_load(p, NULL, &none, &err), TD_EFORMAT);
         assert_non_null(strstr(err.msg, "tiny.prj"));
     }
@@ -825,7 +825,7 @@ static void test_png_sidecar_and_no_encoding(void **state)
     refused(p, NULL, TD_EINVAL);
     assert_int_equal(td_dem_recognised(p), 0);
     {
-        td_err err = {{0}};
+        td_err err = {0};
         td_grid *none = NULL;
         td_dem_load(p, NULL, &none, &err);
         assert_non_null(strstr(err.msg, "--encoding"));

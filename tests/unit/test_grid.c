@@ -16,7 +16,7 @@
 static td_grid *make_grid(int32_t w, int32_t h, int tile_log2)
 {
     td_grid *g = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     assert_int_equal(td_grid_create(w, h, 10.0, 10.0, tile_log2, NULL, &g, &err), TD_OK);
     assert_non_null(g);
     for (int32_t j = 0; j < h; j++)
@@ -28,7 +28,7 @@ static td_grid *make_grid(int32_t w, int32_t h, int tile_log2)
 static void test_create_refuses_bad_sizes(void **state)
 {
     td_grid *g = (td_grid *)0x1;
-    td_err err = {{0}};
+    td_err err = {0};
     td_grid_limits lim;
     (void)state;
 
@@ -92,7 +92,7 @@ static void test_checked_arithmetic(void **state)
 /* Tiles of T cells: tile (tx, ty) covers cells [tx*T, tx*T+T) and samples up to tx*T+T. */
 static void test_tile_layout(void **state)
 {
-    td_err err = {{0}};
+    td_err err = {0};
     td_grid *g = make_grid(1000, 700, 8);
     (void)state;
     assert_int_equal(td_grid_finish(g, &err), TD_OK);
@@ -125,7 +125,7 @@ static void test_tile_layout(void **state)
 /* A spike on a shared edge sample raises the zmax of every tile that shares it. */
 static void test_tiles_share_edges(void **state)
 {
-    td_err err = {{0}};
+    td_err err = {0};
     td_grid *g = make_grid(600, 600, 8); /* 3 x 3 tiles */
     (void)state;
     g->z[(size_t)10 * 600 + 256] = 5000.0f;   /* column 256: edge of tiles 0 and 1 */
@@ -152,7 +152,7 @@ static void test_tile_bounds_brute_force(void **state)
 {
     td_terrain_params p;
     td_grid *g = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     (void)state;
     td_terrain_params_default(&p);
     p.width = 301;
@@ -179,7 +179,7 @@ static void test_tile_bounds_brute_force(void **state)
 
 static void test_voids(void **state)
 {
-    td_err err = {{0}};
+    td_err err = {0};
     td_grid *g = make_grid(40, 30, 3); /* 8-cell tiles: 5 x 4 */
     (void)state;
     /* void the whole first tile (samples 0..8 x 0..8) and one more sample elsewhere */

@@ -68,7 +68,7 @@ static void test_rgba_round_trip(void **state)
     const int32_t W = 37, H = 23;
     uint8_t *img = malloc((size_t)W * H * 4);
     td_buf b;
-    td_err err = {{0}};
+    td_err err = {0};
     png_uint_32 w, h;
     int depth, ctype;
     char text[64];
@@ -106,7 +106,7 @@ static void test_fast_settings_compress(void **state)
     const int32_t W = 256, H = 128;
     uint8_t *img = malloc((size_t)W * H * 4);
     td_buf b;
-    td_err err = {{0}};
+    td_err err = {0};
     (void)state;
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++) {
@@ -127,7 +127,7 @@ static void test_gray16_and_scale(void **state)
     const int32_t W = 19, H = 11;
     uint16_t v[19 * 11];
     td_buf b;
-    td_err err = {{0}};
+    td_err err = {0};
     png_uint_32 w, h;
     int depth, ctype;
     char text[64];
@@ -151,7 +151,7 @@ static void test_f32_little_endian(void **state)
 {
     float v[3] = {1.0f, -2.5f, INFINITY};
     td_buf b;
-    td_err err = {{0}};
+    td_err err = {0};
     (void)state;
     assert_int_equal(td_image_encode_f32(v, 3, 1, &b, &err), TD_OK);
     assert_int_equal(b.len, 12);
@@ -164,7 +164,7 @@ static void test_f32_little_endian(void **state)
 static void test_decode_refusals(void **state)
 {
     td_image8 *d = (td_image8 *)0x1;
-    td_err err = {{0}};
+    td_err err = {0};
     uint8_t junk[64];
     uint8_t img[16 * 16 * 4];
     td_buf b;

@@ -10,7 +10,11 @@
  * - Supersampling traces n*n rays per pixel; the image is the same for 1 and 2 threads;
  *   depth agrees with picking; cancellation and unsupported options are refused.
  * - Golden images: small scenes, one per effect, compared by PSNR (>= 35 dB) with
- *   tests/golden/NAME.png. TERRAD_UPDATE_GOLDEN=1 rewrites them (then look at them). */
+ *   tests/golden/NAME.png. TERRAD_UPDATE_GOLDEN=1 rewrites them (then look at them).
+ * - A pick of every pixel traces exactly the render's camera rays (same distances, same
+ *   counts, straight and bent); partial stats add up (td_render_stats_add); td_render
+ *   and td_render_pick hold every row of the table of limits at both ends, naming the
+ *   row's field in err.field. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -26,6 +30,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "limit.h"
 #include "render.h"
 #include "terrain.h"
 
@@ -39,7 +44,7 @@ static td_scene scene;     /* large (pick list): keep it off the stack */
 static int setup(void **state)
 {
     td_terrain_params p;
-    td_err err = {{0}};
+    td_err err = {0};
     (void)state;
     td_terrain_params_default(&p);
     p.width = p.height = 129;
@@ -81,7 +86,7 @@ static void render(const td_scene *s, int threads, td_render_result *res)
 {
     td_view v = {grid, NULL};
     td_render_opts o;
-    td_err err = {{0}};
+    td_err err = {0};
     td_render_opts_default(&o);
     o.threads = threads;
     td_status st = td_render(&v, s, &o, res, &err);
@@ -279,7 +284,7 @@ static void test_depth_matches_pick(void **state)
 {
     td_render_result r;
     td_view v = {grid, NULL};
-    td_err err = {{0}};
+    td_err err = {0};
     td_pick pk[3];
     (void)state;
     base_scene(&scene);
@@ -349,30 +354,39 @@ static void test_depth_matches_pick(void **state)
 
 /* Flat ground, a long shallow view: curvature bends the centre ray so that it meets the
  * ground where a*t^2*cos^2(p) + t*sin(p) + h = 0 says, well beyond the straight hit. */
-static void test_curvature(void **state)
+/* Flat ground 25.6 km square at 100 m, and a long, narrow view over it from the south
+ * edge, 50 m above the ground, 0.3 degrees down: the far camera rays bend. */
+static td_grid *flat_ground_view(td_scene *s)
 {
     td_terrain_params p;
     td_grid *flat = NULL;
-    td_err err = {{0}};
-    td_pick pk[1];
-    td_render_stats st;
-    (void)state;
+    td_err err = {0};
     td_terrain_params_default(&p);
     p.width = p.height = 257;
     p.spacing = 100.0;
     p.relief_m = 0.0;
     p.base_m = 100.0;
     assert_int_equal(td_terrain_generate(&p, 6, &flat, &err), TD_OK);
+    td_scene_defaults(s);
+    s->camera.x = 12800.0;
+    s->camera.y = 0.0;
+    s->camera.z = 150.0;
+    s->camera.pitch = -0.3;
+    s->camera.fov = 2.0;
+    s->quality.method = TD_METHOD_INCREMENTAL;
+    return flat;
+}
+
+static void test_curvature(void **state)
+{
+    td_grid *flat = flat_ground_view(&scene);
+    td_err err = {0};
+    td_pick pk[1];
+    td_render_stats st;
+    (void)state;
     td_view v = {flat, NULL};
-    td_scene_defaults(&scene);
-    scene.camera.x = 12800.0;
-    scene.camera.y = 0.0;
-    scene.camera.z = 150.0;
-    scene.camera.pitch = -0.3;
-    scene.camera.fov = 2.0;
     scene.image.width = W;
     scene.image.height = H;
-    scene.quality.method = TD_METHOD_INCREMENTAL;
     scene.image.format = TD_FORMAT_PICK;
     scene.npick = 1;
     scene.pick[0][0] = (W - 1) / 2.0;
@@ -421,7 +435,7 @@ static void test_curvature(void **state)
 static td_grid *walled_plain(double wall)
 {
     td_grid *g = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     assert_int_equal(td_grid_create(801, 21, 100.0, 100.0, 6, NULL, &g, &err), TD_OK);
     for (int32_t j = 0; j < 21; j++)
         for (int32_t i = 0; i < 801; i++)
@@ -457,7 +471,7 @@ static void test_curvature_shadows(void **state)
         for (int curv = 0; curv < 2; curv++) {
             td_render_result r;
             td_render_opts o;
-            td_err err = {{0}};
+            td_err err = {0};
             td_scene_defaults(&scene);
             scene.camera.x = 1000.0;
             scene.camera.y = -300.0;
@@ -497,7 +511,7 @@ static void test_refusals_and_cancel(void **state)
 {
     td_render_result r;
     td_view v = {grid, NULL};
-    td_err err = {{0}};
+    td_err err = {0};
     td_render_opts o;
     atomic_int cancel;
     (void)state;
@@ -551,7 +565,7 @@ static void test_cli_render(void **state)
     char *argv[] = {"render", scene_path, "-o", out_path, "--stats", stats_path, "--threads", "2", NULL};
     assert_int_equal(td_cli_render(8, argv), 0);
     td_image8 *img = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     assert_int_equal(td_image_load(out_path, 4, 1u << 20, &img, &err), TD_OK);
     assert_int_equal(img->width, 80);
     assert_int_equal(img->height, 60);
@@ -599,7 +613,7 @@ static void test_level_of_detail(void **state)
     td_render_opts o;
     td_lod *levels = NULL;
     td_accel_opts ao;
-    td_err err = {{0}};
+    td_err err = {0};
     (void)state;
     td_accel_opts_default(&ao);
     ao.maxmip = ao.planes = 0;
@@ -669,7 +683,7 @@ static void golden(const char *name, const td_scene *s, const td_image8 *drape)
     td_view v = {grid, NULL};
     td_render_opts o;
     td_render_result r;
-    td_err err = {{0}};
+    td_err err = {0};
     td_buf b;
     char path[1024];
     td_render_opts_default(&o);
@@ -763,6 +777,207 @@ static void test_golden_images(void **state)
     golden("drape", &s, &chk);
 }
 
+
+/* Partial stats add up: counts and sums add, stages OR, the larger error wins, the mean
+ * is the summed error over the summed hits (the threads' stats, in thread order). */
+static void test_stats_add(void **state)
+{
+    td_render_stats a, b, sum;
+    (void)state;
+    memset(&a, 0, sizeof a);
+    memset(&b, 0, sizeof b);
+    memset(&sum, 0, sizeof sum);
+    a.rays[TD_RAY_PRIMARY] = 10;
+    a.rays[TD_RAY_SHADOW] = 4;
+    a.steps = 100;
+    a.hits = 8;
+    a.curved_rays = 2;
+    a.curved_secondary = 1;
+    a.curve_segments = 7;
+    a.method_rays[TD_METHOD_INCREMENTAL] = 10;
+    a.lod_rays[0] = 9;
+    a.height_err_sum_m = 3.0;
+    a.height_err_max_m = 1.5;
+    a.height_err_hits = 6;
+    a.stage_ran[TD_STAGE_PRIMARY] = 1;
+    a.stage_ms[TD_STAGE_PRIMARY] = 2.0;
+    b.rays[TD_RAY_PRIMARY] = 5;
+    b.rays[TD_RAY_AO] = 20;
+    b.steps = 50;
+    b.hits = 2;
+    b.method_rays[TD_METHOD_HIERARCHICAL] = 5;
+    b.lod_rays[1] = 5;
+    b.height_err_sum_m = 1.0;
+    b.height_err_max_m = 0.5;
+    b.height_err_hits = 2;
+    b.stage_ran[TD_STAGE_AO] = 1;
+    b.stage_ms[TD_STAGE_PRIMARY] = 1.0;
+    b.stage_ms[TD_STAGE_AO] = 4.0;
+    b.threads = 7;
+    b.total_ms = 99.0;
+
+    td_render_stats_add(&sum, &a);
+    assert_float_equal(sum.height_err_mean_m, 0.5, 0.0);
+    td_render_stats_add(&sum, &b);
+    assert_int_equal(sum.rays[TD_RAY_PRIMARY], 15);
+    assert_int_equal(sum.rays[TD_RAY_SHADOW], 4);
+    assert_int_equal(sum.rays[TD_RAY_AO], 20);
+    assert_int_equal(sum.steps, 150);
+    assert_int_equal(sum.hits, 10);
+    assert_int_equal(sum.curved_rays, 2);
+    assert_int_equal(sum.curved_secondary, 1);
+    assert_int_equal(sum.curve_segments, 7);
+    assert_int_equal(sum.method_rays[TD_METHOD_INCREMENTAL], 10);
+    assert_int_equal(sum.method_rays[TD_METHOD_HIERARCHICAL], 5);
+    assert_int_equal(sum.lod_rays[0], 9);
+    assert_int_equal(sum.lod_rays[1], 5);
+    assert_float_equal(sum.height_err_sum_m, 4.0, 0.0);
+    assert_float_equal(sum.height_err_max_m, 1.5, 0.0);
+    assert_int_equal(sum.height_err_hits, 8);
+    assert_float_equal(sum.height_err_mean_m, 4.0 / 8.0, 0.0);
+    assert_true(sum.stage_ran[TD_STAGE_PRIMARY] && sum.stage_ran[TD_STAGE_AO]);
+    assert_false(sum.stage_ran[TD_STAGE_SHADOWS]);
+    assert_float_equal(sum.stage_ms[TD_STAGE_PRIMARY], 3.0, 0.0);
+    assert_float_equal(sum.stage_ms[TD_STAGE_AO], 4.0, 0.0);
+    assert_int_equal(sum.threads, 0); /* the caller's */
+    assert_float_equal(sum.total_ms, 0.0, 0.0);
+
+    /* no hits: the mean is 0, not NaN */
+    memset(&sum, 0, sizeof sum);
+    memset(&a, 0, sizeof a);
+    td_render_stats_add(&sum, &a);
+    assert_float_equal(sum.height_err_mean_m, 0.0, 0.0);
+}
+
+/* Picks every pixel of the scene (w x h <= TD_SCENE_PICK_MAX) and renders its depth on
+ * one thread: the same rays, so the same distances, steps, hits, bent rays and errors. */
+static void pick_all_matches_render(const td_view *v, int32_t w, int32_t h, int want_curved)
+{
+    static td_pick pk[TD_SCENE_PICK_MAX];
+    td_render_stats ps;
+    td_render_result r;
+    td_render_opts o;
+    td_err err = {0};
+    assert_true(w * h <= TD_SCENE_PICK_MAX);
+    scene.image.width = w;
+    scene.image.height = h;
+    scene.image.format = TD_FORMAT_PICK;
+    scene.npick = (int)(w * h);
+    for (int i = 0; i < scene.npick; i++) {
+        scene.pick[i][0] = i % w;
+        scene.pick[i][1] = i / w;
+    }
+    assert_int_equal(td_render_pick(v, &scene, pk, &ps, &err), TD_OK);
+    scene.image.format = TD_FORMAT_DEPTH32F;
+    scene.npick = 0;
+    td_render_opts_default(&o);
+    o.threads = 1;
+    assert_int_equal(td_render(v, &scene, &o, &r, &err), TD_OK);
+    for (int i = 0; i < w * h; i++) {
+        float d = pk[i].hit ? (float)pk[i].distance : INFINITY;
+        if (memcmp(&d, &r.depth[i], sizeof d))
+            print_error("pixel %d: pick %.9g, depth %.9g\n", i, (double)d, (double)r.depth[i]);
+        assert_memory_equal(&d, &r.depth[i], sizeof d);
+    }
+    assert_int_equal(ps.rays[TD_RAY_PRIMARY], r.stats.rays[TD_RAY_PRIMARY]);
+    assert_int_equal(ps.steps, r.stats.steps);
+    assert_int_equal(ps.hits, r.stats.hits);
+    assert_int_equal(ps.curved_rays, r.stats.curved_rays);
+    assert_int_equal(ps.curve_segments, r.stats.curve_segments);
+    assert_int_equal(ps.height_err_hits, r.stats.height_err_hits);
+    assert_float_equal(ps.height_err_max_m, r.stats.height_err_max_m, 0.0);
+    assert_float_equal(ps.height_err_mean_m, r.stats.height_err_mean_m,
+                       1e-12 * r.stats.height_err_mean_m); /* summed in block order */
+    assert_true(ps.hits > 0 && ps.hits < (uint64_t)(w * h));
+    if (want_curved)
+        assert_true(ps.curved_rays > 0 && ps.curve_segments > ps.curved_rays);
+    else
+        assert_int_equal(ps.curved_rays, 0);
+    for (int k = 0; k < TD_METHOD_COUNT; k++)
+        assert_int_equal(ps.method_rays[k], 0); /* a pick does not count them */
+    td_render_result_free(&r);
+}
+
+static void test_pick_traces_the_render_rays(void **state)
+{
+    td_view v = {grid, NULL};
+    (void)state;
+    base_scene(&scene);
+    scene.quality.surface = TD_SURFACE_TRIANGLE; /* a height error that is not 0 */
+    pick_all_matches_render(&v, 32, 24, 0);
+
+    /* the far rays bend (see test_curvature) */
+    td_grid *flat = flat_ground_view(&scene);
+    td_view fv = {flat, NULL};
+    scene.effects.curvature = 1;
+    pick_all_matches_render(&fv, 64, 16, 1);
+    td_grid_free(flat);
+}
+
+/* Sets the scene field of a row of the table of limits (a new row needs a case). */
+static void set_limited(td_scene *s, td_limit id, double v)
+{
+    switch (id) {
+    case TD_LIMIT_WIDTH: s->image.width = (int32_t)v; break;
+    case TD_LIMIT_HEIGHT: s->image.height = (int32_t)v; break;
+    case TD_LIMIT_SAMPLES: s->quality.samples = (int)v; break;
+    case TD_LIMIT_LOD_PIXELS: s->quality.lod = 1; s->quality.lod_pixels = v; break;
+    case TD_LIMIT_AO_RAYS: s->effects.ambient_occlusion = (int)v; break;
+    case TD_LIMIT_AMBIENT: s->effects.ambient = v; break;
+    case TD_LIMIT_SUN_ELEVATION: s->effects.sun_elevation = v; break;
+    case TD_LIMIT_HAZE_KM: s->effects.haze = 1; s->effects.haze_visibility_km = v; break;
+    case TD_LIMIT_CURVATURE_K: s->effects.curvature = 1; s->effects.curvature_k = v; break;
+    case TD_LIMIT_PICK: s->npick = (int)v; break;
+    default: fail_msg("limit %d: no scene field in this test", (int)id);
+    }
+}
+
+/* td_render (td_render_pick for the pick count) accepts each row's core max and min and
+ * refuses one past either end, with the row's path in err.field. */
+static void test_limits_in_core(void **state)
+{
+    td_view v = {grid, NULL};
+    td_render_opts o;
+    td_render_result r;
+    (void)state;
+    td_render_opts_default(&o);
+    o.threads = 1;
+    for (int id = 0; id < TD_LIMIT_COUNT; id++) {
+        const td_limit_row *l = td_limit_get((td_limit)id);
+        const double ends[4] = {l->min, l->max, l->min - 1.0, l->max + 1.0};
+        for (int k = 0; k < 4; k++) {
+            td_err err = {0};
+            td_status rc;
+            base_scene(&scene);
+            scene.image.width = id == TD_LIMIT_HEIGHT ? 1 : 4; /* cheap, also at 65536 */
+            scene.image.height = id == TD_LIMIT_WIDTH ? 1 : 3;
+            set_limited(&scene, (td_limit)id, ends[k]);
+            if (id == TD_LIMIT_PICK) {
+                static td_pick pk[TD_SCENE_PICK_MAX];
+                memset(scene.pick, 0, sizeof scene.pick);
+                scene.image.format = TD_FORMAT_PICK;
+                rc = td_render_pick(&v, &scene, pk, NULL, &err);
+            } else {
+                rc = td_render(&v, &scene, &o, &r, &err);
+                if (rc == TD_OK)
+                    td_render_result_free(&r);
+            }
+            if (k >= 2) {
+                if (rc != TD_ERANGE || strcmp(err.field, l->path))
+                    print_error("%s = %g: %d %s\n", l->path, ends[k], (int)rc, err.msg);
+                assert_int_equal(rc, TD_ERANGE);
+                assert_string_equal(err.field, l->path);
+                assert_memory_equal(err.msg, l->path, strlen(l->path)); /* the text names it too */
+            } else {
+                /* in range: rendered (lod: refused only for want of coarse levels) */
+                if (rc != (id == TD_LIMIT_LOD_PIXELS ? TD_EUNSUPPORTED : TD_OK))
+                    print_error("%s = %g: %d %s\n", l->path, ends[k], (int)rc, err.msg);
+                assert_int_equal(rc, id == TD_LIMIT_LOD_PIXELS ? TD_EUNSUPPORTED : TD_OK);
+            }
+        }
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -779,6 +994,9 @@ int main(void)
         cmocka_unit_test(test_level_of_detail),
         cmocka_unit_test(test_cli_render),
         cmocka_unit_test(test_golden_images),
+        cmocka_unit_test(test_stats_add),
+        cmocka_unit_test(test_pick_traces_the_render_rays),
+        cmocka_unit_test(test_limits_in_core),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -2,17 +2,24 @@
  * (server/request.c): a full scene reads every field; defaults fill the rest; each kind
  * of bad input (malformed, duplicate key, unknown key, wrong type, NaN/inf/overflow,
  * out of range, oversize image, bad id) is refused with the right status and the
- * field's path; the query form agrees with the JSON form; a pick's body defaults to
- * format pick. */
+ * field's path; the query form agrees with the JSON form; every range of the table of
+ * limits (core/limit.h) is the parser's, at both ends, with the service's maximum by
+ * default and core's when a caller raises td_request_limits; a pick's body
+ * defaults to format pick. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include <cmocka.h>
 
+#include <jansson.h>
+
+#include "limit.h"
 #include "request.h"
 
 static td_scene scene; /* large (pick list): keep it off the stack */
@@ -312,6 +319,118 @@ static void test_query(void **state)
     assert_string_equal(e.field, "effects.haze.visibility_km");
 }
 
+
+/* Parses the scene the JSON tree root spells (and frees the tree). */
+static td_status parse_tree(json_t *root, const td_request_limits *lim, td_request_error *e)
+{
+    char *text = json_dumps(root, 0);
+    assert_non_null(text);
+    memset(e, 0, sizeof *e);
+    td_status st = td_request_parse_scene(text, strlen(text), lim, &scene, e);
+    free(text);
+    json_decref(root);
+    return st;
+}
+
+/* A scene with one more field, given by its dotted path (a JSON integer when v is whole,
+ * so integer fields read it). */
+static td_status parse_field(const char *path, double v, const td_request_limits *lim,
+                             td_request_error *e)
+{
+    json_t *root = json_pack("{s:s,s:{s:{s:i,s:i,s:i}}}", "dataset", "levi", "camera", "position",
+                             "x", 1, "y", 2, "z", 3);
+    json_t *o = root;
+    char buf[128], *save = NULL;
+    snprintf(buf, sizeof buf, "%s", path);
+    char *key = strtok_r(buf, ".", &save);
+    for (char *next = strtok_r(NULL, ".", &save); next; next = strtok_r(NULL, ".", &save)) {
+        json_t *child = json_object_get(o, key);
+        if (!child) {
+            child = json_object();
+            json_object_set_new(o, key, child);
+        }
+        o = child;
+        key = next;
+    }
+    json_object_set_new(o, key, v == floor(v) ? json_integer((json_int_t)v) : json_real(v));
+    return parse_tree(root, lim, e);
+}
+
+static void accepts(const char *path, double v, const td_request_limits *lim)
+{
+    td_request_error e;
+    td_status st = parse_field(path, v, lim, &e);
+    if (st != TD_OK)
+        print_error("%s = %g: %s: %s\n", path, v, e.field, e.message);
+    assert_int_equal(st, TD_OK);
+}
+
+static void refuses(const char *path, double v, const td_request_limits *lim, td_status want)
+{
+    td_request_error e;
+    td_status st = parse_field(path, v, lim, &e);
+    if (st != want || strcmp(e.field, path))
+        print_error("%s = %g: got %d, field '%s': %s\n", path, v, (int)st, e.field, e.message);
+    assert_int_equal(st, want);
+    assert_string_equal(e.field, path);
+}
+
+/* A pick of n pixels. */
+static td_status parse_pick(int n, const td_request_limits *lim, td_request_error *e)
+{
+    json_t *px = json_array();
+    for (int i = 0; i < n; i++)
+        json_array_append_new(px, json_pack("[i,i]", i % 640, i / 640));
+    json_t *root = json_pack("{s:s,s:{s:{s:i,s:i,s:i}},s:{s:s},s:o}", "dataset", "levi", "camera",
+                             "position", "x", 1, "y", 2, "z", 3, "image", "format", "pick", "pick", px);
+    return parse_tree(root, lim, e);
+}
+
+static void test_limits_table(void **state)
+{
+    td_request_limits lim, wide;
+    td_request_error e;
+    (void)state;
+    td_request_limits_default(&lim);
+    assert_int_equal(lim.max_width, td_limit_get(TD_LIMIT_WIDTH)->api_max);
+    assert_int_equal(lim.max_height, td_limit_get(TD_LIMIT_HEIGHT)->api_max);
+    assert_int_equal(lim.max_samples, td_limit_get(TD_LIMIT_SAMPLES)->api_max);
+    assert_int_equal(lim.max_ao_rays, td_limit_get(TD_LIMIT_AO_RAYS)->api_max);
+    assert_int_equal(lim.max_pick, td_limit_get(TD_LIMIT_PICK)->api_max);
+    /* a caller that raises the limits to core's (as `terrad render` does) */
+    wide = lim;
+    wide.max_width = (int32_t)td_limit_get(TD_LIMIT_WIDTH)->max;
+    wide.max_height = (int32_t)td_limit_get(TD_LIMIT_HEIGHT)->max;
+    wide.max_samples = (int)td_limit_get(TD_LIMIT_SAMPLES)->max;
+    wide.max_ao_rays = (int)td_limit_get(TD_LIMIT_AO_RAYS)->max;
+    wide.max_pick = (int)td_limit_get(TD_LIMIT_PICK)->max;
+    wide.max_pixels = UINT64_MAX;
+    wide.max_samples_total = UINT64_MAX;
+
+    for (int id = 0; id < TD_LIMIT_COUNT; id++) {
+        const td_limit_row *l = td_limit_get((td_limit)id);
+        assert_non_null(l);
+        assert_true(l->min <= l->api_max && l->api_max <= l->max);
+        if (id == TD_LIMIT_PICK)
+            continue; /* a count, not a value: below */
+        accepts(l->path, l->min, &lim);
+        accepts(l->path, l->api_max, &lim);
+        refuses(l->path, l->min - 1.0, &lim, TD_ERANGE);
+        refuses(l->path, l->api_max + 1.0, &lim, TD_ERANGE);
+        accepts(l->path, l->max, &wide);
+        refuses(l->path, l->max + 1.0, &wide, TD_ERANGE);
+    }
+    assert_null(td_limit_get(TD_LIMIT_COUNT));
+
+    const td_limit_row *pk = td_limit_get(TD_LIMIT_PICK);
+    assert_int_equal(parse_pick((int)pk->api_max, &lim, &e), TD_OK);
+    assert_int_equal(parse_pick((int)pk->api_max + 1, &lim, &e), TD_ETOOBIG);
+    assert_string_equal(e.field, pk->path);
+    assert_int_equal(parse_pick((int)pk->max, &wide, &e), TD_OK);
+    assert_int_equal(parse_pick((int)pk->max + 1, &wide, &e), TD_ETOOBIG);
+    assert_string_equal(e.field, pk->path);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -321,6 +440,7 @@ int main(void)
         cmocka_unit_test(test_paths_allowed_for_cli),
         cmocka_unit_test(test_pick_body),
         cmocka_unit_test(test_query),
+        cmocka_unit_test(test_limits_table),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

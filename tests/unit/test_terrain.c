@@ -16,7 +16,7 @@ static td_grid *gen(int32_t w, int32_t h, uint64_t seed, int tile_log2)
 {
     td_terrain_params p;
     td_grid *g = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     td_terrain_params_default(&p);
     p.width = w;
     p.height = h;
@@ -48,7 +48,7 @@ static void test_range_and_sizes(void **state)
 {
     td_terrain_params p;
     td_grid *g = NULL;
-    td_err err = {{0}};
+    td_err err = {0};
     (void)state;
     td_terrain_params_default(&p);
     p.width = 300;
