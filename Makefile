@@ -33,6 +33,7 @@ test-asan: deps
 	cd $(ASAN_BUILD) && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
 		ctest --output-on-failure -j $(JOBS) -L 'unit|hardcases'
 
+# `terrad bench` runs build/terrad-bench (tests/bench), built beside terrad by `build`.
 bench: build
 	./$(BUILD)/terrad bench --out docs
 

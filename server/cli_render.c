@@ -9,16 +9,17 @@
  * parameter planes; auto: both) and timed as `accel_ms`.
  *
  * Output: the image in the scene's format (png, depth16, depth32f), or for format pick
- * a JSON array with the terrain point of each pixel. --stats writes JSON: rays {primary,
+ * the JSON answer of POST /v1/pick (answer.c: the dataset as the scene names it, and the
+ * terrain point of each pixel). --stats writes JSON: rays {primary,
  * shadow, reflection, ao}, steps, hits, curved_rays, curved_secondary, curve_segments, height_error_m {mean, max, hits}, stages_ms (one
  * entry per stage that ran), load_ms, accel_ms, render_ms, total_ms, threads, bytes.
  * Exit status: 0 ok, 1 runtime failure, 2 usage or scene error. */
 #include "cli.h"
+#include "answer.h"
 #include "clock.h"
 
 #include <dirent.h>
 #include <errno.h>
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -193,123 +194,108 @@ static json_t *stats_json(const td_render_stats *st)
     return o;
 }
 
-static json_t *pick_json(const td_grid *g, const td_pick *pk, int n)
-{
-    json_t *arr = json_array();
-    for (int i = 0; i < n; i++) {
-        json_t *o = json_pack("{s:f, s:f, s:b}", "px", pk[i].px, "py", pk[i].py, "hit", pk[i].hit);
-        if (pk[i].hit) {
-            json_object_set_new(o, "x", json_real(pk[i].p[0]));
-            json_object_set_new(o, "y", json_real(pk[i].p[1]));
-            json_object_set_new(o, "z", json_real(pk[i].p[2]));
-            json_object_set_new(o, "distance", json_real(pk[i].distance));
-            if (!isnan(pk[i].height_error_m))
-                json_object_set_new(o, "height_error_m", json_real(pk[i].height_error_m));
-            json_object_set_new(o, "cell", json_pack("[i,i]", (int)pk[i].ci, (int)pk[i].cj));
-            if (g->geo.kind == TD_GEO_LONLAT) {
-                json_object_set_new(o, "lon", json_real(g->geo.x0 + pk[i].p[0] / g->sx * g->geo.dx));
-                json_object_set_new(o, "lat", json_real(g->geo.y0 + pk[i].p[1] / g->sy * g->geo.dy));
-            }
-        }
-        json_array_append_new(arr, o);
-    }
-    return arr;
-}
+/* What one `terrad render` run reads, builds and writes. */
+typedef struct render_run {
+    const char *scene_path, *out_path, *stats_path;
+    int threads;
+    td_scene *scene; /* large (the pick list): heap */
+    char scene_dir[4096], dem_path[4096];
+    td_grid *g;
+    td_accel *acc;
+    td_lod *lod;
+    double load_ms, accel_ms;
+} render_run;
 
-int td_cli_render(int argc, char **argv)
+/* The command line into run; -1 to go on, else the exit status (help: 0, misuse: 2). */
+static int parse_args(int argc, char **argv, render_run *run)
 {
-    int rc = 2;
-    const char *scene_path = NULL, *out_path = NULL, *stats_path = NULL;
-    int threads = 0;
-    char *body = NULL, *text = NULL;
-    size_t len = 0;
-    td_scene *scene = NULL;
-    td_request_limits lim;
-    td_request_error rerr;
-    td_err err = {0};
-    td_grid *g = NULL;
-    td_accel *acc = NULL;
-    td_lod *lod = NULL;
-    td_render_result res;
-    td_buf buf = {0};
-    td_pick *picks = NULL;
-    json_t *stats = NULL, *pjson = NULL;
-    char dem_path[4096], drape_path[4096], scene_dir[4096];
-    double t0 = (1e3 * td_clock_s()), load_ms = 0.0, accel_ms = 0.0;
-
-    memset(&res, 0, sizeof res);
-    for (int i = 1; i < argc; i++) {
+    int rc = -1;
+    for (int i = 1; i < argc && rc < 0; i++) {
         if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) {
             render_usage(stdout);
             rc = 0;
-            goto out;
         } else if (!strcmp(argv[i], "-o") && i + 1 < argc) {
-            out_path = argv[++i];
+            run->out_path = argv[++i];
         } else if (!strcmp(argv[i], "--stats") && i + 1 < argc) {
-            stats_path = argv[++i];
+            run->stats_path = argv[++i];
         } else if (!strcmp(argv[i], "--threads") && i + 1 < argc) {
             char *end = NULL;
             long v = strtol(argv[++i], &end, 10);
             if (*end || v < 1 || v > 1024) {
                 fprintf(stderr, "terrad render: --threads wants 1 .. 1024\n");
-                goto out;
+                rc = 2;
             }
-            threads = (int)v;
+            run->threads = (int)v;
         } else if (argv[i][0] == '-' && argv[i][1]) {
             fprintf(stderr, "terrad render: unknown option '%s'\n", argv[i]);
             render_usage(stderr);
-            goto out;
-        } else if (!scene_path) {
-            scene_path = argv[i];
+            rc = 2;
+        } else if (!run->scene_path) {
+            run->scene_path = argv[i];
         } else {
             fprintf(stderr, "terrad render: one scene file only\n");
-            goto out;
+            rc = 2;
         }
     }
-    if (!scene_path || !out_path) {
+    if (rc < 0 && (!run->scene_path || !run->out_path)) {
         render_usage(stderr);
-        goto out;
+        rc = 2;
     }
-    body = read_file(scene_path, &len);
+    return rc;
+}
+
+/* The limits of a render from the command line: larger than the service's, and paths. */
+static void cli_limits(td_request_limits *lim)
+{
+    td_request_limits_default(lim);
+    lim->max_width = lim->max_height = 16384;
+    lim->max_pixels = (uint64_t)16384 * 16384;
+    lim->max_samples = (int)td_limit_get(TD_LIMIT_SAMPLES)->max; /* what core accepts */
+    lim->max_samples_total = (uint64_t)1 << 32;
+    lim->max_ao_rays = (int)td_limit_get(TD_LIMIT_AO_RAYS)->max;
+    lim->max_pick = (int)td_limit_get(TD_LIMIT_PICK)->max;
+    lim->allow_paths = 1;
+}
+
+/* Reads and parses the scene file, then finds its dataset and drape (see the top of the
+ * file). 0, or the exit status: 1 unreadable or not found, 2 a bad scene. */
+static int load_scene(render_run *run)
+{
+    int rc = 1;
+    size_t len = 0;
+    char *body = read_file(run->scene_path, &len), *slash;
+    char drape_path[4096];
+    td_request_limits lim;
+    td_request_error rerr;
+    td_scene *scene = run->scene = malloc(sizeof *run->scene);
+
     if (!body) {
-        fprintf(stderr, "terrad render: %s: cannot read (or larger than %u bytes): %s\n", scene_path,
+        fprintf(stderr, "terrad render: %s: cannot read (or larger than %u bytes): %s\n", run->scene_path,
                 TD_SCENE_FILE_MAX, strerror(errno));
-        rc = 1;
         goto out;
     }
-    td_request_limits_default(&lim);
-    lim.max_width = lim.max_height = 16384;
-    lim.max_pixels = (uint64_t)16384 * 16384;
-    lim.max_samples = (int)td_limit_get(TD_LIMIT_SAMPLES)->max; /* what core accepts */
-    lim.max_samples_total = (uint64_t)1 << 32;
-    lim.max_ao_rays = (int)td_limit_get(TD_LIMIT_AO_RAYS)->max;
-    lim.max_pick = (int)td_limit_get(TD_LIMIT_PICK)->max;
-    lim.allow_paths = 1;
-    scene = malloc(sizeof *scene);
-    if (!scene) {
-        rc = 1;
+    cli_limits(&lim);
+    if (!scene)
         goto out;
-    }
     if (td_request_parse_scene(body, len, &lim, scene, &rerr)) {
-        fprintf(stderr, "terrad render: %s: %s%s%s\n", scene_path, rerr.field,
+        fprintf(stderr, "terrad render: %s: %s%s%s\n", run->scene_path, rerr.field,
                 rerr.field[0] ? ": " : "", rerr.message);
+        rc = 2;
         goto out;
     }
-    snprintf(scene_dir, sizeof scene_dir, "%s", scene_path);
-    char *slash = strrchr(scene_dir, '/');
+    snprintf(run->scene_dir, sizeof run->scene_dir, "%s", run->scene_path);
+    slash = strrchr(run->scene_dir, '/');
     if (slash)
         *slash = 0;
     else
-        snprintf(scene_dir, sizeof scene_dir, ".");
-
-    rc = 1;
-    if (!resolve(scene->dataset, scene_dir, 1, dem_path, sizeof dem_path)) {
+        snprintf(run->scene_dir, sizeof run->scene_dir, ".");
+    if (!resolve(scene->dataset, run->scene_dir, 1, run->dem_path, sizeof run->dem_path)) {
         fprintf(stderr, "terrad render: dataset: '%s' is neither a DEM file nor a demo id under %s/data\n",
                 scene->dataset, TERRAD_SOURCE_DIR);
         goto out;
     }
     if (scene->effects.drape[0]) {
-        if (!resolve(scene->effects.drape, scene_dir, 0, drape_path, sizeof drape_path)) {
+        if (!resolve(scene->effects.drape, run->scene_dir, 0, drape_path, sizeof drape_path)) {
             fprintf(stderr, "terrad render: effects.drape: '%s' not found\n", scene->effects.drape);
             goto out;
         }
@@ -319,101 +305,159 @@ int td_cli_render(int argc, char **argv)
         }
         memcpy(scene->effects.drape, drape_path, strlen(drape_path) + 1);
     }
-    td_dem_opts dopts;
-    td_dem_opts_default(&dopts);
-    double t = (1e3 * td_clock_s());
-    if (td_dem_load(dem_path, &dopts, &g, &err)) {
-        fprintf(stderr, "terrad render: %s\n", err.msg);
-        goto out;
-    }
-    load_ms = (1e3 * td_clock_s()) - t;
+    rc = 0;
+out:
+    free(body);
+    return rc;
+}
 
-    td_method m = scene->quality.method;
+/* Loads the DEM and builds what the method needs for the whole grid (and the levels of
+ * detail when asked), timed as load_ms and accel_ms. 0, or 1 with the error printed. */
+static int load_dataset(render_run *run)
+{
+    int rc = 1;
+    td_err err = {0};
+    td_dem_opts dopts;
     td_accel_opts aopts;
     td_accel_stats ast;
+    td_method m = run->scene->quality.method;
+    double t = 1e3 * td_clock_s();
+
+    td_dem_opts_default(&dopts);
+    if (td_dem_load(run->dem_path, &dopts, &run->g, &err))
+        goto out;
+    run->load_ms = 1e3 * td_clock_s() - t;
     td_accel_opts_default(&aopts);
     aopts.maxmip = m == TD_METHOD_HIERARCHICAL || m == TD_METHOD_AUTO;
     aopts.planes = m == TD_METHOD_PARAMETRIC || m == TD_METHOD_AUTO;
-    aopts.threads = threads;
+    aopts.threads = run->threads;
     if (aopts.maxmip || aopts.planes) {
-        t = (1e3 * td_clock_s());
-        if (td_accel_build(g, &aopts, &acc, &ast, &err)) {
-            fprintf(stderr, "terrad render: %s\n", err.msg);
+        t = 1e3 * td_clock_s();
+        if (td_accel_build(run->g, &aopts, &run->acc, &ast, &err))
             goto out;
-        }
-        accel_ms = (1e3 * td_clock_s()) - t;
+        run->accel_ms = 1e3 * td_clock_s() - t;
     }
-    td_view view = {g, acc ? acc->tiles : NULL};
-    if (scene->quality.lod) {
-        t = (1e3 * td_clock_s());
-        if (td_lod_build(g, TD_LOD_MAX, &aopts, &lod, &err)) {
-            fprintf(stderr, "terrad render: %s\n", err.msg);
+    if (run->scene->quality.lod) {
+        t = 1e3 * td_clock_s();
+        if (td_lod_build(run->g, TD_LOD_MAX, &aopts, &run->lod, &err))
             goto out;
-        }
-        accel_ms += (1e3 * td_clock_s()) - t;
-    }
-
-    if (scene->image.format == TD_FORMAT_PICK) {
-        td_render_stats pst;
-        picks = calloc((size_t)scene->npick, sizeof *picks);
-        if (!picks || td_render_pick(&view, scene, picks, &pst, &err)) {
-            fprintf(stderr, "terrad render: %s\n", picks ? err.msg : "no memory");
-            goto out;
-        }
-        pjson = pick_json(g, picks, scene->npick);
-        text = json_dumps(pjson, JSON_INDENT(2) | JSON_REAL_PRECISION(12));
-        if (!text || !write_out(out_path, text, strlen(text))) {
-            fprintf(stderr, "terrad render: %s: cannot write\n", out_path);
-            goto out;
-        }
-        stats = stats_json(&pst);
-    } else {
-        td_render_opts ropts;
-        td_render_opts_default(&ropts);
-        ropts.threads = threads;
-        ropts.lod = lod;
-        double scale = 0.0;
-        if (td_render(&view, scene, &ropts, &res, &err) ||
-            td_render_encode(&res, scene, &buf, &scale, &err)) {
-            fprintf(stderr, "terrad render: %s\n", err.msg);
-            goto out;
-        }
-        if (!write_out(out_path, buf.data, buf.len)) {
-            fprintf(stderr, "terrad render: %s: cannot write: %s\n", out_path, strerror(errno));
-            goto out;
-        }
-        stats = stats_json(&res.stats);
-        json_object_set_new(stats, "bytes", json_integer((json_int_t)buf.len));
-        if (scale > 0.0)
-            json_object_set_new(stats, "depth_scale_m", json_real(scale));
+        run->accel_ms += 1e3 * td_clock_s() - t;
     }
     rc = 0;
-    if (stats_path) {
-        json_object_set_new(stats, "dataset", json_string(dem_path));
-        json_object_set_new(stats, "width", json_integer(scene->image.width));
-        json_object_set_new(stats, "height", json_integer(scene->image.height));
-        json_object_set_new(stats, "method", json_string(td_method_name(scene->quality.method)));
-        json_object_set_new(stats, "surface", json_string(td_surface_name(scene->quality.surface)));
-        json_object_set_new(stats, "samples", json_integer(scene->quality.samples));
-        json_object_set_new(stats, "load_ms", json_real(load_ms));
-        json_object_set_new(stats, "accel_ms", json_real(accel_ms));
-        json_object_set_new(stats, "total_ms", json_real((1e3 * td_clock_s()) - t0));
-        if (json_dump_file(stats, stats_path, JSON_INDENT(2) | JSON_REAL_PRECISION(6))) {
-            fprintf(stderr, "terrad render: %s: cannot write the stats\n", stats_path);
-            rc = 1;
-        }
-    }
 out:
-    json_decref(stats);
+    if (rc)
+        fprintf(stderr, "terrad render: %s\n", err.msg);
+    return rc;
+}
+
+/* Format pick: the answer of /v1/pick into the output file; *stats gets the stats. */
+static int write_picks(const render_run *run, const td_view *view, json_t **stats)
+{
+    int rc = 1;
+    td_err err = {0};
+    td_render_stats pst;
+    td_pick *picks = calloc((size_t)run->scene->npick, sizeof *picks);
+    json_t *pjson = NULL;
+    char *text = NULL;
+
+    if (!picks || td_render_pick(view, run->scene, picks, &pst, &err)) {
+        fprintf(stderr, "terrad render: %s\n", picks ? err.msg : "no memory");
+        goto out;
+    }
+    pjson = td_answer_picks(run->scene->dataset, run->g, picks, run->scene->npick); /* as /v1/pick */
+    text = json_dumps(pjson, JSON_INDENT(2) | JSON_REAL_PRECISION(12));
+    if (!text || !write_out(run->out_path, text, strlen(text))) {
+        fprintf(stderr, "terrad render: %s: cannot write\n", run->out_path);
+        goto out;
+    }
+    *stats = stats_json(&pst);
+    rc = 0;
+out:
     json_decref(pjson);
     free(text);
     free(picks);
+    return rc;
+}
+
+/* An image format: render, encode, write; *stats gets the stats, the size, the scale. */
+static int write_image(const render_run *run, const td_view *view, json_t **stats)
+{
+    int rc = 1;
+    td_err err = {0};
+    td_render_opts ropts;
+    td_render_result res;
+    td_buf buf = {0};
+    double scale = 0.0;
+
+    memset(&res, 0, sizeof res);
+    td_render_opts_default(&ropts);
+    ropts.threads = run->threads;
+    ropts.lod = run->lod;
+    if (td_render(view, run->scene, &ropts, &res, &err) || td_render_encode(&res, run->scene, &buf, &scale, &err)) {
+        fprintf(stderr, "terrad render: %s\n", err.msg);
+        goto out;
+    }
+    if (!write_out(run->out_path, buf.data, buf.len)) {
+        fprintf(stderr, "terrad render: %s: cannot write: %s\n", run->out_path, strerror(errno));
+        goto out;
+    }
+    *stats = stats_json(&res.stats);
+    json_object_set_new(*stats, "bytes", json_integer((json_int_t)buf.len));
+    if (scale > 0.0)
+        json_object_set_new(*stats, "depth_scale_m", json_real(scale));
+    rc = 0;
+out:
     td_buf_free(&buf);
     td_render_result_free(&res);
-    td_lod_free(lod);
-    td_accel_free(acc);
-    td_grid_free(g);
-    free(scene);
-    free(body);
+    return rc;
+}
+
+/* --stats: the render's stats and what the run was. 0, or 1 when it cannot be written. */
+static int write_stats(const render_run *run, json_t *stats, double t0)
+{
+    const td_scene *scene = run->scene;
+    json_object_set_new(stats, "dataset", json_string(run->dem_path));
+    json_object_set_new(stats, "width", json_integer(scene->image.width));
+    json_object_set_new(stats, "height", json_integer(scene->image.height));
+    json_object_set_new(stats, "method", json_string(td_method_name(scene->quality.method)));
+    json_object_set_new(stats, "surface", json_string(td_surface_name(scene->quality.surface)));
+    json_object_set_new(stats, "samples", json_integer(scene->quality.samples));
+    json_object_set_new(stats, "load_ms", json_real(run->load_ms));
+    json_object_set_new(stats, "accel_ms", json_real(run->accel_ms));
+    json_object_set_new(stats, "total_ms", json_real((1e3 * td_clock_s()) - t0));
+    if (json_dump_file(stats, run->stats_path, JSON_INDENT(2) | JSON_REAL_PRECISION(6))) {
+        fprintf(stderr, "terrad render: %s: cannot write the stats\n", run->stats_path);
+        return 1;
+    }
+    return 0;
+}
+
+int td_cli_render(int argc, char **argv)
+{
+    int rc;
+    render_run run;
+    json_t *stats = NULL;
+    double t0 = 1e3 * td_clock_s();
+
+    memset(&run, 0, sizeof run);
+    rc = parse_args(argc, argv, &run);
+    if (rc >= 0)
+        goto out;
+    rc = load_scene(&run);
+    if (!rc)
+        rc = load_dataset(&run);
+    if (!rc) {
+        td_view view = {run.g, run.acc ? run.acc->tiles : NULL};
+        rc = run.scene->image.format == TD_FORMAT_PICK ? write_picks(&run, &view, &stats)
+                                                       : write_image(&run, &view, &stats);
+    }
+    if (!rc && run.stats_path)
+        rc = write_stats(&run, stats, t0);
+out:
+    json_decref(stats);
+    td_lod_free(run.lod);
+    td_accel_free(run.acc);
+    td_grid_free(run.g);
+    free(run.scene);
     return rc;
 }

@@ -1,8 +1,8 @@
 /* cli_serve.c: `terrad serve`: reads the settings, loads the demo and --data datasets
- * into the tile store, starts the preload builder, the render watchdog and the HTTP
- * server, then waits for SIGTERM/SIGINT. On a signal it stops accepting, lets requests
- * in flight finish for --shutdown-timeout seconds (then cancels renders still running),
- * and exits 0.
+ * into the tile store, starts the preload builder and the HTTP server (whose workers
+ * render, each with --render-timeout as its deadline), then waits for SIGTERM/SIGINT.
+ * On a signal it stops accepting, lets requests in flight finish for --shutdown-timeout
+ * seconds (then cancels renders still running), and exits 0.
  *
  * Signals are blocked before any thread starts and taken with sigwait() on the main
  * thread, so no handler runs in the middle of a render or a malloc. */
@@ -21,12 +21,8 @@
 #include "log.h"
 #include "metrics.h"
 #include "routes.h"
+#include "static.h"
 #include "tilestore.h"
-
-static void cancel_renders(void *cls)
-{
-    td_routes_cancel_all(cls);
-}
 
 static int log2_of(long v)
 {
@@ -36,22 +32,122 @@ static int log2_of(long v)
     return k;
 }
 
-static void resolve_dir(const char *path, char *out)
+/* The tile store with the demo and --data datasets (a missing demo folder is a warning,
+ * a bad --data folder an error). 0, or -1 with the error logged. */
+static int open_store(const td_config *cfg, td_app *app)
 {
-    if (!path || !*path || !realpath(path, out))
-        out[0] = '\0';
+    int rc = -1, loaded = 0;
+    td_store_opts so;
+    td_err e = {0};
+    char q[600];
+
+    memset(&so, 0, sizeof so);
+    so.budget_bytes = (uint64_t)cfg->memory_mb << 20;
+    so.tile_log2 = log2_of(cfg->tile_size);
+    so.planes_k = (int)cfg->planes_k;
+    so.cache_dir = cfg->cache_dir;
+    if (td_store_create(&so, &app->store, &e)) {
+        td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg));
+        goto out;
+    }
+    if (cfg->demo_dir[0]) {
+        int n = 0;
+        if (td_store_add_dir(app->store, cfg->demo_dir, "demo", &n, &e))
+            td_log(TD_LOG_WARN, "demo_missing", "msg=%s", td_log_quote(q, sizeof q, e.msg));
+        loaded += n;
+    }
+    if (cfg->data_dir[0]) {
+        int n = 0;
+        if (td_store_add_dir(app->store, cfg->data_dir, "data", &n, &e)) {
+            td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg));
+            goto out;
+        }
+        loaded += n;
+    }
+    if (loaded == 0)
+        td_log(TD_LOG_WARN, "no_datasets",
+               "msg=\"no dataset could be loaded; serving anyway (give --data DIR)\"");
+    else
+        td_log(TD_LOG_INFO, "datasets_ready", "count=%d", loaded);
+    rc = 0;
+out:
+    return rc;
+}
+
+/* The HTTP server over the routes; ready once it listens. 0, or -1 with the error logged. */
+static int start_http(const td_config *cfg, td_app *app)
+{
+    td_http_opts ho;
+    td_err e = {0};
+    char q[600];
+    int rc = -1;
+
+    memset(&ho, 0, sizeof ho);
+    ho.host = cfg->host;
+    ho.port = cfg->port;
+    ho.threads = (int)cfg->threads;
+    ho.workers = (int)cfg->render_workers;
+    ho.queue = (int)cfg->queue;
+    ho.max_body = (size_t)cfg->max_body_kb << 10;
+    ho.conn_timeout_s = (unsigned)cfg->conn_timeout_s;
+    ho.per_ip = (unsigned)cfg->per_ip;
+    ho.handler = td_routes_handle;
+    ho.done = td_routes_done;
+    ho.work_timeout_s = cfg->render_timeout_s;
+    ho.cls = app;
+    ho.route_names = td_route_names;
+    ho.nroutes = TD_ROUTE_COUNT;
+    if (td_http_start(&ho, &app->http, &e)) {
+        td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg));
+        goto out;
+    }
+    atomic_store(&app->ready, 1);
+    td_log(TD_LOG_INFO, "listening", "url=http://%s%s%s:%d/ port=%d threads=%ld workers=%ld queue=%ld",
+           strchr(cfg->host, ':') ? "[" : "", cfg->host, strchr(cfg->host, ':') ? "]" : "",
+           td_http_port(app->http), td_http_port(app->http), cfg->threads, cfg->render_workers, cfg->queue);
+    rc = 0;
+out:
+    return rc;
+}
+
+/* --preload all: one job per dataset, both structures. */
+static void preload_all(td_app *app)
+{
+    td_err e = {0};
+    char q[600];
+    for (size_t i = 0; i < td_store_count(app->store); i++) {
+        td_preload_spec sp;
+        unsigned id;
+        memset(&sp, 0, sizeof sp);
+        sp.dataset = i;
+        sp.maxmip = sp.planes = 1;
+        if (td_jobs_submit(app->jobs, &sp, &id, &e))
+            td_log(TD_LOG_WARN, "preload_skipped", "msg=%s", td_log_quote(q, sizeof q, e.msg));
+    }
+}
+
+/* Waits for SIGTERM or SIGINT, then stops the HTTP server within --shutdown-timeout. */
+static void wait_and_stop(const td_config *cfg, td_app *app, sigset_t *set)
+{
+    int sig = 0, left;
+    while (sigwait(set, &sig) != 0)
+        ;
+    td_log(TD_LOG_INFO, "stopping", "signal=%s deadline_s=%g", sig == SIGTERM ? "SIGTERM" : "SIGINT",
+           cfg->shutdown_s);
+    atomic_store(&app->ready, 0);
+    left = td_http_stop(app->http, cfg->shutdown_s);
+    app->http = NULL;
+    td_log(left ? TD_LOG_WARN : TD_LOG_INFO, "stopped", "unfinished_at_deadline=%d", left);
 }
 
 int td_cli_serve(int argc, char **argv)
 {
-    int rc = 1, help = 0, loaded = 0, sig = 0, cores = td_cpu_count();
+    int rc = 1, help = 0, cores = td_cpu_count();
     td_config cfg;
     td_err e = {0};
-    td_store_opts so;
     td_app app;
-    td_http_opts ho;
     sigset_t set;
-    char q[600], leaflet[PATH_MAX + 64];
+    char q[600];
 
     memset(&app, 0, sizeof app);
     sigemptyset(&set);
@@ -81,97 +177,24 @@ int td_cli_serve(int argc, char **argv)
         cfg.render_workers = cores;
     td_config_log(&cfg);
     app.cfg = &cfg;
-
-    memset(&so, 0, sizeof so);
-    so.budget_bytes = (uint64_t)cfg.memory_mb << 20;
-    so.tile_log2 = log2_of(cfg.tile_size);
-    so.planes_k = (int)cfg.planes_k;
-    so.cache_dir = cfg.cache_dir;
-    if (td_store_create(&so, &app.store, &e)) {
-        td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg));
+    if (open_store(&cfg, &app))
         goto out;
-    }
-    if (cfg.demo_dir[0]) {
-        int n = 0;
-        if (td_store_add_dir(app.store, cfg.demo_dir, "demo", &n, &e))
-            td_log(TD_LOG_WARN, "demo_missing", "msg=%s", td_log_quote(q, sizeof q, e.msg));
-        loaded += n;
-    }
-    if (cfg.data_dir[0]) {
-        int n = 0;
-        if (td_store_add_dir(app.store, cfg.data_dir, "data", &n, &e)) {
-            td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg));
-            goto out;
-        }
-        loaded += n;
-    }
-    if (loaded == 0)
-        td_log(TD_LOG_WARN, "no_datasets",
-               "msg=\"no dataset could be loaded; serving anyway (give --data DIR)\"");
-    else
-        td_log(TD_LOG_INFO, "datasets_ready", "count=%d", loaded);
-
-    resolve_dir(cfg.web_dir, app.web_dir);
-    snprintf(leaflet, sizeof leaflet, "%s/node_modules/leaflet/dist", cfg.web_dir);
-    resolve_dir(leaflet, app.leaflet_dir);
+    td_static_resolve(cfg.web_dir, app.web_dir, app.leaflet_dir);
     app.metrics = td_metrics_create(td_route_names, TD_ROUTE_COUNT);
-    if (!app.metrics || td_jobs_start(app.store, &app.jobs, &e) || td_routes_start(&app, &e)) {
+    if (!app.metrics || td_jobs_start(app.store, &app.jobs, &e)) {
         td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg[0] ? e.msg : "out of memory"));
         goto out;
     }
-
-    memset(&ho, 0, sizeof ho);
-    ho.host = cfg.host;
-    ho.port = cfg.port;
-    ho.threads = (int)cfg.threads;
-    ho.workers = (int)cfg.render_workers;
-    ho.queue = (int)cfg.queue;
-    ho.max_body = (size_t)cfg.max_body_kb << 10;
-    ho.conn_timeout_s = (unsigned)cfg.conn_timeout_s;
-    ho.per_ip = (unsigned)cfg.per_ip;
-    ho.handler = td_routes_handle;
-    ho.done = td_routes_done;
-    ho.on_deadline = cancel_renders;
-    ho.cls = &app;
-    ho.route_names = td_route_names;
-    ho.nroutes = TD_ROUTE_COUNT;
-    if (td_http_start(&ho, &app.http, &e)) {
-        td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg));
+    if (start_http(&cfg, &app))
         goto out;
-    }
-    atomic_store(&app.ready, 1);
-    td_log(TD_LOG_INFO, "listening", "url=http://%s%s%s:%d/ port=%d threads=%ld workers=%ld queue=%ld",
-           strchr(cfg.host, ':') ? "[" : "", cfg.host, strchr(cfg.host, ':') ? "]" : "",
-           td_http_port(app.http), td_http_port(app.http), cfg.threads, cfg.render_workers, cfg.queue);
-
-    if (!strcmp(cfg.preload, "all")) {
-        for (size_t i = 0; i < td_store_count(app.store); i++) {
-            td_preload_spec sp;
-            unsigned id;
-            memset(&sp, 0, sizeof sp);
-            sp.dataset = i;
-            sp.maxmip = sp.planes = 1;
-            if (td_jobs_submit(app.jobs, &sp, &id, &e))
-                td_log(TD_LOG_WARN, "preload_skipped", "msg=%s", td_log_quote(q, sizeof q, e.msg));
-        }
-    }
-
-    while (sigwait(&set, &sig) != 0)
-        ;
-    td_log(TD_LOG_INFO, "stopping", "signal=%s deadline_s=%g", sig == SIGTERM ? "SIGTERM" : "SIGINT",
-           cfg.shutdown_s);
-    atomic_store(&app.ready, 0);
-    {
-        int left = td_http_stop(app.http, cfg.shutdown_s);
-        app.http = NULL;
-        td_log(left ? TD_LOG_WARN : TD_LOG_INFO, "stopped", "unfinished_at_deadline=%d", left);
-    }
+    if (!strcmp(cfg.preload, "all"))
+        preload_all(&app);
+    wait_and_stop(&cfg, &app, &set);
     rc = 0;
 out:
     if (app.http)
         td_http_stop(app.http, 0);
     td_jobs_stop(app.jobs);
-    td_routes_stop(&app);
     td_store_free(app.store);
     td_metrics_free(app.metrics);
     td_config_free(&cfg);

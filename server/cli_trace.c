@@ -160,52 +160,46 @@ static int write_stats(const char *path, const char *dem, td_method m, td_surfac
     return rc;
 }
 
-int td_cli_trace(int argc, char **argv)
-{
-    int rc = 2, threads = 0, k = TD_PLANES_K_DEFAULT, started = 0;
-    const char *dem = NULL, *stats = NULL;
-    td_method method = TD_METHOD_AUTO;
-    td_surface surface = TD_SURFACE_BILINEAR;
+/* What one `terrad trace` run is asked for, loads and measures. */
+typedef struct trace_run {
+    const char *dem, *stats;
+    td_method method;
+    td_surface surface;
+    int threads, k;
     td_dem_opts dopts;
-    td_err err = {0};
-    td_grid *g = NULL;
-    td_accel *acc = NULL;
-    td_accel_opts aopts;
+    td_grid *g;
+    td_accel *acc;
     td_accel_stats astats;
-    unsigned char *in = NULL, *outb = NULL;
-    size_t len = 0, n = 0, bytes = 0;
-    td_ray *rays = NULL;
-    double *t = NULL, t0, secs, load_s;
-    trace_job *jobs = NULL;
-    pthread_t *th = NULL;
-    uint64_t steps = 0, hits = 0;
-    td_view view;
+    double load_s;
+} trace_run;
 
-    td_dem_opts_default(&dopts);
-    memset(&astats, 0, sizeof astats);
-    for (int a = 1; a < argc; a++) {
+/* The command line into run; -1 to go on, else the exit status (help: 0, misuse: 2). */
+static int parse_args(int argc, char **argv, trace_run *run)
+{
+    int rc = -1;
+    for (int a = 1; a < argc && rc < 0; a++) {
         const char *opt = argv[a], *val = a + 1 < argc ? argv[a + 1] : NULL;
         int ok = 1;
         if (!strcmp(opt, "-h") || !strcmp(opt, "--help")) {
             trace_usage(stdout);
             rc = 0;
-            goto out;
+            break;
         } else if (!val) {
             ok = 0;
         } else if (!strcmp(opt, "--dem")) {
-            dem = val;
+            run->dem = val;
         } else if (!strcmp(opt, "--method")) {
-            ok = td_method_parse(val, &method) == TD_OK;
+            ok = td_method_parse(val, &run->method) == TD_OK;
         } else if (!strcmp(opt, "--surface")) {
-            ok = td_surface_parse(val, &surface) == TD_OK;
+            ok = td_surface_parse(val, &run->surface) == TD_OK;
         } else if (!strcmp(opt, "--threads")) {
-            ok = td_cli_parse_int(val, 1, 1024, &threads);
+            ok = td_cli_parse_int(val, 1, 1024, &run->threads);
         } else if (!strcmp(opt, "--k")) {
-            ok = td_cli_parse_int(val, 1, TD_PLANES_K_MAX, &k);
+            ok = td_cli_parse_int(val, 1, TD_PLANES_K_MAX, &run->k);
         } else if (!strcmp(opt, "--stats")) {
-            stats = val;
+            run->stats = val;
         } else if (!strcmp(opt, "--encoding")) {
-            ok = td_dem_encoding_parse(val, &dopts.encoding) == TD_OK;
+            ok = td_dem_encoding_parse(val, &run->dopts.encoding) == TD_OK;
         } else {
             ok = 0;
         }
@@ -213,37 +207,53 @@ int td_cli_trace(int argc, char **argv)
             fprintf(stderr, "terrad trace: bad or incomplete option %s%s%s\n", opt, val ? " " : "",
                     val ? val : "");
             trace_usage(stderr);
-            goto out;
+            rc = 2;
         }
         a++;
     }
-    if (!dem) {
+    if (rc < 0 && !run->dem) {
         fprintf(stderr, "terrad trace: --dem FILE is required\n");
         trace_usage(stderr);
-        goto out;
+        rc = 2;
     }
-    rc = 1;
-    if (threads <= 0)
-        threads = td_cpu_count();
+    return rc;
+}
 
-    /* load and build (not timed as tracing) */
-    t0 = td_clock_s();
-    if (td_dem_load(dem, &dopts, &g, &err) != TD_OK) {
+/* Loads the DEM and builds what the method needs (neither is timed as tracing). */
+static int load_dem(trace_run *run)
+{
+    int rc = 1;
+    td_err err = {0};
+    td_accel_opts aopts;
+    double t0 = td_clock_s();
+    if (td_dem_load(run->dem, &run->dopts, &run->g, &err) != TD_OK) {
         fprintf(stderr, "terrad trace: %s\n", err.msg);
         goto out;
     }
-    load_s = td_clock_s() - t0;
+    run->load_s = td_clock_s() - t0;
     td_accel_opts_default(&aopts);
-    aopts.maxmip = method == TD_METHOD_HIERARCHICAL || method == TD_METHOD_AUTO;
-    aopts.planes = method == TD_METHOD_PARAMETRIC || method == TD_METHOD_AUTO;
-    aopts.planes_k = k;
-    aopts.threads = threads;
-    if ((aopts.maxmip || aopts.planes) && td_accel_build(g, &aopts, &acc, &astats, &err) != TD_OK) {
-        fprintf(stderr, "terrad trace: %s: %s\n", dem, err.msg);
+    aopts.maxmip = run->method == TD_METHOD_HIERARCHICAL || run->method == TD_METHOD_AUTO;
+    aopts.planes = run->method == TD_METHOD_PARAMETRIC || run->method == TD_METHOD_AUTO;
+    aopts.planes_k = run->k;
+    aopts.threads = run->threads;
+    if ((aopts.maxmip || aopts.planes) && td_accel_build(run->g, &aopts, &run->acc, &run->astats, &err) != TD_OK) {
+        fprintf(stderr, "terrad trace: %s: %s\n", run->dem, err.msg);
         goto out;
     }
+    rc = 0;
+out:
+    return rc;
+}
 
-    /* rays */
+/* The rays of stdin, each validated (the first bad one is refused with its index). */
+static int read_rays(td_ray **rays_out, size_t *n_out)
+{
+    int rc = 1;
+    td_err err = {0};
+    unsigned char *in = NULL;
+    size_t len = 0, n = 0, bytes = 0;
+    td_ray *rays = NULL;
+
     if (read_all(stdin, &in, &len) != 0) {
         fprintf(stderr, "terrad trace: cannot read rays from stdin: %s\n", strerror(errno ? errno : EIO));
         goto out;
@@ -256,8 +266,7 @@ int td_cli_trace(int argc, char **argv)
                 len % TRACE_RECORD, n, TRACE_RECORD);
         goto out;
     }
-    if (!td_mul_size(n, sizeof *rays, &bytes) || !(rays = malloc(bytes ? bytes : 1)) ||
-        !(t = malloc(n ? n * sizeof *t : 1)) || !(outb = malloc(n ? n * 8 : 1))) {
+    if (!td_mul_size(n, sizeof *rays, &bytes) || !(rays = malloc(bytes ? bytes : 1))) {
         fprintf(stderr, "terrad trace: out of memory for %zu rays\n", n);
         goto out;
     }
@@ -274,25 +283,37 @@ int td_cli_trace(int argc, char **argv)
             goto out;
         }
     }
+    rc = 0;
+out:
     free(in);
-    in = NULL;
+    if (rc) {
+        free(rays);
+        rays = NULL;
+    }
+    *rays_out = rays;
+    *n_out = n;
+    return rc;
+}
 
-    /* trace */
-    if ((size_t)threads > n)
-        threads = n ? (int)n : 1;
-    jobs = calloc((size_t)threads, sizeof *jobs);
-    th = calloc((size_t)threads, sizeof *th);
+/* Traces rays[0 .. n) into t on run->threads threads (contiguous chunks; this thread
+ * takes the first); the totals and the seconds around the loops only. */
+static int trace_all(trace_run *run, const td_view *view, const td_ray *rays, size_t n, double *t,
+                     uint64_t *steps, uint64_t *hits, double *secs)
+{
+    int rc = 1, started = 0, threads = run->threads;
+    trace_job *jobs = calloc((size_t)threads, sizeof *jobs);
+    pthread_t *th = calloc((size_t)threads, sizeof *th);
+    double t0;
+
     if (!jobs || !th) {
         fprintf(stderr, "terrad trace: out of memory\n");
         goto out;
     }
-    view.grid = g;
-    view.accel = acc ? acc->tiles : NULL;
     t0 = td_clock_s();
     for (int j = 0; j < threads; j++) {
-        jobs[j].view = &view;
-        jobs[j].method = method;
-        jobs[j].surface = surface;
+        jobs[j].view = view;
+        jobs[j].method = run->method;
+        jobs[j].surface = run->surface;
         jobs[j].rays = rays;
         jobs[j].t = t;
         jobs[j].n0 = n * (size_t)j / (size_t)threads;
@@ -307,32 +328,84 @@ int td_cli_trace(int argc, char **argv)
     for (int j = 1; j < started; j++)
         pthread_join(th[j], NULL);
     started = 0;
-    secs = td_clock_s() - t0;
+    *secs = td_clock_s() - t0;
     for (int j = 0; j < threads; j++) {
-        steps += jobs[j].steps;
-        hits += jobs[j].hits;
+        *steps += jobs[j].steps;
+        *hits += jobs[j].hits;
     }
-
-    for (size_t r = 0; r < n; r++)
-        put_le_double(outb + 8 * r, t[r]);
-    if ((n && fwrite(outb, 8, n, stdout) != n) || fflush(stdout) != 0) {
-        fprintf(stderr, "terrad trace: cannot write hits to stdout\n");
-        goto out;
-    }
-    if (stats && write_stats(stats, dem, method, surface, n, hits, steps, secs, threads, load_s,
-                             &astats) != 0)
-        goto out;
     rc = 0;
 out:
     for (int j = 1; j < started; j++)
         pthread_join(th[j], NULL);
     free(th);
     free(jobs);
+    return rc;
+}
+
+/* One little-endian float64 t per ray on stdout. */
+static int write_hits(const double *t, size_t n)
+{
+    int rc = 1;
+    unsigned char *outb = malloc(n ? n * 8 : 1);
+    if (!outb) {
+        fprintf(stderr, "terrad trace: out of memory for %zu rays\n", n);
+        goto out;
+    }
+    for (size_t r = 0; r < n; r++)
+        put_le_double(outb + 8 * r, t[r]);
+    if ((n && fwrite(outb, 8, n, stdout) != n) || fflush(stdout) != 0) {
+        fprintf(stderr, "terrad trace: cannot write hits to stdout\n");
+        goto out;
+    }
+    rc = 0;
+out:
     free(outb);
+    return rc;
+}
+
+int td_cli_trace(int argc, char **argv)
+{
+    int rc;
+    trace_run run;
+    size_t n = 0;
+    td_ray *rays = NULL;
+    double *t = NULL, secs = 0;
+    uint64_t steps = 0, hits = 0;
+    td_view view;
+
+    memset(&run, 0, sizeof run);
+    run.method = TD_METHOD_AUTO;
+    run.surface = TD_SURFACE_BILINEAR;
+    run.k = TD_PLANES_K_DEFAULT;
+    td_dem_opts_default(&run.dopts);
+    rc = parse_args(argc, argv, &run);
+    if (rc >= 0)
+        goto out;
+    if (run.threads <= 0)
+        run.threads = td_cpu_count();
+    rc = load_dem(&run);
+    if (!rc)
+        rc = read_rays(&rays, &n);
+    if (!rc && !(t = malloc(n ? n * sizeof *t : 1))) {
+        fprintf(stderr, "terrad trace: out of memory for %zu rays\n", n);
+        rc = 1;
+    }
+    if (rc)
+        goto out;
+    if ((size_t)run.threads > n)
+        run.threads = n ? (int)n : 1;
+    view.grid = run.g;
+    view.accel = run.acc ? run.acc->tiles : NULL;
+    rc = trace_all(&run, &view, rays, n, t, &steps, &hits, &secs);
+    if (!rc)
+        rc = write_hits(t, n);
+    if (!rc && run.stats)
+        rc = write_stats(run.stats, run.dem, run.method, run.surface, n, hits, steps, secs, run.threads,
+                         run.load_s, &run.astats);
+out:
     free(t);
     free(rays);
-    free(in);
-    td_accel_free(acc);
-    td_grid_free(g);
+    td_accel_free(run.acc);
+    td_grid_free(run.g);
     return rc;
 }

@@ -6,17 +6,22 @@
  * does not run on the HTTP threads: the handler calls td_http_defer, which reserves a
  * slot in a bounded queue of worker threads or refuses (the caller answers 503); a
  * deferred connection is suspended and resumed when a worker has filled the response,
- * so health checks and metrics stay answered while every worker renders.
+ * so health checks and metrics stay answered while every worker renders. Each worker
+ * has a cancel flag that deferred work polls (td_http_req_cancel): a watchdog thread
+ * raises it once the work has run for work_timeout_s, and td_http_stop raises every
+ * flag when its deadline passes.
  *
  *   MHD threads (pool, epoll)          worker threads (render_workers)
  *   access cb -> handler --defer-->  [bounded queue] -> work fn -> resume connection
  *            <---------------- response queued on the next access cb ------------
+ *                                      watchdog: raises a worker's flag at its deadline
  *
  * Per-request state lives from the first access callback to the completion callback,
  * which logs the access line, reports to the metrics hook and frees it. */
 #ifndef TD_HTTP_H
 #define TD_HTTP_H
 
+#include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -87,6 +92,10 @@ double td_http_req_age(const td_http_req *q); /* seconds since the request began
 double td_http_req_queue_wait(const td_http_req *q);
 /* Route label kept for the access log and metrics (a static string id). */
 void td_http_req_set_route(td_http_req *q, int route);
+/* In a work fn (td_http_defer): the flag that long work polls (td_render_opts.cancel),
+ * raised once the work has run for td_http_opts.work_timeout_s or when td_http_stop's
+ * deadline passes. NULL outside a work fn. */
+const atomic_int *td_http_req_cancel(const td_http_req *q);
 
 /* Worker callback: fills resp. `cancelled` is set when the server is stopping past its
  * deadline: answer quickly (503) without doing the work. */
@@ -113,7 +122,7 @@ typedef struct td_http_opts {
     td_http_handler handler;
     td_http_done_fn done;
     void *cls;
-    void (*on_deadline)(void *cls); /* td_http_stop's deadline passed (may be NULL) */
+    double work_timeout_s;          /* deferred work's deadline once a worker takes it */
     const char *const *route_names; /* for the access log; indexed by route id */
     int nroutes;
 } td_http_opts;
@@ -123,8 +132,9 @@ int td_http_port(const td_http *h);
 /* Deferred requests queued or running now. */
 int td_http_queue_depth(const td_http *h);
 /* Stops accepting, lets requests in flight finish for up to `deadline_s` seconds
- * (then tells queued work it is cancelled), stops the threads, frees. Returns the
- * number of requests still unfinished at the deadline. */
+ * (then raises the running work's cancel flags and tells queued work it is cancelled),
+ * stops the threads, frees. Returns the number of requests still unfinished at the
+ * deadline. */
 int td_http_stop(td_http *h, double deadline_s);
 
 #endif

@@ -130,14 +130,10 @@ static void put(td_buf *b, const char *fmt, ...)
 
 #define LD(x) ((unsigned long long)atomic_load_explicit(&(x), memory_order_relaxed))
 
-char *td_metrics_format(const td_metrics *mc, const td_metrics_ext *e, size_t *len)
+/* terrad_requests_total by route and status, the statuses that occurred only. */
+static void put_requests(td_buf *b, td_metrics *m)
 {
-    td_metrics *m = (td_metrics *)mc; /* atomic loads need a non-const object in C11 */
-    td_buf b = {malloc(8192), 0, 8192, 0};
-    if (!b.p)
-        return NULL;
-
-    put(&b, "# HELP terrad_requests_total HTTP requests answered, by route and status.\n"
+    put(b, "# HELP terrad_requests_total HTTP requests answered, by route and status.\n"
             "# TYPE terrad_requests_total counter\n");
     for (int r = 0; r <= m->nroutes; r++)
         for (int s = 0; s <= TD_HTTP_STATUS_COUNT; s++) {
@@ -149,11 +145,15 @@ char *td_metrics_format(const td_metrics *mc, const td_metrics_ext *e, size_t *l
                 snprintf(code, sizeof code, "%d", td_http_status_code(s));
             else
                 snprintf(code, sizeof code, "other");
-            put(&b, "terrad_requests_total{route=\"%s\",status=\"%s\"} %llu\n",
+            put(b, "terrad_requests_total{route=\"%s\",status=\"%s\"} %llu\n",
                 r < m->nroutes ? m->route_names[r] : "other", code, v);
         }
+}
 
-    put(&b, "# HELP terrad_render_seconds Wall time of renders, by tracing method.\n"
+/* terrad_render_seconds, a histogram per tracing method. */
+static void put_render_seconds(td_buf *b, td_metrics *m)
+{
+    put(b, "# HELP terrad_render_seconds Wall time of renders, by tracing method.\n"
             "# TYPE terrad_render_seconds histogram\n");
     for (int k = 0; k < TD_METHOD_COUNT; k++) {
         td_metrics_hist *h = &m->render[k];
@@ -161,54 +161,69 @@ char *td_metrics_format(const td_metrics *mc, const td_metrics_ext *e, size_t *l
         const char *name = td_method_name((td_method)k);
         for (int i = 0; i < TD_NBUCKETS; i++) {
             cum += LD(h->bucket[i]);
-            put(&b, "terrad_render_seconds_bucket{method=\"%s\",le=\"%g\"} %llu\n", name,
+            put(b, "terrad_render_seconds_bucket{method=\"%s\",le=\"%g\"} %llu\n", name,
                 td_metrics_le[i], cum);
         }
         cum += LD(h->bucket[TD_NBUCKETS]);
-        put(&b, "terrad_render_seconds_bucket{method=\"%s\",le=\"+Inf\"} %llu\n", name, cum);
-        put(&b, "terrad_render_seconds_sum{method=\"%s\"} %.9f\n", name, (double)LD(h->sum_ns) * 1e-9);
-        put(&b, "terrad_render_seconds_count{method=\"%s\"} %llu\n", name, LD(h->count));
+        put(b, "terrad_render_seconds_bucket{method=\"%s\",le=\"+Inf\"} %llu\n", name, cum);
+        put(b, "terrad_render_seconds_sum{method=\"%s\"} %.9f\n", name, (double)LD(h->sum_ns) * 1e-9);
+        put(b, "terrad_render_seconds_count{method=\"%s\"} %llu\n", name, LD(h->count));
     }
+}
 
-    put(&b, "# HELP terrad_rays_total Rays traced by renders.\n# TYPE terrad_rays_total counter\n"
+/* The counters of the tracer and the gauges of the queue, the store and the jobs. */
+static void put_totals(td_buf *b, td_metrics *m, const td_metrics_ext *e)
+{
+    put(b, "# HELP terrad_rays_total Rays traced by renders.\n# TYPE terrad_rays_total counter\n"
             "terrad_rays_total %llu\n", LD(m->rays));
-    put(&b, "# HELP terrad_steps_total Tracer steps taken by renders.\n# TYPE terrad_steps_total counter\n"
+    put(b, "# HELP terrad_steps_total Tracer steps taken by renders.\n# TYPE terrad_steps_total counter\n"
             "terrad_steps_total %llu\n", LD(m->steps));
-    put(&b, "# HELP terrad_render_queue_depth Renders queued or running.\n"
+    put(b, "# HELP terrad_render_queue_depth Renders queued or running.\n"
             "# TYPE terrad_render_queue_depth gauge\nterrad_render_queue_depth %d\n", e->queue_depth);
-    put(&b, "# HELP terrad_render_queue_capacity Renders that may be queued or running at once.\n"
+    put(b, "# HELP terrad_render_queue_capacity Renders that may be queued or running at once.\n"
             "# TYPE terrad_render_queue_capacity gauge\nterrad_render_queue_capacity %d\n",
         e->queue_capacity);
-    put(&b, "# HELP terrad_datasets Datasets served.\n# TYPE terrad_datasets gauge\n"
+    put(b, "# HELP terrad_datasets Datasets served.\n# TYPE terrad_datasets gauge\n"
             "terrad_datasets %d\n", e->datasets);
-    put(&b, "# HELP terrad_resident_tiles Tiles with acceleration resident.\n"
+    put(b, "# HELP terrad_resident_tiles Tiles with acceleration resident.\n"
             "# TYPE terrad_resident_tiles gauge\nterrad_resident_tiles %llu\n",
         (unsigned long long)e->resident_tiles);
-    put(&b, "# HELP terrad_tiles Tiles of all datasets.\n# TYPE terrad_tiles gauge\n"
+    put(b, "# HELP terrad_tiles Tiles of all datasets.\n# TYPE terrad_tiles gauge\n"
             "terrad_tiles %llu\n", (unsigned long long)e->total_tiles);
-    put(&b, "# HELP terrad_resident_bytes Bytes of heights and acceleration resident.\n"
+    put(b, "# HELP terrad_resident_bytes Bytes of heights and acceleration resident.\n"
             "# TYPE terrad_resident_bytes gauge\nterrad_resident_bytes %llu\n",
         (unsigned long long)e->resident_bytes);
-    put(&b, "# HELP terrad_memory_budget_bytes The memory budget (--memory-mb).\n"
+    put(b, "# HELP terrad_memory_budget_bytes The memory budget (--memory-mb).\n"
             "# TYPE terrad_memory_budget_bytes gauge\nterrad_memory_budget_bytes %llu\n",
         (unsigned long long)e->budget_bytes);
-    put(&b, "# HELP terrad_tiles_built_total Tile acceleration builds.\n"
+    put(b, "# HELP terrad_tiles_built_total Tile acceleration builds.\n"
             "# TYPE terrad_tiles_built_total counter\nterrad_tiles_built_total %llu\n",
         (unsigned long long)e->tiles_built);
-    put(&b, "# HELP terrad_tiles_evicted_total Tiles evicted (LRU or admin).\n"
+    put(b, "# HELP terrad_tiles_evicted_total Tiles evicted (LRU or admin).\n"
             "# TYPE terrad_tiles_evicted_total counter\nterrad_tiles_evicted_total %llu\n",
         (unsigned long long)e->tiles_evicted);
-    put(&b, "# HELP terrad_cache_loads_total Tile acceleration read from the disk cache, by result.\n"
+    put(b, "# HELP terrad_cache_loads_total Tile acceleration read from the disk cache, by result.\n"
             "# TYPE terrad_cache_loads_total counter\n"
             "terrad_cache_loads_total{result=\"hit\"} %llu\n"
             "terrad_cache_loads_total{result=\"miss\"} %llu\n",
         (unsigned long long)e->cache_hits, (unsigned long long)e->cache_misses);
-    put(&b, "# HELP terrad_build_jobs Admin preload jobs, by state.\n"
+    put(b, "# HELP terrad_build_jobs Admin preload jobs, by state.\n"
             "# TYPE terrad_build_jobs gauge\n"
             "terrad_build_jobs{state=\"queued\"} %llu\nterrad_build_jobs{state=\"running\"} %llu\n"
             "terrad_build_jobs{state=\"done\"} %llu\nterrad_build_jobs{state=\"failed\"} %llu\n",
         (unsigned long long)e->jobs_queued, (unsigned long long)e->jobs_running,
         (unsigned long long)e->jobs_done, (unsigned long long)e->jobs_failed);
+}
+
+char *td_metrics_format(const td_metrics *mc, const td_metrics_ext *e, size_t *len)
+{
+    td_metrics *m = (td_metrics *)mc; /* atomic loads need a non-const object in C11 */
+    td_buf b = {malloc(8192), 0, 8192, 0};
+    if (!b.p)
+        return NULL;
+    put_requests(&b, m);
+    put_render_seconds(&b, m);
+    put_totals(&b, m, e);
     if (b.oom) {
         free(b.p);
         b.p = NULL;

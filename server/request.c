@@ -51,6 +51,7 @@ typedef struct pctx {
     const td_request_limits *lim;
     td_request_error *err;
     int query;
+    int pick;  /* POST /v1/pick: image.format is pick unless the scene says otherwise */
     char path[128];
     size_t plen;
     td_status rc;
@@ -712,6 +713,8 @@ static td_status walk(pctx *p, json_t *root, td_scene *s)
     int r;
 
     td_scene_defaults(s);
+    if (p->pick)
+        s->image.format = TD_FORMAT_PICK;
     if (!json_is_object(root)) {
         fail(p, TD_EINVAL, "the scene must be a JSON object, got %s", type_name(root));
         goto out;
@@ -835,8 +838,8 @@ static void locate(const char *s, size_t len, size_t pos, char *out, size_t cap)
     }
 }
 
-td_status td_request_parse_scene(const char *body, size_t len, const td_request_limits *lim,
-                                 td_scene *out, td_request_error *err)
+static td_status parse_text(const char *body, size_t len, const td_request_limits *lim, int pick,
+                            td_scene *out, td_request_error *err)
 {
     pctx p;
     json_error_t je;
@@ -850,6 +853,7 @@ td_status td_request_parse_scene(const char *body, size_t len, const td_request_
     }
     p.lim = lim;
     p.err = err;
+    p.pick = pick;
     if (err)
         err->field[0] = err->message[0] = 0;
     root = json_loadb(body, len, JSON_REJECT_DUPLICATES, &je);
@@ -865,6 +869,18 @@ td_status td_request_parse_scene(const char *body, size_t len, const td_request_
 out:
     json_decref(root);
     return p.rc;
+}
+
+td_status td_request_parse_scene(const char *body, size_t len, const td_request_limits *lim,
+                                 td_scene *out, td_request_error *err)
+{
+    return parse_text(body, len, lim, 0, out, err);
+}
+
+td_status td_request_parse_pick(const char *body, size_t len, const td_request_limits *lim,
+                                td_scene *out, td_request_error *err)
+{
+    return parse_text(body, len, lim, 1, out, err);
 }
 
 td_status td_request_parse_query(const char *const *keys, const char *const *values, size_t n,

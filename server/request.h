@@ -43,6 +43,11 @@ void td_request_limits_default(td_request_limits *lim);
 td_status td_request_parse_scene(const char *body, size_t len, const td_request_limits *lim,
                                  td_scene *out, td_request_error *err);
 
+/* The body of POST /v1/pick: the same scene, whose image.format is pick unless the body
+ * names another (which the caller then refuses or serves as it sees fit). */
+td_status td_request_parse_pick(const char *body, size_t len, const td_request_limits *lim,
+                                td_scene *out, td_request_error *err);
+
 /* The same scene from query parameters: each key is the dotted path of a JSON field
  * (`dataset`, `camera.position.x`, `camera.heading`, `image.width`, `effects.shadows`,
  * `effects.haze.visibility_km`, `camera.extent=x0,y0,x1,y1`, `pick=x,y;x,y`), values

@@ -1,8 +1,10 @@
 /* routes.c: the HTTP API (see routes.h and docs/api.md).
  *
- * Dispatch: the path is matched against the route table; a known path with the wrong
- * method gets 405 and an Allow header; admin routes check the bearer token (constant
- * time) before anything else, and are 404 `admin_disabled` when no token is configured.
+ * Dispatch: the path is matched against the rows of td_routes (at the end of the file:
+ * a path and its shape, admin or not, the methods, the handler), first match wins; a
+ * known path with the wrong method gets 405 and an Allow header; admin routes check the
+ * bearer token (constant time) before anything else, and are 404 `admin_disabled` when
+ * no token is configured. A new endpoint is a label in routes.h, a row and a handler.
  * POST bodies must be application/json (415) and fit the cap (413). Errors are JSON
  * {"error": {"code", "field", "message"}}; bad input is always a 4xx, never a 500.
  *
@@ -11,9 +13,12 @@
  * request never takes a queue slot) and takes the tile-store snapshot (the dataset
  * resolved once, for the ETag, the drape and the render), a full queue answers 503 with
  * Retry-After, and the worker renders, encodes and fills the response with
- * Server-Timing (parse, queue, every render stage that ran, encode). A watchdog thread
- * raises a render's cancel flag at its deadline (--render-timeout) and at shutdown. */
+ * Server-Timing (parse, queue, every render stage that ran, encode). The HTTP layer
+ * raises a render's cancel flag at its deadline (--render-timeout) and at shutdown.
+ * Elsewhere: the web page's files (static.c), the pick answer (answer.c, shared with
+ * `terrad render`), scene parsing (request.c). */
 #include "routes.h"
+#include "answer.h"
 #include "clock.h"
 
 #include <ctype.h>
@@ -21,19 +26,19 @@
 #include <errno.h>
 #include <jansson.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <stddef.h>
 #include <sys/stat.h>
-#include <time.h>
 
 #include "dem.h"
+#include "hash.h"
 #include "log.h"
 #include "render.h"
 #include "request.h"
+#include "static.h"
 
 const char *const td_route_names[TD_ROUTE_COUNT] = {
 #define TD_X_NAME(e, name) name,
@@ -246,17 +251,22 @@ static json_t *dataset_json(td_app *app, size_t idx)
         "drapes", drapes_json(&di));
 }
 
-static void h_datasets(td_app *app, td_http_resp *r)
+static void h_datasets(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
     json_t *arr = json_array();
+    (void)q;
+    (void)seg;
     for (size_t i = 0; arr && i < td_store_count(app->store); i++)
         json_array_append_new(arr, dataset_json(app, i));
     send_json(r, 200, arr);
 }
 
-static void h_dataset(td_app *app, const char *id, td_http_resp *r)
+/* GET /v1/datasets/{id} */
+static void h_dataset(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
+    const char *id = seg[0];
     long idx = td_store_find(app->store, id);
+    (void)q;
     if (idx < 0)
         api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", id);
     else
@@ -265,12 +275,22 @@ static void h_dataset(td_app *app, const char *id, td_http_resp *r)
 
 /* --- health, metrics ------------------------------------------------------------------- */
 
-static void h_metrics(td_app *app, td_http_resp *r)
+static void h_healthz(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
+{
+    (void)app;
+    (void)q;
+    (void)seg;
+    send_json(r, 200, json_pack("{s:s}", "status", "ok"));
+}
+
+static void h_metrics(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
     td_metrics_ext e;
     td_store_stats st;
     size_t jc[TD_JOB_STATE_COUNT], len = 0;
     char *text;
+    (void)q;
+    (void)seg;
     memset(&e, 0, sizeof e);
     td_store_stats_get(app->store, &st);
     td_jobs_counts(app->jobs, jc);
@@ -298,8 +318,10 @@ static void h_metrics(td_app *app, td_http_resp *r)
     }
 }
 
-static void h_readyz(td_app *app, td_http_resp *r)
+static void h_readyz(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
+    (void)q;
+    (void)seg;
     if (atomic_load(&app->ready))
         send_json(r, 200, json_pack("{s:s,s:I}", "status", "ready", "datasets",
                                     (json_int_t)td_store_count(app->store)));
@@ -353,35 +375,33 @@ static void job_json_send(td_http_resp *r, int status, const td_job_info *ji)
                         "error", err));
 }
 
-static void h_preload(td_app *app, td_http_req *q, td_http_resp *r)
+/* POST /v1/admin/preload, stage 1: the body is a JSON object of known keys naming a
+ * dataset of the store. 0 and *root (the caller's to free), or -1 with r answered. */
+static int preload_body(td_app *app, td_http_req *q, td_http_resp *r, json_t **root,
+                        td_preload_spec *spec)
 {
     json_error_t je;
-    json_t *root = NULL, *v;
+    json_t *v;
     const char *key;
-    size_t len, *tiles = NULL, ntiles = 0;
+    size_t len;
     const char *body = td_http_req_body(q, &len);
-    td_preload_spec spec;
     long idx;
-    unsigned id = 0;
-    td_err e = {0};
-    td_job_info ji;
-    char field[64];
+    int rc = -1;
 
-    memset(&spec, 0, sizeof spec);
-    root = json_loadb(body, len, JSON_REJECT_DUPLICATES, &je);
-    if (!root || !json_is_object(root)) {
-        api_error(r, TD_AE_BAD_REQUEST, "", "the body is not a JSON object%s%s", root ? "" : ": ",
-                  root ? "" : je.text);
+    *root = json_loadb(body, len, JSON_REJECT_DUPLICATES, &je);
+    if (!*root || !json_is_object(*root)) {
+        api_error(r, TD_AE_BAD_REQUEST, "", "the body is not a JSON object%s%s", *root ? "" : ": ",
+                  *root ? "" : je.text);
         goto out;
     }
-    json_object_foreach(root, key, v)
+    json_object_foreach(*root, key, v)
     {
         if (!key_allowed(key, preload_keys)) {
             api_error(r, TD_AE_BAD_REQUEST, key, "unknown key '%s'", key);
             goto out;
         }
     }
-    v = json_object_get(root, "dataset");
+    v = json_object_get(*root, "dataset");
     if (!json_is_string(v)) {
         api_error(r, TD_AE_BAD_REQUEST, "dataset", "dataset: a string id is required");
         goto out;
@@ -391,8 +411,20 @@ static void h_preload(td_app *app, td_http_req *q, td_http_resp *r)
         api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", json_string_value(v));
         goto out;
     }
-    spec.dataset = (size_t)idx;
-    spec.maxmip = spec.planes = 1;
+    spec->dataset = (size_t)idx;
+    rc = 0;
+out:
+    return rc;
+}
+
+/* Stage 2: what to build ("build", both by default) and the pin and rebuild flags. */
+static int preload_flags(json_t *root, td_http_resp *r, td_preload_spec *spec)
+{
+    json_t *v;
+    int rc = -1;
+    char field[64];
+
+    spec->maxmip = spec->planes = 1;
     if ((v = json_object_get(root, "build"))) {
         size_t i;
         json_t *b;
@@ -400,15 +432,15 @@ static void h_preload(td_app *app, td_http_req *q, td_http_resp *r)
             api_error(r, TD_AE_BAD_REQUEST, "build", "build: a non-empty list of \"maxmip\", \"planes\"");
             goto out;
         }
-        spec.maxmip = spec.planes = 0;
+        spec->maxmip = spec->planes = 0;
         json_array_foreach(v, i, b)
         {
             const char *s = json_string_value(b);
             snprintf(field, sizeof field, "build[%zu]", i);
             if (s && !strcmp(s, "maxmip"))
-                spec.maxmip = 1;
+                spec->maxmip = 1;
             else if (s && !strcmp(s, "planes"))
-                spec.planes = 1;
+                spec->planes = 1;
             else {
                 api_error(r, TD_AE_BAD_REQUEST, field, "%s: expected \"maxmip\" or \"planes\"", field);
                 goto out;
@@ -419,89 +451,140 @@ static void h_preload(td_app *app, td_http_req *q, td_http_resp *r)
         api_error(r, TD_AE_BAD_REQUEST, "pin", "pin: expected true or false");
         goto out;
     }
-    spec.pin = json_is_true(v);
+    spec->pin = json_is_true(v);
     if ((v = json_object_get(root, "rebuild")) && !json_is_boolean(v)) {
         api_error(r, TD_AE_BAD_REQUEST, "rebuild", "rebuild: expected true or false");
         goto out;
     }
-    spec.rebuild = json_is_true(v);
-    {
-        int nsel = !!json_object_get(root, "tiles") + !!json_object_get(root, "bbox") +
-                   !!json_object_get(root, "bbox_lonlat");
-        if (nsel > 1) {
-            api_error(r, TD_AE_BAD_REQUEST, "tiles", "give one of tiles, bbox, bbox_lonlat");
+    spec->rebuild = json_is_true(v);
+    rc = 0;
+out:
+    return rc;
+}
+
+/* Stage 3a: "tiles": "all" (*tiles stays NULL) or a list of [tx, ty] of the dataset. */
+static int preload_tile_list(td_app *app, json_t *v, td_http_resp *r, size_t dataset, size_t **tiles,
+                             size_t *ntiles)
+{
+    td_dataset_info di;
+    int rc = -1;
+    char field[64];
+
+    td_store_info(app->store, dataset, &di);
+    if (json_is_string(v) && !strcmp(json_string_value(v), "all")) {
+        rc = 0; /* all: the tiles stay NULL */
+    } else if (json_is_array(v) && json_array_size(v) > 0 && json_array_size(v) <= di.ntiles * 4) {
+        size_t i;
+        json_t *t;
+        *ntiles = json_array_size(v);
+        *tiles = malloc(*ntiles * sizeof **tiles);
+        if (!*tiles) {
+            api_error(r, TD_AE_INTERNAL, NULL, "out of memory");
             goto out;
         }
-    }
-    if ((v = json_object_get(root, "tiles"))) {
-        td_dataset_info di;
-        td_store_info(app->store, spec.dataset, &di);
-        if (json_is_string(v) && !strcmp(json_string_value(v), "all")) {
-            /* all: spec.tiles stays NULL */
-        } else if (json_is_array(v) && json_array_size(v) > 0 && json_array_size(v) <= di.ntiles * 4) {
-            size_t i;
-            json_t *t;
-            ntiles = json_array_size(v);
-            tiles = malloc(ntiles * sizeof *tiles);
-            if (!tiles) {
-                api_error(r, TD_AE_INTERNAL, NULL, "out of memory");
+        json_array_foreach(v, i, t)
+        {
+            json_t *tx = json_array_get(t, 0), *ty = json_array_get(t, 1);
+            snprintf(field, sizeof field, "tiles[%zu]", i);
+            if (!json_is_array(t) || json_array_size(t) != 2 || !json_is_integer(tx) ||
+                !json_is_integer(ty)) {
+                api_error(r, TD_AE_BAD_REQUEST, field, "%s: expected [tx, ty] (integers)", field);
                 goto out;
             }
-            json_array_foreach(v, i, t)
-            {
-                json_t *tx = json_array_get(t, 0), *ty = json_array_get(t, 1);
-                snprintf(field, sizeof field, "tiles[%zu]", i);
-                if (!json_is_array(t) || json_array_size(t) != 2 || !json_is_integer(tx) ||
-                    !json_is_integer(ty)) {
-                    api_error(r, TD_AE_BAD_REQUEST, field, "%s: expected [tx, ty] (integers)", field);
-                    goto out;
-                }
-                if (json_integer_value(tx) < 0 || json_integer_value(tx) >= di.grid->tiles_x ||
-                    json_integer_value(ty) < 0 || json_integer_value(ty) >= di.grid->tiles_y) {
-                    api_error(r, TD_AE_BAD_REQUEST, field,
-                              "%s: tile [%lld, %lld] is outside the %d x %d tiles of '%s'", field,
-                              (long long)json_integer_value(tx), (long long)json_integer_value(ty),
-                              (int)di.grid->tiles_x, (int)di.grid->tiles_y, di.id);
-                    goto out;
-                }
-                tiles[i] = (size_t)json_integer_value(ty) * (size_t)di.grid->tiles_x +
-                           (size_t)json_integer_value(tx);
+            if (json_integer_value(tx) < 0 || json_integer_value(tx) >= di.grid->tiles_x ||
+                json_integer_value(ty) < 0 || json_integer_value(ty) >= di.grid->tiles_y) {
+                api_error(r, TD_AE_BAD_REQUEST, field,
+                          "%s: tile [%lld, %lld] is outside the %d x %d tiles of '%s'", field,
+                          (long long)json_integer_value(tx), (long long)json_integer_value(ty),
+                          (int)di.grid->tiles_x, (int)di.grid->tiles_y, di.id);
+                goto out;
             }
-        } else {
-            api_error(r, TD_AE_BAD_REQUEST, "tiles",
-                      "tiles: \"all\" or a non-empty list of [tx, ty] (at most 4x the tile count)");
+            (*tiles)[i] = (size_t)json_integer_value(ty) * (size_t)di.grid->tiles_x +
+                          (size_t)json_integer_value(tx);
+        }
+        rc = 0;
+    } else {
+        api_error(r, TD_AE_BAD_REQUEST, "tiles",
+                  "tiles: \"all\" or a non-empty list of [tx, ty] (at most 4x the tile count)");
+    }
+out:
+    return rc;
+}
+
+/* Stage 3b: "bbox" (dataset frame, metres) or "bbox_lonlat": the tiles it meets. */
+static int preload_box(td_app *app, json_t *v, int lonlat, td_http_resp *r, size_t dataset,
+                       size_t **tiles, size_t *ntiles)
+{
+    const char *f = lonlat ? "bbox_lonlat" : "bbox";
+    double box[4];
+    td_dataset_info di;
+    td_err e = {0};
+    int rc = -1;
+
+    td_store_info(app->store, dataset, &di);
+    if (!read_box(v, box)) {
+        api_error(r, TD_AE_BAD_REQUEST, f, "%s: expected [xmin, ymin, xmax, ymax] (numbers)", f);
+        goto out;
+    }
+    if (lonlat) {
+        const td_georef *g = &di.grid->geo;
+        if (g->kind != TD_GEO_LONLAT) {
+            api_error(r, TD_AE_BAD_REQUEST, f, "%s: dataset '%s' is not in lon/lat", f, di.id);
             goto out;
         }
+        box[0] = (box[0] - g->x0) / g->dx * di.grid->sx;
+        box[2] = (box[2] - g->x0) / g->dx * di.grid->sx;
+        box[1] = (box[1] - g->y0) / g->dy * di.grid->sy;
+        box[3] = (box[3] - g->y0) / g->dy * di.grid->sy;
+    }
+    if (td_store_tiles_in_box(app->store, dataset, box, tiles, ntiles, &e)) {
+        api_error(r, TD_AE_BAD_REQUEST, f, "%s: %s", f, e.msg);
+        goto out;
+    }
+    if (!*ntiles) {
+        api_error(r, TD_AE_BAD_REQUEST, f, "%s: the box meets no tile of '%s'", f, di.id);
+        goto out;
+    }
+    rc = 0;
+out:
+    return rc;
+}
+
+/* Stage 3: at most one of tiles, bbox, bbox_lonlat; none means every tile. */
+static int preload_tiles(td_app *app, json_t *root, td_http_resp *r, size_t dataset, size_t **tiles,
+                         size_t *ntiles)
+{
+    json_t *v;
+    int rc = 0;
+    int nsel = !!json_object_get(root, "tiles") + !!json_object_get(root, "bbox") +
+               !!json_object_get(root, "bbox_lonlat");
+    if (nsel > 1) {
+        api_error(r, TD_AE_BAD_REQUEST, "tiles", "give one of tiles, bbox, bbox_lonlat");
+        rc = -1;
+    } else if ((v = json_object_get(root, "tiles"))) {
+        rc = preload_tile_list(app, v, r, dataset, tiles, ntiles);
     } else if ((v = json_object_get(root, "bbox")) || (v = json_object_get(root, "bbox_lonlat"))) {
-        int lonlat = !!json_object_get(root, "bbox_lonlat");
-        const char *f = lonlat ? "bbox_lonlat" : "bbox";
-        double box[4];
-        td_dataset_info di;
-        td_store_info(app->store, spec.dataset, &di);
-        if (!read_box(v, box)) {
-            api_error(r, TD_AE_BAD_REQUEST, f, "%s: expected [xmin, ymin, xmax, ymax] (numbers)", f);
-            goto out;
-        }
-        if (lonlat) {
-            const td_georef *g = &di.grid->geo;
-            if (g->kind != TD_GEO_LONLAT) {
-                api_error(r, TD_AE_BAD_REQUEST, f, "%s: dataset '%s' is not in lon/lat", f, di.id);
-                goto out;
-            }
-            box[0] = (box[0] - g->x0) / g->dx * di.grid->sx;
-            box[2] = (box[2] - g->x0) / g->dx * di.grid->sx;
-            box[1] = (box[1] - g->y0) / g->dy * di.grid->sy;
-            box[3] = (box[3] - g->y0) / g->dy * di.grid->sy;
-        }
-        if (td_store_tiles_in_box(app->store, spec.dataset, box, &tiles, &ntiles, &e)) {
-            api_error(r, TD_AE_BAD_REQUEST, f, "%s: %s", f, e.msg);
-            goto out;
-        }
-        if (!ntiles) {
-            api_error(r, TD_AE_BAD_REQUEST, f, "%s: the box meets no tile of '%s'", f, di.id);
-            goto out;
-        }
+        rc = preload_box(app, v, !!json_object_get(root, "bbox_lonlat"), r, dataset, tiles, ntiles);
     }
+    return rc;
+}
+
+/* POST /v1/admin/preload: the body, stage by stage (each answers its own 4xx), then a job
+ * (202 with its state and Location), or 503 when the job queue is full. */
+static void h_preload(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
+{
+    json_t *root = NULL;
+    size_t *tiles = NULL, ntiles = 0;
+    td_preload_spec spec;
+    unsigned id = 0;
+    td_err e = {0};
+    td_job_info ji;
+
+    (void)seg;
+    memset(&spec, 0, sizeof spec);
+    if (json_body_check(q, r) || preload_body(app, q, r, &root, &spec) || preload_flags(root, r, &spec) ||
+        preload_tiles(app, root, r, spec.dataset, &tiles, &ntiles))
+        goto out;
     spec.tiles = tiles;
     spec.ntiles = ntiles;
     if (td_jobs_submit(app->jobs, &spec, &id, &e)) {
@@ -520,11 +603,14 @@ out:
     json_decref(root);
 }
 
-static void h_job(td_app *app, const char *ids, td_http_resp *r)
+/* GET /v1/admin/jobs/{id} */
+static void h_job(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
+    const char *ids = seg[1];
     char *end = NULL;
     unsigned long id;
     td_job_info ji;
+    (void)q;
     errno = 0;
     id = strtoul(ids, &end, 10);
     if (!*ids || !isdigit((unsigned char)ids[0]) || errno || *end || id > 0xffffffffUL ||
@@ -534,10 +620,13 @@ static void h_job(td_app *app, const char *ids, td_http_resp *r)
         job_json_send(r, 200, &ji);
 }
 
-static void h_evict(td_app *app, const char *id, td_http_resp *r)
+/* DELETE /v1/admin/datasets/{id}/tiles */
+static void h_evict(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
+    const char *id = seg[1];
     long idx = td_store_find(app->store, id);
     size_t n = 0;
+    (void)q;
     if (idx < 0) {
         api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", id);
     } else {
@@ -547,245 +636,32 @@ static void h_evict(td_app *app, const char *id, td_http_resp *r)
     }
 }
 
-/* --- static files -------------------------------------------------------------------- */
+/* --- static files (static.c) ----------------------------------------------------------- */
 
-#define TD_MIME_LIST(X)                                                        \
-    X("html", "text/html; charset=utf-8")                                      \
-    X("htm", "text/html; charset=utf-8")                                       \
-    X("js", "text/javascript; charset=utf-8")                                  \
-    X("mjs", "text/javascript; charset=utf-8")                                 \
-    X("css", "text/css; charset=utf-8")                                        \
-    X("json", "application/json")                                              \
-    X("map", "application/json")                                               \
-    X("txt", "text/plain; charset=utf-8")                                      \
-    X("md", "text/markdown; charset=utf-8")                                    \
-    X("png", "image/png")                                                      \
-    X("jpg", "image/jpeg")                                                     \
-    X("jpeg", "image/jpeg")                                                    \
-    X("gif", "image/gif")                                                      \
-    X("svg", "image/svg+xml")                                                  \
-    X("ico", "image/x-icon")                                                   \
-    X("webp", "image/webp")                                                    \
-    X("woff", "font/woff")                                                     \
-    X("woff2", "font/woff2")                                                   \
-    X("wasm", "application/wasm")
-
-static const char *mime_of(const char *path)
+static void h_static(const char *root, const char *rel, int vendor, td_http_resp *r)
 {
-    static const struct {
-        const char *ext, *type;
-    } types[] = {
-#define TD_X_MIME(ext, type) {ext, type},
-        TD_MIME_LIST(TD_X_MIME)
-#undef TD_X_MIME
-    };
-    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
-    const char *type = "application/octet-stream";
-    if (dot && (!slash || dot > slash))
-        for (size_t i = 0; i < sizeof types / sizeof types[0]; i++)
-            if (!strcasecmp(dot + 1, types[i].ext))
-                type = types[i].type;
-    return type;
+    td_err e = {0};
+    td_status rc = td_static_serve(root, rel, vendor, r, &e);
+    if (rc)
+        api_error(r, rc == TD_ENOTFOUND ? TD_AE_NOT_FOUND : TD_AE_INTERNAL, NULL, "%s", e.msg);
 }
 
-/* Serves root/rel, where rel is what follows the route prefix. Refuses empty, `.` and
- * `..` segments, hidden files, and anything whose real path leaves root. */
-static void serve_file(const char *root, const char *rel, int vendor, td_http_resp *r)
+/* GET /vendor/leaflet/... */
+static void h_vendor(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
-    char path[PATH_MAX], real[PATH_MAX];
-    struct stat st;
-    FILE *f = NULL;
-    char *buf = NULL;
-    size_t rl = strlen(root);
-    const char *seg = rel;
-
-    if (!root[0]) {
-        api_error(r, TD_AE_NOT_FOUND, NULL, "the web page is not installed (no web/ directory)");
-        goto out;
-    }
-    while (*seg) {
-        const char *next = strchr(seg, '/');
-        size_t n = next ? (size_t)(next - seg) : strlen(seg);
-        if ((n == 0 && next) || seg[0] == '.' || memchr(seg, '\\', n)) {
-            api_error(r, TD_AE_NOT_FOUND, NULL, "no such file");
-            goto out;
-        }
-        seg += n + (next ? 1 : 0);
-    }
-    if ((size_t)snprintf(path, sizeof path, "%s/%s", root, *rel ? rel : "index.html") >= sizeof path ||
-        !realpath(path, real) || strncmp(real, root, rl) || real[rl] != '/' || stat(real, &st)) {
-        api_error(r, TD_AE_NOT_FOUND, NULL, "no such file");
-        goto out;
-    }
-    if (S_ISDIR(st.st_mode)) {
-        if ((size_t)snprintf(path, sizeof path, "%s/index.html", real) >= sizeof path ||
-            stat(path, &st) || !S_ISREG(st.st_mode)) {
-            api_error(r, TD_AE_NOT_FOUND, NULL, "no such file");
-            goto out;
-        }
-        snprintf(real, sizeof real, "%s", path);
-    }
-    if (!S_ISREG(st.st_mode) || st.st_size > (64 << 20)) {
-        api_error(r, TD_AE_NOT_FOUND, NULL, "no such file");
-        goto out;
-    }
-    buf = malloc((size_t)st.st_size + 1);
-    f = fopen(real, "rb");
-    if (!buf || !f || fread(buf, 1, (size_t)st.st_size, f) != (size_t)st.st_size) {
-        api_error(r, TD_AE_INTERNAL, NULL, "cannot read the file");
-        goto out;
-    }
-    r->status = 200;
-    td_http_resp_take(r, buf, (size_t)st.st_size, mime_of(real));
-    buf = NULL;
-    td_http_resp_header(r, "Cache-Control", vendor ? "public, max-age=86400" : "no-cache");
-    td_http_resp_header(r, "X-Content-Type-Options", "nosniff");
-out:
-    if (f)
-        fclose(f);
-    free(buf);
+    (void)seg;
+    h_static(app->leaflet_dir, td_http_req_path(q) + strlen(TD_STATIC_VENDOR_PREFIX), 1, r);
 }
 
-/* --- dispatch ------------------------------------------------------------------------ */
-
-/* Splits "a/b/c" after a prefix into at most max segments (copied into buf). */
-static int split_path(const char *rest, char *buf, size_t cap, char **seg, int max)
+/* GET / and the page's own files only: not its tests, build files or node_modules */
+static void h_page(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
-    int n = 0;
-    char *p;
-    if (strlen(rest) >= cap)
-        return -1;
-    strcpy(buf, rest);
-    p = buf;
-    while (n < max) {
-        char *slash = strchr(p, '/');
-        seg[n++] = p;
-        if (!slash)
-            break;
-        *slash = '\0';
-        p = slash + 1;
-    }
-    return strchr(p, '/') && n == max ? -1 : n;
-}
-
-/* --- render deadlines ------------------------------------------------------------------ */
-
-#define TD_WATCH_SLOTS 256
-
-typedef struct td_watch_slot {
-    atomic_int cancel;
-    double deadline;
-    int used;
-} td_watch_slot;
-
-struct td_watch {
-    pthread_mutex_t mu;
-    pthread_cond_t cv;
-    pthread_t thread;
-    int quit;
-    td_watch_slot slot[TD_WATCH_SLOTS];
-};
-
-static void *watch_main(void *arg)
-{
-    struct td_watch *w = arg;
-    pthread_mutex_lock(&w->mu);
-    while (!w->quit) {
-        struct timespec ts;
-        double now = td_clock_s();
-        for (int i = 0; i < TD_WATCH_SLOTS; i++)
-            if (w->slot[i].used && now > w->slot[i].deadline)
-                atomic_store(&w->slot[i].cancel, 1);
-        clock_gettime(CLOCK_REALTIME, &ts);
-        ts.tv_nsec += 50 * 1000 * 1000;
-        if (ts.tv_nsec >= 1000000000L) {
-            ts.tv_sec++;
-            ts.tv_nsec -= 1000000000L;
-        }
-        pthread_cond_timedwait(&w->cv, &w->mu, &ts);
-    }
-    pthread_mutex_unlock(&w->mu);
-    return NULL;
-}
-
-td_status td_routes_start(td_app *app, td_err *err)
-{
-    td_status rc = TD_OK;
-    struct td_watch *w = calloc(1, sizeof *w);
-    if (!w) {
-        rc = td_err_set(err, TD_ENOMEM, "out of memory for the render watchdog");
-        goto out;
-    }
-    pthread_mutex_init(&w->mu, NULL);
-    pthread_cond_init(&w->cv, NULL);
-    for (int i = 0; i < TD_WATCH_SLOTS; i++)
-        atomic_init(&w->slot[i].cancel, 0);
-    if (pthread_create(&w->thread, NULL, watch_main, w)) {
-        pthread_mutex_destroy(&w->mu);
-        pthread_cond_destroy(&w->cv);
-        free(w);
-        rc = td_err_set(err, TD_ENOMEM, "cannot start the render watchdog");
-        goto out;
-    }
-    app->watch = w;
-out:
-    return rc;
-}
-
-void td_routes_stop(td_app *app)
-{
-    struct td_watch *w = app->watch;
-    if (!w)
-        return;
-    pthread_mutex_lock(&w->mu);
-    w->quit = 1;
-    pthread_cond_signal(&w->cv);
-    pthread_mutex_unlock(&w->mu);
-    pthread_join(w->thread, NULL);
-    pthread_mutex_destroy(&w->mu);
-    pthread_cond_destroy(&w->cv);
-    free(w);
-    app->watch = NULL;
-}
-
-void td_routes_cancel_all(td_app *app)
-{
-    struct td_watch *w = app->watch;
-    if (!w)
-        return;
-    pthread_mutex_lock(&w->mu);
-    for (int i = 0; i < TD_WATCH_SLOTS; i++)
-        if (w->slot[i].used)
-            atomic_store(&w->slot[i].cancel, 1);
-    pthread_mutex_unlock(&w->mu);
-}
-
-/* A slot whose cancel flag the render polls; NULL when all are taken (no deadline). */
-static td_watch_slot *watch_begin(td_app *app, double seconds)
-{
-    struct td_watch *w = app->watch;
-    td_watch_slot *s = NULL;
-    if (!w)
-        return NULL;
-    pthread_mutex_lock(&w->mu);
-    for (int i = 0; i < TD_WATCH_SLOTS && !s; i++)
-        if (!w->slot[i].used) {
-            s = &w->slot[i];
-            s->used = 1;
-            s->deadline = td_clock_s() + seconds;
-            atomic_store(&s->cancel, 0);
-        }
-    pthread_mutex_unlock(&w->mu);
-    return s;
-}
-
-static void watch_end(td_app *app, td_watch_slot *s)
-{
-    if (!s)
-        return;
-    pthread_mutex_lock(&app->watch->mu);
-    s->used = 0;
-    pthread_mutex_unlock(&app->watch->mu);
+    const char *path = td_http_req_path(q);
+    (void)seg;
+    if (!td_static_is_page(path))
+        api_error(r, TD_AE_NOT_FOUND, NULL, "no such page (the web page is /, /style.css and /js/)");
+    else
+        h_static(app->web_dir, path + 1, 0, r);
 }
 
 /* --- renders, picks and map tiles -------------------------------------------------------- */
@@ -814,15 +690,10 @@ static void request_limits(const td_app *app, td_request_limits *lim)
 static void scene_etag(const td_scene *s, const td_grid *g, char *out, size_t n)
 {
     size_t bytes = offsetof(td_scene, pick) + (size_t)s->npick * sizeof s->pick[0];
-    uint64_t h = 14695981039346656037ULL;
-    const unsigned char *p = (const unsigned char *)s;
-    for (size_t i = 0; i < bytes; i++) {
-        h ^= p[i];
-        h *= 1099511628211ULL;
-    }
+    uint64_t h = td_fnv1a(TD_FNV1A_INIT, s, bytes);
     /* The dataset too: same scene over different heights is a different picture. */
     h ^= (uint64_t)g->w * 2654435761u ^ (uint64_t)g->h ^ (uint64_t)(g->zmax * 1000.0);
-    h *= 1099511628211ULL;
+    h *= TD_FNV1A_PRIME;
     snprintf(out, n, "\"%016llx\"", (unsigned long long)h);
 }
 
@@ -901,104 +772,79 @@ static void render_error(const td_app *app, td_http_resp *r, td_status rc, const
         api_error(r, TD_AE_BAD_REQUEST, e->field[0] ? e->field : NULL, "%s", e->msg);
 }
 
-static json_t *picks_json(const td_scene *s, const td_grid *g, const td_pick *pk, int n)
+/* A pick: 200 with the picks' JSON and their stats in *st; else r holds the error.
+ * Returns 1 when answered with 200. */
+static int work_pick(td_app *app, td_rjob *j, const td_view *v, td_http_resp *r, td_render_stats *st)
 {
-    json_t *arr = json_array();
-    for (int i = 0; arr && i < n; i++) {
-        json_t *o;
-        if (!pk[i].hit) {
-            o = json_pack("{s:[f,f],s:b}", "pixel", pk[i].px, pk[i].py, "hit", 0);
-        } else {
-            o = json_pack("{s:[f,f],s:b,s:{s:f,s:f,s:f},s:f,s:[i,i]}", "pixel", pk[i].px, pk[i].py,
-                          "hit", 1, "point", "x", pk[i].p[0], "y", pk[i].p[1], "z", pk[i].p[2],
-                          "distance", pk[i].distance, "cell", (int)pk[i].ci, (int)pk[i].cj);
-            if (o && !isnan(pk[i].height_error_m))
-                json_object_set_new(o, "height_error_m", json_real(pk[i].height_error_m));
-            if (o && g->geo.kind != TD_GEO_NONE) {
-                double gx = g->geo.x0 + pk[i].p[0] / g->sx * g->geo.dx;
-                double gy = g->geo.y0 + pk[i].p[1] / g->sy * g->geo.dy;
-                json_object_set_new(o, g->geo.kind == TD_GEO_LONLAT ? "lonlat" : "projected",
-                                    json_pack("[f,f]", gx, gy));
-            }
-        }
-        json_array_append_new(arr, o);
+    td_pick *picks = calloc((size_t)(j->scene.npick ? j->scene.npick : 1), sizeof *picks);
+    td_err e = {0};
+    td_status rc;
+    int ok = 0;
+    if (!picks) {
+        api_error(r, TD_AE_INTERNAL, NULL, "out of memory");
+        goto out;
     }
-    return json_pack("{s:s,s:o}", "dataset", s->dataset, "picks", arr);
+    rc = td_render_pick(v, &j->scene, picks, st, &e);
+    if (rc) {
+        render_error(app, r, rc, &e);
+        goto out;
+    }
+    send_json(r, 200, td_answer_picks(j->scene.dataset, v->grid, picks, j->scene.npick));
+    ok = 1;
+out:
+    free(picks);
+    return ok;
 }
 
-static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelled)
+/* A render (or a map tile): 200 with the encoded image and its format's headers, the
+ * result in *res (the caller frees it); else r holds the error. 1 when answered 200. */
+static int work_image(td_app *app, td_rjob *j, td_http_req *q, td_snapshot *snap, td_http_resp *r,
+                      td_render_result *res)
 {
-    td_rjob *j = cls;
-    td_app *app = j->app;
-    td_snapshot *snap = j->snap;
-    td_watch_slot *ws = NULL;
     td_render_opts o;
-    td_render_result res;
-    td_render_stats pst;
-    td_pick *picks = NULL;
     td_buf buf = {0};
     td_err e = {0};
     td_status rc;
-    const td_view *v;
-    double queue_ms = td_http_req_queue_wait(q) * 1e3, depth_scale = 0, t0 = td_clock_s();
-    const td_render_stats *st = NULL;
+    double depth_scale = 0;
+    int ok = 0;
 
-    memset(&res, 0, sizeof res);
-    memset(&pst, 0, sizeof pst);
-    if (cancelled) {
-        td_http_resp_header(r, "Retry-After", "1");
-        api_error(r, TD_AE_STOPPING, NULL, "the server is stopping");
+    td_render_opts_default(&o);
+    o.threads = 1; /* one render per worker; the workers use the cores */
+    o.cancel = td_http_req_cancel(q); /* raised at --render-timeout (http.c) */
+    o.lod = td_snapshot_lod(snap);
+    /* the drape, decoded once and kept with the dataset (a depth image has none) */
+    rc = TD_OK;
+    if (j->scene.effects.drape[0] && j->scene.image.format != TD_FORMAT_DEPTH16 &&
+        j->scene.image.format != TD_FORMAT_DEPTH32F)
+        rc = td_snapshot_drape(snap, j->scene.effects.drape, &o.drape, &e);
+    if (rc == TD_OK)
+        rc = td_render(td_snapshot_view(snap), &j->scene, &o, res, &e);
+    if (rc == TD_OK)
+        rc = td_render_encode(res, &j->scene, &buf, &depth_scale, &e);
+    if (rc) {
+        render_error(app, r, rc, &e);
         goto out;
     }
-    v = td_snapshot_view(snap);
-    ws = watch_begin(app, app->cfg->render_timeout_s);
-    if (j->kind == TD_RK_PICK) {
-        picks = calloc((size_t)(j->scene.npick ? j->scene.npick : 1), sizeof *picks);
-        if (!picks) {
-            api_error(r, TD_AE_INTERNAL, NULL, "out of memory");
-            goto out;
-        }
-        rc = td_render_pick(v, &j->scene, picks, &pst, &e);
-        if (rc) {
-            render_error(app, r, rc, &e);
-            goto out;
-        }
-        st = &pst;
-        send_json(r, 200, picks_json(&j->scene, v->grid, picks, j->scene.npick));
-    } else {
-        td_render_opts_default(&o);
-        o.threads = 1; /* one render per worker; the workers use the cores */
-        o.cancel = ws ? &ws->cancel : NULL;
-        o.lod = td_snapshot_lod(snap);
-        /* the drape, decoded once and kept with the dataset (a depth image has none) */
-        rc = TD_OK;
-        if (j->scene.effects.drape[0] && j->scene.image.format != TD_FORMAT_DEPTH16 &&
-            j->scene.image.format != TD_FORMAT_DEPTH32F)
-            rc = td_snapshot_drape(snap, j->scene.effects.drape, &o.drape, &e);
-        if (rc == TD_OK)
-            rc = td_render(v, &j->scene, &o, &res, &e);
-        if (rc == TD_OK)
-            rc = td_render_encode(&res, &j->scene, &buf, &depth_scale, &e);
-        if (rc) {
-            render_error(app, r, rc, &e);
-            goto out;
-        }
-        st = &res.stats;
-        r->status = 200;
-        td_http_resp_take(r, buf.data, buf.len,
-                          j->scene.image.format == TD_FORMAT_DEPTH32F ? "application/octet-stream"
-                                                                       : "image/png");
-        buf.data = NULL;
-        if (j->scene.image.format == TD_FORMAT_DEPTH16)
-            td_http_resp_header(r, "X-Terrad-Depth-Scale", "%.9g", depth_scale);
-        if (j->scene.image.format == TD_FORMAT_DEPTH32F)
-            td_http_resp_header(r, "X-Terrad-Size", "%dx%d", (int)res.width, (int)res.height);
-    }
-    {
-        char label[160];
-        method_label(j->scene.quality.method, st, label, sizeof label);
-        td_http_resp_header(r, "X-Terrad-Method", "%s", label);
-    }
+    r->status = 200;
+    td_http_resp_take(r, buf.data, buf.len,
+                      j->scene.image.format == TD_FORMAT_DEPTH32F ? "application/octet-stream" : "image/png");
+    buf.data = NULL;
+    if (j->scene.image.format == TD_FORMAT_DEPTH16)
+        td_http_resp_header(r, "X-Terrad-Depth-Scale", "%.9g", depth_scale);
+    if (j->scene.image.format == TD_FORMAT_DEPTH32F)
+        td_http_resp_header(r, "X-Terrad-Size", "%dx%d", (int)res->width, (int)res->height);
+    ok = 1;
+out:
+    td_buf_free(&buf);
+    return ok;
+}
+
+/* The headers of a 200 render or pick: what the tracer did (X-Terrad-*) and caching. */
+static void work_headers(const td_rjob *j, const td_render_stats *st, td_http_resp *r)
+{
+    char label[160];
+    method_label(j->scene.quality.method, st, label, sizeof label);
+    td_http_resp_header(r, "X-Terrad-Method", "%s", label);
     td_http_resp_header(r, "X-Terrad-Surface", "%s", td_surface_name(j->scene.quality.surface));
     td_http_resp_header(r, "X-Terrad-Rays", "%llu", (unsigned long long)(st->rays[TD_RAY_PRIMARY] +
                         st->rays[TD_RAY_SHADOW] + st->rays[TD_RAY_REFLECTION] + st->rays[TD_RAY_AO]));
@@ -1013,6 +859,40 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     } else {
         td_http_resp_header(r, "Cache-Control", "no-store");
     }
+}
+
+/* The worker's part of a render, pick or map tile (td_http_defer): on the job's store
+ * snapshot, the work, its headers and metrics, Server-Timing whatever the outcome; frees
+ * the job and releases the snapshot. */
+static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelled)
+{
+    td_rjob *j = cls;
+    td_app *app = j->app;
+    td_snapshot *snap = j->snap;
+    td_render_result res;
+    td_render_stats pst;
+    const td_view *v;
+    double queue_ms = td_http_req_queue_wait(q) * 1e3, t0 = td_clock_s();
+    const td_render_stats *st = NULL;
+
+    memset(&res, 0, sizeof res);
+    memset(&pst, 0, sizeof pst);
+    if (cancelled) {
+        td_http_resp_header(r, "Retry-After", "1");
+        api_error(r, TD_AE_STOPPING, NULL, "the server is stopping");
+        goto out;
+    }
+    v = td_snapshot_view(snap);
+    if (j->kind == TD_RK_PICK) {
+        if (!work_pick(app, j, v, r, &pst))
+            goto out;
+        st = &pst;
+    } else {
+        if (!work_image(app, j, q, snap, r, &res))
+            goto out;
+        st = &res.stats;
+    }
+    work_headers(j, st, r);
     {
         uint64_t rays = 0;
         for (int k = 0; k < TD_RAY_KIND_COUNT; k++)
@@ -1021,10 +901,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     }
 out:
     timing_header(r, j, queue_ms, st);
-    watch_end(app, ws);
     td_render_result_free(&res);
-    td_buf_free(&buf);
-    free(picks);
     td_snapshot_release(snap);
     free(j);
 }
@@ -1119,24 +996,9 @@ static void h_render(td_app *app, td_http_req *q, td_http_resp *r, int post, int
         if (json_body_check(q, r))
             goto out;
         body = td_http_req_body(q, &len);
-        if (pick) {
-            /* /v1/pick implies image.format "pick": add it when the body leaves it out. */
-            json_t *root = json_loadb(body, len, JSON_REJECT_DUPLICATES, NULL);
-            json_t *img = root ? json_object_get(root, "image") : NULL;
-            char *text = NULL;
-            if (json_is_object(root) && !img)
-                json_object_set_new(root, "image", img = json_object());
-            if (json_is_object(img) && !json_object_get(img, "format")) {
-                json_object_set_new(img, "format", json_string("pick"));
-                text = json_dumps(root, JSON_COMPACT);
-            }
-            rc = text ? td_request_parse_scene(text, strlen(text), &lim, &j->scene, &re)
-                      : td_request_parse_scene(body, len, &lim, &j->scene, &re);
-            free(text);
-            json_decref(root);
-        } else {
-            rc = td_request_parse_scene(body, len, &lim, &j->scene, &re);
-        }
+        /* /v1/pick implies image.format "pick" where the body leaves it out */
+        rc = pick ? td_request_parse_pick(body, len, &lim, &j->scene, &re)
+                  : td_request_parse_scene(body, len, &lim, &j->scene, &re);
     } else {
         td_qargs a;
         memset(&a, 0, sizeof a);
@@ -1164,6 +1026,20 @@ out:
     free(j);
 }
 
+/* POST or GET /v1/render */
+static void h_render_route(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
+{
+    (void)seg;
+    h_render(app, q, r, !strcmp(td_http_req_method(q), "POST"), 0);
+}
+
+/* POST /v1/pick */
+static void h_pick(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
+{
+    (void)seg;
+    h_render(app, q, r, 1, 1);
+}
+
 static int parse_uint(const char *s, long max, long *out)
 {
     char *end = NULL;
@@ -1188,7 +1064,6 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     td_rjob *j = NULL;
     td_dataset_info di;
     double wm, hm, side, t;
-    uint64_t hsh = 14695981039346656037ULL;
 
     if (yl < 5 || strcmp(seg[3] + yl - 4, ".png")) {
         api_error(r, TD_AE_NOT_FOUND, NULL, "tile paths end in {y}.png");
@@ -1243,11 +1118,7 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
          * (same id after a restart) gets new tags. */
         double key[6] = {(double)di.grid->w, (double)di.grid->h, di.grid->sx, di.grid->sy,
                          (double)di.grid->zmin, (double)di.grid->zmax};
-        const unsigned char *kp = (const unsigned char *)key;
-        for (size_t i = 0; i < sizeof key; i++) {
-            hsh ^= kp[i];
-            hsh *= 1099511628211ULL;
-        }
+        uint64_t hsh = td_fnv1a(TD_FNV1A_INIT, key, sizeof key);
         snprintf(j->etag, sizeof j->etag, "\"t%012llx-%ld-%ld-%ld\"",
                  (unsigned long long)(hsh & 0xffffffffffffULL), z, x, y);
     }
@@ -1256,117 +1127,135 @@ out:
     return;
 }
 
+/* --- dispatch ------------------------------------------------------------------------ */
+
+/* Any other path under /v1: 404 naming it (any method). */
+static void h_no_route(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
+{
+    (void)app;
+    (void)seg;
+    api_error(r, TD_AE_NOT_FOUND, NULL, "no such route: %s", td_http_req_path(q));
+}
+
+/* Splits "a/b/c" after a prefix into at most max segments (copied into buf). */
+static int split_path(const char *rest, char *buf, size_t cap, char **seg, int max)
+{
+    int n = 0;
+    char *p;
+    if (strlen(rest) >= cap)
+        return -1;
+    strcpy(buf, rest);
+    p = buf;
+    while (n < max) {
+        char *slash = strchr(p, '/');
+        seg[n++] = p;
+        if (!slash)
+            break;
+        *slash = '\0';
+        p = slash + 1;
+    }
+    return strchr(p, '/') && n == max ? -1 : n;
+}
+
+typedef void (*td_handler)(td_app *app, td_http_req *q, td_http_resp *r, char **seg);
+
+/* One row a route, tried in order; the first that matches answers.
+ *   rest NULL: the path is exactly `path`. rest "": any path that starts with `path`.
+ *   Otherwise the path starts with `path` and what follows, split into at most `max`
+ *   segments (split_path), has rest's shape: as many segments, `*` any, others equal.
+ * Then: the route label is set; admin rows check the bearer token; a row with `allow`
+ * refuses other methods (405 + Allow); the handler gets the segments, or a row without
+ * one answers 404 with `missing` (a path under a known prefix but of no known shape). */
+typedef struct td_route_row {
+    td_route route;
+    const char *path, *rest;
+    int max, admin;
+    const char *allow; /* as the Allow header says it; NULL: any method */
+    td_handler fn;
+    const char *missing;
+} td_route_row;
+
+static const td_route_row td_routes[] = {
+    {TD_ROUTE_HEALTHZ, "/healthz", NULL, 0, 0, "GET, HEAD", h_healthz, NULL},
+    {TD_ROUTE_READYZ, "/readyz", NULL, 0, 0, "GET, HEAD", h_readyz, NULL},
+    {TD_ROUTE_METRICS, "/metrics", NULL, 0, 0, "GET, HEAD", h_metrics, NULL},
+    {TD_ROUTE_RENDER, "/v1/render", NULL, 0, 0, "GET, HEAD, POST", h_render_route, NULL},
+    {TD_ROUTE_PICK, "/v1/pick", NULL, 0, 0, "POST", h_pick, NULL},
+    {TD_ROUTE_TILES, "/v1/tiles/", "*/*/*/*", 4, 0, "GET, HEAD", h_tile, NULL},
+    {TD_ROUTE_TILES, "/v1/tiles/", "", 0, 0, NULL, NULL, "tile paths are /v1/tiles/{dataset}/{z}/{x}/{y}.png"},
+    {TD_ROUTE_DATASETS, "/v1/datasets", NULL, 0, 0, "GET, HEAD", h_datasets, NULL},
+    {TD_ROUTE_DATASETS, "/v1/datasets/", NULL, 0, 0, "GET, HEAD", h_datasets, NULL},
+    {TD_ROUTE_DATASET, "/v1/datasets/", "*", 1, 0, "GET, HEAD", h_dataset, NULL},
+    {TD_ROUTE_DATASET, "/v1/datasets/", "", 0, 0, NULL, NULL, "no such route"},
+    {TD_ROUTE_PRELOAD, "/v1/admin/", "preload", 4, 1, "POST", h_preload, NULL},
+    {TD_ROUTE_JOB, "/v1/admin/", "jobs/*", 4, 1, "GET, HEAD", h_job, NULL},
+    {TD_ROUTE_JOB, "/v1/admin/jobs/", "", 0, 1, NULL, NULL, "no such admin route"},
+    {TD_ROUTE_EVICT, "/v1/admin/", "datasets/*/tiles", 4, 1, "DELETE", h_evict, NULL},
+    {TD_ROUTE_EVICT, "/v1/admin/", "", 0, 1, NULL, NULL, "no such admin route"},
+    {TD_ROUTE_WEB, TD_STATIC_VENDOR_PREFIX, "", 0, 0, "GET, HEAD", h_vendor, NULL},
+    {TD_ROUTE_UNKNOWN, "/v1", NULL, 0, 0, NULL, h_no_route, NULL},
+    {TD_ROUTE_UNKNOWN, "/v1/", "", 0, 0, NULL, h_no_route, NULL},
+    {TD_ROUTE_WEB, "/", "", 0, 0, "GET, HEAD", h_page, NULL},
+};
+
+/* 1 when path matches row w (see td_route_row); the segments are in seg (buf holds them). */
+static int row_matches(const td_route_row *w, const char *path, char *buf, size_t cap, char **seg)
+{
+    size_t pl = strlen(w->path);
+    const char *shape = w->rest;
+    int ok, n;
+    if (!shape)
+        return !strcmp(path, w->path);
+    ok = !strncmp(path, w->path, pl);
+    if (!ok || !*shape)
+        return ok;
+    n = split_path(path + pl, buf, cap, seg, w->max);
+    ok = n > 0;
+    for (int i = 0; ok && i < n; i++) {
+        size_t l = strcspn(shape, "/");
+        ok = (l == 1 && shape[0] == '*') || (strlen(seg[i]) == l && !strncmp(seg[i], shape, l));
+        shape += l;
+        if (*shape == '/')
+            shape++;
+        else if (i + 1 < n)
+            ok = 0; /* more segments than the shape has */
+    }
+    return ok && !*shape; /* and not fewer */
+}
+
+/* 1 when method is one of the comma-separated names of allow. */
+static int method_allowed(const char *allow, const char *method)
+{
+    size_t ml = strlen(method);
+    int ok = 0;
+    for (const char *p = allow; *p && !ok; p += strspn(p, ", ")) {
+        size_t l = strcspn(p, ", ");
+        ok = l == ml && !strncmp(p, method, l);
+        p += l;
+    }
+    return ok;
+}
+
 static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
 {
     const char *m = td_http_req_method(q), *path = td_http_req_path(q);
-    int get = !strcmp(m, "GET") || !strcmp(m, "HEAD");
-    int post = !strcmp(m, "POST");
-    char buf[512], *seg[8];
-    int n;
+    char buf[512], *seg[8] = {NULL};
+    const td_route_row *w = &td_routes[sizeof td_routes / sizeof td_routes[0] - 1]; /* "/": any */
 
-    if (!strcmp(path, "/healthz")) {
-        td_http_req_set_route(q, TD_ROUTE_HEALTHZ);
-        if (get)
-            send_json(r, 200, json_pack("{s:s}", "status", "ok"));
-        else
-            method_not_allowed(r, "GET, HEAD", m);
-    } else if (!strcmp(path, "/readyz")) {
-        td_http_req_set_route(q, TD_ROUTE_READYZ);
-        if (get)
-            h_readyz(app, r);
-        else
-            method_not_allowed(r, "GET, HEAD", m);
-    } else if (!strcmp(path, "/metrics")) {
-        td_http_req_set_route(q, TD_ROUTE_METRICS);
-        if (get)
-            h_metrics(app, r);
-        else
-            method_not_allowed(r, "GET, HEAD", m);
-    } else if (!strcmp(path, "/v1/render")) {
-        td_http_req_set_route(q, TD_ROUTE_RENDER);
-        if (get || post)
-            h_render(app, q, r, post, 0);
-        else
-            method_not_allowed(r, "GET, HEAD, POST", m);
-    } else if (!strcmp(path, "/v1/pick")) {
-        td_http_req_set_route(q, TD_ROUTE_PICK);
-        if (post)
-            h_render(app, q, r, 1, 1);
-        else
-            method_not_allowed(r, "POST", m);
-    } else if (!strncmp(path, "/v1/tiles/", 10)) {
-        td_http_req_set_route(q, TD_ROUTE_TILES);
-        n = split_path(path + 10, buf, sizeof buf, seg, 4);
-        if (n != 4)
-            api_error(r, TD_AE_NOT_FOUND, NULL, "tile paths are /v1/tiles/{dataset}/{z}/{x}/{y}.png");
-        else if (!get)
-            method_not_allowed(r, "GET, HEAD", m);
-        else
-            h_tile(app, q, r, seg);
-    } else if (!strcmp(path, "/v1/datasets") || !strcmp(path, "/v1/datasets/")) {
-        td_http_req_set_route(q, TD_ROUTE_DATASETS);
-        if (get)
-            h_datasets(app, r);
-        else
-            method_not_allowed(r, "GET, HEAD", m);
-    } else if (!strncmp(path, "/v1/datasets/", 13)) {
-        td_http_req_set_route(q, TD_ROUTE_DATASET);
-        n = split_path(path + 13, buf, sizeof buf, seg, 1);
-        if (n != 1)
-            api_error(r, TD_AE_NOT_FOUND, NULL, "no such route");
-        else if (!get)
-            method_not_allowed(r, "GET, HEAD", m);
-        else
-            h_dataset(app, seg[0], r);
-    } else if (!strncmp(path, "/v1/admin/", 10)) {
-        const char *rest = path + 10;
-        if (!strcmp(rest, "preload"))
-            td_http_req_set_route(q, TD_ROUTE_PRELOAD);
-        else if (!strncmp(rest, "jobs/", 5))
-            td_http_req_set_route(q, TD_ROUTE_JOB);
-        else
-            td_http_req_set_route(q, TD_ROUTE_EVICT);
-        n = split_path(rest, buf, sizeof buf, seg, 4);
-        if (admin_check(app, q, r)) {
-            /* answered: 404 admin_disabled or 401 */
-        } else if (n == 1 && !strcmp(seg[0], "preload")) {
-            if (!post)
-                method_not_allowed(r, "POST", m);
-            else if (!json_body_check(q, r))
-                h_preload(app, q, r);
-        } else if (n == 2 && !strcmp(seg[0], "jobs")) {
-            if (!get)
-                method_not_allowed(r, "GET, HEAD", m);
-            else
-                h_job(app, seg[1], r);
-        } else if (n == 3 && !strcmp(seg[0], "datasets") && !strcmp(seg[2], "tiles")) {
-            if (strcmp(m, "DELETE"))
-                method_not_allowed(r, "DELETE", m);
-            else
-                h_evict(app, seg[1], r);
-        } else {
-            api_error(r, TD_AE_NOT_FOUND, NULL, "no such admin route");
+    for (size_t i = 0; i + 1 < sizeof td_routes / sizeof td_routes[0]; i++)
+        if (row_matches(&td_routes[i], path, buf, sizeof buf, seg)) {
+            w = &td_routes[i];
+            break;
         }
-    } else if (!strncmp(path, "/vendor/leaflet/", 16)) {
-        td_http_req_set_route(q, TD_ROUTE_WEB);
-        if (get)
-            serve_file(app->leaflet_dir, path + 16, 1, r);
-        else
-            method_not_allowed(r, "GET, HEAD", m);
-    } else if (!strncmp(path, "/v1/", 4) || !strcmp(path, "/v1")) {
-        td_http_req_set_route(q, TD_ROUTE_UNKNOWN);
-        api_error(r, TD_AE_NOT_FOUND, NULL, "no such route: %s", path);
+    td_http_req_set_route(q, w->route);
+    if (w->admin && admin_check(app, q, r)) {
+        /* answered: 404 admin_disabled or 401 */
+    } else if (w->allow && !method_allowed(w->allow, m)) {
+        method_not_allowed(r, w->allow, m);
+    } else if (!w->fn) {
+        api_error(r, TD_AE_NOT_FOUND, NULL, "%s", w->missing);
     } else {
-        /* the page's own files only: not its tests, build files or node_modules */
-        int page = !strcmp(path, "/") || !strcmp(path, "/index.html") || !strcmp(path, "/style.css") ||
-                   !strncmp(path, "/js/", 4) || !strcmp(path, "/favicon.ico");
-        td_http_req_set_route(q, TD_ROUTE_WEB);
-        if (!get)
-            method_not_allowed(r, "GET, HEAD", m);
-        else if (!page)
-            api_error(r, TD_AE_NOT_FOUND, NULL, "no such page (the web page is /, /style.css and /js/)");
-        else
-            serve_file(app->web_dir, path + 1, 0, r);
+        w->fn(app, q, r, seg);
     }
 }
 

@@ -1,8 +1,9 @@
 /* routes.h: the HTTP API of `terrad serve` (DESIGN.md, docs/api.md): dispatch by path
- * and method, JSON errors, authentication of admin routes, static files of the web
- * page, and the handlers that call the tile store, the job queue and the renderer.
+ * and method, JSON errors, authentication of admin routes, and the handlers that call
+ * the tile store, the job queue, the renderer and the web page's files (static.h).
  *
- * Routes are one X-macro table (enum, label for metrics and the access log). */
+ * Route labels are one X-macro table (enum, label for metrics and the access log); the
+ * paths, methods and handlers are a table in routes.c. */
 #ifndef TD_ROUTES_H
 #define TD_ROUTES_H
 
@@ -49,14 +50,7 @@ typedef struct td_app {
     atomic_int ready;  /* /readyz: 1 once serving, 0 again when stopping */
     char web_dir[PATH_MAX];     /* realpath, or "" when absent */
     char leaflet_dir[PATH_MAX]; /* realpath of web/node_modules/leaflet/dist, or "" */
-    struct td_watch *watch;     /* render deadlines (routes.c) */
 } td_app;
-
-/* Starts / stops the watchdog that cancels renders past --render-timeout. */
-td_status td_routes_start(td_app *app, td_err *err);
-void td_routes_stop(td_app *app);
-/* Cancels every render running now (shutdown past its deadline). */
-void td_routes_cancel_all(td_app *app);
 
 /* td_http_handler and td_http_done_fn for td_http_start (cls: the td_app). */
 void td_routes_handle(void *cls, td_http_req *q, td_http_resp *resp);

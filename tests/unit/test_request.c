@@ -4,7 +4,8 @@
  * out of range, oversize image, bad id) is refused with the right status and the
  * field's path; the query form agrees with the JSON form; every range of the table of
  * limits (core/limit.h) is the parser's, at both ends, with the service's maximum by
- * default and core's when a caller raises td_request_limits. */
+ * default and core's when a caller raises td_request_limits; a pick's body
+ * defaults to format pick. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -231,6 +232,46 @@ static td_status query(const char *const *kv, size_t n, td_request_error *e)
     return td_request_parse_query(k, v, n, NULL, &scene, e);
 }
 
+/* POST /v1/pick's body: format pick unless the body names one; otherwise the same rules
+ * (and the same errors) as a render's scene. */
+static void test_pick_body(void **state)
+{
+    td_request_limits lim;
+    td_request_error e;
+    const char *no_format = "{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3}},"
+                            "\"pick\":[[10,20]]}";
+    const char *no_format_img = "{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3}},"
+                                "\"image\":{\"width\":64,\"height\":32},\"pick\":[[10,20]]}";
+    const char *png = "{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3}},"
+                      "\"image\":{\"format\":\"png\"}}";
+    const char *no_pixels = "{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3}}}";
+    const char *bad_image = "{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3}},"
+                            "\"image\":5,\"pick\":[[1,2]]}";
+    (void)state;
+    td_request_limits_default(&lim);
+
+    assert_int_equal(td_request_parse_pick(no_format, strlen(no_format), &lim, &scene, &e), TD_OK);
+    assert_int_equal(scene.image.format, TD_FORMAT_PICK);
+    assert_int_equal(scene.npick, 1);
+    assert_int_equal(td_request_parse_pick(no_format_img, strlen(no_format_img), &lim, &scene, &e), TD_OK);
+    assert_int_equal(scene.image.format, TD_FORMAT_PICK);
+    assert_int_equal(scene.image.width, 64);
+    /* the same body as a render's scene needs the format */
+    assert_int_equal(td_request_parse_scene(no_format, strlen(no_format), &lim, &scene, &e), TD_EINVAL);
+    assert_string_equal(e.field, "pick");
+    /* a format given is kept (the route refuses a pick without pixels) */
+    assert_int_equal(td_request_parse_pick(png, strlen(png), &lim, &scene, &e), TD_OK);
+    assert_int_equal(scene.image.format, TD_FORMAT_PNG);
+    assert_int_equal(scene.npick, 0);
+    assert_int_equal(td_request_parse_pick(no_pixels, strlen(no_pixels), &lim, &scene, &e), TD_EINVAL);
+    assert_string_equal(e.field, "pick");
+    assert_non_null(strstr(e.message, "needs a list of pixels"));
+    assert_int_equal(td_request_parse_pick(bad_image, strlen(bad_image), &lim, &scene, &e), TD_EINVAL);
+    assert_string_equal(e.field, "image");
+    assert_int_equal(td_request_parse_pick("{\"a\":1,\"a\":2}", 13, &lim, &scene, &e), TD_EINVAL);
+    assert_string_equal(e.field, "a");
+}
+
 static void test_query(void **state)
 {
     td_request_error e;
@@ -397,6 +438,7 @@ int main(void)
         cmocka_unit_test(test_defaults_and_variants),
         cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_paths_allowed_for_cli),
+        cmocka_unit_test(test_pick_body),
         cmocka_unit_test(test_query),
         cmocka_unit_test(test_limits_table),
     };

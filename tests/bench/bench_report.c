@@ -196,7 +196,7 @@ static void write_method(FILE *f, const bench_ctx *b)
     if (b->repro_done) {
         const bench_trace *t = &d->tr[TD_METHOD_HIERARCHICAL][TD_SURFACE_TRIANGLE];
         char r1[32], r2[32], r3[32], r4[32];
-        fprintf(f, "This run did exactly that %d times (this binary, a temporary ray file): `terrad trace` "
+        fprintf(f, "This run did exactly that %d times (the terrad beside terrad-bench, a temporary ray file): `terrad trace` "
                    "took %.2f steps per ray at a median of %s rays/s (runs from %s to %s), against %.2f steps "
                    "and %s rays/s in the table (%+.0f%%). Same rays, same loop, same steps; the rates differ by "
                    "the spread of a shared 2-core machine, and `terrad trace` times a single pass right after "

@@ -19,6 +19,7 @@
 #include "bench.h"
 #include "clock.h"
 #include "bench_int.h"
+#include "cli.h"
 
 #include <errno.h>
 #include <math.h>
@@ -50,13 +51,10 @@ const char *td_bench_section_name(td_bench_section s)
 
 td_status td_bench_section_parse(const char *name, td_bench_section *out)
 {
-    td_status rc = TD_EINVAL;
-    for (int k = 0; k < TD_BENCH_SECTION_COUNT; k++)
-        if (!strcmp(name, section_names[k])) {
-            *out = (td_bench_section)k;
-            rc = TD_OK;
-        }
-    return rc;
+    int k = td_name_index(section_names, TD_BENCH_SECTION_COUNT, name);
+    if (k >= 0)
+        *out = (td_bench_section)k;
+    return k >= 0 ? TD_OK : TD_EINVAL;
 }
 
 static int file_exists(const char *p)
@@ -107,7 +105,7 @@ double td_bench_median(double *v, int n)
 static void progress(const bench_ctx *b, const char *fmt, const char *a, const char *c)
 {
     if (b->o->verbose) {
-        fprintf(stderr, "terrad bench: [%6.1f s] ", td_clock_s() - b->t_start);
+        fprintf(stderr, "terrad-bench: [%6.1f s] ", td_clock_s() - b->t_start);
         fprintf(stderr, fmt, a, c);
         fputc('\n', stderr);
     }
@@ -739,8 +737,9 @@ static td_status run_renders(bench_ctx *b, bench_ds *d, td_err *err)
     s.quality.method = TD_METHOD_AUTO;
     s.quality.surface = TD_SURFACE_BILINEAR;
     s.quality.samples = 4;
-    /* sky on: every sample gets a colour (without it render.c resolves a miss as 0 times
-       an uninitialised colour, which is not always 0: see the report to the lead) */
+    /* sky on, as in the service's views: a ray that misses gets the sky's colour, so a
+       surface that misses where the reference hits (or the reverse) counts in the image
+       error by colour (without sky a miss is transparent black, alpha 0) */
     s.effects.sky = 1;
     progress(b, "%s: reference render (bilinear, 4 x 4 samples)%s", d->name, "");
     render_once(&v, &s, NULL, &ref, &rc, err);
@@ -971,15 +970,16 @@ static void machine_info(bench_ctx *b)
 
 static td_status write_rays(const bench_ds *d, const char *path, td_err *err);
 
-/* Runs this very binary's `terrad trace --threads 1 --stats` on the speed rays of d
- * (hierarchical, triangle) `runs` times: the report prints its median rays/s beside the
- * benchmark's own figure for the same row, so the claim that both measure the same thing
- * is checked on every run. */
+/* Runs `terrad trace --threads 1 --stats` (the terrad built beside this program) on the
+ * speed rays of d (hierarchical, triangle) `runs` times: the report prints its median
+ * rays/s beside the benchmark's own figure for the same row, so the claim that both
+ * measure the same thing is checked on every run (left out when terrad is not there). */
 static void run_repro(bench_ctx *b, const bench_ds *d)
 {
-    char dir[] = "/tmp/terrad-bench-XXXXXX", rays[64] = "", stats[64] = "", cmd[2048];
+    char dir[] = "/tmp/terrad-bench-XXXXXX", rays[64] = "", stats[64] = "", cmd[8192], terrad[4096];
     double *rps = malloc((size_t)b->runs * sizeof *rps);
-    int ok = rps && !strchr(d->path, '\'') && mkdtemp(dir) != NULL, n = 0;
+    int ok = rps && !strchr(d->path, '\'') && td_cli_sibling("terrad", terrad, sizeof terrad) &&
+             !strchr(terrad, '\'') && access(terrad, X_OK) == 0 && mkdtemp(dir) != NULL, n = 0;
     if (ok) {
         snprintf(rays, sizeof rays, "%s/rays", dir);
         snprintf(stats, sizeof stats, "%s/stats.json", dir);
@@ -988,9 +988,9 @@ static void run_repro(bench_ctx *b, const bench_ds *d)
     for (int r = 0; r < b->runs && ok; r++) {
         json_t *j;
         snprintf(cmd, sizeof cmd,
-                 "/proc/%d/exe trace --dem '%s' --method hierarchical --surface triangle --threads 1 "
+                 "'%s' trace --dem '%s' --method hierarchical --surface triangle --threads 1 "
                  "--k %d --stats '%s' < '%s' > /dev/null",
-                 (int)getpid(), d->path, TD_PLANES_K_DEFAULT, stats, rays);
+                 terrad, d->path, TD_PLANES_K_DEFAULT, stats, rays);
         ok = system(cmd) == 0 && (j = json_load_file(stats, 0, NULL)) != NULL;
         if (ok) {
             rps[n++] = json_real_value(json_object_get(j, "rays_per_second"));
