@@ -134,6 +134,33 @@ static void print_text(const char *path, const td_grid *g)
            (double)bytes / 1048576.0);
 }
 
+/* One option that takes a value into opts: 0, or 2 for a bad value. */
+static int value_option(const char *a, const char *v, td_dem_opts *opts)
+{
+    int rc = 0;
+    if (!strcmp(a, "--encoding")) {
+        if (td_dem_encoding_parse(v, &opts->encoding) != TD_OK || opts->encoding == TD_ENC_NONE) {
+            fprintf(stderr, "terrad info: unknown encoding '%s' (gray16, terrain-rgb, terrarium, rgb-div)\n", v);
+            rc = 2;
+        }
+    } else if (!strcmp(a, "--scale")) {
+        rc = parse_num(v, &opts->scale) && opts->scale != 0.0 ? 0 : 2;
+        opts->given |= TD_DEM_GIVEN_SCALE;
+    } else if (!strcmp(a, "--offset")) {
+        rc = parse_num(v, &opts->offset) ? 0 : 2;
+        opts->given |= TD_DEM_GIVEN_OFFSET;
+    } else if (!strcmp(a, "--divisor")) {
+        rc = parse_num(v, &opts->divisor) && opts->divisor > 0.0 ? 0 : 2;
+        opts->given |= TD_DEM_GIVEN_DIVISOR;
+    } else if (!strcmp(a, "--spacing")) {
+        rc = parse_spacing(v, opts->spacing) ? 0 : 2;
+    } else if (!strcmp(a, "--nodata")) {
+        rc = parse_num(v, &opts->nodata) ? 0 : 2;
+        opts->has_nodata = 1;
+    }
+    return rc;
+}
+
 int td_cli_info(int argc, char **argv)
 {
     int rc = 0, json = 0, help = 0;
@@ -156,25 +183,8 @@ int td_cli_info(int argc, char **argv)
             help = 1;
         } else if (!strcmp(a, "--json")) {
             json = 1;
-        } else if (!strcmp(a, "--encoding")) {
-            if (td_dem_encoding_parse(v, &opts.encoding) != TD_OK || opts.encoding == TD_ENC_NONE) {
-                fprintf(stderr, "terrad info: unknown encoding '%s' (gray16, terrain-rgb, terrarium, rgb-div)\n", v);
-                rc = 2;
-            }
-        } else if (!strcmp(a, "--scale")) {
-            rc = parse_num(v, &opts.scale) && opts.scale != 0.0 ? 0 : 2;
-            opts.given |= TD_DEM_GIVEN_SCALE;
-        } else if (!strcmp(a, "--offset")) {
-            rc = parse_num(v, &opts.offset) ? 0 : 2;
-            opts.given |= TD_DEM_GIVEN_OFFSET;
-        } else if (!strcmp(a, "--divisor")) {
-            rc = parse_num(v, &opts.divisor) && opts.divisor > 0.0 ? 0 : 2;
-            opts.given |= TD_DEM_GIVEN_DIVISOR;
-        } else if (!strcmp(a, "--spacing")) {
-            rc = parse_spacing(v, opts.spacing) ? 0 : 2;
-        } else if (!strcmp(a, "--nodata")) {
-            rc = parse_num(v, &opts.nodata) ? 0 : 2;
-            opts.has_nodata = 1;
+        } else if (takes) {
+            rc = value_option(a, v, &opts);
         } else if (a[0] == '-' && a[1] != '\0') {
             fprintf(stderr, "terrad info: unknown option '%s'\n", a);
             rc = 2;

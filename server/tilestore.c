@@ -24,6 +24,7 @@
  *
  * Measured (demo data, 64-cell tiles, 262 parts, one run each on a shared 2-core box):
  * building every part took 0.28 s, reading them back from the disk cache 0.011 s. */
+#include "hash.h"
 #include "tilestore.h"
 
 #include <dirent.h>
@@ -546,27 +547,16 @@ long td_store_find(const td_store *s, const char *id)
     return idx;
 }
 
-static uint64_t fnv1a(uint64_t h, const void *data, size_t n)
-{
-    const unsigned char *p = data;
-    for (size_t i = 0; i < n; i++) {
-        h ^= p[i];
-        h *= 1099511628211ULL;
-    }
-    return h;
-}
-
-#define TD_FNV_INIT 14695981039346656037ULL
 
 static uint64_t grid_fingerprint(const td_grid *g)
 {
-    uint64_t h = TD_FNV_INIT;
-    h = fnv1a(h, &g->w, sizeof g->w);
-    h = fnv1a(h, &g->h, sizeof g->h);
-    h = fnv1a(h, &g->sx, sizeof g->sx);
-    h = fnv1a(h, &g->sy, sizeof g->sy);
-    h = fnv1a(h, &g->tile_log2, sizeof g->tile_log2);
-    h = fnv1a(h, g->z, (size_t)g->w * (size_t)g->h * sizeof(float));
+    uint64_t h = TD_FNV1A_INIT;
+    h = td_fnv1a(h, &g->w, sizeof g->w);
+    h = td_fnv1a(h, &g->h, sizeof g->h);
+    h = td_fnv1a(h, &g->sx, sizeof g->sx);
+    h = td_fnv1a(h, &g->sy, sizeof g->sy);
+    h = td_fnv1a(h, &g->tile_log2, sizeof g->tile_log2);
+    h = td_fnv1a(h, g->z, (size_t)g->w * (size_t)g->h * sizeof(float));
     return h;
 }
 
@@ -1034,9 +1024,9 @@ static void cache_hdr_init(const td_store *s, const td_ds *d, size_t tile, td_pa
 
 static uint64_t pieces_checksum(const td_piece *pc, int npc)
 {
-    uint64_t h = TD_FNV_INIT;
+    uint64_t h = TD_FNV1A_INIT;
     for (int i = 0; i < npc; i++)
-        h = fnv1a(h, pc[i].ptr, pc[i].len);
+        h = td_fnv1a(h, pc[i].ptr, pc[i].len);
     return h;
 }
 
