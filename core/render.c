@@ -180,6 +180,8 @@ struct ctx {
     const atomic_int *cancel;
     int depth_only;
     int horizon;     /* camera rays start from their wedge's horizon (see horizon.h) */
+    int plain_secondary; /* shadow and AO rays traced for their nearest hit (OFF_OCCLUSION) */
+    td_ray *shadow_rays; /* the caller's copy of the shadow rays, or NULL */
     int on[TD_STAGE_COUNT]; /* the stages this render runs (their on_<name>) */
     double sun[3];
     double eps;      /* origin offset along the normal for secondary rays */
@@ -467,19 +469,44 @@ static void trace_secondary(const ctx *c, worker *w, td_ray_kind kind, const td_
     w->st.kind_steps[kind] += steps;
 }
 
+/* The caller's copy of a sample's secondary ray (td_render_opts.shadow_rays): in image
+ * order, a marker (tmax -1) where the sample has none. */
+static void keep_ray(const ctx *c, td_ray *out, const blk *b, int i, const td_ray *r)
+{
+    if (out) {
+        const int nn = c->n * c->n;
+        int pix = i / nn;
+        size_t x = (size_t)(b->x0 + pix % b->bw), y = (size_t)(b->y0 + pix / b->bw);
+        td_ray *slot = &out[(y * (size_t)c->cam.width + x) * (size_t)nn + (size_t)(i % nn)];
+        if (r) {
+            *slot = *r;
+        } else {
+            memset(slot, 0, sizeof *slot);
+            slot->tmax = -1.0;
+        }
+    }
+}
+
 /* Whether a shadow or AO ray meets the terrain: an any-hit query from the surface
  * (td_occluded), or the bent chords of trace_secondary for a long shadow ray under
  * curvature. */
 static int occluded(const ctx *c, worker *w, td_ray_kind kind, const td_view *v, const td_ray *r)
 {
     int hit;
+    uint32_t steps = 0;
     if (kind == TD_RAY_SHADOW && c->curv2 && needs_curve(c, r->o, r->d, c->curv_smin2)) {
         td_hit h;
         trace_secondary(c, w, kind, v, r, &h);
         hit = h.t < INFINITY;
     } else {
-        uint32_t steps = 0;
-        hit = td_occluded(v, c->s->quality.method, c->s->quality.surface, r, &steps);
+        if (c->plain_secondary) { /* OFF_OCCLUSION: the nearest hit, as before the device */
+            td_hit h;
+            td_trace(v, c->s->quality.method, c->s->quality.surface, r, &h);
+            steps = h.steps;
+            hit = h.t < INFINITY;
+        } else {
+            hit = td_occluded(v, c->s->quality.method, c->s->quality.surface, r, &steps);
+        }
         w->st.steps += steps;
         w->st.kind_steps[kind] += steps;
     }
@@ -683,18 +710,21 @@ static void stage_shadows(worker *w, const blk *b)
     td_ray r;
     for (int i = 0; i < b->ns; i++) {
         smp *sm = &w->s[i];
-        lit[i] = 0.0f;
-        if ((sm->flags & (F_HIT | F_WATER)) != F_HIT || c->sun[2] <= 0.0)
-            continue;
         float nn[3];
+        lit[i] = 0.0f;
         memcpy(nn, sm->n, sizeof nn);
-        /* a face turned away from the sun is dark whatever lies between */
-        if (nn[0] * c->sun[0] + nn[1] * c->sun[1] + nn[2] * c->sun[2] <= 0.0)
+        /* none for a miss, under water, with the sun down, or on a face turned away from
+           the sun (dark whatever lies between) */
+        if ((sm->flags & (F_HIT | F_WATER)) != F_HIT || c->sun[2] <= 0.0 ||
+            nn[0] * c->sun[0] + nn[1] * c->sun[1] + nn[2] * c->sun[2] <= 0.0) {
+            keep_ray(c, c->shadow_rays, b, i, NULL);
             continue;
+        }
         offset_origin(c, sm->p, nn, r.o);
         memcpy(r.d, c->sun, sizeof r.d);
         r.tmin = 0.0;
         r.tmax = INFINITY;
+        keep_ray(c, c->shadow_rays, b, i, &r);
         w->st.rays[TD_RAY_SHADOW]++;
         lit[i] = occluded(c, w, TD_RAY_SHADOW, c->views[sm->level], &r) ? 0.0f : 1.0f;
     }
@@ -1053,6 +1083,8 @@ static td_status setup_render(ctx *c, const td_render_opts *o, td_image8 **drape
        exceed a bin's cells), not for orthographic views (no eye) */
     c->horizon = !(o->off & TD_RENDER_OFF_HORIZON) && c->nlod == 0 &&
                  c->cam.projection == TD_PROJ_PERSPECTIVE;
+    c->plain_secondary = (o->off & TD_RENDER_OFF_OCCLUSION) != 0;
+    c->shadow_rays = o->shadow_rays;
     c->depth_only = s->image.format == TD_FORMAT_DEPTH16 || s->image.format == TD_FORMAT_DEPTH32F;
     c->bx = (s->image.width + TD_BLOCK - 1) / TD_BLOCK;
     c->by = (s->image.height + TD_BLOCK - 1) / TD_BLOCK;

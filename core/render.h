@@ -108,9 +108,14 @@ typedef struct td_render_opts {
     const td_lod *lod;         /* coarse levels (quality.lod needs them), or NULL */
     unsigned off;              /* coherence devices turned off (TD_RENDER_OFF_*), for
                                   measuring what each one is worth; all on by default */
+    td_ray *shadow_rays;       /* NULL, or width * height * samples^2 slots: each sample's
+                                  shadow ray, in image order (row-major pixels, then the
+                                  pixel's samples), tmax -1 where it has none; for tracing
+                                  the same rays with another tracer (benchmark, CLI) */
 } td_render_opts;
 
-#define TD_RENDER_OFF_HORIZON 1u /* camera rays each traced from their start */
+#define TD_RENDER_OFF_HORIZON 1u   /* camera rays each traced from their start */
+#define TD_RENDER_OFF_OCCLUSION 2u /* shadow and AO rays traced for their nearest hit */
 
 typedef struct td_render_result {
     int32_t width, height;

@@ -1,4 +1,5 @@
-/* cli_render.c: `terrad render SCENE.json -o OUT [--stats FILE] [--threads N]`: the
+/* cli_render.c: `terrad render SCENE.json -o OUT [--stats FILE] [--threads N] [--rays FILE]
+ * [--shadow-rays FILE]`: the
  * render path of the server without HTTP. The scene is parsed by the same pure function
  * as POST /v1/render (server/request.c), with file paths allowed.
  *
@@ -10,9 +11,12 @@
  *
  * Output: the image in the scene's format (png, depth16, depth32f), or for format pick
  * the JSON answer of POST /v1/pick (answer.c: the dataset as the scene names it, and the
- * terrain point of each pixel). --stats writes JSON: rays {primary,
- * shadow, reflection, ao}, steps, hits, curved_rays, curved_secondary, curve_segments, height_error_m {mean, max, hits}, stages_ms (one
- * entry per stage that ran), load_ms, accel_ms, render_ms, total_ms, threads, bytes.
+ * terrain point of each pixel). --stats writes JSON: rays {primary, shadow, reflection,
+ * ao}, steps {total, primary, shadow, reflection, ao}, coherent_rays, horizon_bins, hits,
+ * curved_rays, curved_secondary, curve_segments, height_error_m {mean, max, hits},
+ * stages_ms (one entry per stage that ran), load_ms, accel_ms, render_ms, total_ms,
+ * threads, bytes. --rays and --shadow-rays write the render's rays for another tracer
+ * (the benchmark traces them with Embree).
  * Exit status: 0 ok, 1 runtime failure, 2 usage or scene error. */
 #include "cli.h"
 #include "answer.h"
@@ -41,14 +45,20 @@
 
 static void render_usage(FILE *f)
 {
-    fprintf(f, "usage: terrad render SCENE.json -o OUT [--stats FILE] [--threads N]\n"
+    fprintf(f, "usage: terrad render SCENE.json -o OUT [--stats FILE] [--threads N] [--rays FILE]\n"
+               "                    [--shadow-rays FILE]\n"
                "\n"
                "Renders a scene (the JSON body of POST /v1/render) to OUT in the scene's\n"
                "image.format: png, depth16 (16-bit PNG), depth32f (raw float32) or pick (JSON).\n"
                "`dataset` may be a DEM file path or a demo id (a folder under %s/data).\n"
                "  -o OUT          output file ('-' for stdout)\n"
                "  --stats FILE    write rays by kind and per-stage timings as JSON\n"
-               "  --threads N     render threads (default: one per core)\n",
+               "  --threads N     render threads (default: one per core)\n"
+               "  --rays FILE     write the camera ray of every pixel centre (the render's\n"
+               "                  primary rays when samples is 1), row-major from the top-left\n"
+               "                  pixel, as `terrad trace` input (float64 ox oy oz dx dy dz)\n"
+               "  --shadow-rays FILE  write the shadow rays the render traced, in image order,\n"
+               "                  in the same format\n",
                TERRAD_SOURCE_DIR);
 }
 
@@ -196,7 +206,7 @@ static json_t *stats_json(const td_render_stats *st)
 
 /* What one `terrad render` run reads, builds and writes. */
 typedef struct render_run {
-    const char *scene_path, *out_path, *stats_path;
+    const char *scene_path, *out_path, *stats_path, *rays_path, *shadow_path;
     int threads;
     td_scene *scene; /* large (the pick list): heap */
     char scene_dir[4096], dem_path[4096];
@@ -218,6 +228,10 @@ static int parse_args(int argc, char **argv, render_run *run)
             run->out_path = argv[++i];
         } else if (!strcmp(argv[i], "--stats") && i + 1 < argc) {
             run->stats_path = argv[++i];
+        } else if (!strcmp(argv[i], "--rays") && i + 1 < argc) {
+            run->rays_path = argv[++i];
+        } else if (!strcmp(argv[i], "--shadow-rays") && i + 1 < argc) {
+            run->shadow_path = argv[++i];
         } else if (!strcmp(argv[i], "--threads") && i + 1 < argc) {
             char *end = NULL;
             long v = strtol(argv[++i], &end, 10);
@@ -380,6 +394,68 @@ out:
 }
 
 /* An image format: render, encode, write; *stats gets the stats, the size, the scale. */
+/* Appends a ray to f in the ray format of `terrad trace` (little-endian float64). */
+static int put_ray(FILE *f, const td_ray *r)
+{
+    unsigned char b[48];
+    for (int k = 0; k < 6; k++) {
+        double v = k < 3 ? r->o[k] : r->d[k - 3];
+        uint64_t u;
+        memcpy(&u, &v, sizeof u);
+        for (int j = 0; j < 8; j++)
+            b[8 * k + j] = (unsigned char)(u >> (8 * j));
+    }
+    return fwrite(b, sizeof b, 1, f) == 1;
+}
+
+/* --rays: the camera ray of every pixel centre, row-major from the top-left pixel (the
+ * rays td_render traces for samples 1: the same td_camera_ray at the same coordinates). */
+static int write_camera_rays(const render_run *run, const td_grid *g)
+{
+    int rc = 1;
+    td_camera cam;
+    td_err err = {0};
+    FILE *f = NULL;
+    if (td_camera_setup(&run->scene->camera, run->scene->image.width, run->scene->image.height, g, &cam,
+                        &err)) {
+        fprintf(stderr, "terrad render: %s\n", err.msg);
+        goto out;
+    }
+    f = fopen(run->rays_path, "wb");
+    for (int32_t y = 0; f && y < cam.height; y++) {
+        for (int32_t x = 0; x < cam.width; x++) {
+            td_ray r;
+            td_camera_ray(&cam, x, y, &r);
+            if (!put_ray(f, &r))
+                goto out;
+        }
+    }
+    rc = f && fclose(f) == 0 ? 0 : 1;
+    f = NULL;
+out:
+    if (f)
+        fclose(f);
+    if (rc)
+        fprintf(stderr, "terrad render: %s: cannot write the rays: %s\n", run->rays_path, strerror(errno));
+    return rc;
+}
+
+/* --shadow-rays: the render's shadow rays (slots with a ray), in image order. */
+static int write_shadow_rays(const render_run *run, const td_ray *rays, size_t n)
+{
+    int ok = 1;
+    FILE *f = fopen(run->shadow_path, "wb");
+    for (size_t k = 0; f && ok && k < n; k++)
+        if (rays[k].tmax >= 0.0)
+            ok = put_ray(f, &rays[k]);
+    ok = f && ok;
+    if (f && fclose(f) != 0)
+        ok = 0;
+    if (!ok)
+        fprintf(stderr, "terrad render: %s: cannot write the shadow rays: %s\n", run->shadow_path, strerror(errno));
+    return ok ? 0 : 1;
+}
+
 static int write_image(const render_run *run, const td_view *view, json_t **stats)
 {
     int rc = 1;
@@ -388,15 +464,28 @@ static int write_image(const render_run *run, const td_view *view, json_t **stat
     td_render_result res;
     td_buf buf = {0};
     double scale = 0.0;
+    size_t nslots = 0;
 
     memset(&res, 0, sizeof res);
     td_render_opts_default(&ropts);
     ropts.threads = run->threads;
     ropts.lod = run->lod;
+    if (run->shadow_path) {
+        int n = run->scene->quality.samples;
+        nslots = (size_t)run->scene->image.width * (size_t)run->scene->image.height * (size_t)(n * n);
+        ropts.shadow_rays = calloc(nslots, sizeof *ropts.shadow_rays);
+        if (!ropts.shadow_rays) {
+            fprintf(stderr, "terrad render: no memory for %zu shadow rays\n", nslots);
+            goto out;
+        }
+    }
     if (td_render(view, run->scene, &ropts, &res, &err) || td_render_encode(&res, run->scene, &buf, &scale, &err)) {
         fprintf(stderr, "terrad render: %s\n", err.msg);
         goto out;
     }
+    if ((run->rays_path && write_camera_rays(run, view->grid)) ||
+        (run->shadow_path && write_shadow_rays(run, ropts.shadow_rays, nslots)))
+        goto out;
     if (!write_out(run->out_path, buf.data, buf.len)) {
         fprintf(stderr, "terrad render: %s: cannot write: %s\n", run->out_path, strerror(errno));
         goto out;
@@ -407,6 +496,7 @@ static int write_image(const render_run *run, const td_view *view, json_t **stat
         json_object_set_new(*stats, "depth_scale_m", json_real(scale));
     rc = 0;
 out:
+    free(ropts.shadow_rays);
     td_buf_free(&buf);
     td_render_result_free(&res);
     return rc;

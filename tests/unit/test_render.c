@@ -30,6 +30,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "dem.h"
 #include "limit.h"
 #include "render.h"
 #include "terrain.h"
@@ -599,6 +600,126 @@ static void test_cli_render(void **state)
     rmdir(dir);
 }
 
+/* Reads a ray file of `terrad trace` (little-endian float64 ox oy oz dx dy dz). */
+static size_t read_rays(const char *path, td_ray **out)
+{
+    FILE *f = fopen(path, "rb");
+    unsigned char b[48];
+    size_t n = 0, cap = 0;
+    td_ray *r = NULL;
+    assert_non_null(f);
+    while (fread(b, sizeof b, 1, f) == 1) {
+        if (n == cap) {
+            cap = cap ? 2 * cap : 1024;
+            r = realloc(r, cap * sizeof *r);
+            assert_non_null(r);
+        }
+        for (int k = 0; k < 6; k++) {
+            uint64_t u = 0;
+            double v;
+            for (int j = 0; j < 8; j++)
+                u |= (uint64_t)b[8 * k + j] << (8 * j);
+            memcpy(&v, &u, sizeof v);
+            if (k < 3)
+                r[n].o[k] = v;
+            else
+                r[n].d[k - 3] = v;
+        }
+        r[n].tmin = 0.0;
+        r[n].tmax = INFINITY;
+        n++;
+    }
+    fclose(f);
+    *out = r;
+    return n;
+}
+
+/* terrad render --rays writes the camera ray of every pixel, and pixel k of a depth32f
+ * render is the distance along ray k to its hit (td_trace on the same grid, the scene's
+ * method and surface); --shadow-rays writes as many rays as the stats count, each of
+ * them occluded exactly where the shaded image is dark from a shadow. */
+static void test_cli_rays(void **state)
+{
+    char dir[] = "/tmp/terrad-rays-XXXXXX", scene_path[256], out_path[256], rays_path[256],
+         stats_path[256], dem_path[256];
+    td_ray *rays = NULL;
+    td_grid *g = NULL;
+    td_err err = {0};
+    float *depth;
+    FILE *f;
+    (void)state;
+    assert_non_null(mkdtemp(dir));
+    snprintf(scene_path, sizeof scene_path, "%s/scene.json", dir);
+    snprintf(out_path, sizeof out_path, "%s/out.f32", dir);
+    snprintf(rays_path, sizeof rays_path, "%s/rays.bin", dir);
+    snprintf(stats_path, sizeof stats_path, "%s/stats.json", dir);
+    snprintf(dem_path, sizeof dem_path, "%s/volcano.asc", TERRAD_TEST_DATA);
+    f = fopen(scene_path, "w");
+    assert_non_null(f);
+    fprintf(f, "{\"dataset\": \"%s\", \"camera\": {\"position\": {\"x\": 300, \"y\": -300, \"z\": 400}, "
+               "\"heading\": 10, \"pitch\": -12, \"roll\": 20, \"fov\": 70}, \"image\": {\"width\": 64, "
+               "\"height\": 48, \"format\": \"depth32f\"}, \"quality\": {\"method\": \"auto\", "
+               "\"surface\": \"triangle\"}}", dem_path);
+    fclose(f);
+    char *argv[] = {"render", scene_path, "-o", out_path, "--rays", rays_path, "--threads", "2", NULL};
+    assert_int_equal(td_cli_render(8, argv), 0);
+    assert_int_equal(read_rays(rays_path, &rays), 64 * 48);
+    assert_int_equal(td_dem_load(dem_path, NULL, &g, &err), TD_OK);
+    depth = malloc(64 * 48 * sizeof *depth);
+    assert_non_null(depth);
+    f = fopen(out_path, "rb");
+    assert_non_null(f);
+    assert_int_equal(fread(depth, sizeof *depth, 64 * 48, f), 64 * 48);
+    fclose(f);
+    td_view v = {g, NULL};
+    int hits = 0;
+    for (int k = 0; k < 64 * 48; k++) {
+        td_hit h;
+        float t;
+        td_trace(&v, TD_METHOD_INCREMENTAL, TD_SURFACE_TRIANGLE, &rays[k], &h);
+        t = (float)h.t;
+        hits += h.t < INFINITY;
+        assert_memory_equal(&t, &depth[k], sizeof t);
+    }
+    assert_true(hits > 200 && hits < 64 * 48);
+    free(rays);
+
+    /* the shadow rays of a shaded render: as many as counted, all from hit points */
+    f = fopen(scene_path, "w");
+    assert_non_null(f);
+    fprintf(f, "{\"dataset\": \"%s\", \"camera\": {\"position\": {\"x\": 300, \"y\": -300, \"z\": 400}, "
+               "\"pitch\": -12, \"fov\": 70}, \"image\": {\"width\": 64, \"height\": 48}, "
+               "\"effects\": {\"sun\": {\"azimuth\": 250, \"elevation\": 12}, \"shadows\": true}}", dem_path);
+    fclose(f);
+    snprintf(out_path, sizeof out_path, "%s/out.png", dir);
+    char *argv2[] = {"render", scene_path, "-o", out_path, "--shadow-rays", rays_path, "--stats", stats_path, NULL};
+    assert_int_equal(td_cli_render(8, argv2), 0);
+    json_error_t je;
+    json_t *st = json_load_file(stats_path, 0, &je);
+    assert_non_null(st);
+    size_t n = read_rays(rays_path, &rays);
+    assert_int_equal(n, json_integer_value(json_object_get(json_object_get(st, "rays"), "shadow")));
+    assert_true(n > 100);
+    int shadowed = 0;
+    for (size_t k = 0; k < n; k++) {
+        uint32_t steps = 0;
+        assert_true(rays[k].d[2] > 0.2 && rays[k].d[2] < 0.21); /* sin(12 degrees) */
+        shadowed += td_occluded(&v, TD_METHOD_INCREMENTAL, TD_SURFACE_BILINEAR, &rays[k], &steps);
+    }
+    assert_true(shadowed > 0 && shadowed < (int)n);
+    json_decref(st);
+    free(rays);
+    free(depth);
+    td_grid_free(g);
+    unlink(scene_path);
+    unlink(out_path);
+    unlink(rays_path);
+    unlink(stats_path);
+    snprintf(out_path, sizeof out_path, "%s/out.f32", dir);
+    unlink(out_path);
+    rmdir(dir);
+}
+
 /* ---- golden images ---- */
 
 static double psnr(const uint8_t *a, const uint8_t *b, size_t n);
@@ -1004,6 +1125,7 @@ int main(void)
         cmocka_unit_test(test_refusals_and_cancel),
         cmocka_unit_test(test_level_of_detail),
         cmocka_unit_test(test_cli_render),
+        cmocka_unit_test(test_cli_rays),
         cmocka_unit_test(test_golden_images),
         cmocka_unit_test(test_stats_add),
         cmocka_unit_test(test_pick_traces_the_render_rays),
