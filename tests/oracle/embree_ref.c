@@ -393,6 +393,31 @@ void td_embree_trace1(const td_embree *e, const td_embree_ray *r, size_t n, doub
     }
 }
 
+/* One 16-wide packet of prepared rays into an RTCRay16 (slots past m repeat ray 0 and are
+ * masked off); returns whether any slot is valid. */
+static int fill_ray16(const td_embree_ray *r, size_t m, struct RTCRay16 *ray, int valid[16])
+{
+    int any = 0;
+    for (size_t l = 0; l < 16; l++) {
+        const td_embree_ray *p = &r[l < m ? l : 0];
+        valid[l] = l < m && p->valid ? -1 : 0;
+        any |= valid[l];
+        ray->org_x[l] = p->o[0];
+        ray->org_y[l] = p->o[1];
+        ray->org_z[l] = p->o[2];
+        ray->dir_x[l] = p->d[0];
+        ray->dir_y[l] = p->d[1];
+        ray->dir_z[l] = p->d[2];
+        ray->tnear[l] = 0.0f;
+        ray->tfar[l] = p->tfar;
+        ray->time[l] = 0.0f;
+        ray->mask[l] = 0xffffffffu;
+        ray->id[l] = (unsigned)l;
+        ray->flags[l] = 0;
+    }
+    return any;
+}
+
 void td_embree_trace16(const td_embree *e, const td_embree_ray *r, size_t n, double *t)
 {
     struct RTCIntersectContext ctx;
@@ -402,32 +427,33 @@ void td_embree_trace16(const td_embree *e, const td_embree_ray *r, size_t n, dou
     ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     for (size_t k0 = 0; k0 < n; k0 += 16) {
         size_t m = n - k0 < 16 ? n - k0 : 16;
-        int any = 0;
         for (size_t l = 0; l < 16; l++) {
-            const td_embree_ray *p = &r[k0 + (l < m ? l : 0)];
-            valid[l] = l < m && p->valid ? -1 : 0;
-            any |= valid[l];
-            rh.ray.org_x[l] = p->o[0];
-            rh.ray.org_y[l] = p->o[1];
-            rh.ray.org_z[l] = p->o[2];
-            rh.ray.dir_x[l] = p->d[0];
-            rh.ray.dir_y[l] = p->d[1];
-            rh.ray.dir_z[l] = p->d[2];
-            rh.ray.tnear[l] = 0.0f;
-            rh.ray.tfar[l] = p->tfar;
-            rh.ray.time[l] = 0.0f;
-            rh.ray.mask[l] = 0xffffffffu;
-            rh.ray.id[l] = (unsigned)l;
-            rh.ray.flags[l] = 0;
             rh.hit.geomID[l] = RTC_INVALID_GEOMETRY_ID;
             rh.hit.instID[0][l] = RTC_INVALID_GEOMETRY_ID;
         }
-        if (any)
+        if (fill_ray16(r + k0, m, &rh.ray, valid))
             rtcIntersect16(valid, e->scene, &ctx, &rh);
         for (size_t l = 0; l < m; l++)
             t[k0 + l] = valid[l] && rh.hit.geomID[l] != RTC_INVALID_GEOMETRY_ID
                             ? r[k0 + l].lo + (double)rh.ray.tfar[l] / r[k0 + l].n
                             : INFINITY;
+    }
+}
+
+void td_embree_occluded16(const td_embree *e, const td_embree_ray *r, size_t n, uint8_t *occ)
+{
+    struct RTCIntersectContext ctx;
+    struct RTCRay16 ray __attribute__((aligned(64)));
+    int valid[16] __attribute__((aligned(64)));
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    for (size_t k0 = 0; k0 < n; k0 += 16) {
+        size_t m = n - k0 < 16 ? n - k0 : 16;
+        if (fill_ray16(r + k0, m, &ray, valid))
+            rtcOccluded16(valid, e->scene, &ctx, &ray);
+        /* rtcOccluded16 sets tfar to -inf where the ray is blocked */
+        for (size_t l = 0; l < m; l++)
+            occ[k0 + l] = valid[l] && ray.tfar[l] < 0.0f;
     }
 }
 

@@ -78,6 +78,11 @@ void td_embree_trace1(const td_embree *e, const td_embree_ray *r, size_t n, doub
 /* The same with 16-wide packets of consecutive rays (the caller orders them coherently). */
 void td_embree_trace16(const td_embree *e, const td_embree_ray *r, size_t n, double *t);
 
+/* Whether each prepared ray meets the mesh in its interval (1) or not (0): rtcOccluded16
+ * in 16-wide packets of consecutive rays, as td_embree_trace16 (a ray that misses the
+ * grid's box is 0). */
+void td_embree_occluded16(const td_embree *e, const td_embree_ray *r, size_t n, uint8_t *occ);
+
 /* First hit t of r in [tmin, tmax] (units of r->d), +inf for a miss. */
 double td_embree_trace(const td_embree *e, const td_ray *r);
 void td_embree_trace_many(const td_embree *e, const td_ray *r, size_t n, double *t);
