@@ -15,6 +15,8 @@
  *   - Error reference: the bilinear surface (see bench_report.c for the reasons), per
  *     ray at the hit point, and per picture against the bilinear 4 x 4 supersampled
  *     render of the same view.
+ *   - Camera views (section 7, issue 12): bench_camera.c, on the real DEMs, with the
+ *     structures built here.
  * Memory: one dataset's grid and structures at a time, except the small Blanca scene. */
 #include "bench.h"
 #include "clock.h"
@@ -102,7 +104,7 @@ double td_bench_median(double *v, int n)
     return m;
 }
 
-static void progress(const bench_ctx *b, const char *fmt, const char *a, const char *c)
+void td_bench_progress(const bench_ctx *b, const char *fmt, const char *a, const char *c)
 {
     if (b->o->verbose) {
         fprintf(stderr, "terrad-bench: [%6.1f s] ", td_clock_s() - b->t_start);
@@ -156,8 +158,8 @@ void td_bench_view_camera(const td_grid *g, int k, int nviews, td_scene_camera *
 }
 
 /* Rays of camera `c` at w x h pixels, in 4 x 4 pixel blocks (w, h multiples of 4). */
-static td_status camera_rays(const td_grid *g, const td_scene_camera *c, int w, int h, td_ray *out,
-                             td_err *err)
+td_status td_bench_camera_rays(const td_grid *g, const td_scene_camera *c, int w, int h, td_ray *out,
+                               td_err *err)
 {
     td_camera cam;
     td_status rc = td_camera_setup(c, w, h, g, &cam, err);
@@ -190,7 +192,7 @@ static td_status make_rays(bench_ds *d, int nviews, int w, int h, td_err *err)
     for (int k = 0; k < nviews && rc == TD_OK; k++) {
         td_scene_camera c;
         td_bench_view_camera(d->g, k, nviews, &c);
-        rc = camera_rays(d->g, &c, w, h, d->rays + per * (size_t)k, err);
+        rc = td_bench_camera_rays(d->g, &c, w, h, d->rays + per * (size_t)k, err);
     }
 out:
     return rc;
@@ -360,7 +362,7 @@ static td_status build_embree(bench_ctx *b, bench_ds *d, td_embree **emb, td_err
     for (int gk = 0; gk < TD_EMBREE_GEOM_COUNT && rc == TD_OK; gk++) {
         td_embree_stats st;
         bench_embree *res = &d->em[gk];
-        progress(b, "%s: building Embree's %s", d->name, td_embree_geom_name((td_embree_geom)gk));
+        td_bench_progress(b, "%s: building Embree's %s", d->name, td_embree_geom_name((td_embree_geom)gk));
         for (int r = 0; r < b->build_runs && rc == TD_OK; r++) {
             td_embree_free(emb[gk]);
             emb[gk] = NULL;
@@ -407,7 +409,7 @@ static td_status run_speed(bench_ctx *b, bench_ds *d, td_err *err)
     double *secs = NULL;
     size_t nconf = NTD + NEM;
 
-    progress(b, "%s: building acceleration (%s)", d->name, "one thread");
+    td_bench_progress(b, "%s: building acceleration (%s)", d->name, "one thread");
     rc = build_accel(b, d, err);
     if (rc)
         goto out;
@@ -442,7 +444,7 @@ static td_status run_speed(bench_ctx *b, bench_ds *d, td_err *err)
     td_embree_prepare(emb[0], d->rays, d->n, er);
 
     for (int r = 0; r < b->runs; r++) {
-        progress(b, "%s: tracing, round %s", d->name, r == 0 ? "1" : r == 1 ? "2" : "3+");
+        td_bench_progress(b, "%s: tracing, round %s", d->name, r == 0 ? "1" : r == 1 ? "2" : "3+");
         for (int m = 0; m < TD_METHOD_COUNT; m++) {
             for (int s = 0; s < TD_SURFACE_COUNT; s++) {
                 bench_trace *o = &d->tr[m][s];
@@ -512,7 +514,7 @@ static td_status run_k(bench_ctx *b, bench_ds *d, td_err *err)
     }
     /* builds and traces in interleaved rounds; the last round's builds are kept */
     for (int r = 0; r < b->runs && rc == TD_OK; r++) {
-        progress(b, "K sweep: round %s%s", r == 0 ? "1" : r == 1 ? "2" : "3+", "");
+        td_bench_progress(b, "K sweep: round %s%s", r == 0 ? "1" : r == 1 ? "2" : "3+", "");
         for (int q = 0; q < nk && rc == TD_OK; q++) {
             td_accel_opts ao;
             td_accel_stats st;
@@ -596,7 +598,7 @@ static td_status run_paglieroni(bench_ctx *b, bench_ds *d, td_err *err)
         rc = td_err_set(err, TD_ENOMEM, "bench: out of memory");
         goto out;
     }
-    progress(b, "Paglieroni: 16 views of %s%s", d->name, "");
+    td_bench_progress(b, "Paglieroni: 16 views of %s%s", d->name, "");
     for (int k = 0; k < nviews && rc == TD_OK; k++) {
         td_scene_camera c;
         td_camera cam;
@@ -741,7 +743,7 @@ static td_status run_renders(bench_ctx *b, bench_ds *d, td_err *err)
        surface that misses where the reference hits (or the reverse) counts in the image
        error by colour (without sky a miss is transparent black, alpha 0) */
     s.effects.sky = 1;
-    progress(b, "%s: reference render (bilinear, 4 x 4 samples)%s", d->name, "");
+    td_bench_progress(b, "%s: reference render (bilinear, 4 x 4 samples)%s", d->name, "");
     render_once(&v, &s, NULL, &ref, &rc, err);
     if (rc)
         goto out;
@@ -752,7 +754,7 @@ static td_status run_renders(bench_ctx *b, bench_ds *d, td_err *err)
     }
     b->nrender = 24;
     for (int r = 0; r < b->runs && rc == TD_OK; r++) {
-        progress(b, "%s: renders, round %s", d->name, r == 0 ? "1" : r == 1 ? "2" : "3+");
+        td_bench_progress(b, "%s: renders, round %s", d->name, r == 0 ? "1" : r == 1 ? "2" : "3+");
         for (int k = 0; k < 24 && rc == TD_OK; k++) {
             bench_render *o = &b->render[k];
             int lo = k / 12, sf = (k / 3) % 4, q = k % 3;
@@ -884,7 +886,7 @@ static td_status run_effects(bench_ctx *b, td_err *err)
     }
     /* rounds outer, scenes inner (see run_speed); medians of the total and of each stage */
     for (int r = 0; r < b->runs && rc == TD_OK; r++) {
-        progress(b, "effects: round %s%s", r == 0 ? "1" : r == 1 ? "2" : "3+", "");
+        td_bench_progress(b, "effects: round %s%s", r == 0 ? "1" : r == 1 ? "2" : "3+", "");
         for (int k = 0; k < TD_BENCH_EFFECT_COUNT && rc == TD_OK; k++) {
             bench_effect *e = &b->effect[k];
             double *row = ms + (size_t)k * (TD_STAGE_COUNT + 1) * (size_t)b->runs;
@@ -1096,19 +1098,20 @@ td_status td_bench_run(const td_bench_opts *o, td_err *err)
         if (rc)
             break;
         b->nds = k + 1;
-        progress(b, "dataset %s: %s", d->name, d->path);
+        td_bench_progress(b, "dataset %s: %s", d->name, d->path);
         d->w = d->g->w;
         d->h = d->g->h;
         d->voids = d->g->voids;
         d->sx = d->g->sx;
         d->sy = d->g->sy;
-        if (o->sections & ((1u << TD_BENCH_SPEED) | (1u << TD_BENCH_ERROR) | (1u << TD_BENCH_QU)))
+        if (o->sections & ((1u << TD_BENCH_SPEED) | (1u << TD_BENCH_ERROR) | (1u << TD_BENCH_QU))) {
             rc = run_speed(b, d, err);
-        else
+            d->speed_done = rc == TD_OK;
+        } else {
             rc = build_accel(b, d, err);
-        d->speed_done = rc == TD_OK;
+        }
         if (k == 0 && rc == TD_OK && (o->sections & (1u << TD_BENCH_SPEED)) && !o->quick) {
-            progress(b, "%s: the same rays through `terrad trace --threads 1`%s", d->name, "");
+            td_bench_progress(b, "%s: the same rays through `terrad trace --threads 1`%s", d->name, "");
             run_repro(b, d);
         }
         if (k == 0 && rc == TD_OK && (o->sections & (1u << TD_BENCH_ERROR))) {
@@ -1118,6 +1121,8 @@ td_status td_bench_run(const td_bench_opts *o, td_err *err)
         }
         if (k == 0 && rc == TD_OK && (o->sections & (1u << TD_BENCH_PAGLIERONI)))
             rc = run_paglieroni(b, d, err);
+        if (!d->procedural && rc == TD_OK && (o->sections & (1u << TD_BENCH_CAMERA)))
+            rc = td_bench_camera_run(b, d, err);
         free_dataset(d);
     }
     if (rc == TD_OK && (o->sections & (1u << TD_BENCH_EFFECTS)))

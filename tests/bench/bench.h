@@ -1,7 +1,8 @@
 /* bench.h: the accuracy-vs-time benchmark behind `terrad bench`: measures every
  * tracer and surface against Embree on the same rays (one thread each), the error of
  * every surface and rendering option against one reference, Paglieroni's and Qu's
- * tables redone, the cost of each effect, and writes the report (markdown + SVG). */
+ * tables redone, the cost of each effect, camera and shadow rays of camera views against
+ * Embree (bench_camera.c), and writes the report (markdown + SVG). */
 #ifndef TD_BENCH_H
 #define TD_BENCH_H
 
@@ -16,7 +17,8 @@
     X(TD_BENCH_ERROR, "error")       /* 2: error per surface, lod, samples, K */ \
     X(TD_BENCH_PAGLIERONI, "paglieroni") /* 3: Paglieroni's Table 1 */         \
     X(TD_BENCH_QU, "qu")             /* 4: Qu's Table 1 */                     \
-    X(TD_BENCH_EFFECTS, "effects")   /* 5: cost of each effect */
+    X(TD_BENCH_EFFECTS, "effects")   /* 5: cost of each effect */             \
+    X(TD_BENCH_CAMERA, "camera")     /* 7: camera views vs Embree (issue 12) */
 
 typedef enum td_bench_section {
 #define TD_X_ENUM(e, name) e,

@@ -4,6 +4,7 @@
 #define TD_BENCH_INT_H
 
 #include <stdint.h>
+#include <stdio.h>
 
 #include "accel.h"
 #include "bench.h"
@@ -61,6 +62,46 @@ typedef struct bench_err {
     uint64_t hits;
 } bench_err;
 
+/* The views of the camera section (bench_camera.c), one row each in its tables. */
+#define TD_BENCH_CAM_LIST(X)                                                   \
+    X(TD_BENCH_CAM_LEVEL, "level")                                             \
+    X(TD_BENCH_CAM_SUNSET, "grazing sunset")                                   \
+    X(TD_BENCH_CAM_ROLLED, "rolled")                                           \
+    X(TD_BENCH_CAM_DOWN, "straight down")
+
+typedef enum td_bench_cam {
+#define TD_X_ENUM(e, name) e,
+    TD_BENCH_CAM_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_BENCH_CAM_COUNT
+} td_bench_cam;
+
+const char *td_bench_cam_name(int v);
+
+/* One surface of one camera view: [0] with the coherence device on (horizon for camera
+ * rays, occlusion query for shadow rays), [1] with it off; medians over the runs. */
+typedef struct bench_cam_surf {
+    uint64_t prim_rays, shadow_rays;  /* rays[PRIMARY], rays[SHADOW] of the render */
+    uint64_t coherent;                /* camera rays started from a horizon bound (on) */
+    uint64_t hits;                    /* camera rays that hit the terrain */
+    double prim_rps[2], prim_steps[2];     /* rays/s of stage primary, steps a ray */
+    double shadow_rps[2], shadow_steps[2]; /* the same for stage shadows */
+    double emb_shadow_rps;            /* rtcOccluded16 on this render's shadow rays */
+} bench_cam_surf;
+
+typedef struct bench_cam_view {
+    int done;
+    td_scene_camera cam;
+    double sun_az, sun_el;
+    double emb_prim_rps;              /* rtcIntersect16 on the camera rays, 4 x 4 tiles */
+    uint64_t emb_hits;                /* camera rays Embree's mesh hits */
+    bench_cam_surf s[TD_SURFACE_COUNT];
+    /* exactness on the triangle surface against Embree (reported, not judged) */
+    uint64_t depth_differ[2];         /* depth32f render (horizon on, off) vs Embree's t */
+    uint64_t shadow_differ;           /* td_occluded vs rtcOccluded16, same shadow rays */
+    uint64_t emb_self_differ;         /* rtcOccluded16 vs rtcIntersect16 (a hit) on them */
+} bench_cam_view;
+
 typedef struct bench_ds {
     char name[64];
     char path[512];
@@ -83,6 +124,7 @@ typedef struct bench_ds {
     bench_trace tr[TD_METHOD_COUNT][TD_SURFACE_COUNT];
     bench_embree em[TD_EMBREE_GEOM_COUNT];
     bench_err err[TD_SURFACE_COUNT];
+    bench_cam_view cam[TD_BENCH_CAM_COUNT]; /* the camera section, when it ran */
 } bench_ds;
 
 typedef struct bench_k {
@@ -135,6 +177,7 @@ typedef struct bench_ctx {
     double repro_rps, repro_min, repro_max, repro_steps; /* `terrad trace --threads 1` on trinidad's rays */
     int neffect, effects_w, effects_h;
     bench_effect effect[TD_BENCH_EFFECT_COUNT];
+    int cam_w, cam_h;        /* image size of the camera section (0: it did not run) */
 } bench_ctx;
 
 double td_bench_median(double *v, int n);
@@ -143,6 +186,19 @@ void td_bench_paglieroni_camera(const td_grid *g, int k, td_scene_camera *c);
 double td_bench_trace_loop(const td_view *v, td_method m, td_surface s, const td_ray *r, size_t n,
                            double *t, uint32_t *steps, uint64_t *steps_total, uint64_t *hits_total);
 uint64_t td_bench_method_bytes(const bench_ds *d, td_method m);
+/* Progress line on stderr (when verbose): fmt takes two strings. */
+void td_bench_progress(const bench_ctx *b, const char *fmt, const char *a, const char *c);
+/* Rays of camera c at w x h pixels, in 4 x 4 pixel blocks (w, h multiples of 4). */
+td_status td_bench_camera_rays(const td_grid *g, const td_scene_camera *c, int w, int h, td_ray *out,
+                               td_err *err);
+
+/* The camera section (bench_camera.c) on dataset d (grid and d->acc built): fills
+ * d->cam and b->cam_w, b->cam_h. */
+td_status td_bench_camera_run(bench_ctx *b, bench_ds *d, td_err *err);
+/* Its parts of the report: rows of the targets table, section 7, the summary's table. */
+void td_bench_camera_targets(FILE *f, const bench_ctx *b);
+void td_bench_camera_write(FILE *f, const bench_ctx *b);
+void td_bench_camera_summary(FILE *f, const bench_ctx *b);
 
 /* Writes OUT/accuracy-vs-time.md, OUT/bench-summary.md and OUT/bench/ *.svg. */
 td_status td_bench_report(const bench_ctx *b, td_err *err);

@@ -1,6 +1,7 @@
 /* bench_report.c: writes the results of `terrad bench` (bench_int.h) as
  * OUT/accuracy-vs-time.md, the short OUT/bench-summary.md for the README, and the
- * charts OUT/bench/ *.svg (bench_svg.c). Everything in the text that depends on a
+ * charts OUT/bench/ *.svg (bench_svg.c); the camera section's parts come from
+ * bench_camera.c. Everything in the text that depends on a
  * measurement is computed here from the results, so a rerun never leaves stale prose. */
 #include "bench_int.h"
 
@@ -129,9 +130,9 @@ static void write_header(FILE *f, const bench_ctx *b)
                                                                                  : d->path;
         if (!d->procedural && strstr(d->path, "shared/data/"))
             base = strstr(d->path, "shared/data/");
-        fprintf(f, "| %s | `%s` | %d x %d | %.2f x %.2f | %lld | %s |\n", d->name, base, (int)d->w,
+        fprintf(f, "| %s | `%s` | %d x %d | %.2f x %.2f | %lld | %s%s |\n", d->name, base, (int)d->w,
                 (int)d->h, d->sx, d->sy, (long long)d->voids,
-                k == 0 ? "1, 2 (all tables), 3, 4" : "1, 2 (per-ray errors)");
+                k == 0 ? "1, 2 (all tables), 3, 4" : "1, 2 (per-ray errors)", d->cam[0].done ? ", 7" : "");
     }
     fprintf(f, "| trinidad (Blanca crop) | `%s` | | | | 5 (standard scene) |\n\n",
             strstr(b->o->scene_dem, "data/") ? strstr(b->o->scene_dem, "data/") : b->o->scene_dem);
@@ -260,6 +261,7 @@ static void write_targets(FILE *f, const bench_ctx *b)
                 d->planes_s / d->em[TD_EMBREE_GRID].build_s,
                 status_word(d->planes_s <= d->em[TD_EMBREE_GRID].build_s));
     }
+    td_bench_camera_targets(f, b);
     fprintf(f, "\n");
 }
 
@@ -680,6 +682,7 @@ static td_status write_summary(const bench_ctx *b, const char *path, td_err *err
         fprintf(f, "- Paglieroni's Table 1 on %s: steps per ray %.1f / %.2f / %.2f (incremental / hierarchical / "
                    "parametric) against the paper's 209.5 / 7.88 / 3.74.\n", d->name, mean[0], mean[1], mean[2]);
     }
+    td_bench_camera_summary(f, b);
     fprintf(f, "\n![time against error](docs/bench/pareto-trace.svg)\n");
     if (fclose(f) != 0)
         rc = td_err_set(err, TD_EIO, "%s: write failed", path);
@@ -722,6 +725,7 @@ td_status td_bench_report(const bench_ctx *b, td_err *err)
     write_qu(f, b);
     write_effects(f, b);
     write_pareto_section(f, b);
+    td_bench_camera_write(f, b);
     if (fclose(f) != 0)
         rc = td_err_set(err, TD_EIO, "%s: write failed", path);
     f = NULL;

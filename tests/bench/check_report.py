@@ -4,7 +4,8 @@ fixtures, then checks the report's structure and that its numbers are sane (neve
 timing): every section and table is there, terrad's triangle hits agree with Embree's,
 every method finds the same hits for a surface, the bilinear surface is its own
 reference, the coarser surfaces err more, effects trace only their own rays, the charts
-are well-formed SVG, and `terrad trace --threads 1` on the rays of `--write-rays` takes
+are well-formed SVG, the camera views' table is whole and its ratios are the quotients of
+its rates (the summary's taken from it), and `terrad trace --threads 1` on the rays of `--write-rays` takes
 the same steps as the report says.
 usage: check_report.py TERRAD SOURCE_DIR WORK_DIR"""
 import json
@@ -83,7 +84,7 @@ summary = open(os.path.join(work, "bench-summary.md")).read()
 for h in ["# Accuracy against time", "## Targets", "## How this is measured",
           "## 1. Speed per method and surface", "## 2. Error against the bilinear surface",
           "## 3. Paglieroni and Petersen's Table 1", "## 4. Qu et al.'s Table 1",
-          "## 5. The cost of each effect", "## 6. Pareto charts"]:
+          "## 5. The cost of each effect", "## 6. Pareto charts", "## 7. Camera views"]:
     check(h in report, "report has the heading " + h)
 check("AMD" in report or "Intel" in report or "CPU" in report or "cores" in report, "report names the machine")
 check(re.search(r"commit `[0-9a-f]{7,}`|commit `unknown`", report) is not None, "report names the commit")
@@ -181,6 +182,73 @@ for name, npts in [("pareto-trace.svg", 20), ("pareto-render.svg", 24), ("planes
         circles = [e for e in root.iter() if e.tag.endswith("circle") and e.find("{*}title") is not None]
         check(len(circles) == npts, f"{name}: {npts} points ({len(circles)})")
         check("bench/" + name in report, name + " linked from the report")
+
+# section 7: camera views. Structure, numbers that parse, ratios that are the quotients of
+# the printed rates, the summary's best surfaces taken from the section's table. The
+# exactness counts are parsed, never judged (the oracle tests judge).
+def close(ratio, a, b):
+    """ratio (printed %.2f) against a / b (printed to 4 significant digits)"""
+    return abs(ratio - a / b) <= 0.006 + 0.002 * ratio
+
+
+cam_views = ["level", "grazing sunset", "rolled", "straight down"]
+cam_ds = ["trinidad", "picos", "levi"]
+surfaces = ["plane", "linear", "triangle", "bilinear"]
+t = tables_after(report, "### The views")
+rows = t[0][1:] if t else []
+check([(r[0], r[1]) for r in rows] == [(d, v) for d in cam_ds for v in cam_views],
+      "camera views: 4 views of trinidad, picos and levi")
+for r in rows:
+    check(int(r[7]) == 32 * 32, f"camera view {r[0]} {r[1]}: 32 x 32 camera rays in quick mode ({r[7]})")
+    check(0 <= num(r[8]) <= 100 and 0 <= num(r[9]) <= 100, f"camera view {r[0]} {r[1]}: shares in percent")
+t = tables_after(report, "### Camera views: rays per second")
+rows = t[0][1:] if t else []
+check(len(rows) == 48 and all(len(r) == 18 for r in rows), "camera table: 3 datasets x 4 views x 4 surfaces, 18 columns")
+best = {}
+for r in rows:
+    what = f"camera {r[0]} {r[1]} {r[2]}"
+    check(r[2] in surfaces, what + ": a surface")
+    on, off, emb = num(r[3]), num(r[4]), num(r[5])
+    check(on > 0 and off > 0 and emb > 0, what + ": camera rates parse and are > 0")
+    if on > 0 and off > 0 and emb > 0:
+        check(close(num(r[6]), on, emb) and close(num(r[7]), off, emb), what + ": camera x Embree = quotients")
+    check(num(r[8]) > 0 and num(r[9]) > 0, what + ": steps per camera ray > 0")
+    nsh = int(r[10])
+    son, soff, semb = num(r[11]), num(r[12]), num(r[13])
+    if nsh > 0:
+        check(son > 0 and soff > 0 and semb > 0, what + ": shadow rates parse and are > 0")
+        if son > 0 and soff > 0 and semb > 0:
+            check(close(num(r[14]), son, semb) and close(num(r[15]), soff, semb), what + ": shadow x Embree = quotients")
+        check(num(r[16]) > 0 and num(r[17]) > 0, what + ": steps per shadow ray > 0")
+    b = best.setdefault((r[0], r[1]), {"p": (-1, ""), "s": (-1, ""), "steps": {}})
+    if num(r[6]) > b["p"][0]:
+        b["p"] = (num(r[6]), r[2])
+    if r[14] != "-" and num(r[14]) > b["s"][0]:
+        b["s"] = (num(r[14]), r[2])
+    b["steps"][r[2]] = num(r[8])
+t = tables_after(report, "### Exactness against Embree")
+rows = t[0][1:] if t else []
+check(len(rows) == 12, "camera exactness: 12 views")
+for r in rows:
+    nums = [int(x) for x in [r[2], r[4], r[5], r[6], r[7], r[8]]] + [int(x) for x in r[3].split("/")]
+    check(all(0 <= x for x in nums) and max(nums[1], nums[2]) <= nums[0] and max(nums[4], nums[5]) <= nums[3],
+          f"camera exactness {r[0]} {r[1]}: counts parse and stay within the rays")
+check("camera rays >= 3x Embree's rtcIntersect16" in report and "shadow rays >= 3x Embree's rtcOccluded16" in report,
+      "targets table has the camera rows")
+srows = [r for r in summary.split("\n") if r.startswith("| ") and any(r.startswith("| " + d + " |") for d in cam_ds)]
+check(len(srows) == 12, "summary: a camera row per view")
+for ln in srows:
+    r = [c.strip() for c in ln.strip().strip("|").split("|")]
+    b = best.get((r[0], r[1]))
+    if b is None:
+        check(False, f"summary row {r[0]} {r[1]} is in the camera table")
+        continue
+    check(abs(num(r[2]) - b["p"][0]) < 1e-9 and "(" + b["p"][1] + ")" in r[2],
+          f"summary {r[0]} {r[1]}: camera x Embree is the best surface's ({r[2]} vs {b['p']})")
+    check(r[3].startswith("-") or (abs(num(r[3]) - b["s"][0]) < 1e-9 and "(" + b["s"][1] + ")" in r[3]),
+          f"summary {r[0]} {r[1]}: shadow x Embree is the best surface's ({r[3]} vs {b['s']})")
+    check(abs(num(r[4]) - b["steps"].get(b["p"][1], -1)) < 1e-9, f"summary {r[0]} {r[1]}: steps of that surface")
+check("3x rtcIntersect16" in summary and "2 steps per camera ray" in summary, "summary states the camera targets")
 
 # terrad trace on the bench's rays takes the report's steps (same rays, same loop)
 rays = os.path.join(work, "trinidad.rays")
