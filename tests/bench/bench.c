@@ -1064,7 +1064,9 @@ td_status td_bench_run(const td_bench_opts *o, td_err *err)
 {
     td_status rc = TD_OK;
     bench_ctx *b = calloc(1, sizeof *b);
-    int nds = o->procedural > 0 || o->quick ? 4 : 3;
+    /* the procedural DEM only for the sections that trace it (1, 2) */
+    unsigned proc_sections = (1u << TD_BENCH_SPEED) | (1u << TD_BENCH_ERROR);
+    int nds = (o->procedural > 0 || o->quick) && (o->sections & proc_sections) ? 4 : 3;
 
     if (!b) {
         rc = td_err_set(err, TD_ENOMEM, "bench: out of memory");

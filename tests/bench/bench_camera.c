@@ -8,12 +8,13 @@
  * for the speed section); td_bench_report (bench_report.c) calls the three writers.
  *
  * Views (cam_defs): per dataset four cameras, 512 x 512 pixels (32 x 32 with --quick),
- * 70 degrees field of view, inside the grid, looking toward its centre: level (pitch 0,
- * 300 m above the ground), grazing sunset (pitch -3, 200 m up, the sun 3 degrees high and
- * 22 degrees left of the heading), rolled (pitch -10, roll 35, 400 m up) and straight
- * down (pitch -80, so the vanishing point of verticals is inside the image; 10% of the
- * shorter extent up, at least 300 m). Over a void the height is taken above the highest
- * sample instead of the ground.
+ * 70 degrees field of view, inside the grid, around the highest sample of its middle half
+ * and looking toward it (every view has relief): level (pitch 0, 300 m above the ground, 15% of the shorter
+ * extent from the peak), grazing sunset (pitch -3, 200 m up, 20% away, the sun 3 degrees
+ * high and 22 degrees left of the heading, behind the peak), rolled (pitch -10, roll 35,
+ * 400 m up) and straight down (pitch -80, so the vanishing point of verticals is inside
+ * the image; 10% of the shorter extent up, at least 300 m, 3% from the peak). Over a void
+ * the height is taken above the highest sample instead of the ground.
  *
  * Timing, per view, in `runs` interleaved rounds, medians over rounds:
  *   for each surface: td_render (one thread, method auto, one sample, PNG, shadows on
@@ -58,16 +59,19 @@ const char *td_bench_cam_name(int v)
     return v >= 0 && v < TD_BENCH_CAM_COUNT ? cam_names[v] : "unknown";
 }
 
-/* Each view's camera: position as fractions of the grid's extent, height above the
- * ground there (the larger of agl_m and agl_frac of the shorter extent), pitch, roll;
- * heading toward the centre; the sun's azimuth relative to the heading, its elevation. */
+/* Each view's camera, placed around the highest sample of the grid's middle half (the
+ * peak, grid_peak; so that every view has relief in it): bearing from the peak to the camera (degrees clockwise from
+ * north) and distance as a fraction of the shorter extent (the position then kept 2% of
+ * the extent inside the grid), height above the ground there (the larger of agl_m and
+ * agl_frac of the shorter extent), pitch, roll; heading toward the peak; the sun's
+ * azimuth relative to the heading, its elevation. */
 static const struct cam_def {
-    double fx, fy, agl_m, agl_frac, pitch, roll, sun_rel, sun_el;
+    double bearing, dist_frac, agl_m, agl_frac, pitch, roll, sun_rel, sun_el;
 } cam_defs[TD_BENCH_CAM_COUNT] = {
-    {0.25, 0.30, 300, 0.0, 0, 0, 60, 35},     /* level */
-    {0.80, 0.25, 200, 0.0, -3, 0, -22, 3},    /* grazing sunset, looking toward the sun */
-    {0.30, 0.80, 400, 0.0, -10, 35, 100, 30}, /* rolled */
-    {0.55, 0.45, 300, 0.1, -80, 0, 135, 40},  /* straight down */
+    {200, 0.15, 300, 0.0, 0, 0, 60, 35},     /* level */
+    {100, 0.20, 200, 0.0, -3, 0, -22, 3},    /* grazing sunset: toward the sun, behind the peak */
+    {320, 0.15, 400, 0.0, -10, 35, 100, 30}, /* rolled */
+    {200, 0.03, 300, 0.1, -80, 0, 135, 40},  /* straight down, the peak in the upper half */
 };
 
 #define DEVICES_OFF (TD_RENDER_OFF_HORIZON | TD_RENDER_OFF_OCCLUSION)
@@ -103,19 +107,42 @@ typedef struct cam_run {
 
 /* ---- measuring -------------------------------------------------------------------- */
 
+/* The position of the highest sample in the middle half of the grid (a quarter of it
+ * from each edge, so the views look into the grid; the first of equals; voids skipped). */
+static void grid_peak(const td_grid *g, double *x, double *y)
+{
+    float best = -INFINITY;
+    int32_t bi = g->w / 2, bj = g->h / 2;
+    for (int32_t j = g->h / 4; j <= g->h - 1 - g->h / 4; j++)
+        for (int32_t i = g->w / 4; i <= g->w - 1 - g->w / 4; i++)
+            if (td_grid_at(g, i, j) > best) { /* false for NaN */
+                best = td_grid_at(g, i, j);
+                bi = i;
+                bj = j;
+            }
+    *x = bi * g->sx;
+    *y = bj * g->sy;
+}
+
+static double clampd(double v, double lo, double hi) { return v < lo ? lo : v > hi ? hi : v; }
+
 static void cam_view_setup(const td_grid *g, int k, bench_cam_view *v)
 {
     const struct cam_def *q = &cam_defs[k];
-    double ex = (g->w - 1) * g->sx, ey = (g->h - 1) * g->sy, m = fmin(ex, ey);
-    double x = q->fx * ex, y = q->fy * ey, ground = td_camera_ground(g, x, y);
+    double ex = (g->w - 1) * g->sx, ey = (g->h - 1) * g->sy, m = fmin(ex, ey), px, py, x, y, ground;
+    double a = q->bearing * M_PI / 180.0;
     td_scene_camera *c = &v->cam;
+    grid_peak(g, &px, &py);
+    x = clampd(px + q->dist_frac * m * sin(a), 0.02 * ex, 0.98 * ex);
+    y = clampd(py + q->dist_frac * m * cos(a), 0.02 * ey, 0.98 * ey);
+    ground = td_camera_ground(g, x, y);
     memset(c, 0, sizeof *c);
     c->pos_kind = TD_POS_XYZ;
     c->projection = TD_PROJ_PERSPECTIVE;
     c->x = x;
     c->y = y;
     c->z = (isnan(ground) ? (double)g->zmax : ground) + fmax(q->agl_m, q->agl_frac * m);
-    c->heading = fmod(atan2(0.5 * ex - x, 0.5 * ey - y) * 180.0 / M_PI + 360.0, 360.0);
+    c->heading = fmod(atan2(px - x, py - y) * 180.0 / M_PI + 360.0, 360.0);
     c->pitch = q->pitch;
     c->roll = q->roll;
     c->fov = 70.0;
