@@ -8,11 +8,11 @@
  * for the speed section); td_bench_report (bench_report.c) calls the three writers.
  *
  * Views (cam_defs): per dataset four cameras, 512 x 512 pixels (32 x 32 with --quick),
- * 70 degrees field of view, inside the grid, around the highest sample of its middle half
- * and looking toward it (every view has relief): level (pitch 0, 300 m above the ground, 15% of the shorter
- * extent from the peak), grazing sunset (pitch -3, 200 m up, 20% away, the sun 3 degrees
- * high and 22 degrees left of the heading, behind the peak), rolled (pitch -10, roll 35,
- * 400 m up) and straight down (pitch -80, so the vanishing point of verticals is inside
+ * 70 degrees field of view, inside the grid, around the highest sample of its middle
+ * half and looking toward it (every view has relief): level (pitch 0, 300 m above the
+ * ground, 15% of the shorter extent from the peak), grazing sunset (pitch -3, 200 m up,
+ * 20% away, the sun 3 degrees high and 22 degrees left of the heading: looking toward
+ * it), rolled (pitch -10, roll 35, 400 m up) and straight down (pitch -80, so the vanishing point of verticals is inside
  * the image; 10% of the shorter extent up, at least 300 m, 3% from the peak). Over a void
  * the height is taken above the highest sample instead of the ground.
  *
@@ -60,16 +60,16 @@ const char *td_bench_cam_name(int v)
 }
 
 /* Each view's camera, placed around the highest sample of the grid's middle half (the
- * peak, grid_peak; so that every view has relief in it): bearing from the peak to the camera (degrees clockwise from
- * north) and distance as a fraction of the shorter extent (the position then kept 2% of
- * the extent inside the grid), height above the ground there (the larger of agl_m and
+ * peak, grid_peak; so that every view has relief in it): bearing from the peak to the
+ * camera (degrees clockwise from north) and distance as a fraction of the shorter extent
+ * (the position then kept 2% of the extent inside the grid), height above the ground there (the larger of agl_m and
  * agl_frac of the shorter extent), pitch, roll; heading toward the peak; the sun's
  * azimuth relative to the heading, its elevation. */
 static const struct cam_def {
     double bearing, dist_frac, agl_m, agl_frac, pitch, roll, sun_rel, sun_el;
 } cam_defs[TD_BENCH_CAM_COUNT] = {
     {200, 0.15, 300, 0.0, 0, 0, 60, 35},     /* level */
-    {100, 0.20, 200, 0.0, -3, 0, -22, 3},    /* grazing sunset: toward the sun, behind the peak */
+    {100, 0.20, 200, 0.0, -3, 0, -22, 3},    /* grazing sunset, looking toward the sun */
     {320, 0.15, 400, 0.0, -10, 35, 100, 30}, /* rolled */
     {200, 0.03, 300, 0.1, -80, 0, 135, 40},  /* straight down, the peak in the upper half */
 };
@@ -585,7 +585,9 @@ void td_bench_camera_write(FILE *f, const bench_ctx *b)
                 "of every pixel centre, as `terrad render --rays` writes them, in packets of 4 x 4 pixel tiles). "
                 "terrad's rate is the stage's rays over its `stages_ms` (primary: ray setup, horizon bins and "
                 "tracing; shadows: the shadow rays), Embree's the rays over the time of its tracing calls alone "
-                "(rays prepared before the clock starts). Medians over the rounds. Shadow rays start on the "
+                "(rays clipped to the grid's box and converted before the clock starts; a ray that misses the box is "
+                "masked off in its packet and costs Embree nothing, while terrad's time includes its ray setup). "
+                "Medians over the rounds. Shadow rays start on the "
                 "rendered surface; on the other surfaces than triangle Embree traces them against its mesh all "
                 "the same. Targets (issue 12): camera rays at least 3x rtcIntersect16 and shadow rays at least "
                 "3x rtcOccluded16 on every surface, at most 2 steps per camera ray.\n\n",

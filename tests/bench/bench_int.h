@@ -1,5 +1,6 @@
-/* bench_int.h: results of `terrad bench`, shared by the measuring code (bench.c) and
- * the report writer (bench_report.c). Not for other modules. */
+/* bench_int.h: results of `terrad bench`, shared by the measuring code (bench.c, and
+ * bench_camera.c for the camera views) and the report writer (bench_report.c). Not for
+ * other modules. */
 #ifndef TD_BENCH_INT_H
 #define TD_BENCH_INT_H
 

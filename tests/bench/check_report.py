@@ -184,8 +184,9 @@ for name, npts in [("pareto-trace.svg", 20), ("pareto-render.svg", 24), ("planes
         check("bench/" + name in report, name + " linked from the report")
 
 # section 7: camera views. Structure, numbers that parse, ratios that are the quotients of
-# the printed rates, the summary's best surfaces taken from the section's table. The
-# exactness counts are parsed, never judged (the oracle tests judge).
+# the printed rates, the summary's best surfaces taken from the section's table. terrad's
+# exactness counts are parsed, never judged (the oracle tests judge); Embree's occluded
+# and intersect calls must agree (a test of td_embree_occluded16).
 def close(ratio, a, b):
     """ratio (printed %.2f) against a / b (printed to 4 significant digits)"""
     return abs(ratio - a / b) <= 0.006 + 0.002 * ratio
@@ -233,6 +234,8 @@ for r in rows:
     nums = [int(x) for x in [r[2], r[4], r[5], r[6], r[7], r[8]]] + [int(x) for x in r[3].split("/")]
     check(all(0 <= x for x in nums) and max(nums[1], nums[2]) <= nums[0] and max(nums[4], nums[5]) <= nums[3],
           f"camera exactness {r[0]} {r[1]}: counts parse and stay within the rays")
+    # Embree against itself: rtcOccluded16 (td_embree_occluded16) and rtcIntersect16 on the same rays
+    check(int(r[8]) == 0, f"camera exactness {r[0]} {r[1]}: Embree's occluded and intersect agree ({r[8]})")
 check("camera rays >= 3x Embree's rtcIntersect16" in report and "shadow rays >= 3x Embree's rtcOccluded16" in report,
       "targets table has the camera rows")
 srows = [r for r in summary.split("\n") if r.startswith("| ") and any(r.startswith("| " + d + " |") for d in cam_ds)]
