@@ -683,7 +683,8 @@ static td_status write_summary(const bench_ctx *b, const char *path, td_err *err
                    "parametric) against the paper's 209.5 / 7.88 / 3.74.\n", d->name, mean[0], mean[1], mean[2]);
     }
     td_bench_camera_summary(f, b);
-    fprintf(f, "\n![time against error](docs/bench/pareto-trace.svg)\n");
+    if (d->speed_done)
+        fprintf(f, "\n![time against error](docs/bench/pareto-trace.svg)\n");
     if (fclose(f) != 0)
         rc = td_err_set(err, TD_EIO, "%s: write failed", path);
 out:
@@ -718,13 +719,16 @@ td_status td_bench_report(const bench_ctx *b, td_err *err)
     write_header(f, b);
     write_targets(f, b);
     write_designs(f, b);
-    write_method(f, b);
-    write_speed(f, b);
-    write_errors(f, b);
+    if (b->ds[0].speed_done) { /* sections 1 and 2 ran (run_speed); else they are left out */
+        write_method(f, b);
+        write_speed(f, b);
+        write_errors(f, b);
+    }
     write_paglieroni(f, b);
     write_qu(f, b);
     write_effects(f, b);
-    write_pareto_section(f, b);
+    if (b->ds[0].speed_done) /* every chart is of sections 1 and 2 */
+        write_pareto_section(f, b);
     td_bench_camera_write(f, b);
     if (fclose(f) != 0)
         rc = td_err_set(err, TD_EIO, "%s: write failed", path);
