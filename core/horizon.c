@@ -8,9 +8,8 @@
  *       | bin 0    | bin 1     | bin 2 (coarse)     | bin 3          |
  *       p[0]       p[1]        p[2]                 p[3]   (non-decreasing)
  *
- * A bin's bound reads at most four max-mipmap blocks a tile it touches (the level is the
- * one at which its bounding box spans two blocks a side); a tile without a max-mipmap
- * gives its samples when the box is small, else its zmax. Coarse bins: the extension
+ * A bin's bound is td_view_max over its bounding box (at most 16 samples or max-mipmap
+ * blocks a tile). Coarse bins: the extension
  * keeps a level like the hierarchical walk does (up after a bin it could take whole, down
  * after one it could not), so a stretch far below the asking ray costs a few bins.
  *
@@ -26,73 +25,7 @@
 #define TD_HORIZON_LMAX 8 /* coarsest bin: 2^8 cells deep */
 
 static inline double dmin(double a, double b) { return a < b ? a : b; }
-/* max that drops a NaN (a void) in v */
-static inline float fmax_nan(float m, float v) { return v > m ? v : m; }
 static inline double dmax(double a, double b) { return a > b ? a : b; }
-
-/* Highest sample over the cells [i0, i1] x [j0, j1] (their corners; fmaxf drops a void's
- * NaN, and a hole's other corners only loosen the bound). */
-static float samples_max(const td_grid *g, int32_t i0, int32_t i1, int32_t j0, int32_t j1)
-{
-    float m = -INFINITY;
-    for (int32_t j = j0; j <= j1 + 1; j++) {
-        const float *row = g->z + (size_t)j * (size_t)g->w;
-        for (int32_t i = i0; i <= i1 + 1; i++)
-            m = fmax_nan(m, row[i]);
-    }
-    return m;
-}
-
-/* Highest corner over the cells [i0, i1] x [j0, j1] of one tile (clipped to it): the
- * samples themselves for a box of up to 3 x 3 cells, else the max-mipmap blocks of the
- * finest level at which at most 4 x 4 of them cover it, else the tile's zmax. */
-static float tile_box_max(const td_view *v, const td_tile *t, size_t ti, int32_t i0, int32_t i1,
-                          int32_t j0, int32_t j1)
-{
-    const td_grid *g = v->grid;
-    const td_maxmip *mm = v->accel ? v->accel[ti].maxmip : NULL;
-    int32_t ci0 = i0 > t->i0 ? i0 : t->i0, ci1 = i1 < t->i0 + t->nx - 1 ? i1 : t->i0 + t->nx - 1;
-    int32_t cj0 = j0 > t->j0 ? j0 : t->j0, cj1 = j1 < t->j0 + t->ny - 1 ? j1 : t->j0 + t->ny - 1;
-    float m = t->zmax;
-    if (ci1 - ci0 < 3 && cj1 - cj0 < 3) {
-        m = samples_max(g, ci0, ci1, cj0, cj1);
-    } else if (mm) {
-        int32_t li0 = ci0 - t->i0, li1 = ci1 - t->i0, lj0 = cj0 - t->j0, lj1 = cj1 - t->j0;
-        int L = 1;
-        while (L <= mm->levels && ((li1 >> L) - (li0 >> L) > 3 || (lj1 >> L) - (lj0 >> L) > 3))
-            L++;
-        if (L <= mm->levels) {
-            const float *lev = mm->max + mm->offset[L];
-            size_t dim = (size_t)mm->dim[L];
-            m = -INFINITY;
-            for (int32_t bj = lj0 >> L; bj <= lj1 >> L; bj++)
-                for (int32_t bi = li0 >> L; bi <= li1 >> L; bi++)
-                    m = fmax_nan(m, lev[(size_t)bj * dim + (size_t)bi]);
-        }
-    } else if ((int64_t)(ci1 - ci0 + 1) * (cj1 - cj0 + 1) <= 64) {
-        m = samples_max(g, ci0, ci1, cj0, cj1);
-    }
-    return m;
-}
-
-/* Highest corner over the cells [i0, i1] x [j0, j1] of the grid (clamped; -inf if none). */
-static double box_max(const td_view *v, int32_t i0, int32_t i1, int32_t j0, int32_t j1)
-{
-    const td_grid *g = v->grid;
-    const int tl = g->tile_log2;
-    float m = -INFINITY;
-    i0 = i0 < 0 ? 0 : i0;
-    j0 = j0 < 0 ? 0 : j0;
-    i1 = i1 > g->w - 2 ? g->w - 2 : i1;
-    j1 = j1 > g->h - 2 ? g->h - 2 : j1;
-    for (int32_t tj = j0 >> tl; i0 <= i1 && tj <= j1 >> tl; tj++) {
-        for (int32_t ti = i0 >> tl; ti <= i1 >> tl; ti++) {
-            size_t k = (size_t)tj * (size_t)g->tiles_x + (size_t)ti;
-            m = fmax_nan(m, tile_box_max(v, &g->tiles[k], k, i0, i1, j0, j1));
-        }
-    }
-    return (double)m;
-}
 
 /* Cell index of a coordinate (times 1/spacing), saturated to int32 (the box may reach
  * far off the grid). */
@@ -120,7 +53,7 @@ static double bin_bound(const td_horizon *h, double d0, double d1)
         }
     }
     pad = 1e-9 * d1 + 1e-6;
-    m = box_max(h->v, cell_of(x0 - pad, h->isx), cell_of(x1 + pad, h->isx), cell_of(y0 - pad, h->isy),
+    m = td_view_max(h->v, cell_of(x0 - pad, h->isx), cell_of(x1 + pad, h->isx), cell_of(y0 - pad, h->isy),
                 cell_of(y1 + pad, h->isy));
     if (m == -INFINITY) {
         e = -INFINITY;

@@ -73,6 +73,7 @@
 
 #include "effects.h"
 #include "horizon.h"
+#include "sunlit.h"
 #include "limit.h"
 #include "lod.h"
 #include "shade.h"
@@ -182,6 +183,8 @@ struct ctx {
     int horizon;     /* camera rays start from their wedge's horizon (see horizon.h) */
     int plain_secondary; /* shadow and AO rays traced for their nearest hit (OFF_OCCLUSION) */
     td_ray *shadow_rays; /* the caller's copy of the shadow rays, or NULL */
+    td_sunlit *sunlit;   /* heights surely in the sun (shadow rays end there), or NULL */
+    double sunlit_ms;    /* its build */
     int on[TD_STAGE_COUNT]; /* the stages this render runs (their on_<name>) */
     double sun[3];
     double eps;      /* origin offset along the normal for secondary rays */
@@ -391,10 +394,13 @@ static void trace_lod(const ctx *c, const td_ray *r, double t_clear, td_hit *hit
  * at its x, y: what the scene's surface and level of detail cost in accuracy, reported
  * with every render and pick. One interpolation per hit. NaN (and nothing counted) over
  * a void. */
-static double note_error(const ctx *c, const double p[3], td_render_stats *st)
+static double note_error(const ctx *c, const td_hit *h, int level, td_render_stats *st)
 {
+    const double *p = h->p;
     double z, e = NAN;
-    if (td_grid_bilinear(c->v->grid, p[0], p[1], &z, NULL)) {
+    /* on the full grid the hit's cell holds the point (no search for it) */
+    if (level == 0 ? td_grid_bilinear_cell(c->v->grid, h->ci, h->cj, p[0], p[1], &z, NULL)
+                   : td_grid_bilinear(c->v->grid, p[0], p[1], &z, NULL)) {
         e = fabs(p[2] - z);
         st->height_err_sum_m += e;
         st->height_err_max_m = e > st->height_err_max_m ? e : st->height_err_max_m;
@@ -431,7 +437,7 @@ static double trace_camera(const ctx *c, const td_ray *r, int bent, double t_cle
     st->rays[TD_RAY_PRIMARY]++;
     if (hit->t < INFINITY) {
         st->hits++;
-        e = note_error(c, hit->p, st);
+        e = note_error(c, hit, *level, st);
     }
     return e;
 }
@@ -505,7 +511,9 @@ static int occluded(const ctx *c, worker *w, td_ray_kind kind, const td_view *v,
             steps = h.steps;
             hit = h.t < INFINITY;
         } else {
-            hit = td_occluded(v, c->s->quality.method, c->s->quality.surface, r, &steps);
+            /* the sun bound is the full grid's: not for rays on coarse levels */
+            const td_sunlit *lit = kind == TD_RAY_SHADOW && v == c->v ? c->sunlit : NULL;
+            hit = td_occluded(v, c->s->quality.method, c->s->quality.surface, r, lit, &steps);
         }
         w->st.steps += steps;
         w->st.kind_steps[kind] += steps;
@@ -1179,6 +1187,19 @@ out:
     return rc;
 }
 
+/* The sun bound of the shadow rays (sunlit.h), once per render; its time is the shadows
+ * stage's. None with the occlusion device off, or for a sun it cannot bound. */
+static td_status setup_sunlit(ctx *c, const td_render_opts *o, td_err *err)
+{
+    td_status rc = TD_OK;
+    if (c->on[TD_STAGE_SHADOWS] && !(o->off & TD_RENDER_OFF_SUNLIT) && !c->plain_secondary) {
+        double t = td_clock_s();
+        rc = td_sunlit_build(c->v, c->sun, &c->sunlit, err);
+        c->sunlit_ms = 1000.0 * (td_clock_s() - t);
+    }
+    return rc;
+}
+
 /* Runs the workers (the caller's thread is the first; a thread that cannot be started
  * leaves its share to the others) and adds their stats into st in thread order. */
 static td_status run_workers(worker *ws, int nthreads, td_render_stats *st, td_err *err)
@@ -1240,12 +1261,16 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
     if (nthreads > c->nblocks)
         nthreads = c->nblocks;
     rc = alloc_workers(c, nthreads, &ws, err);
+    if (!rc)
+        rc = setup_sunlit(c, o, err);
     if (rc)
         goto out;
     rc = run_workers(ws, nthreads, &res->stats, err);
+    res->stats.stage_ms[TD_STAGE_SHADOWS] += c->sunlit_ms;
     res->stats.total_ms = 1000.0 * (td_clock_s() - t_start);
 out:
     free_workers(ws, nthreads);
+    td_sunlit_free(c ? c->sunlit : NULL);
     td_image_free(drape);
     free(c);
     if (rc)

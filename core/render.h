@@ -116,6 +116,7 @@ typedef struct td_render_opts {
 
 #define TD_RENDER_OFF_HORIZON 1u   /* camera rays each traced from their start */
 #define TD_RENDER_OFF_OCCLUSION 2u /* shadow and AO rays traced for their nearest hit */
+#define TD_RENDER_OFF_SUNLIT 4u    /* shadow rays without the sun bound (sunlit.h) */
 
 typedef struct td_render_result {
     int32_t width, height;

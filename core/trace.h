@@ -59,6 +59,7 @@ td_status td_method_parse(const char *name, td_method *out);
 td_status td_surface_parse(const char *name, td_surface *out);
 
 typedef struct td_maxmip td_maxmip; /* one tile's max pyramid (maxmip.h) */
+typedef struct td_sunlit td_sunlit; /* heights surely in the sun (sunlit.h) */
 typedef struct td_planes td_planes; /* one tile's parameter planes (planes.h) */
 
 /* What is resident for one tile; either pointer may be NULL. */
@@ -105,10 +106,18 @@ void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r,
                    td_hit *hit);
 
 /* Whether the ray meets the surface in [tmin, tmax] (td_trace's hit is finite), for rays
- * that leave the surface (shadow and ambient-occlusion rays): it starts with the cells
- * around its origin and climbs the max-mipmap from the bottom, and computes no hit
- * point or normal. Adds its steps to *steps. */
-int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r, uint32_t *steps);
+ * that leave the surface (shadow and ambient-occlusion rays): it climbs the max-mipmap
+ * from small blocks up, and computes no hit point or normal. A shadow ray (direction the
+ * sun's of lit, which may be NULL) also ends, unoccluded, where it rises above lit's bound
+ * (sunlit.h). Adds its steps to *steps. */
+int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r,
+                const td_sunlit *lit, uint32_t *steps);
+
+/* An upper bound of every surface over the cells [i0, i1] x [j0, j1] (clamped to the
+ * grid; -inf if no cell is left or all are holes): the highest corner, read from at
+ * most 16 samples or max-mipmap blocks per tile it touches (a tile's zmax where neither
+ * is small enough). */
+double td_view_max(const td_view *v, int32_t i0, int32_t i1, int32_t j0, int32_t j1);
 
 /* Surface height at (x, y) in the dataset frame inside cell (ci, cj), NaN on a hole
  * (the `linear` surface has no height of its own: it is evaluated as bilinear here). */

@@ -19,6 +19,7 @@
  * shared bug would agree with itself); a tolerance that grows with the case (a case
  * that needs more than the float32 band is a finding, not a tolerance). */
 #include "hc.h"
+#include "sunlit.h"
 
 #include <float.h>
 #include <math.h>
@@ -667,10 +668,24 @@ static int show_float(void)
     return show;
 }
 
+/* For every 4th ray going up, the sun bound (sunlit.h) of its direction as if it were
+ * the sun's: td_occluded must answer the same with it. NULL for the others. */
+static td_sunlit *ray_sunlit(const hc_scene *sc, const td_ray *r, uint64_t k)
+{
+    td_sunlit *lit = NULL;
+    double n = sqrt(r->d[0] * r->d[0] + r->d[1] * r->d[1] + r->d[2] * r->d[2]);
+    if (k % 4 == 0 && r->d[2] > 0.0 && n > 0.0 && isfinite(n)) {
+        double sun[3] = {r->d[0] / n, r->d[1] / n, r->d[2] / n};
+        td_sunlit_build(&sc->view, sun, &lit, NULL);
+    }
+    return lit;
+}
+
 int hc_run_ray(hc_stats *st, const hc_scene *sc, const td_ray *r,
                td_hit out[TD_SURFACE_COUNT][TD_METHOD_COUNT])
 {
     int fails = 0;
+    td_sunlit *lit = ray_sunlit(sc, r, st->rays);
     st->rays++;
     for (int s = 0; s < TD_SURFACE_COUNT; s++) {
         double t_inc = INFINITY, ref_t = INFINITY, near_t = INFINITY, strict_t = INFINITY;
@@ -692,8 +707,10 @@ int hc_run_ray(hc_stats *st, const hc_scene *sc, const td_ray *r,
             why = rule_violation(sc->g, r, &h);
             if (!why) { /* the any-hit query of shadow rays answers as the trace does */
                 uint32_t osteps = 0;
-                if (td_occluded(&sc->view, (td_method)m, (td_surface)s, r, &osteps) != (h.t < INFINITY))
+                if (td_occluded(&sc->view, (td_method)m, (td_surface)s, r, NULL, &osteps) != (h.t < INFINITY))
                     why = "td_occluded disagrees with td_trace";
+                else if (lit && td_occluded(&sc->view, (td_method)m, (td_surface)s, r, lit, &osteps) != (h.t < INFINITY))
+                    why = "td_occluded with the sun bound of the ray's direction disagrees with td_trace";
             }
             v = why ? HC_WRONG : hc_judge(sc, (td_surface)s, r, h.t, &ref_t, &near_t, &strict_t);
             if (why)
@@ -748,6 +765,7 @@ int hc_run_ray(hc_stats *st, const hc_scene *sc, const td_ray *r,
             }
         }
     }
+    td_sunlit_free(lit);
     return fails;
 }
 

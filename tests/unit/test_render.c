@@ -704,7 +704,7 @@ static void test_cli_rays(void **state)
     for (size_t k = 0; k < n; k++) {
         uint32_t steps = 0;
         assert_true(rays[k].d[2] > 0.2 && rays[k].d[2] < 0.21); /* sin(12 degrees) */
-        shadowed += td_occluded(&v, TD_METHOD_INCREMENTAL, TD_SURFACE_BILINEAR, &rays[k], &steps);
+        shadowed += td_occluded(&v, TD_METHOD_INCREMENTAL, TD_SURFACE_BILINEAR, &rays[k], NULL, &steps);
     }
     assert_true(shadowed > 0 && shadowed < (int)n);
     json_decref(st);

@@ -1,0 +1,136 @@
+/* test_sunlit.c: the sun bound of core/sunlit.c against brute force. On procedural
+ * terrain (with voids) and for suns from every quarter, steep and grazing, and along the
+ * axes: every block's bound is at least its own highest sample; a point above its
+ * block's bound sees the sun (td_trace finds nothing on the way); and td_occluded with
+ * the bound answers as td_trace for rays from the surface, while taking fewer steps
+ * than without it. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "accel.h"
+#include "sunlit.h"
+#include "terrain.h"
+#include "trace.h"
+
+static double rnd(uint64_t *s)
+{
+    *s = *s * 6364136223846793005ull + 1442695040888963407ull;
+    return (double)(*s >> 11) / 9007199254740992.0;
+}
+
+static void sun_of(double az_deg, double el_deg, double sun[3])
+{
+    double a = az_deg * M_PI / 180.0, e = el_deg * M_PI / 180.0;
+    sun[0] = sin(a) * cos(e);
+    sun[1] = cos(a) * cos(e);
+    sun[2] = sin(e);
+}
+
+/* The bound's claims for one sun over grid g (with acceleration a). */
+static void check_sun(const td_grid *g, const td_accel *a, const double sun[3], uint64_t *seed)
+{
+    td_view v = {g, a->tiles};
+    td_sunlit *lit = NULL;
+    uint64_t with = 0, without = 0;
+    assert_int_equal(td_sunlit_build(&v, sun, &lit, NULL), TD_OK);
+    assert_non_null(lit);
+    for (int32_t by = 0; by < lit->bh; by++) /* a block's own samples are below its bound */
+        for (int32_t bx = 0; bx < lit->bw; bx++) {
+            int32_t S = 1 << lit->shift;
+            double m = td_view_max(&v, bx * S, bx * S + S - 1, by * S, by * S + S - 1);
+            assert_true(lit->h[(size_t)by * lit->bw + bx] >= m);
+        }
+    for (int k = 0; k < 4000; k++) {
+        double x = rnd(seed) * (g->w - 1) * g->sx, y = rnd(seed) * (g->h - 1) * g->sy;
+        int32_t ci = (int32_t)(x / g->sx), cj = (int32_t)(y / g->sy);
+        ci = ci > g->w - 2 ? g->w - 2 : ci;
+        cj = cj > g->h - 2 ? g->h - 2 : cj;
+        double bound = td_sunlit_at(lit, ci, cj), ground = td_surface_height(g, TD_SURFACE_BILINEAR, ci, cj, x, y);
+        td_ray r = {{x, y, bound + 1e-3 * (1.0 + fabs(bound))}, {sun[0], sun[1], sun[2]}, 0.0, INFINITY};
+        td_hit h;
+        uint32_t s0 = 0, s1 = 0;
+        for (int s = 0; s < TD_SURFACE_COUNT; s++) { /* above the bound: nothing on the way */
+            td_trace(&v, TD_METHOD_INCREMENTAL, (td_surface)s, &r, &h);
+            assert_true(h.t == INFINITY);
+        }
+        if (isnan(ground))
+            continue;
+        r.o[2] = ground + 0.5; /* from just above the surface: the same answer, fewer steps */
+        for (int s = 0; s < TD_SURFACE_COUNT; s++) {
+            td_trace(&v, TD_METHOD_AUTO, (td_surface)s, &r, &h);
+            assert_int_equal(td_occluded(&v, TD_METHOD_AUTO, (td_surface)s, &r, lit, &s1), h.t < INFINITY);
+            assert_int_equal(td_occluded(&v, TD_METHOD_AUTO, (td_surface)s, &r, NULL, &s0), h.t < INFINITY);
+        }
+        with += s1;
+        without += s0;
+    }
+    assert_true(with < without);
+    td_sunlit_free(lit);
+}
+
+static void test_sunlit_bounds(void **state)
+{
+    static const double suns[][2] = {{30, 35}, {135, 8}, {220, 60}, {300, 2}, {0, 20}, {90, 10},
+                                     {180, 45}, {270, 3}, {10, 89}, {355.5, 1}};
+    td_terrain_params p;
+    td_grid *g = NULL;
+    td_accel *a = NULL;
+    td_accel_opts o;
+    uint64_t seed = 12345;
+    (void)state;
+    td_terrain_params_default(&p);
+    p.width = 300;
+    p.height = 220;
+    p.spacing = 30.0;
+    assert_int_equal(td_terrain_generate(&p, 6, &g, NULL), TD_OK);
+    g->sy = 45.0; /* unequal spacing: the dominant axis is not the larger component */
+    for (int k = 0; k < 1200; k++) /* voids */
+        g->z[(size_t)(rnd(&seed) * (double)g->w * (double)g->h)] = NAN;
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel_opts_default(&o);
+    o.threads = 2;
+    assert_int_equal(td_accel_build(g, &o, &a, NULL, NULL), TD_OK);
+    for (size_t k = 0; k < sizeof suns / sizeof suns[0]; k++) {
+        double sun[3];
+        sun_of(suns[k][0], suns[k][1], sun);
+        check_sun(g, a, sun, &seed);
+    }
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
+/* No bound for a sun at the zenith or below the horizon. */
+static void test_sunlit_none(void **state)
+{
+    td_terrain_params p;
+    td_grid *g = NULL;
+    td_sunlit *lit = (td_sunlit *)1;
+    double up[3] = {0, 0, 1}, down[3] = {0.6, 0, -0.8};
+    (void)state;
+    td_terrain_params_default(&p);
+    p.width = 40;
+    p.height = 40;
+    assert_int_equal(td_terrain_generate(&p, 4, &g, NULL), TD_OK);
+    td_view v = {g, NULL};
+    assert_int_equal(td_sunlit_build(&v, up, &lit, NULL), TD_OK);
+    assert_null(lit);
+    lit = (td_sunlit *)1;
+    assert_int_equal(td_sunlit_build(&v, down, &lit, NULL), TD_OK);
+    assert_null(lit);
+    td_grid_free(g);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_sunlit_bounds),
+        cmocka_unit_test(test_sunlit_none),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
