@@ -1,6 +1,6 @@
 /* bench_camera.c: section 7 of `terrad bench`, camera views (issue 12): terrad's camera
  * and shadow rays against Embree's rtcIntersect16 and rtcOccluded16 on the same rays,
- * one thread each, with each coherence device on and off; and that section's parts of
+ * one thread each, with the coherence devices on and off; and that section's parts of
  * the report (a row group of the targets table, section 7, the summary's table).
  *
  * Callers: td_bench_run (bench.c) runs td_bench_camera_run once per real DEM (trinidad,
@@ -18,9 +18,10 @@
  *
  * Timing, per view, in `runs` interleaved rounds, medians over rounds:
  *   for each surface: td_render (one thread, method auto, one sample, PNG, shadows on
- *     with the view's sun) with every device on, then with TD_RENDER_OFF_HORIZON |
- *     TD_RENDER_OFF_OCCLUSION; terrad's rate is rays[kind] / stage_ms[stage] (primary:
- *     camera ray setup, horizon bins and tracing; shadows: the shadow rays), steps a ray
+ *     with the view's sun) in each configuration of TD_BENCH_CONF_LIST (bench_int.h:
+ *     every device on; the sun bound off; every device off); terrad's rate is
+ *     rays[kind] / stage_ms[stage] (primary: camera ray setup, horizon bins and tracing;
+ *     shadows: the sun bound's build and the shadow rays), steps a ray
  *     kind_steps[kind] / rays[kind];
  *     then rtcOccluded16 on that surface's shadow rays: td_render_opts.shadow_rays of an
  *     untimed render, the slots with a ray kept in image order, 16 consecutive a packet;
@@ -32,8 +33,8 @@
  * Exactness (triangle surface, untimed, reported and never judged: the oracle tests
  * judge): a depth32f render (horizon on, and off) against Embree's t on the same rays, a
  * disagreement being a hit against a miss or distances more than 1e-4 of Embree's apart;
- * td_occluded (the query the render makes) against rtcOccluded16 on the triangle render's
- * shadow rays; and rtcOccluded16 against rtcIntersect16 on those rays (Embree's two
+ * td_occluded (the query the render makes, with the sun bound the render builds) against
+ * rtcOccluded16 on the triangle render's shadow rays; and rtcOccluded16 against rtcIntersect16 on those rays (Embree's two
  * calls on one mesh; a check of td_embree_occluded16).
  *
  * Rejected: timing the render's wall time (shading would dilute both devices' worth);
@@ -47,6 +48,7 @@
 #include <string.h>
 
 #include "camera.h"
+#include "sunlit.h"
 
 static const char *const cam_names[] = {
 #define TD_X_NAME(e, name) name,
@@ -74,16 +76,22 @@ static const struct cam_def {
     {200, 0.03, 300, 0.1, -80, 0, 135, 40},  /* straight down, the peak in the upper half */
 };
 
-#define DEVICES_OFF (TD_RENDER_OFF_HORIZON | TD_RENDER_OFF_OCCLUSION)
+static const unsigned conf_off[TD_BENCH_CONF_COUNT] = {
+#define TD_X_OFF(e, name, off) off,
+    TD_BENCH_CONF_LIST(TD_X_OFF)
+#undef TD_X_OFF
+};
+
 #define DEPTH_REL_TOL 1e-4
 
-/* Timings kept per round: per surface primary on/off, shadows on/off, Embree occluded;
- * then Embree's camera rays. */
-#define NQ_SURF 5
+/* Timings kept per round: per surface the primary and the shadows stage of each
+ * configuration, Embree occluded; then Embree's camera rays. */
+#define NCONF TD_BENCH_CONF_COUNT
+#define NQ_SURF (2 * NCONF + 1)
 #define NQ (TD_SURFACE_COUNT * NQ_SURF + 1)
-#define Q_PRIM(s, off) ((s) * NQ_SURF + (off))
-#define Q_SHADOW(s, off) ((s) * NQ_SURF + 2 + (off))
-#define Q_EOCC(s) ((s) * NQ_SURF + 4)
+#define Q_PRIM(s, k) ((s) * NQ_SURF + (k))
+#define Q_SHADOW(s, k) ((s) * NQ_SURF + NCONF + (k))
+#define Q_EOCC(s) ((s) * NQ_SURF + 2 * NCONF)
 #define Q_EPRIM (TD_SURFACE_COUNT * NQ_SURF)
 
 typedef struct cam_run {
@@ -101,7 +109,7 @@ typedef struct cam_run {
     size_t nsh[TD_SURFACE_COUNT];
     td_embree_ray *esh[TD_SURFACE_COUNT]; /* each surface's shadow rays, prepared */
     uint8_t *occ;             /* Embree's occluded answers (n) */
-    uint64_t prim_rays[TD_SURFACE_COUNT][2], shadow_rays[TD_SURFACE_COUNT][2];
+    uint64_t prim_rays[TD_SURFACE_COUNT][NCONF], shadow_rays[TD_SURFACE_COUNT][NCONF];
     double *ms;               /* NQ x runs timings */
 } cam_run;
 
@@ -221,20 +229,28 @@ static int depth_differs(double a, double b)
     return fabs(a - b) > DEPTH_REL_TOL * fabs(b);
 }
 
-/* The triangle render's shadow rays: td_occluded against rtcOccluded16, and
+/* The triangle render's shadow rays: td_occluded as the render asks it (with the sun
+ * bound built for the rays' direction, the sun's) against rtcOccluded16, and
  * rtcOccluded16 against rtcIntersect16. Overwrites c->t. */
-static void cam_exact_shadows(cam_run *c)
+static td_status cam_exact_shadows(cam_run *c, td_err *err)
 {
     const size_t n = c->nsh[TD_SURFACE_TRIANGLE];
     const td_embree_ray *er = c->esh[TD_SURFACE_TRIANGLE];
+    td_sunlit *lit = NULL;
+    td_status rc = n ? td_sunlit_build(&c->view, c->sh_tri[0].d, &lit, err) : TD_OK;
+    if (rc)
+        goto out;
     td_embree_occluded16(c->emb, er, n, c->occ);
     td_embree_trace16(c->emb, er, n, c->t);
     for (size_t k = 0; k < n; k++) {
         uint32_t steps = 0;
-        int ours = td_occluded(&c->view, TD_METHOD_AUTO, TD_SURFACE_TRIANGLE, &c->sh_tri[k], &steps);
+        int ours = td_occluded(&c->view, TD_METHOD_AUTO, TD_SURFACE_TRIANGLE, &c->sh_tri[k], lit, &steps);
         c->v->shadow_differ += ours != c->occ[k];
         c->v->emb_self_differ += c->occ[k] != (c->t[k] < INFINITY);
     }
+out:
+    td_sunlit_free(lit);
+    return rc;
 }
 
 /* Exactness on the triangle surface (see the top of the file). */
@@ -254,20 +270,20 @@ static td_status cam_exact(cam_run *c, td_err *err)
         td_render_result_free(&res);
     }
     if (rc == TD_OK)
-        cam_exact_shadows(c);
+        rc = cam_exact_shadows(c, err);
     return rc;
 }
 
 /* Counts of the first round's renders (the same every round). */
-static void cam_counts(cam_run *c, int s, int off, const td_render_stats *st)
+static void cam_counts(cam_run *c, int s, int k, const td_render_stats *st)
 {
     bench_cam_surf *o = &c->v->s[s];
     uint64_t pr = st->rays[TD_RAY_PRIMARY], sr = st->rays[TD_RAY_SHADOW];
-    c->prim_rays[s][off] = pr;
-    c->shadow_rays[s][off] = sr;
-    o->prim_steps[off] = pr ? (double)st->kind_steps[TD_RAY_PRIMARY] / (double)pr : NAN;
-    o->shadow_steps[off] = sr ? (double)st->kind_steps[TD_RAY_SHADOW] / (double)sr : NAN;
-    if (!off) {
+    c->prim_rays[s][k] = pr;
+    c->shadow_rays[s][k] = sr;
+    o->prim_steps[k] = pr ? (double)st->kind_steps[TD_RAY_PRIMARY] / (double)pr : NAN;
+    o->shadow_steps[k] = sr ? (double)st->kind_steps[TD_RAY_SHADOW] / (double)sr : NAN;
+    if (k == TD_BENCH_CONF_ON) {
         o->prim_rays = pr;
         o->shadow_rays = sr;
         o->coherent = st->coherent_rays;
@@ -277,7 +293,7 @@ static void cam_counts(cam_run *c, int s, int off, const td_render_stats *st)
 
 static double ms_since(double t0) { return (td_clock_s() - t0) * 1e3; }
 
-/* Round r: every surface with the devices on and off, Embree on its shadow rays, then
+/* Round r: every surface in every configuration, Embree on its shadow rays, then
  * Embree on the camera rays. */
 static td_status cam_round(cam_run *c, int r, td_err *err)
 {
@@ -285,14 +301,14 @@ static td_status cam_round(cam_run *c, int r, td_err *err)
     const size_t runs = (size_t)c->b->runs, rr = (size_t)r;
     double t0;
     for (int s = 0; s < TD_SURFACE_COUNT && rc == TD_OK; s++) {
-        for (int off = 0; off < 2 && rc == TD_OK; off++) {
+        for (int k = 0; k < NCONF && rc == TD_OK; k++) {
             td_render_result res;
-            rc = cam_render(c, (td_surface)s, TD_FORMAT_PNG, off ? DEVICES_OFF : 0, NULL, &res, err);
+            rc = cam_render(c, (td_surface)s, TD_FORMAT_PNG, conf_off[k], NULL, &res, err);
             if (rc == TD_OK) {
-                c->ms[(size_t)Q_PRIM(s, off) * runs + rr] = res.stats.stage_ms[TD_STAGE_PRIMARY];
-                c->ms[(size_t)Q_SHADOW(s, off) * runs + rr] = res.stats.stage_ms[TD_STAGE_SHADOWS];
+                c->ms[(size_t)Q_PRIM(s, k) * runs + rr] = res.stats.stage_ms[TD_STAGE_PRIMARY];
+                c->ms[(size_t)Q_SHADOW(s, k) * runs + rr] = res.stats.stage_ms[TD_STAGE_SHADOWS];
                 if (r == 0)
-                    cam_counts(c, s, off, &res.stats);
+                    cam_counts(c, s, k, &res.stats);
             }
             td_render_result_free(&res);
         }
@@ -315,11 +331,11 @@ static void cam_medians(cam_run *c)
     bench_cam_view *v = c->v;
     for (int s = 0; s < TD_SURFACE_COUNT; s++) {
         bench_cam_surf *o = &v->s[s];
-        for (int off = 0; off < 2; off++) {
-            double pm = td_bench_median(c->ms + (size_t)Q_PRIM(s, off) * (size_t)runs, runs);
-            double sm = td_bench_median(c->ms + (size_t)Q_SHADOW(s, off) * (size_t)runs, runs);
-            o->prim_rps[off] = per_s(c->prim_rays[s][off], pm);
-            o->shadow_rps[off] = per_s(c->shadow_rays[s][off], sm);
+        for (int k = 0; k < NCONF; k++) {
+            double pm = td_bench_median(c->ms + (size_t)Q_PRIM(s, k) * (size_t)runs, runs);
+            double sm = td_bench_median(c->ms + (size_t)Q_SHADOW(s, k) * (size_t)runs, runs);
+            o->prim_rps[k] = per_s(c->prim_rays[s][k], pm);
+            o->shadow_rps[k] = per_s(c->shadow_rays[s][k], sm);
         }
         o->emb_shadow_rps = per_s(c->nsh[s], td_bench_median(c->ms + (size_t)Q_EOCC(s) * (size_t)runs, runs));
     }
@@ -444,12 +460,11 @@ static const char *fixed(char *buf, size_t n, double v, int prec)
 
 static double quot(double a, double b) { return a > 0 && b > 0 && isfinite(a) && isfinite(b) ? a / b : NAN; }
 
-/* terrad / Embree with the devices on (off = 0) or off, for camera (shadow = 0) or
- * shadow rays. */
-static double cam_ratio(const bench_cam_view *v, int s, int shadow, int off)
+/* terrad in configuration k / Embree, for camera (shadow = 0) or shadow rays. */
+static double cam_ratio(const bench_cam_view *v, int s, int shadow, int k)
 {
     const bench_cam_surf *o = &v->s[s];
-    return shadow ? quot(o->shadow_rps[off], o->emb_shadow_rps) : quot(o->prim_rps[off], v->emb_prim_rps);
+    return shadow ? quot(o->shadow_rps[k], o->emb_shadow_rps) : quot(o->prim_rps[k], v->emb_prim_rps);
 }
 
 /* The surface with the highest (best = 1) or lowest ratio, devices on; NaN if none. */
@@ -457,7 +472,7 @@ static double cam_pick(const bench_cam_view *v, int shadow, int best, int *s_out
 {
     double r = NAN;
     for (int s = 0; s < TD_SURFACE_COUNT; s++) {
-        double q = cam_ratio(v, s, shadow, 0);
+        double q = cam_ratio(v, s, shadow, TD_BENCH_CONF_ON);
         if (!isnan(q) && (isnan(r) || (best ? q > r : q < r))) {
             r = q;
             *s_out = s;
@@ -488,31 +503,37 @@ static void cam_write_views(FILE *f, const bench_ctx *b)
     fprintf(f, "\n");
 }
 
+/* One row: camera rays with the devices on and off (the sun bound does not touch them),
+ * shadow rays in every configuration. */
 static void cam_write_row(FILE *f, const bench_ds *d, int q, int s)
 {
+    enum { ON = TD_BENCH_CONF_ON, NS = TD_BENCH_CONF_NO_SUNLIT, OFF = TD_BENCH_CONF_OFF };
     const bench_cam_view *v = &d->cam[q];
     const bench_cam_surf *o = &v->s[s];
-    char a[8][32], r[4][16], st[4][16];
-    fprintf(f, "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %llu | %s | %s | %s | %s | %s | %s | %s |\n",
-            d->name, td_bench_cam_name(q), td_surface_name((td_surface)s), mrate(a[0], 32, o->prim_rps[0]),
-            mrate(a[1], 32, o->prim_rps[1]), mrate(a[2], 32, v->emb_prim_rps),
-            fixed(r[0], 16, cam_ratio(v, s, 0, 0), 2), fixed(r[1], 16, cam_ratio(v, s, 0, 1), 2),
-            fixed(st[0], 16, o->prim_steps[0], 2), fixed(st[1], 16, o->prim_steps[1], 2),
-            (unsigned long long)o->shadow_rays, mrate(a[3], 32, o->shadow_rps[0]), mrate(a[4], 32, o->shadow_rps[1]),
-            mrate(a[5], 32, o->emb_shadow_rps), fixed(r[2], 16, cam_ratio(v, s, 1, 0), 2),
-            fixed(r[3], 16, cam_ratio(v, s, 1, 1), 2), fixed(st[2], 16, o->shadow_steps[0], 2),
-            fixed(st[3], 16, o->shadow_steps[1], 2));
+    char a[8][32], r[5][16], st[5][16];
+    fprintf(f, "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %llu | %s | %s | %s | %s | %s | %s | %s | %s | %s "
+               "| %s |\n",
+            d->name, td_bench_cam_name(q), td_surface_name((td_surface)s), mrate(a[0], 32, o->prim_rps[ON]),
+            mrate(a[1], 32, o->prim_rps[OFF]), mrate(a[2], 32, v->emb_prim_rps),
+            fixed(r[0], 16, cam_ratio(v, s, 0, ON), 2), fixed(r[1], 16, cam_ratio(v, s, 0, OFF), 2),
+            fixed(st[0], 16, o->prim_steps[ON], 2), fixed(st[1], 16, o->prim_steps[OFF], 2),
+            (unsigned long long)o->shadow_rays, mrate(a[3], 32, o->shadow_rps[ON]), mrate(a[4], 32, o->shadow_rps[NS]),
+            mrate(a[5], 32, o->shadow_rps[OFF]), mrate(a[6], 32, o->emb_shadow_rps),
+            fixed(r[2], 16, cam_ratio(v, s, 1, ON), 2), fixed(r[3], 16, cam_ratio(v, s, 1, NS), 2),
+            fixed(r[4], 16, cam_ratio(v, s, 1, OFF), 2), fixed(st[2], 16, o->shadow_steps[ON], 2),
+            fixed(st[3], 16, o->shadow_steps[NS], 2), fixed(st[4], 16, o->shadow_steps[OFF], 2));
 }
 
 static void cam_write_table(FILE *f, const bench_ctx *b)
 {
     fprintf(f, "### Camera views: rays per second against Embree, one thread\n\n"
-               "M rays/s; *on* and *off* are terrad with its coherence device on and off (camera rays: the "
-               "horizon bound; shadow rays: the occlusion query); x Embree = terrad / Embree on the same rays.\n\n"
+               "M rays/s; *on*: every coherence device on (camera rays: the horizon bound; shadow rays: the "
+               "occlusion query and the sun bound); *no sun*: the sun bound off (`TD_RENDER_OFF_SUNLIT`), the "
+               "occlusion query kept; *off*: every device off; x Embree = terrad / Embree on the same rays.\n\n"
                "| dataset | view | surface | camera M rays/s, on | off | Embree rtcIntersect16 | x Embree, on | "
-               "off | steps per camera ray, on | off | shadow rays | shadow M rays/s, on | off | Embree "
-               "rtcOccluded16 | x Embree, on | off | steps per shadow ray, on | off |\n"
-               "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+               "off | steps per camera ray, on | off | shadow rays | shadow M rays/s, on | no sun | off | Embree "
+               "rtcOccluded16 | x Embree, on | no sun | off | steps per shadow ray, on | no sun | off |\n"
+               "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (int k = 0; k < b->nds; k++)
         for (int q = 0; q < TD_BENCH_CAM_COUNT; q++)
             for (int s = 0; s < TD_SURFACE_COUNT && b->ds[k].cam[q].done; s++)
@@ -546,7 +567,7 @@ static void cam_write_exact(FILE *f, const bench_ctx *b)
                "Reported, not judged (the oracle tests judge, with the double-precision reference for "
                "Embree's own errors): camera rays whose depth32f distance and Embree's t are a hit against a "
                "miss or more than %g of the distance apart; shadow rays on which td_occluded (the render's "
-               "query) and rtcOccluded16 disagree; and, as a check of the Embree side, shadow rays on which "
+               "query, with its sun bound) and rtcOccluded16 disagree; and, as a check of the Embree side, shadow rays on which "
                "rtcOccluded16 and rtcIntersect16 disagree.\n\n"
                "| dataset | view | camera rays | hits, terrad / Embree | depth differs, horizon on | off | shadow "
                "rays | occluded differs | Embree occluded vs intersect |\n|---|---|---|---|---|---|---|---|---|\n",
@@ -579,12 +600,13 @@ void td_bench_camera_write(FILE *f, const bench_ctx *b)
                 "ray per pixel (tables below), one thread on each side, terrad's method `auto` with every "
                 "structure built as for section 1, Embree's triangle mesh. Per view and surface, each of %d "
                 "rounds renders (`td_render`, PNG, shadows on with the view's sun) with every coherence device "
-                "on, then with `TD_RENDER_OFF_HORIZON | TD_RENDER_OFF_OCCLUSION`, then Embree traces the same "
+                "on, with the sun bound off, and with every device off (`TD_RENDER_OFF_HORIZON | "
+                "TD_RENDER_OFF_OCCLUSION | TD_RENDER_OFF_SUNLIT`), then Embree traces the same "
                 "rays: rtcOccluded16 on the render's shadow rays (`td_render_opts.shadow_rays`, image order, 16 "
                 "consecutive rays a packet) and, once a round, rtcIntersect16 on the camera rays (`td_camera_ray` "
                 "of every pixel centre, as `terrad render --rays` writes them, in packets of 4 x 4 pixel tiles). "
                 "terrad's rate is the stage's rays over its `stages_ms` (primary: ray setup, horizon bins and "
-                "tracing; shadows: the shadow rays), Embree's the rays over the time of its tracing calls alone "
+                "tracing; shadows: the sun bound's build and the shadow rays), Embree's the rays over the time of its tracing calls alone "
                 "(rays clipped to the grid's box and converted before the clock starts; a ray that misses the box is "
                 "masked off in its packet and costs Embree nothing, while terrad's time includes its ray setup). "
                 "Medians over the rounds. Shadow rays start on the "
@@ -628,7 +650,7 @@ static double cam_steps(const bench_ds *d, double *most, int at[2])
     *most = NAN;
     for (int q = 0; q < TD_BENCH_CAM_COUNT; q++)
         for (int s = 0; s < TD_SURFACE_COUNT && d->cam[q].done; s++) {
-            double st = d->cam[q].s[s].prim_steps[0];
+            double st = d->cam[q].s[s].prim_steps[TD_BENCH_CONF_ON];
             if (isnan(st))
                 continue;
             sum += st;
@@ -675,7 +697,7 @@ static void cam_summary_row(FILE *f, const bench_ds *d, int q, int met[3])
 {
     const bench_cam_view *v = &d->cam[q];
     int sp = 0, ss = 0;
-    double rp = cam_pick(v, 0, 1, &sp), rs = cam_pick(v, 1, 1, &ss), st = v->s[sp].prim_steps[0];
+    double rp = cam_pick(v, 0, 1, &sp), rs = cam_pick(v, 1, 1, &ss), st = v->s[sp].prim_steps[TD_BENCH_CONF_ON];
     char a[16], c[16], e[16];
     fprintf(f, "| %s | %s | %s (%s) | %s (%s) | %s |\n", d->name, td_bench_cam_name(q), fixed(a, sizeof a, rp, 2),
             td_surface_name((td_surface)sp), fixed(c, sizeof c, rs, 2), td_surface_name((td_surface)ss),

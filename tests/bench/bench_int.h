@@ -79,14 +79,30 @@ typedef enum td_bench_cam {
 
 const char *td_bench_cam_name(int v);
 
-/* One surface of one camera view: [0] with the coherence device on (horizon for camera
- * rays, occlusion query for shadow rays), [1] with it off; medians over the runs. */
+/* The render configurations the camera section times per surface: every coherence
+ * device on, the shadow rays' sun bound off (the occlusion query kept), every device off.
+ * A device to measure alone is a row here. */
+#define TD_BENCH_CONF_LIST(X)                                                  \
+    X(TD_BENCH_CONF_ON, "on", 0u)                                              \
+    X(TD_BENCH_CONF_NO_SUNLIT, "no sun bound", TD_RENDER_OFF_SUNLIT)           \
+    X(TD_BENCH_CONF_OFF, "off",                                                \
+      TD_RENDER_OFF_HORIZON | TD_RENDER_OFF_OCCLUSION | TD_RENDER_OFF_SUNLIT)
+
+typedef enum td_bench_conf {
+#define TD_X_ENUM(e, name, off) e,
+    TD_BENCH_CONF_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_BENCH_CONF_COUNT
+} td_bench_conf;
+
+/* One surface of one camera view, per configuration; medians over the runs. */
 typedef struct bench_cam_surf {
     uint64_t prim_rays, shadow_rays;  /* rays[PRIMARY], rays[SHADOW] of the render */
     uint64_t coherent;                /* camera rays started from a horizon bound (on) */
     uint64_t hits;                    /* camera rays that hit the terrain */
-    double prim_rps[2], prim_steps[2];     /* rays/s of stage primary, steps a ray */
-    double shadow_rps[2], shadow_steps[2]; /* the same for stage shadows */
+    double prim_rps[TD_BENCH_CONF_COUNT], prim_steps[TD_BENCH_CONF_COUNT]; /* stage primary:
+                                         rays / its time, steps a ray */
+    double shadow_rps[TD_BENCH_CONF_COUNT], shadow_steps[TD_BENCH_CONF_COUNT]; /* stage shadows */
     double emb_shadow_rps;            /* rtcOccluded16 on this render's shadow rays */
 } bench_cam_surf;
 
@@ -99,7 +115,8 @@ typedef struct bench_cam_view {
     bench_cam_surf s[TD_SURFACE_COUNT];
     /* exactness on the triangle surface against Embree (reported, not judged) */
     uint64_t depth_differ[2];         /* depth32f render (horizon on, off) vs Embree's t */
-    uint64_t shadow_differ;           /* td_occluded vs rtcOccluded16, same shadow rays */
+    uint64_t shadow_differ;           /* td_occluded (with the render's sun bound) vs
+                                         rtcOccluded16, same shadow rays */
     uint64_t emb_self_differ;         /* rtcOccluded16 vs rtcIntersect16 (a hit) on them */
 } bench_cam_view;
 

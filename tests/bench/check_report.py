@@ -204,7 +204,7 @@ for r in rows:
     check(0 <= num(r[8]) <= 100 and 0 <= num(r[9]) <= 100, f"camera view {r[0]} {r[1]}: shares in percent")
 t = tables_after(report, "### Camera views: rays per second")
 rows = t[0][1:] if t else []
-check(len(rows) == 48 and all(len(r) == 18 for r in rows), "camera table: 3 datasets x 4 views x 4 surfaces, 18 columns")
+check(len(rows) == 48 and all(len(r) == 21 for r in rows), "camera table: 3 datasets x 4 views x 4 surfaces, 21 columns")
 best = {}
 for r in rows:
     what = f"camera {r[0]} {r[1]} {r[2]}"
@@ -215,16 +215,16 @@ for r in rows:
         check(close(num(r[6]), on, emb) and close(num(r[7]), off, emb), what + ": camera x Embree = quotients")
     check(num(r[8]) > 0 and num(r[9]) > 0, what + ": steps per camera ray > 0")
     nsh = int(r[10])
-    son, soff, semb = num(r[11]), num(r[12]), num(r[13])
+    srates, semb = [num(x) for x in r[11:14]], num(r[14])  # on, no sun bound, off
     if nsh > 0:
-        check(son > 0 and soff > 0 and semb > 0, what + ": shadow rates parse and are > 0")
-        if son > 0 and soff > 0 and semb > 0:
-            check(close(num(r[14]), son, semb) and close(num(r[15]), soff, semb), what + ": shadow x Embree = quotients")
-        check(num(r[16]) > 0 and num(r[17]) > 0, what + ": steps per shadow ray > 0")
+        check(all(x > 0 for x in srates) and semb > 0, what + ": shadow rates parse and are > 0")
+        if all(x > 0 for x in srates) and semb > 0:
+            check(all(close(num(r[15 + k]), srates[k], semb) for k in range(3)), what + ": shadow x Embree = quotients")
+        check(all(num(x) > 0 for x in r[18:21]), what + ": steps per shadow ray > 0")
     b = best.setdefault((r[0], r[1]), {"p": {}, "s": {}, "steps": {}})
     b["p"][r[2]] = num(r[6])
-    if r[14] != "-":
-        b["s"][r[2]] = num(r[14])
+    if r[15] != "-":
+        b["s"][r[2]] = num(r[15])
     b["steps"][r[2]] = num(r[8])
 t = tables_after(report, "### Exactness against Embree")
 rows = t[0][1:] if t else []
