@@ -147,10 +147,11 @@ static void cam_view_setup(const td_grid *g, int k, bench_cam_view *v)
     memset(c, 0, sizeof *c);
     c->pos_kind = TD_POS_XYZ;
     c->projection = TD_PROJ_PERSPECTIVE;
-    c->x = x;
-    c->y = y;
-    c->z = (isnan(ground) ? (double)g->zmax : ground) + fmax(q->agl_m, q->agl_frac * m);
-    c->heading = fmod(atan2(px - x, py - y) * 180.0 / M_PI + 360.0, 360.0);
+    /* whole metres and tenths of a degree: the views table prints the exact camera */
+    c->x = round(x);
+    c->y = round(y);
+    c->z = round((isnan(ground) ? (double)g->zmax : ground) + fmax(q->agl_m, q->agl_frac * m));
+    c->heading = round(10.0 * fmod(atan2(px - x, py - y) * 180.0 / M_PI + 360.0, 360.0)) / 10.0;
     c->pitch = q->pitch;
     c->roll = q->roll;
     c->fov = 70.0;
@@ -483,9 +484,14 @@ static double cam_pick(const bench_cam_view *v, int shadow, int best, int *s_out
 
 static void cam_write_views(FILE *f, const bench_ctx *b)
 {
-    fprintf(f, "### The views\n\n| dataset | view | camera x, y, z (m) | heading | pitch | roll | sun azimuth, "
+    fprintf(f, "### The views\n\nEach row is a scene: `{\"dataset\": .., \"camera\": {\"position\": {\"x\": .., \"y\": .., "
+               "\"z\": ..}, \"heading\": .., \"pitch\": .., \"roll\": .., \"fov\": 70}, \"image\": {\"width\": %d, "
+               "\"height\": %d}, \"quality\": {\"method\": \"auto\", \"surface\": ..}, \"effects\": {\"sun\": "
+               "{\"azimuth\": .., \"elevation\": ..}, \"shadows\": true}}`, and `terrad render SCENE -o OUT "
+               "--threads 1 --rays R --shadow-rays S` writes the camera and shadow rays timed here (the numbers "
+               "below are exact).\n\n| dataset | view | camera x, y, z (m) | heading | pitch | roll | sun azimuth, "
                "elevation | camera rays | hits (triangle) | started from a horizon bound (triangle) |\n"
-               "|---|---|---|---|---|---|---|---|---|---|\n");
+               "|---|---|---|---|---|---|---|---|---|---|\n", b->cam_w, b->cam_h);
     for (int k = 0; k < b->nds; k++) {
         const bench_ds *d = &b->ds[k];
         for (int q = 0; q < TD_BENCH_CAM_COUNT; q++) {
