@@ -493,14 +493,15 @@ static double cam_pick(const bench_cam_view *v, int shadow, int best, int *s_out
 
 static void cam_write_views(FILE *f, const bench_ctx *b)
 {
-    fprintf(f, "### The views\n\nEach row is a scene: `{\"dataset\": .., \"camera\": {\"position\": {\"x\": .., "
-               "\"y\": .., \"z\": ..}, \"heading\": .., \"pitch\": .., \"roll\": .., \"fov\": 70}, \"image\": {\"width\": %d, "
-               "\"height\": %d}, \"quality\": {\"method\": \"auto\", \"surface\": ..}, \"effects\": {\"sun\": "
-               "{\"azimuth\": .., \"elevation\": ..}, \"shadows\": true}}`, and `terrad render SCENE -o OUT "
-               "--threads 1 --rays R --shadow-rays S` writes the camera and shadow rays timed here (the numbers "
-               "below are exact).\n\n| dataset | view | camera x, y, z (m) | heading | pitch | roll | sun azimuth, "
-               "elevation | camera rays | hits (triangle) | started from a horizon bound (triangle) |\n"
-               "|---|---|---|---|---|---|---|---|---|---|\n", b->cam_w, b->cam_h);
+    fprintf(f,
+            "### The views\n\nEach row is a scene: `{\"dataset\": .., \"camera\": {\"position\": {\"x\": .., "
+            "\"y\": .., \"z\": ..}, \"heading\": .., \"pitch\": .., \"roll\": .., \"fov\": 70}, \"image\": "
+            "{\"width\": %d, \"height\": %d}, \"quality\": {\"method\": \"auto\", \"surface\": ..}, \"effects\": "
+            "{\"sun\": {\"azimuth\": .., \"elevation\": ..}, \"shadows\": true}}`, and `terrad render SCENE -o OUT"
+            " --threads 1 --rays R --shadow-rays S` writes the camera and shadow rays timed here (the numbers "
+            "below are exact).\n\n| dataset | view | camera x, y, z (m) | heading | pitch | roll | sun azimuth, "
+            "elevation | camera rays | hits (triangle) | started from a horizon bound (triangle) "
+            "|\n|---|---|---|---|---|---|---|---|---|---|\n", b->cam_w, b->cam_h);
     for (int k = 0; k < b->nds; k++) {
         const bench_ds *d = &b->ds[k];
         for (int q = 0; q < TD_BENCH_CAM_COUNT; q++) {
@@ -613,21 +614,21 @@ void td_bench_camera_write(FILE *f, const bench_ctx *b)
         fprintf(f,
                 "Issue 12's measurement. Per dataset four views at %d x %d pixels, 70 degrees field of view, one "
                 "ray per pixel (tables below), one thread on each side, terrad's method `auto` with every "
-                "structure built as for section 1, Embree's triangle mesh. Per view and surface, each of %d "
-                "rounds renders (`td_render`, PNG, shadows on with the view's sun) with every coherence device "
-                "on, with the sun bound off, and with every device off (`TD_RENDER_OFF_HORIZON | "
-                "TD_RENDER_OFF_OCCLUSION | TD_RENDER_OFF_SUNLIT`), then Embree traces the same "
-                "rays: rtcOccluded16 on the render's shadow rays (`td_render_opts.shadow_rays`, image order, 16 "
-                "consecutive rays a packet) and, once a round, rtcIntersect16 on the camera rays (`td_camera_ray` "
-                "of every pixel centre, as `terrad render --rays` writes them, in packets of 4 x 4 pixel tiles). "
-                "terrad's rate is the stage's rays over its `stages_ms` (primary: ray setup, horizon bins and "
-                "tracing; shadows: the sun bound's build and the shadow rays), Embree's the rays over the time of "
-                "its tracing calls alone (rays clipped to the grid's box and converted before the clock starts; a ray that misses the box is "
-                "masked off in its packet and costs Embree nothing, while terrad's time includes its ray setup). "
-                "Medians over the rounds. Shadow rays start on the "
-                "rendered surface; on the other surfaces than triangle Embree traces them against its mesh all "
-                "the same. Targets (issue 12): camera rays at least 3x rtcIntersect16 and shadow rays at least "
-                "3x rtcOccluded16 on every surface, at most 2 steps per camera ray.\n\n",
+                "structure built as for section 1, Embree's triangle mesh. Per view and surface, each of %d rounds"
+                " renders (`td_render`, PNG, shadows on with the view's sun) with every coherence device on, with "
+                "the sun bound off, and with every device off (`TD_RENDER_OFF_HORIZON | TD_RENDER_OFF_OCCLUSION | "
+                "TD_RENDER_OFF_SUNLIT`), then Embree traces the same rays: rtcOccluded16 on the render's shadow "
+                "rays (`td_render_opts.shadow_rays`, image order, 16 consecutive rays a packet) and, once a round,"
+                " rtcIntersect16 on the camera rays (`td_camera_ray` of every pixel centre, as `terrad render "
+                "--rays` writes them, in packets of 4 x 4 pixel tiles). terrad's rate is the stage's rays over its"
+                " `stages_ms` (primary: ray setup, horizon bins and tracing; shadows: the sun bound's build and "
+                "the shadow rays), Embree's the rays over the time of its tracing calls alone (rays clipped to the"
+                " grid's box and converted before the clock starts; a ray that misses the box is masked off in its"
+                " packet and costs Embree nothing, while terrad's time includes its ray setup). Medians over the "
+                "rounds. Shadow rays start on the rendered surface; on the other surfaces than triangle Embree "
+                "traces them against its mesh all the same. Targets (issue 12): camera rays at least 3x "
+                "rtcIntersect16 and shadow rays at least 3x rtcOccluded16 on every surface, at most 2 steps per "
+                "camera ray.\n\n",
                 b->cam_w, b->cam_h, b->runs);
         cam_write_views(f, b);
         cam_write_table(f, b);
