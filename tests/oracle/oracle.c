@@ -1,6 +1,8 @@
 /* oracle.c: every method and surface of td_trace held to the references.
  *
  *   oracle_trace DATASET [--rays N] [--seed S] [--threads T]
+ *   oracle_trace DATASET --cameras     (rendered views: camera and shadow rays with the
+ *                                       coherence devices, bit for bit and vs the references)
  *   oracle_trace DATASET --ray OX OY OZ DX DY DZ      (replay one ray; %a hex accepted)
  *
  *   oracle_trace DATASET|--dem FILE --write-rays FILE        (a ray set for terrad trace)
@@ -36,6 +38,8 @@
 #include "dem.h"
 #include "embree_ref.h"
 #include "reference.h"
+#include "render.h"
+#include "sunlit.h"
 #include "terrain.h"
 #include "trace.h"
 
@@ -495,6 +499,157 @@ static void one_ray(ctx *c, const td_ray *r)
     }
 }
 
+/* ---- --cameras: rendered camera views (the coherence devices of render.c) ------------ */
+
+typedef struct cam_view {
+    const char *name;
+    double fx, fy, agl, heading, pitch, roll, fov, sun_az, sun_el;
+} cam_view;
+
+/* Views placed in the grid's own frame (fx, fy: fraction of its extent; agl over the
+ * highest sample; a negative agl puts the camera below the crests, at the lowest sample
+ * plus a quarter of the relief). */
+static const cam_view cam_views[] = {
+    {"level", 0.3, 0.3, 150, 40, 0, 0, 70, 300, 30},
+    {"grazing sunset", 0.2, 0.5, 60, 95, -3, 0, 70, 270, 3},
+    {"rolled 35", 0.7, 0.6, 300, 200, -10, 35, 70, 120, 40},
+    {"roll 90", 0.5, 0.2, 200, 10, -15, 90, 60, 60, 25},
+    {"straight down", 0.5, 0.5, 2000, 0, -90, 0, 70, 150, 35},
+    {"vanishing point inside", 0.4, 0.4, 800, 30, -60, 0, 100, 200, 20},
+    {"fov 170", 0.5, 0.1, 100, 0, -5, 0, 170, 90, 10},
+    {"below the crests", 0.5, 0.5, -1, 70, 5, 0, 80, 320, 45},
+};
+
+/* The shadow rays of a colour render of the view (png, shadows on): td_occluded with the
+ * render's sun bound answers as td_trace, whose hit is judged against the reference. */
+static uint64_t camera_shadows(ctx *c, td_scene *sc, td_surface sf, td_ray *sh, uint64_t *count)
+{
+    td_render_opts o;
+    td_render_result res;
+    td_err err = {0};
+    td_sunlit *lit = NULL;
+    double sun[3], a = sc->effects.sun_azimuth * M_PI / 180.0, e = sc->effects.sun_elevation * M_PI / 180.0;
+    uint64_t errors = 0;
+    sun[0] = sin(a) * cos(e), sun[1] = cos(a) * cos(e), sun[2] = sin(e);
+    sc->image.format = TD_FORMAT_PNG;
+    sc->effects.shadows = 1;
+    td_render_opts_default(&o);
+    o.threads = 1;
+    o.shadow_rays = sh;
+    memset(&res, 0, sizeof res);
+    if (td_render(&c->view, sc, &o, &res, &err) || td_sunlit_build(&c->view, sun, &lit, &err)) {
+        printf("ERROR shadows: %s\n", err.msg);
+        errors++;
+    }
+    for (int k = 0; !errors && k < sc->image.width * sc->image.height; k++) {
+        td_hit h;
+        td_ref_hit ref;
+        uint32_t steps = 0;
+        int have = 0;
+        if (!(sh[k].tmax >= 0.0))
+            continue;
+        (*count)++;
+        td_trace(&c->view, TD_METHOD_AUTO, sf, &sh[k], &h);
+        if (td_occluded(&c->view, TD_METHOD_AUTO, sf, &sh[k], lit, &steps) != (h.t < INFINITY) ||
+            settle(c, sf, &sh[k], h.t, &ref, &have) == V_ERROR) {
+            if (errors++ < MAX_PRINT)
+                print_ray("shadow ray vs reference", TD_METHOD_AUTO, sf, &sh[k], h.t, have ? ref.t : NAN,
+                          have ? &ref : NULL);
+        }
+    }
+    td_sunlit_free(lit);
+    td_render_result_free(&res);
+    return errors;
+}
+
+/* One view, one method and surface: the depths with the devices on and off are the same
+ * bit for bit; each pixel's depth (auto only: all methods must equal it) is judged
+ * against the references like any ray; the render's shadow rays answer td_occluded with
+ * the sun bound as td_trace does, and that is judged too. Returns unexplained errors. */
+static uint64_t camera_check(ctx *c, const cam_view *cv, td_method m, td_surface sf, float *auto_depth,
+                             uint64_t *pixels, uint64_t *shadow_rays)
+{
+    enum { W = 96, H = 72 };
+    const td_grid *g = c->g;
+    td_scene sc;
+    td_render_opts o;
+    td_render_result on, off;
+    td_err err = {0};
+    td_camera cam;
+    uint64_t errors = 0;
+    td_ray *sh = calloc((size_t)W * H, sizeof *sh);
+    td_scene_defaults(&sc);
+    sc.camera.x = cv->fx * (g->w - 1) * g->sx;
+    sc.camera.y = cv->fy * (g->h - 1) * g->sy;
+    sc.camera.z = cv->agl < 0.0 ? g->zmin + 0.25 * (g->zmax - g->zmin) : g->zmax + cv->agl;
+    sc.camera.heading = cv->heading, sc.camera.pitch = cv->pitch, sc.camera.roll = cv->roll;
+    sc.camera.fov = cv->fov;
+    sc.image.width = W, sc.image.height = H, sc.image.format = TD_FORMAT_DEPTH32F;
+    sc.quality.method = m, sc.quality.surface = sf;
+    sc.effects.sun_azimuth = cv->sun_az, sc.effects.sun_elevation = cv->sun_el;
+    td_render_opts_default(&o);
+    o.threads = 1;
+    memset(&on, 0, sizeof on), memset(&off, 0, sizeof off);
+    if (!sh || td_render(&c->view, &sc, &o, &on, &err) ||
+        (o.off = TD_RENDER_OFF_HORIZON, td_render(&c->view, &sc, &o, &off, &err)) ||
+        td_camera_setup(&sc.camera, W, H, g, &cam, &err)) {
+        printf("ERROR %s %s/%s: %s\n", cv->name, td_method_name(m), td_surface_name(sf), err.msg);
+        errors++;
+        goto out;
+    }
+    for (int k = 0; k < W * H; k++) {
+        if (memcmp(&on.depth[k], &off.depth[k], sizeof(float)) ||
+            (m != TD_METHOD_AUTO && memcmp(&on.depth[k], &auto_depth[k], sizeof(float)))) {
+            if (errors++ < MAX_PRINT)
+                printf("ERROR %s %s/%s pixel %d: horizon %.9g plain %.9g auto %.9g\n", cv->name,
+                       td_method_name(m), td_surface_name(sf), k, on.depth[k], off.depth[k], auto_depth[k]);
+        }
+        if (m == TD_METHOD_AUTO) {
+            td_ray r;
+            td_hit h;
+            td_ref_hit ref;
+            int have = 0;
+            auto_depth[k] = on.depth[k];
+            td_camera_ray(&cam, k % W, k / W, &r);
+            td_trace(&c->view, m, sf, &r, &h); /* the pixel's t in double; its float is the depth */
+            if ((float)h.t != on.depth[k] || settle(c, sf, &r, h.t, &ref, &have) == V_ERROR) {
+                if (errors++ < MAX_PRINT)
+                    print_ray("camera pixel vs reference", m, sf, &r, h.t, have ? ref.t : NAN, have ? &ref : NULL);
+            }
+            (*pixels)++;
+        }
+    }
+    if (m == TD_METHOD_AUTO)
+        errors += camera_shadows(c, &sc, sf, sh, shadow_rays);
+out:
+    td_render_result_free(&on);
+    td_render_result_free(&off);
+    free(sh);
+    return errors;
+}
+
+/* --cameras: every view, method and surface. */
+static uint64_t run_cameras(ctx *c)
+{
+    uint64_t errors = 0, pixels = 0, shadow_rays = 0;
+    float *auto_depth = calloc(96 * 72, sizeof *auto_depth);
+    for (size_t v = 0; auto_depth && v < sizeof cam_views / sizeof cam_views[0]; v++) {
+        uint64_t e0 = errors;
+        for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
+            errors += camera_check(c, &cam_views[v], TD_METHOD_AUTO, (td_surface)sf, auto_depth, &pixels,
+                                   &shadow_rays);
+            for (int m = 0; m < TD_METHOD_AUTO; m++)
+                errors += camera_check(c, &cam_views[v], (td_method)m, (td_surface)sf, auto_depth, &pixels,
+                                       &shadow_rays);
+        }
+        printf("camera %-24s every method and surface: %s\n", cam_views[v].name, errors > e0 ? "ERRORS" : "ok");
+    }
+    printf("cameras: %" PRIu64 " pixels judged against the references, %" PRIu64
+           " shadow rays; horizon-started and plain depths compared bit for bit\n", pixels, shadow_rays);
+    free(auto_depth);
+    return auto_depth ? errors : errors + 1;
+}
+
 /* --reference-only: the double reference against Embree, without terrad. Embree may miss
  * (robust mode still loses some rays through vertices and edges) but every hit it reports
  * must be consistent with the reference; counted in the triangle/incremental row. */
@@ -673,7 +828,7 @@ static void replay(const td_grid *g, const td_view *view, const td_embree *emb, 
 
 int main(int argc, char **argv)
 {
-    int rc = 1, threads = 2, do_replay = 0, running = 0;
+    int rc = 1, threads = 2, do_replay = 0, running = 0, cameras = 0;
     size_t nrays = 200000;
     uint64_t seed = 12345;
     const char *name = argc > 1 && argv[1][0] != '-' ? argv[1] : "procedural";
@@ -711,6 +866,8 @@ int main(int argc, char **argv)
             threads = (int)parse_double(argv[++k]);
         } else if (!strcmp(argv[k], "--reference-only")) {
             reference_only = 1;
+        } else if (!strcmp(argv[k], "--cameras")) {
+            cameras = 1;
         } else if (!strcmp(argv[k], "--ray") && k + 6 < argc) {
             set_ray(&one, parse_double(argv[k + 1]), parse_double(argv[k + 2]),
                     parse_double(argv[k + 3]), parse_double(argv[k + 4]),
@@ -720,7 +877,8 @@ int main(int argc, char **argv)
         } else {
             fprintf(stderr,
                     "usage: %s DATASET|--dem FILE [--rays N] [--seed S] [--threads T] [--reference-only]\n"
-                    "       [--ray OX OY OZ DX DY DZ] [--write-rays FILE] [--surface S --check RAYS HITS]\n",
+                    "       [--ray OX OY OZ DX DY DZ] [--write-rays FILE] [--surface S --check RAYS HITS]\n"
+                    "       [--cameras]\n",
                     argv[0]);
             return 2;
         }
@@ -766,6 +924,19 @@ int main(int argc, char **argv)
     if (do_replay) {
         replay(g, &view, emb, eps_f, &one);
         rc = 0;
+        goto out;
+    }
+    if (cameras) {
+        ctx c1;
+        memset(&c1, 0, sizeof c1);
+        c1.g = g;
+        c1.view = view;
+        c1.emb = emb;
+        c1.eps_f = eps_f;
+        c1.eps_x = eps_x;
+        uint64_t errors = run_cameras(&c1);
+        printf("%s: %" PRIu64 " unexplained disagreements\n", errors ? "FAIL" : "PASS", errors);
+        rc = errors ? 1 : 0;
         goto out;
     }
     if (check_rays) {
