@@ -912,7 +912,7 @@ static void surface_normal(const walk *w, const hit_rec *h, float n[3])
 }
 
 /* Cells a ray started from a bound walks plainly before its method takes over. */
-#define TD_NEAR_CELLS 4
+#define TD_NEAR_CELLS 8
 
 static inline int on_grid(const walk *w, const walk_state *st)
 {

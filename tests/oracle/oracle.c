@@ -76,6 +76,17 @@ typedef struct ctx {
 static pthread_mutex_t print_lock = PTHREAD_MUTEX_INITIALIZER;
 static int reference_only, show_ties;
 
+static void ctx_init(ctx *c, const td_grid *g, const td_view *view, const td_embree *emb, double eps_f,
+                     double eps_x)
+{
+    memset(c, 0, sizeof *c);
+    c->g = g;
+    c->view = *view;
+    c->emb = emb;
+    c->eps_f = eps_f;
+    c->eps_x = eps_x;
+}
+
 /* ---- random numbers (splitmix64) ---------------------------------------------------- */
 static uint64_t rng_next(uint64_t *s)
 {
@@ -928,12 +939,7 @@ int main(int argc, char **argv)
     }
     if (cameras) {
         ctx c1;
-        memset(&c1, 0, sizeof c1);
-        c1.g = g;
-        c1.view = view;
-        c1.emb = emb;
-        c1.eps_f = eps_f;
-        c1.eps_x = eps_x;
+        ctx_init(&c1, g, &view, emb, eps_f, eps_x);
         uint64_t errors = run_cameras(&c1);
         printf("%s: %" PRIu64 " unexplained disagreements\n", errors ? "FAIL" : "PASS", errors);
         rc = errors ? 1 : 0;
@@ -941,12 +947,7 @@ int main(int argc, char **argv)
     }
     if (check_rays) {
         ctx c1;
-        memset(&c1, 0, sizeof c1);
-        c1.g = g;
-        c1.view = view;
-        c1.emb = emb;
-        c1.eps_f = eps_f;
-        c1.eps_x = eps_x;
+        ctx_init(&c1, g, &view, emb, eps_f, eps_x);
         rc = check_file(&c1, check_sf, check_rays, check_hits) ? 1 : 0;
         printf("%s\n", rc ? "FAIL" : "PASS");
         goto out;
@@ -971,12 +972,8 @@ int main(int argc, char **argv)
     for (int k = 0; k < K_COUNT; k++)
         printf(" %s%s", kind_names[k], k + 1 < K_COUNT ? "," : "\n");
     for (int t = 0; t < threads; t++) {
-        cx[t].g = g;
-        cx[t].view = view;
-        cx[t].emb = emb;
+        ctx_init(&cx[t], g, &view, emb, eps_f, eps_x);
         cx[t].emb_fine = fine;
-        cx[t].eps_f = eps_f;
-        cx[t].eps_x = eps_x;
         cx[t].rays = rays;
         cx[t].n0 = nrays * (size_t)t / (size_t)threads;
         cx[t].n1 = nrays * (size_t)(t + 1) / (size_t)threads;
