@@ -60,7 +60,28 @@
  *
  * Render and pick trace a camera ray with the same function (trace_camera: bent or
  * straight, over the levels of detail where the render has them, its hit and height
- * error counted in the stats), so a pick answers what the render drew. */
+ * error counted in the stats), so a pick answers what the render drew.
+ *
+ * Coherence devices (issue 12; each can be turned off by td_render_opts.off, and none
+ * changes a pixel: the tests compare on and off bit for bit):
+ *   horizon    straight camera rays of a perspective view on the full grid start where the
+ *              conservative horizon of their wedge says nothing precedes their hit
+ *              (horizon.h). A block's samples are cut into TD_SLICES column (or row)
+ *              slices across the image direction of the verticals, each a wedge of
+ *              azimuths bounded from its corners (td_camera_azimuths), its rays taken in
+ *              rising elevation so each reuses the bins below it; td_trace_from starts
+ *              the ray at the boundary of the cell its bound falls in, so its hit is
+ *              td_trace's. Rays above every bin are misses without a walk.
+ *   occlusion  shadow and AO rays are any-hit queries (td_occluded): no hit point or
+ *              normal, the max-mipmap climbed from 4 x 4 blocks.
+ *   sunlit     one sweep against the sun per render bounds, per 16 x 16 cells, the height
+ *              above which a point is surely lit (sunlit.h); a shadow ray ends there.
+ * Measured (docs/accuracy-vs-time.md, camera views): steps per camera ray fall from 12-16
+ * to 1.3-5, but a camera ray still costs about 1,300 instructions (walk setup, the cell
+ * tests near the hit, the stats), against Embree's packets of 16. Tried and dropped:
+ * slices cut by each sample's azimuth with an exact sort by elevation (fewer steps on
+ * rolled views, 2-7% slower overall); 8 or 16 slices (narrower wedges, more bins: 10-35%
+ * more instructions). */
 #include "render.h"
 #include "clock.h"
 
