@@ -76,9 +76,10 @@
  *              normal, the max-mipmap climbed from 4 x 4 blocks.
  *   sunlit     one sweep against the sun per render bounds, per 16 x 16 cells, the height
  *              above which a point is surely lit (sunlit.h); a shadow ray ends there.
- * Measured (docs/accuracy-vs-time.md, camera views): steps per camera ray fall from 12-16
- * to 1.3-5, but a camera ray still costs about 1,300 instructions (walk setup, the cell
- * tests near the hit, the stats), against Embree's packets of 16. Tried and dropped:
+ * Measured (docs/accuracy-vs-time.md, camera views): steps per camera ray fall from 9-25
+ * to 1.1-8, camera rays get up to 2x and shadow rays up to 1.6x faster, but a camera ray
+ * still costs about 1,300 instructions (walk setup, the cell tests near the hit, the
+ * stats): 0.2-0.45x Embree's packets of 16 on the same rays. Tried and dropped:
  * slices cut by each sample's azimuth with an exact sort by elevation (fewer steps on
  * rolled views, 2-7% slower overall); 8 or 16 slices (narrower wedges, more bins: 10-35%
  * more instructions). */
