@@ -102,6 +102,7 @@
 
 #define TD_BLOCK 16
 #define TD_SLICES 4 /* wedges a block's camera rays are cut into for the horizon device */
+#define TD_SAMPLES_MAX 8 /* quality.samples at most (limit.h's core column, check_scene) */
 #define TD_DEG (M_PI / 180.0)
 
 static const char *const td_ray_kind_names[] = {
@@ -547,13 +548,9 @@ static int occluded(const ctx *c, worker *w, td_ray_kind kind, const td_view *v,
  * needs it (asked once per render). Their order is TD_BLOCK_STAGE_LIST's. ---- */
 
 /* The camera ray of sample i of block b into its sample record (not traced yet). */
-static void camera_sample(const ctx *c, const blk *b, int i, smp *sm)
+static void camera_sample(const ctx *c, double px, double py, smp *sm)
 {
-    const int n = c->n;
     td_ray r;
-    int pix = i / (n * n), sub = i % (n * n);
-    double px = b->x0 + pix % b->bw + ((sub % n) + 0.5) / n - 0.5;
-    double py = b->y0 + pix / b->bw + ((sub / n) + 0.5) / n - 0.5;
     td_camera_ray(&c->cam, px, py, &r);
     memcpy(sm->o, r.o, sizeof sm->o);
     memcpy(sm->d, r.d, sizeof sm->d);
@@ -604,13 +601,21 @@ static void trace_slice(worker *w, const blk *b, int32_t xa, int32_t xb, int32_t
     /* rising elevation: against the image direction in which verticals rise */
     int up = rows ? vert[1] < 0.0 : vert[0] < 0.0;
     int32_t nmaj = rows ? (yb - ya) * n : (xb - xa) * n, nmin = rows ? (xb - xa) * n : (yb - ya) * n;
+    /* sample index = (pixel row * bw + pixel column) * n^2 + sub-row * n + sub-column:
+       along a sample row (column) of the slice the index steps by n^2 a pixel and by 1
+       (n) a sub-sample, so the loop adds instead of dividing */
+    const int nn = n * n, pstep = rows ? nn : b->bw * nn, sstep = rows ? 1 : n;
+    int minor[TD_BLOCK * TD_SAMPLES_MAX]; /* offset of the m-th sample along a line */
+    for (int32_t pm = 0, m = 0; pm < nmin / n; pm++)
+        for (int q = 0; q < n; q++)
+            minor[m++] = pm * pstep + q * sstep;
     for (int32_t a = 0; a < nmaj; a++) {
         int32_t ma = up ? nmaj - 1 - a : a; /* sample row (or column) in the slice */
+        int32_t pa = ma / n, sa = ma % n;  /* its pixel row (column) and sub-row (sub-column) */
+        int base = rows ? ((ya - b->y0 + pa) * b->bw + (xa - b->x0)) * nn + sa * n
+                        : ((ya - b->y0) * b->bw + (xa - b->x0 + pa)) * nn + sa;
         for (int32_t m = 0; m < nmin; m++) {
-            int32_t sx = rows ? m : ma, sy = rows ? ma : m; /* sample coordinates in the slice */
-            int32_t px = xa - b->x0 + sx / n, py = ya - b->y0 + sy / n;
-            int i = (py * b->bw + px) * n * n + (sy % n) * n + sx % n;
-            smp *sm = &w->s[i];
+            smp *sm = &w->s[base + minor[m]];
             double hk = sqrt(sm->d[0] * sm->d[0] + sm->d[1] * sm->d[1]), t_clear = 0.0;
             if (sm->flags & F_CURVE)
                 continue;
@@ -634,15 +639,20 @@ static void trace_slice(worker *w, const blk *b, int32_t xa, int32_t xb, int32_t
 static void stage_primary(worker *w, const blk *b)
 {
     const ctx *c = w->c;
-    for (int i = 0; i < b->ns; i++)
-        camera_sample(c, b, i, &w->s[i]);
+    const int n = c->n;
+    int k = 0;
+    for (int32_t y = b->y0; y < b->y1; y++) /* in sample order: pixels, then sub-samples */
+        for (int32_t x = b->x0; x < b->x1; x++)
+            for (int sr = 0; sr < n; sr++)
+                for (int sc = 0; sc < n; sc++)
+                    camera_sample(c, x + (sc + 0.5) / n - 0.5, y + (sr + 0.5) / n - 0.5, &w->s[k++]);
     if (c->horizon) {
         double vert[2], az0, az1;
         td_camera_azimuths(&c->cam, b->x0, b->y0, b->x1 - 1, b->y1 - 1, &az0, &az1, vert);
         int rows = fabs(vert[1]) >= fabs(vert[0]); /* verticals run up the image: slices are columns */
         int32_t len = rows ? b->bw : b->y1 - b->y0;
-        for (int k = 0; k < TD_SLICES; k++) {
-            int32_t s0 = len * k / TD_SLICES, s1 = len * (k + 1) / TD_SLICES;
+        for (int q = 0; q < TD_SLICES; q++) {
+            int32_t s0 = len * q / TD_SLICES, s1 = len * (q + 1) / TD_SLICES;
             if (s1 <= s0)
                 continue;
             if (rows)
