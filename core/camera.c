@@ -201,7 +201,7 @@ static int vertical_inside(const td_camera *cam, double s, double px0, double py
 }
 
 int td_camera_azimuths(const td_camera *cam, double px0, double py0, double px1, double py1,
-                       double *az0, double *az1, double vert[2])
+                       double *az0, double *az1)
 {
     int ok = cam->projection == TD_PROJ_PERSPECTIVE && !vertical_inside(cam, 1.0, px0, py0, px1, py1) &&
              !vertical_inside(cam, -1.0, px0, py0, px1, py1);
@@ -219,24 +219,26 @@ int td_camera_azimuths(const td_camera *cam, double px0, double py0, double px1,
     ok = ok && hi - lo < M_PI;
     *az0 = ref + lo;
     *az1 = ref + hi;
-    if (vert) {
-        /* how a point in front of the rectangle's centre moves in the image as it rises */
-        td_ray r;
-        double p[3], q[3], a[2] = {0.0, 0.0}, b[2] = {0.0, -1.0};
-        td_camera_ray(cam, 0.5 * (px0 + px1), 0.5 * (py0 + py1), &r);
-        for (int k = 0; k < 3; k++)
-            p[k] = q[k] = r.o[k] + r.d[k];
-        q[2] += 1e-3;
-        if (cam->projection == TD_PROJ_PERSPECTIVE && td_camera_project(cam, p, &a[0], &a[1]) &&
-            td_camera_project(cam, q, &b[0], &b[1])) {
-            b[0] -= a[0];
-            b[1] -= a[1];
-        }
-        double len = hypot(b[0], b[1]);
-        vert[0] = len > 0.0 ? b[0] / len : 0.0;
-        vert[1] = len > 0.0 ? b[1] / len : -1.0;
-    }
     return ok;
+}
+
+void td_camera_rising(const td_camera *cam, double px, double py, double vert[2])
+{
+    /* how a point in front of the pixel moves in the image as it rises */
+    td_ray r;
+    double p[3], q[3], a[2] = {0.0, 0.0}, b[2] = {0.0, -1.0};
+    td_camera_ray(cam, px, py, &r);
+    for (int k = 0; k < 3; k++)
+        p[k] = q[k] = r.o[k] + r.d[k];
+    q[2] += 1e-3;
+    if (cam->projection == TD_PROJ_PERSPECTIVE && td_camera_project(cam, p, &a[0], &a[1]) &&
+        td_camera_project(cam, q, &b[0], &b[1])) {
+        b[0] -= a[0];
+        b[1] -= a[1];
+    }
+    double len = hypot(b[0], b[1]);
+    vert[0] = len > 0.0 ? b[0] / len : 0.0;
+    vert[1] = len > 0.0 ? b[1] / len : -1.0;
 }
 
 int td_camera_project(const td_camera *cam, const double p[3], double *px, double *py)

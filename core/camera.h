@@ -40,10 +40,14 @@ void td_camera_ray(const td_camera *cam, double px, double py, td_ray *r);
  * one azimuth pass through one half-line from the image of the vertical (the vanishing
  * point of verticals), so over a rectangle that does not hold that point the extremes are
  * at its corners. Returns 0 (nothing bounded) when it does hold it (with a pixel's
- * margin), for an orthographic camera, or when the corners span pi or more. *vert gets
- * the image direction in which verticals rise at the rectangle's centre (unit). */
+ * margin), for an orthographic camera, or when the corners span pi or more. */
 int td_camera_azimuths(const td_camera *cam, double px0, double py0, double px1, double py1,
-                       double *az0, double *az1, double vert[2]);
+                       double *az0, double *az1);
+
+/* The image direction (unit; px right, py down) in which a point seen at pixel (px, py)
+ * moves as it rises: elevation grows that way along the pixel's vanishing-point line.
+ * Straight up the image (0, -1) where no direction follows (orthographic camera). */
+void td_camera_rising(const td_camera *cam, double px, double py, double vert[2]);
 
 /* Projects p (dataset frame) to pixel coordinates; returns 0 when p is behind the
  * camera (perspective) and leaves px, py unset, 1 otherwise (the point may still be

@@ -585,21 +585,19 @@ static void camera_trace(worker *w, smp *sm, double t_clear)
 }
 
 /* One slice of a block, pixels [xa, xb) x [ya, yb), from the horizon of its wedge (see
- * horizon.h): its samples in order of rising elevation (along `major`: rows when the
- * slice stands upright in the image, else columns), each ray started where the
- * horizon says nothing can precede its hit. */
+ * horizon.h): its samples in order of rising elevation (a row at a time when `rows`, the
+ * slice standing upright in the image, else a column at a time; from the bottom (right)
+ * end when `up`), each ray started where the horizon says nothing can precede its hit. */
 static void trace_slice(worker *w, const blk *b, int32_t xa, int32_t xb, int32_t ya, int32_t yb,
-                        int rows)
+                        int rows, int up)
 {
     const ctx *c = w->c;
     const int n = c->n;
-    double az0, az1, vert[2];
+    double az0, az1;
     uint32_t bins = 0;
     int hz_ok = td_camera_azimuths(&c->cam, xa + 0.5 / n - 0.5, ya + 0.5 / n - 0.5, xb - 0.5 / n - 0.5,
-                                   yb - 0.5 / n - 0.5, &az0, &az1, vert) &&
+                                   yb - 0.5 / n - 0.5, &az0, &az1) &&
                 td_horizon_begin(&w->hz, c->v, c->cam.o, az0, az1);
-    /* rising elevation: against the image direction in which verticals rise */
-    int up = rows ? vert[1] < 0.0 : vert[0] < 0.0;
     int32_t nmaj = rows ? (yb - ya) * n : (xb - xa) * n, nmin = rows ? (xb - xa) * n : (yb - ya) * n;
     /* sample index = (pixel row * bw + pixel column) * n^2 + sub-row * n + sub-column:
        along a sample row (column) of the slice the index steps by n^2 a pixel and by 1
@@ -647,18 +645,20 @@ static void stage_primary(worker *w, const blk *b)
                 for (int sc = 0; sc < n; sc++)
                     camera_sample(c, x + (sc + 0.5) / n - 0.5, y + (sr + 0.5) / n - 0.5, &w->s[k++]);
     if (c->horizon) {
-        double vert[2], az0, az1;
-        td_camera_azimuths(&c->cam, b->x0, b->y0, b->x1 - 1, b->y1 - 1, &az0, &az1, vert);
+        double vert[2];
+        td_camera_rising(&c->cam, 0.5 * (b->x0 + b->x1 - 1), 0.5 * (b->y0 + b->y1 - 1), vert);
         int rows = fabs(vert[1]) >= fabs(vert[0]); /* verticals run up the image: slices are columns */
+        /* rising elevation: samples taken from the end the verticals rise away from */
+        int up = rows ? vert[1] < 0.0 : vert[0] < 0.0;
         int32_t len = rows ? b->bw : b->y1 - b->y0;
         for (int q = 0; q < TD_SLICES; q++) {
             int32_t s0 = len * q / TD_SLICES, s1 = len * (q + 1) / TD_SLICES;
             if (s1 <= s0)
                 continue;
             if (rows)
-                trace_slice(w, b, b->x0 + s0, b->x0 + s1, b->y0, b->y1, 1);
+                trace_slice(w, b, b->x0 + s0, b->x0 + s1, b->y0, b->y1, 1, up);
             else
-                trace_slice(w, b, b->x0, b->x1, b->y0 + s0, b->y0 + s1, 0);
+                trace_slice(w, b, b->x0, b->x1, b->y0 + s0, b->y0 + s1, 0, up);
         }
     } else {
         for (int i = 0; i < b->ns; i++)
