@@ -8,9 +8,10 @@
  *
  *     e_k = (M_k - E_z) / d_k      (M_k >= E_z)      e_k = (M_k - E_z) / d_k+1   (else)
  *
- * where M_k is the highest corner of any cell that meets the bin's bounding box (the
- * max-mipmap answers it in at most 16 reads a tile: td_view_max). A ray of elevation tangent e is at
- * height E_z + d e at horizontal distance d, so it cannot meet the terrain in a bin with
+ * where M_k is the highest corner of any cell that meets the bin's bounding box
+ * (td_view_max: at most 16 samples or max-mipmap blocks a tile). A ray of elevation
+ * tangent e is at height E_z + d e at horizontal distance d, so it cannot meet the
+ * terrain in a bin with
  * e_k < e: it meets nothing before the first bin whose running maximum P_k = max e_j
  * (j <= k) reaches e, and nothing at all if no bin does. That holds for every surface
  * (each is bounded by its cell's highest corner) and every ray of the wedge, in any
