@@ -15,7 +15,9 @@ typedef struct td_edt_scratch {
     double *g;          /* n: f + w*q^2 of the envelope's parabolas */
     double *rcp;        /* n: 1 / (2 w i), for the weight rcp_w */
     double rcp_w;
-    int32_t *v;         /* n */
+    double *fe;         /* n: the envelope's parabolas' costs */
+    int32_t *v;         /* n: their roots */
+    int32_t *qs;        /* n: the line's samples with a finite cost */
 } td_edt_scratch;
 
 int td_edt_scratch_init(td_edt_scratch *s, int32_t n);
