@@ -121,15 +121,17 @@ void td_edt_columns(const float *h, double z, int32_t nx, int32_t ny, uint32_t *
 void td_edt_row(const uint32_t *colrow, int32_t nx, double wx, double wy, double *out,
                 td_edt_scratch *s)
 {
-    /* the finite samples, listed without a branch: every column is written, only those
-     * with a feature are counted */
+    /* the finite samples, listed without a branch (every column is written, only those
+     * with a feature are counted), then their costs */
     int32_t m = 0, zeros = 0;
     for (int32_t x = 0; x < nx; x++) {
-        double c = (double)colrow[x];
         s->qs[m] = x;
-        s->f[m] = wy * c * c;
         m += colrow[x] < TD_EDT_NONE;
         zeros += colrow[x] == 0u;
+    }
+    for (int32_t i = 0; i < m; i++) {
+        double c = (double)colrow[s->qs[i]];
+        s->f[i] = wy * c * c;
     }
     if (zeros == nx) { /* a row of features only is its own transform */
         for (int32_t x = 0; x < nx; x++)
