@@ -46,7 +46,7 @@ void td_edt_scratch_free(td_edt_scratch *s)
  * (intersections then differ from a division's by an ulp or two, which can only pick
  * between parabolas equal to about 4 n^2 ulps; the planes keep D^2 rounded down by 2^-16,
  * see planes.c). */
-static void edt_1d(const int32_t *qs, const double *f, int32_t m, double *d, int32_t n, double w,
+TD_ROW_CLONES static void edt_1d(const int32_t *qs, const double *f, int32_t m, double *d, int32_t n, double w,
                    td_edt_scratch *s)
 {
     int32_t k = -1;
@@ -90,7 +90,7 @@ static void edt_1d(const int32_t *qs, const double *f, int32_t m, double *d, int
         d[q] = INFINITY;
 }
 
-void td_edt_columns(const float *h, double z, int32_t nx, int32_t ny, uint32_t *col)
+TD_ROW_CLONES void td_edt_columns(const float *h, double z, int32_t nx, int32_t ny, uint32_t *col)
 {
     /* south to north: 0 on a feature, else one more than the cell below; then north to
      * south, the smaller of that and one more than the cell above. TD_EDT_NONE + ny
@@ -118,7 +118,7 @@ void td_edt_columns(const float *h, double z, int32_t nx, int32_t ny, uint32_t *
     }
 }
 
-void td_edt_row(const uint32_t *colrow, int32_t nx, double wx, double wy, double *out,
+TD_ROW_CLONES void td_edt_row(const uint32_t *colrow, int32_t nx, double wx, double wy, double *out,
                 td_edt_scratch *s)
 {
     /* the finite samples, listed without a branch (every column is written, only those
