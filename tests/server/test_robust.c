@@ -262,7 +262,7 @@ static void test_healthz_while_loading(void **state)
     f = fopen(gate, "w");
     assert_non_null(f);
     fclose(f);
-    assert_int_equal(th_start(&L, TERRAD_BIN, args, env), 0); /* listening, nothing loaded */
+    assert_int_equal(th_start_listening(&L, TERRAD_BIN, args, env), 0); /* nothing loaded */
     assert_false(th_log_has(&L, "datasets_ready"));
     assert_int_equal(get_status(&L, "/healthz", NULL, 0), 200);
     assert_int_equal(get_status(&L, "/readyz", ra, sizeof ra), 503);
