@@ -2,8 +2,8 @@
  * kind's alloc), through the store's public API as the server uses it. Set-up: a store
  * with a cache directory and a 33 x 33 grid of 4 tiles, preloaded once, leaves one cache
  * file per tile and kind. Each input replaces one of them: the first byte's bits 0-2 pick
- * the file; bit 6 sets the header's payload size, and bit 7 its checksum, to match the
- * bytes that follow (so the fuzzer also reaches what lies behind those checks, as a file
+ * the file; bit 6 sets the header's payload size, and bit 7 its checksum (FNV-1a of the
+ * header with the checksum taken as 0, then the payload), to match the bytes that follow (so the fuzzer also reaches what lies behind those checks, as a file
  * written with a valid checksum by a buggy or hostile writer would); the rest is the file.
  * Then a fresh store over the same grid preloads that tile (reading the file, or refusing
  * it and rebuilding), and rays are traced through the result with every method and
@@ -188,8 +188,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         uint64_t payload = n - hdr_bytes;
         memcpy(buf + hdr_bytes - 16, &payload, 8);
     }
-    if (n >= hdr_bytes && (data[0] & 0x80)) {
-        uint64_t sum = td_fnv1a(TD_FNV1A_INIT, buf + hdr_bytes, n - hdr_bytes);
+    if (n >= hdr_bytes && (data[0] & 0x80)) { /* as cache_checksum: header (checksum 0), payload */
+        uint64_t sum = 0;
+        memcpy(buf + hdr_bytes - 8, &sum, 8);
+        sum = td_fnv1a(TD_FNV1A_INIT, buf, n);
         memcpy(buf + hdr_bytes - 8, &sum, 8);
     }
     f = fopen(files[which], "wb");
