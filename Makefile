@@ -3,6 +3,8 @@
 #   make test  install what is missing, build, run every test (and the unit tests under
 #              ASan + UBSan), and replay every fuzz corpus (libFuzzer build when clang is
 #              installed; the plain replay of ctest -L fuzz always)
+#   make soak  SOAK_SECONDS (default 600) of overload on loopback with wrk (scripts/soak):
+#              no crash, only 200/202/304/503 (+ Retry-After), memory flat
 #   make fuzz  fuzz every target of tests/fuzz for FUZZ_SECONDS (default 600) each, with
 #              libFuzzer + ASan + UBSan (clang); prints executions and findings
 BUILD      ?= build
@@ -11,13 +13,14 @@ FUZZ_BUILD ?= build-fuzz
 FUZZ_SECONDS ?= 600
 FUZZ_TARGETS ?= asc hgt png raw cache request
 CLANG ?= $(shell command -v clang 2>/dev/null)
+SOAK_SECONDS ?= 600
 JOBS       ?= $(shell nproc)
 CMAKE_FLAGS ?=
 ifdef CI
 CMAKE_FLAGS += -DTERRAD_WERROR=ON
 endif
 
-.PHONY: all deps build run test test-asan fuzz fuzz-build fuzz-replay bench clean
+.PHONY: all deps build run test test-asan fuzz fuzz-build fuzz-replay soak bench clean
 
 all: build
 
@@ -54,6 +57,9 @@ fuzz: fuzz-build
 fuzz-replay:
 	@if [ -n "$(CLANG)" ]; then $(MAKE) --no-print-directory fuzz-build && ./scripts/fuzz replay $(FUZZ_BUILD) $(FUZZ_TARGETS); \
 	else echo "fuzz-replay: no clang: the corpora are replayed by ctest -L fuzz (plain driver) only"; fi
+
+soak: build
+	./scripts/soak --terrad $(BUILD)/terrad --seconds $(SOAK_SECONDS)
 
 # `terrad bench` runs build/terrad-bench (tests/bench), built beside terrad by `build`.
 bench: build
