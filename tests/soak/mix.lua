@@ -16,7 +16,8 @@ for k = 0, 5 do
   add("POST", "/v1/render", json, string.format('{"dataset":"volcano","camera":{"position":' ..
       '{"x":%d,"y":-400,"z":450},"pitch":-20},"image":{"width":128,"height":96},' ..
       '"effects":{"shadows":true}}', 200 + 20 * k))
-  add("GET", string.format("/v1/tiles/trinidad/%d/%d/0.png", k % 3, k % 2))
+  local tile = ({"0/0/0", "1/0/0", "1/1/0", "1/0/1", "2/1/1", "2/2/2"})[k + 1] -- all over data
+  add("GET", "/v1/tiles/trinidad/" .. tile .. ".png")
   add("POST", "/v1/pick", json, string.format('{"dataset":"trinidad","camera":{"position":' ..
       '{"x":20000,"y":-2000,"z":5500},"pitch":-15},"pick":[[%d,240],[0,0]]}', 100 + k))
   add("GET", "/healthz")
