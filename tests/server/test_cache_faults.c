@@ -4,7 +4,8 @@
  * detected, ignored and rebuilt (the rebuilt structure is the fresh build's, and is written
  * back valid); a disk that refuses the writes (RLIMIT_FSIZE: writes fail as on a full disk)
  * leaves the built tiles served and no file behind; a write killed before its rename
- * leaves only a *.tmp, which is never read. */
+ * leaves only a *.tmp, which is never read; a file with a valid checksum but contents a
+ * tracer would index out of range with is refused too. */
 #include <dirent.h>
 #include <setjmp.h>
 #include <signal.h>
@@ -332,6 +333,44 @@ static void test_other_dataset_and_tile(void **state)
     }
 }
 
+/* Files with a valid checksum whose content would make a tracer index out of range (a
+ * buggy or hostile writer): a cone's apex index past the slices, a NaN apex height, a
+ * max-mipmap level's dimension changed. Refused after the checksum, rebuilt. */
+static void test_forged_checksum(void **state)
+{
+    char pl[600], mm[600];
+    unsigned char *b;
+    size_t n, h;
+    const float nan = __builtin_nanf("");
+    int32_t dim;
+    (void)state;
+    populate();
+    cache_file("t", "pl", pl, sizeof pl);
+    cache_file("t", "mm", mm, sizeof mm);
+    b = slurp(pl, &n);
+    h = header_bytes(b, n);
+    b[h] = 255; /* cone 0's apex index (k = 8) */
+    fix_checksum(b, n);
+    spit(pl, b, n);
+    reload_expect(1, 1);
+    free(b);
+    b = slurp(pl, &n); /* rewritten valid by the rebuild */
+    memcpy(b + n - sizeof nan, &nan, sizeof nan); /* the last apex height */
+    fix_checksum(b, n);
+    spit(pl, b, n);
+    reload_expect(1, 1);
+    free(b);
+    b = slurp(mm, &n);
+    memcpy(&dim, b + 60, 4); /* dim[1]: after magic, version, kind, fingerprint, tile_log2,
+                                param, tile, nx, ny, levels, pad, dim[0] */
+    dim -= 1;
+    memcpy(b + 60, &dim, 4);
+    fix_checksum(b, n);
+    spit(mm, b, n);
+    reload_expect(1, 1);
+    free(b);
+}
+
 /* Replaced while serving: the store runs with its tiles resident; the files are replaced
  * (a corrupt one and a foreign one); the next preload (after an eviction) reads them,
  * refuses both and rebuilds; what is served is the fresh build. */
@@ -433,6 +472,7 @@ int main(void)
         cmocka_unit_test(test_bit_flips),
         cmocka_unit_test(test_other_version),
         cmocka_unit_test(test_other_dataset_and_tile),
+        cmocka_unit_test(test_forged_checksum),
         cmocka_unit_test(test_replaced_while_serving),
         cmocka_unit_test(test_disk_full),
         cmocka_unit_test(test_killed_writer),
