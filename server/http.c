@@ -325,11 +325,17 @@ static void *watch_main(void *arg)
     return NULL;
 }
 
+/* The body cap of this request: max_put_body for PUT (heights edits) when set. */
+static size_t body_cap(const td_http_req *q)
+{
+    return !strcmp(q->method, "PUT") && q->h->o.max_put_body ? q->h->o.max_put_body : q->h->o.max_body;
+}
+
 static int body_append(td_http_req *q, const char *data, size_t n)
 {
     int rc = 0;
     size_t need = 0;
-    if (q->too_big || !td_add_size(q->len, n, &need) || need > q->h->o.max_body) {
+    if (q->too_big || !td_add_size(q->len, n, &need) || need > body_cap(q)) {
         q->too_big = 1;
         free(q->body);
         q->body = NULL;
@@ -409,7 +415,7 @@ static enum MHD_Result access_cb(void *cls, struct MHD_Connection *conn, const c
         if (cl) {
             char *end = NULL;
             unsigned long long n = strtoull(cl, &end, 10);
-            if (end != cl && n > h->o.max_body) {
+            if (end != cl && n > body_cap(q)) {
                 /* Refuse before reading: libmicrohttpd closes the connection after. */
                 q->too_big = 1;
                 ret = run_handler(h, q);

@@ -117,6 +117,7 @@ typedef struct td_http_opts {
     int workers;      /* deferred-work threads, >= 1 */
     int queue;        /* deferred requests waiting beyond the running ones, >= 0 */
     size_t max_body;  /* bytes */
+    size_t max_put_body; /* bytes of a PUT body (heights edits); 0: max_body */
     unsigned conn_timeout_s;
     unsigned per_ip;
     td_http_handler handler;

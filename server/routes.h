@@ -25,6 +25,7 @@
     X(TD_ROUTE_PRELOAD, "admin_preload")                                       \
     X(TD_ROUTE_JOB, "admin_job")                                               \
     X(TD_ROUTE_EVICT, "admin_evict")                                           \
+    X(TD_ROUTE_HEIGHTS, "admin_heights")                                       \
     X(TD_ROUTE_HEALTHZ, "healthz")                                             \
     X(TD_ROUTE_READYZ, "readyz")                                               \
     X(TD_ROUTE_METRICS, "metrics")                                             \
