@@ -154,6 +154,19 @@ out:
     return rc;
 }
 
+void td_grid_edit_read(const td_grid *g, const td_grid_region *r, unsigned char *out)
+{
+    for (int32_t row = 0; row < r->h; row++) {
+        const float *src = g->z + (size_t)(g->h - 1 - (r->y + row)) * (size_t)g->w + (size_t)r->x;
+        for (int32_t col = 0; col < r->w; col++) {
+            uint32_t u;
+            memcpy(&u, &src[col], sizeof u);
+            for (int b = 0; b < 4; b++)
+                *out++ = (unsigned char)(u >> (8 * b));
+        }
+    }
+}
+
 /* The tiles along one axis holding samples lo .. hi: tile t holds samples t*T .. t*T+T. */
 static void tile_span(int32_t lo, int32_t hi, int32_t T, int32_t ntiles, int32_t *t0, int32_t *t1)
 {

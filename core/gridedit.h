@@ -55,6 +55,11 @@ td_status td_grid_edit_apply(const td_grid *g, const td_grid_region *r, const fl
 td_status td_grid_edit_tiles(const td_grid *g, const td_grid_region *r, size_t **tiles,
                              size_t *n, td_err *err);
 
+/* The region's current heights as a body: w*h little-endian float32 (4*w*h bytes into
+ * out), row 0 north, voids as NaN: what GET .../heights answers, and what a client
+ * changes and sends back. r must be inside g. */
+void td_grid_edit_read(const td_grid *g, const td_grid_region *r, unsigned char *out);
+
 /* Reads a file of w*h little-endian float32 (the same body as the API's) and applies it
  * at (x, y): what `terrad render --edit X,Y,W,H,FILE` does. Errors name the file. */
 td_status td_grid_edit_file(const td_grid *g, const td_grid_region *r, const char *path,

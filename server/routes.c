@@ -636,18 +636,65 @@ static void h_evict(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     }
 }
 
+/* The region of the query (x, y, w, h) of dataset idx; 0, or -1 with a 400 naming the
+ * parameter. At most --max-edit-kb of samples, reading or writing. */
+static int heights_region(td_app *app, td_http_req *q, td_http_resp *r, size_t idx,
+                          td_grid_region *reg)
+{
+    td_dataset_info di;
+    td_err e = {0};
+    int rc;
+    td_store_info(app->store, idx, &di);
+    rc = td_grid_edit_parse(di.grid, td_http_req_query(q, "x"), td_http_req_query(q, "y"),
+                            td_http_req_query(q, "w"), td_http_req_query(q, "h"),
+                            (int64_t)(app->cfg->max_edit_kb << 10) / 4, reg, &e) ? -1 : 0;
+    if (rc)
+        api_error(r, TD_AE_BAD_REQUEST, e.field, "%s", e.msg);
+    return rc;
+}
+
+/* GET /v1/admin/datasets/{id}/heights?x=&y=&w=&h=: the region's heights now, as the body
+ * a PUT takes (w*h little-endian float32, row 0 north, NaN void), with X-Terrad-Version:
+ * a client reads, changes and writes back (the web page's disc edits). */
+static void heights_get(td_app *app, td_http_req *q, td_http_resp *r, const char *id, size_t idx)
+{
+    td_grid_region reg;
+    td_snapshot *snap = NULL;
+    unsigned char *body = NULL;
+    size_t len;
+    td_err e = {0};
+
+    if (heights_region(app, q, r, idx, &reg))
+        goto out;
+    len = (size_t)reg.w * (size_t)reg.h * 4; /* at most --max-edit-kb */
+    body = malloc(len);
+    if (!body || td_store_acquire(app->store, id, &snap, &e)) {
+        api_error(r, TD_AE_INTERNAL, NULL, "%s", body ? e.msg : "out of memory");
+        goto out;
+    }
+    td_grid_edit_read(td_snapshot_view(snap)->grid, &reg, body);
+    td_http_resp_header(r, "X-Terrad-Version", "%llu", (unsigned long long)td_snapshot_version(snap, NULL));
+    td_http_resp_header(r, "Cache-Control", "no-store");
+    r->status = 200;
+    td_http_resp_take(r, body, len, "application/octet-stream");
+    body = NULL;
+out:
+    td_snapshot_release(snap);
+    free(body);
+}
+
 /* PUT /v1/admin/datasets/{id}/heights?x=&y=&w=&h=: the region and the body are checked
  * first (400 naming the parameter or `body`; nothing changes then), then applied as the
  * dataset's next heights version at once (td_store_edit), and the touched tiles that
  * held acceleration are queued for rebuilding as a preload job. 200 with the version,
  * the touched tiles and the job (null when nothing was resident there, or when the
- * queue is full: those tiles are then traced without acceleration until a preload). */
+ * queue is full: those tiles are then traced without acceleration until a preload).
+ * GET reads the region instead (heights_get). */
 static void h_heights(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
     const char *id = seg[1], *ct = td_http_req_header(q, "Content-Type"), *body;
     const size_t ctl = strlen("application/octet-stream");
     long idx = td_store_find(app->store, id);
-    td_dataset_info di;
     td_grid_region reg;
     td_edit_result res;
     size_t len = 0;
@@ -661,19 +708,19 @@ static void h_heights(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
         api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", id);
         goto out;
     }
+    if (strcmp(td_http_req_method(q), "PUT")) {
+        heights_get(app, q, r, id, (size_t)idx);
+        goto out;
+    }
     if (!ct || strncasecmp(ct, "application/octet-stream", ctl) || (ct[ctl] && ct[ctl] != ';' && ct[ctl] != ' ')) {
         api_error(r, TD_AE_MEDIA_TYPE, NULL, "the body must be application/octet-stream: w*h "
                   "little-endian float32 (got %s)", ct ? ct : "no Content-Type");
         goto out;
     }
-    td_store_info(app->store, (size_t)idx, &di);
-    rc = td_grid_edit_parse(di.grid, td_http_req_query(q, "x"), td_http_req_query(q, "y"),
-                            td_http_req_query(q, "w"), td_http_req_query(q, "h"),
-                            (int64_t)(app->cfg->max_edit_kb << 10) / 4, &reg, &e);
-    if (!rc) {
-        body = td_http_req_body(q, &len);
-        rc = td_grid_edit_decode(&reg, body, body ? len : 0, &z, &e);
-    }
+    if (heights_region(app, q, r, (size_t)idx, &reg))
+        goto out;
+    body = td_http_req_body(q, &len);
+    rc = td_grid_edit_decode(&reg, body, body ? len : 0, &z, &e);
     if (!rc)
         rc = td_store_edit(app->store, (size_t)idx, &reg, z, &res, &e);
     if (rc) {
@@ -1262,7 +1309,7 @@ static const td_route_row td_routes[] = {
     {TD_ROUTE_JOB, "/v1/admin/", "jobs/*", 4, 1, "GET, HEAD", h_job, NULL},
     {TD_ROUTE_JOB, "/v1/admin/jobs/", "", 0, 1, NULL, NULL, "no such admin route"},
     {TD_ROUTE_EVICT, "/v1/admin/", "datasets/*/tiles", 4, 1, "DELETE", h_evict, NULL},
-    {TD_ROUTE_HEIGHTS, "/v1/admin/", "datasets/*/heights", 4, 1, "PUT", h_heights, NULL},
+    {TD_ROUTE_HEIGHTS, "/v1/admin/", "datasets/*/heights", 4, 1, "GET, HEAD, PUT", h_heights, NULL},
     {TD_ROUTE_EVICT, "/v1/admin/", "", 0, 1, NULL, NULL, "no such admin route"},
     {TD_ROUTE_WEB, TD_STATIC_VENDOR_PREFIX, "", 0, 0, "GET, HEAD", h_vendor, NULL},
     {TD_ROUTE_UNKNOWN, "/v1", NULL, 0, 0, NULL, h_no_route, NULL},

@@ -1,6 +1,7 @@
 /* test_edit.c: PUT /v1/admin/datasets/{id}/heights over real HTTP (libcurl): bearer
  * token, 400 naming the parameter (and nothing changed then), 413 over --max-edit-kb,
  * the dataset's version in the answer, in GET /v1/datasets/{id} and in render ETags;
+ * GET of a region reading back what PUT wrote;
  * the render after an edit equal byte for byte to `terrad render --edit` of the same
  * scene, at once and once the rebuild job is done; an edit racing a preload; renders
  * during a stream of edits, each the picture of exactly one version; and a restart,
@@ -351,6 +352,32 @@ static void test_edit_matches_cli(void **state)
     srv_render(&S, &VOLCANO, NULL, &r);
     assert_same_png(&r, png1, len1);
     th_resp_free(&r);
+    /* GET reads the region back: the body that wrote it, and the version */
+    {
+        char v[32], *want = samples(20 * 10, 250.0f);
+        assert_int_equal(th_request(&S, "GET", "/v1/admin/datasets/volcano/heights?x=20&y=40&w=20&h=10",
+                                    AUTH_JSON, NULL, 0, &r), 0);
+        assert_int_equal(r.status, 200);
+        assert_int_equal(r.len, 20 * 10 * 4);
+        assert_memory_equal(r.body, want, r.len);
+        assert_true(th_header(&r, "X-Terrad-Version", v, sizeof v));
+        assert_string_equal(v, "2");
+        th_resp_free(&r);
+        assert_int_equal(th_request(&S, "GET", "/v1/admin/datasets/volcano/heights?x=19&y=40&w=1&h=1",
+                                    AUTH_JSON, NULL, 0, &r), 0);
+        assert_int_equal(r.len, 4);
+        assert_memory_not_equal(r.body, want, 4); /* outside the edit */
+        th_resp_free(&r);
+        assert_int_equal(th_request(&S, "GET", "/v1/admin/datasets/volcano/heights?x=20&y=40&w=50&h=10",
+                                    AUTH_JSON, NULL, 0, &r), 0);
+        assert_error(&r, 400, "bad_request", "w");
+        th_resp_free(&r);
+        assert_int_equal(th_request(&S, "GET", "/v1/admin/datasets/volcano/heights?x=20&y=40&w=5&h=10",
+                                    NULL, NULL, 0, &r), 0);
+        assert_error(&r, 401, "unauthorized", NULL);
+        th_resp_free(&r);
+        free(want);
+    }
 
     assert_int_equal(put_edit(&S, "volcano", &e[1], &version, NULL), 200);
     assert_int_equal(version, 3);

@@ -158,6 +158,13 @@ static void test_apply_copy_on_write(void **state)
     assert_int_equal(td_grid_finish(ref, &err), TD_OK);
     assert_true(ref->zmin == c->zmin && ref->zmax == c->zmax && ref->voids == c->voids);
     assert_memory_equal(ref->tiles, c->tiles, sizeof(td_tile) * (size_t)(c->tiles_x * c->tiles_y));
+    /* read back as a body: the same bytes as the body that wrote it */
+    {
+        unsigned char *want = le_body(z, 12), got[48];
+        td_grid_edit_read(c, &r, got);
+        assert_memory_equal(got, want, 48);
+        free(want);
+    }
     free(before);
     td_grid_free(ref);
     td_grid_free(c);
