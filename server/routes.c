@@ -702,6 +702,7 @@ static void h_heights(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     unsigned job = 0;
     td_err e = {0};
     td_status rc;
+    double t0 = td_clock_s();
 
     memset(&res, 0, sizeof res);
     if (idx < 0) {
@@ -736,11 +737,12 @@ static void h_heights(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
            (unsigned long long)res.version, (int)reg.x, (int)reg.y, (int)reg.w, (int)reg.h, res.touched, job);
     if (job)
         td_http_resp_header(r, "Location", "/v1/admin/jobs/%u", job);
-    send_json(r, 200, json_pack("{s:s,s:I,s:{s:i,s:i,s:i,s:i},s:I,s:I,s:o}", "dataset", id, "version",
+    send_json(r, 200, json_pack("{s:s,s:I,s:{s:i,s:i,s:i,s:i},s:I,s:I,s:o,s:f}", "dataset", id, "version",
                                 (json_int_t)res.version, "region", "x", (int)reg.x, "y", (int)reg.y, "w",
                                 (int)reg.w, "h", (int)reg.h, "tiles", (json_int_t)res.touched, "rebuild",
                                 (json_int_t)res.rebuild.ntiles,
-                                "job", job ? json_integer((json_int_t)job) : json_null()));
+                                "job", job ? json_integer((json_int_t)job) : json_null(),
+                                "apply_ms", 1e3 * (td_clock_s() - t0)));
 out:
     free(z);
     free((void *)res.rebuild.tiles);
