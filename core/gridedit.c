@@ -178,24 +178,11 @@ static void tile_span(int32_t lo, int32_t hi, int32_t T, int32_t ntiles, int32_t
 td_status td_grid_edit_tiles(const td_grid *g, const td_grid_region *r, size_t **tiles,
                              size_t *n, td_err *err)
 {
-    td_status rc = TD_OK;
     int32_t T = td_grid_tile_size(g), tx0, tx1, ty0, ty1;
-    size_t k = 0;
 
     tile_span(r->x, r->x + r->w - 1, T, g->tiles_x, &tx0, &tx1);
     tile_span(g->h - r->y - r->h, g->h - 1 - r->y, T, g->tiles_y, &ty0, &ty1);
-    *n = (size_t)(tx1 - tx0 + 1) * (size_t)(ty1 - ty0 + 1);
-    *tiles = malloc(*n * sizeof **tiles);
-    if (!*tiles) {
-        *n = 0;
-        rc = td_err_set(err, TD_ENOMEM, "out of memory");
-        goto out;
-    }
-    for (int32_t ty = ty0; ty <= ty1; ty++)
-        for (int32_t tx = tx0; tx <= tx1; tx++)
-            (*tiles)[k++] = (size_t)ty * (size_t)g->tiles_x + (size_t)tx;
-out:
-    return rc;
+    return td_grid_tile_range(g, tx0, tx1, ty0, ty1, tiles, n, err);
 }
 
 td_status td_grid_edit_file(const td_grid *g, const td_grid_region *r, const char *path,

@@ -606,6 +606,17 @@ static uint64_t grid_fingerprint(const td_grid *g)
     return h;
 }
 
+/* Levels of detail of a heights version: filtered coarse grids with their max-mipmaps (a
+ * third of the heights and little more), resident with the heights. */
+static td_status lod_build(const td_grid *g, td_lod **lod, td_err *err)
+{
+    td_accel_opts ao;
+    td_accel_opts_default(&ao);
+    ao.planes = 0;
+    ao.threads = 1;
+    return td_lod_build(g, TD_LOD_MAX, &ao, lod, err);
+}
+
 td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_grid *g,
                             td_err *err)
 {
@@ -623,17 +634,9 @@ td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_
         rc = td_err_set(err, TD_EINVAL, "dataset id '%s' is already taken", id);
         goto out;
     }
-    /* Levels of detail: filtered coarse grids with their max-mipmaps (a third of the
-     * heights and little more), resident with the heights for the dataset's lifetime. */
-    {
-        td_accel_opts ao;
-        td_accel_opts_default(&ao);
-        ao.planes = 0;
-        ao.threads = 1;
-        rc = td_lod_build(g, TD_LOD_MAX, &ao, &lod, err);
-        if (rc)
-            goto out;
-    }
+    rc = lod_build(g, &lod, err);
+    if (rc)
+        goto out;
     bytes = td_grid_bytes(g->w, g->h, g->tile_log2) + lod->bytes;
     if (s->resident_bytes + bytes > s->o.budget_bytes) {
         rc = td_err_set(err, TD_ETOOBIG,
@@ -1460,7 +1463,6 @@ td_status td_store_tiles_in_box(td_store *s, size_t idx, const double box[4], si
     const td_grid *g = &s->ds[idx].shape;
     double cx0, cx1, cy0, cy1;
     int32_t tx0, tx1, ty0, ty1, T = td_grid_tile_size(g);
-    size_t k = 0, cnt;
 
     *tiles = NULL;
     *n = 0;
@@ -1483,16 +1485,7 @@ td_status td_store_tiles_in_box(td_store *s, size_t idx, const double box[4], si
     tx1 = (int32_t)cx1 / T;
     ty0 = (int32_t)cy0 / T;
     ty1 = (int32_t)cy1 / T;
-    cnt = (size_t)(tx1 - tx0 + 1) * (size_t)(ty1 - ty0 + 1);
-    *tiles = malloc(cnt * sizeof **tiles);
-    if (!*tiles) {
-        rc = td_err_set(err, TD_ENOMEM, "out of memory");
-        goto out;
-    }
-    for (int32_t ty = ty0; ty <= ty1; ty++)
-        for (int32_t tx = tx0; tx <= tx1; tx++)
-            (*tiles)[k++] = (size_t)ty * (size_t)g->tiles_x + (size_t)tx;
-    *n = k;
+    rc = td_grid_tile_range(g, tx0, tx1, ty0, ty1, tiles, n, err);
 out:
     return rc;
 }
@@ -1530,7 +1523,6 @@ td_status td_store_edit(td_store *s, size_t idx, const td_grid_region *r, const 
     td_hver *hv = NULL, *old = NULL;
     size_t *tiles = NULL, n = 0;
     uint64_t chain, bytes;
-    td_accel_opts ao;
 
     memset(res, 0, sizeof *res);
     res->rebuild.dataset = idx;
@@ -1541,10 +1533,7 @@ td_status td_store_edit(td_store *s, size_t idx, const td_grid_region *r, const 
         rc = td_grid_edit_tiles(g, r, &tiles, &n, err);
     if (rc)
         goto out;
-    td_accel_opts_default(&ao);
-    ao.planes = 0;
-    ao.threads = 1;
-    rc = td_lod_build(g, TD_LOD_MAX, &ao, &lod, err);
+    rc = lod_build(g, &lod, err);
     if (rc)
         goto out;
     bytes = td_grid_bytes(g->w, g->h, g->tile_log2) + lod->bytes;

@@ -24,6 +24,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "check.h"
 #include "harness.h"
 
 #define TOKEN "edit-token-0123456789"
@@ -80,26 +81,14 @@ static int teardown(void **state)
     return 0;
 }
 
-static json_t *body_json(const th_resp *r)
+/* A request that must be refused with this status, code and field. */
+static void expect_refusal(const char *method, const char *path, const char *const *h, const char *body,
+                           size_t len, long status, const char *code, const char *field)
 {
-    json_error_t e;
-    json_t *j = json_loadb(r->body, r->len, 0, &e);
-    if (!j)
-        fail_msg("not JSON (%s): %.*s", e.text, (int)(r->len > 200 ? 200 : r->len), r->body);
-    return j;
-}
-
-static void assert_error(const th_resp *r, long status, const char *code, const char *field)
-{
-    json_t *j, *e;
-    if (r->status != status)
-        fail_msg("status %ld, expected %ld: %.*s", r->status, status, (int)r->len, r->body);
-    j = body_json(r);
-    e = json_object_get(j, "error");
-    assert_string_equal(json_string_value(json_object_get(e, "code")), code);
-    if (field)
-        assert_string_equal(json_string_value(json_object_get(e, "field")), field);
-    json_decref(j);
+    th_resp r;
+    assert_int_equal(th_request(&S, method, path, h, body, len, &r), 0);
+    assert_error(&r, status, code, field);
+    th_resp_free(&r);
 }
 
 /* A body of n samples, all z (little-endian float32). */
@@ -240,6 +229,17 @@ static void assert_same_png(const th_resp *r, const char *png, size_t len)
     assert_memory_equal(r->body, png, len);
 }
 
+/* The datasets as their files hold them: version 1, volcano's picture `png`. */
+static void assert_as_loaded(const char *png, size_t len)
+{
+    th_resp r;
+    assert_int_equal(dataset_version(&S, "volcano"), 1);
+    assert_int_equal(dataset_version(&S, "trinidad"), 1);
+    srv_render(&S, &VOLCANO, NULL, &r);
+    assert_same_png(&r, png, len);
+    th_resp_free(&r);
+}
+
 /* --- tests ----------------------------------------------------------------------------- */
 
 /* Auth and every refusal (nothing changes: version 1, the same picture). */
@@ -259,31 +259,21 @@ static void test_refusals(void **state)
         {"x=0&y=80&w=1&h=8", 8, "h"},    {"x=0&y=0&w=0&h=1", 0, "w"},
         {"x=0&y=0&w=2&h=2", 3, "body"},  {"x=0&y=0&w=2&h=2", 5, "body"},
     };
+    const char *one = "/v1/admin/datasets/volcano/heights?x=0&y=0&w=1&h=1";
     char path[300], *b = samples(64, 150.0f), *png;
     th_resp r;
     size_t len;
     (void)state;
     png = cli_render(&VOLCANO, NULL, 0, &len);
-    assert_int_equal(th_request(&S, "PUT", "/v1/admin/datasets/volcano/heights?x=0&y=0&w=1&h=1", no_auth, b, 4, &r), 0);
-    assert_error(&r, 401, "unauthorized", NULL);
-    th_resp_free(&r);
-    assert_int_equal(th_request(&S, "PUT", "/v1/admin/datasets/volcano/heights?x=0&y=0&w=1&h=1", wrong, b, 4, &r), 0);
-    assert_error(&r, 401, "unauthorized", NULL);
-    th_resp_free(&r);
-    assert_int_equal(th_request(&S, "PUT", "/v1/admin/datasets/atlantis/heights?x=0&y=0&w=1&h=1", AUTH_BIN, b, 4, &r), 0);
-    assert_error(&r, 404, "unknown_dataset", "dataset");
-    th_resp_free(&r);
-    assert_int_equal(th_request(&S, "PUT", "/v1/admin/datasets/volcano/heights?x=0&y=0&w=1&h=1", AUTH_JSON, b, 4, &r), 0);
-    assert_error(&r, 415, "unsupported_media_type", NULL);
-    th_resp_free(&r);
-    assert_int_equal(th_request(&S, "POST", "/v1/admin/datasets/volcano/heights?x=0&y=0&w=1&h=1", AUTH_BIN, b, 4, &r), 0);
-    assert_error(&r, 405, "method_not_allowed", NULL);
-    th_resp_free(&r);
+    expect_refusal("PUT", one, no_auth, b, 4, 401, "unauthorized", NULL);
+    expect_refusal("PUT", one, wrong, b, 4, 401, "unauthorized", NULL);
+    expect_refusal("PUT", "/v1/admin/datasets/atlantis/heights?x=0&y=0&w=1&h=1", AUTH_BIN, b, 4, 404,
+                   "unknown_dataset", "dataset");
+    expect_refusal("PUT", one, AUTH_JSON, b, 4, 415, "unsupported_media_type", NULL);
+    expect_refusal("POST", one, AUTH_BIN, b, 4, 405, "method_not_allowed", NULL);
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         snprintf(path, sizeof path, "/v1/admin/datasets/volcano/heights?%s", bad[i].query);
-        assert_int_equal(th_request(&S, "PUT", path, AUTH_BIN, b, bad[i].samples * 4, &r), 0);
-        assert_error(&r, 400, "bad_request", bad[i].field);
-        th_resp_free(&r);
+        expect_refusal("PUT", path, AUTH_BIN, b, bad[i].samples * 4, 400, "bad_request", bad[i].field);
     }
     /* +inf in the last sample: the body named, and which sample */
     b[4 * 3 + 0] = 0, b[4 * 3 + 1] = 0, b[4 * 3 + 2] = (char)0x80, b[4 * 3 + 3] = 0x7f;
@@ -300,11 +290,7 @@ static void test_refusals(void **state)
     assert_non_null(strstr(r.body, "--max-edit-kb"));
     th_resp_free(&r);
     free(b);
-    assert_int_equal(dataset_version(&S, "volcano"), 1);
-    assert_int_equal(dataset_version(&S, "trinidad"), 1);
-    srv_render(&S, &VOLCANO, NULL, &r);
-    assert_same_png(&r, png, len);
-    th_resp_free(&r);
+    assert_as_loaded(png, len);
     free(png);
 }
 
@@ -510,7 +496,6 @@ static void test_renders_during_edits(void **state)
 /* A restart forgets the edits: version 1 and the file's picture again. */
 static void test_restart_forgets(void **state)
 {
-    th_resp r;
     size_t len;
     char *png = cli_render(&VOLCANO, NULL, 0, &len);
     (void)state;
@@ -518,11 +503,7 @@ static void test_restart_forgets(void **state)
     assert_int_equal(th_stop(&S), 0);
     th_forget(&S);
     assert_int_equal(start(&S), 0);
-    assert_int_equal(dataset_version(&S, "volcano"), 1);
-    assert_int_equal(dataset_version(&S, "trinidad"), 1);
-    srv_render(&S, &VOLCANO, NULL, &r);
-    assert_same_png(&r, png, len);
-    th_resp_free(&r);
+    assert_as_loaded(png, len);
     free(png);
 }
 
