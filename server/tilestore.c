@@ -1,12 +1,15 @@
 /* tilestore.c: datasets, per-tile reference-counted acceleration, LRU under a memory
- * budget, preload, the disk cache and the datasets' decoded drapes (see tilestore.h for
- * the model). Called by the daemon's routes and admin jobs, and by `terrad serve` at
+ * budget, preload, the disk cache, the datasets' decoded drapes and heights edits (see
+ * tilestore.h for the model). Called by the daemon's routes and admin jobs, and by `terrad serve` at
  * start; tests/server/test_tilestore.c drives it alone (also under ThreadSanitizer).
  *
  * Layout:
- *   td_store { mu, clock, resident_bytes, ds[] }
- *     td_ds { id, grid, lod, slots[ntiles], counters, drapes }
- *       td_slot { part[TD_PART_COUNT], stamp (LRU clock), pinned, job (in a running preload) }
+ *   td_store { mu, edit, clock, resident_bytes, ds[] }
+ *     td_ds { id, shape, cur, slots[ntiles], counters, drapes }
+ *       td_hver { atomic refs, version, chain, grid, lod }   the heights now (cur); a
+ *                 snapshot holds one; an edit swaps in a new one (copy-on-write)
+ *       td_slot { part[TD_PART_COUNT], stamp (LRU clock), pinned, job (in a running preload),
+ *                 hver (the version that last changed the tile's heights) }
  *         td_part { atomic refs, kind, object, bytes }   immutable once built
  *       td_drape { atomic refs, path, RGB image, bytes } immutable, kept for the store's life
  * Slots and counters are read and written under `mu` only; a part's refcount is atomic
@@ -74,7 +77,7 @@ typedef struct td_slot {
     uint64_t hver; /* the dataset version that last changed this tile's heights (1: loaded) */
 } td_slot;
 
-/* One version of a dataset's heights (see "Edits" above): immutable once published. */
+/* One version of a dataset's heights (tilestore.h, "Edits"): immutable once published. */
 typedef struct td_hver {
     atomic_int refs;
     uint64_t version; /* 1 as loaded, +1 an edit */

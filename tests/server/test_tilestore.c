@@ -5,7 +5,10 @@
  * corrupted file), drapes decoded once and kept within the budget, and the concurrency
  * contract: renders tracing through snapshots (and sharing a drape) while another
  * thread rebuilds and evicts tiles see every hit exactly as the incremental tracer
- * does. Built twice: plainly (and under ASan by `make test`), and with
+ * does; heights edits (versions, old snapshots intact, the touched tiles' parts out and
+ * rebuilt from the new heights, an edit racing a preload, the disk cache keyed by edited
+ * heights, a restart forgetting edits) and renders during a stream of edits, each seeing
+ * exactly the heights of its version. Built twice: plainly (and under ASan by `make test`), and with
  * ThreadSanitizer (test_tilestore_tsan). */
 #include <setjmp.h>
 #include <stdarg.h>
