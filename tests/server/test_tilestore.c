@@ -16,6 +16,7 @@
 #include <stdint.h>
 
 #include <cmocka.h>
+#include <float.h>
 #include <math.h>
 #include <pthread.h>
 #include <sched.h>
@@ -29,6 +30,7 @@
 #include "image.h"
 #include "maxmip.h"
 #include "planes.h"
+#include "reference.h"
 #include "terrain.h"
 #include "tilestore.h"
 
@@ -715,6 +717,107 @@ static void test_edit_cache(void **state)
     free(z);
 }
 
+
+/* Rays into an edited region judged by the double-precision reference of the edited
+ * heights (tests/oracle/reference.c), every method on every surface, before the rebuild
+ * (the touched tiles without acceleration) and after it: a structure built from the old
+ * heights would step over the new wall. Returns the wrong answers. */
+static int judge_edited(td_store *s, const td_ray *rays, int n)
+{
+    static const td_method methods[] = {TD_METHOD_INCREMENTAL, TD_METHOD_HIERARCHICAL,
+                                        TD_METHOD_PARAMETRIC, TD_METHOD_AUTO};
+    td_snapshot *snap = NULL;
+    td_err e;
+    const td_view *v;
+    const td_grid *g;
+    double scale, eps;
+    int wrong = 0;
+    assert_int_equal(td_store_acquire(s, "t", &snap, &e), TD_OK);
+    v = td_snapshot_view(snap);
+    g = v->grid;
+    scale = fmax(fmax((g->w - 1) * g->sx, (g->h - 1) * g->sy), fmax(fabs(g->zmin), fabs(g->zmax)));
+    eps = (1e-3 + 2.0 * FLT_EPSILON * scale) * (1.0 + td_ref_max_slope(g));
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++)
+        for (int i = 0; i < n; i++) {
+            td_ref_hit ref;
+            td_ref_trace(g, (td_surface)sf, &rays[i], eps, &ref);
+            for (size_t m = 0; m < sizeof methods / sizeof methods[0]; m++) {
+                td_hit h;
+                td_trace(v, methods[m], (td_surface)sf, &rays[i], &h);
+                wrong += td_ref_judge(g, (td_surface)sf, &rays[i], &ref, h.t, eps) == TD_REF_WRONG;
+            }
+        }
+    td_snapshot_release(snap);
+    return wrong;
+}
+
+static void test_edit_against_reference(void **state)
+{
+    td_store *s = store_new(256u << 20, NULL);
+    td_grid *g = terrain(9);
+    td_err e;
+    size_t built;
+    td_preload_spec all = spec(NULL, 0, 1, 1, 0, 0);
+    td_grid_region r = {60, 60, 80, 70}; /* columns 60..139, file rows 60..129: 4 x 4 tiles */
+    float *z = malloc(80 * 70 * sizeof *z);
+    td_ray rays[120];
+    td_edit_result res;
+    int hits = 0;
+    (void)state;
+    float zmax = g->zmax;
+    for (int row = 0; row < 70; row++)
+        for (int col = 0; col < 80; col++)
+            z[row * 80 + col] = col < 20 ? g->zmax + 300.0f           /* a wall */
+                              : col < 50 ? g->zmin - 200.0f + (float)row /* a pit, sloping */
+                              : row % 9 == 4 ? NAN                      /* void rows */
+                              : 0.5f * g->zmax + 3.0f * (float)(col - 50);
+    assert_int_equal(td_store_add_grid(s, "t", "api", g, &e), TD_OK);
+    assert_int_equal(td_store_preload(s, &all, NULL, NULL, &built, &e), TD_OK);
+    assert_int_equal(td_store_edit(s, 0, &r, z, &res, &e), TD_OK);
+    for (int i = 0; i < 120; i++) {
+        td_ray *ry = &rays[i];
+        ry->tmin = 0.0;
+        ry->tmax = INFINITY;
+        ry->o[1] = (256 - 128 + 66.0 * (i % 40) / 40.0) * 30.0; /* the region's rows */
+        ry->d[0] = 1.0;
+        ry->d[1] = 0.02 * ((i % 5) - 2);
+        if (i < 40) { /* from the west, level, into the wall (or grazing its top) */
+            ry->o[0] = 100.0;
+            ry->o[2] = zmax + 50.0 + 7.5 * i;
+            ry->d[2] = 0.0;
+        } else if (i < 80) { /* from above the wall, steeply down into the pit */
+            ry->o[0] = 1900.0;
+            ry->o[2] = zmax + 400.0;
+            ry->d[2] = -1.2 - 0.02 * (i - 40);
+        } else { /* straight down onto the pit, the slope and its void rows */
+            ry->o[0] = (62.0 + 1.9 * (i - 80)) * 30.0;
+            ry->o[2] = zmax + 1000.0;
+            ry->d[0] = 0.01;
+            ry->d[1] = -0.01;
+            ry->d[2] = -1.0;
+        }
+    }
+    {
+        td_snapshot *snap = NULL;
+        assert_int_equal(td_store_acquire(s, "t", &snap, &e), TD_OK);
+        for (int i = 0; i < 120; i++) {
+            td_hit h;
+            td_trace(td_snapshot_view(snap), TD_METHOD_INCREMENTAL, TD_SURFACE_BILINEAR, &rays[i], &h);
+            hits += isfinite(h.t) && h.p[0] >= 60 * 30.0 && h.p[0] <= 139 * 30.0;
+        }
+        td_snapshot_release(snap);
+    }
+    assert_true(hits > 60); /* most rays end in the edited region */
+    assert_int_equal(judge_edited(s, rays, 120), 0);
+    assert_int_equal(res.touched, 16);
+    assert_int_equal(td_store_preload(s, &res.rebuild, NULL, NULL, &built, &e), TD_OK);
+    assert_int_equal(built, 16);
+    assert_int_equal(judge_edited(s, rays, 120), 0);
+    free((void *)res.rebuild.tiles);
+    free(z);
+    td_store_free(s);
+}
+
 /* --- concurrency ------------------------------------------------------------------------ */
 
 enum { NRAYS = 96 };
@@ -966,6 +1069,7 @@ int main(void)
         cmocka_unit_test(test_edit_versions),
         cmocka_unit_test(test_edit_races_preload),
         cmocka_unit_test(test_edit_cache),
+        cmocka_unit_test(test_edit_against_reference),
         cmocka_unit_test(test_edits_under_renders),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
