@@ -34,7 +34,9 @@ void td_edt_scratch_free(td_edt_scratch *s);
  * the loader picks the one the processor runs (GCC/clang function multiversioning): twice
  * the width, 35% fewer instructions for the planes of trinidad. Never FMA (not in the list,
  * and C11 mode contracts nothing), so both give the same results bit for bit. */
-#if defined(__x86_64__) && defined(__has_attribute)
+/* Not under ThreadSanitizer: the clones' resolver runs at load time, before TSan has set
+ * itself up, and crashes (test_tilestore_tsan, make tsan). */
+#if defined(__x86_64__) && defined(__has_attribute) && !defined(__SANITIZE_THREAD__)
 #if __has_attribute(target_clones) && defined(__ELF__)
 #define TD_ROW_CLONES __attribute__((target_clones("avx2", "default")))
 #endif
