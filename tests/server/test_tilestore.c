@@ -542,23 +542,32 @@ static void check_parts_fresh(td_store *s, const char *id)
     td_snapshot_release(snap);
 }
 
+/* A store holding terrain(seed) as "t", every tile preloaded. */
+static td_store *preloaded(uint64_t seed)
+{
+    td_store *s = store_new(256u << 20, NULL);
+    td_preload_spec all = spec(NULL, 0, 1, 1, 0, 0);
+    td_err e;
+    size_t built;
+    assert_int_equal(td_store_add_grid(s, "t", "api", terrain(seed), &e), TD_OK);
+    assert_int_equal(td_store_preload(s, &all, NULL, NULL, &built, &e), TD_OK);
+    assert_int_equal(built, 64);
+    return s;
+}
+
 /* An edit: a new version at once, the old one intact for a snapshot that holds it, the
  * touched tiles' parts out (and listed for the rebuild), the others kept. */
 static void test_edit_versions(void **state)
 {
-    td_store *s = store_new(256u << 20, NULL);
-    td_grid *g = terrain(5);
+    td_store *s = preloaded(5);
     td_err e;
     size_t built;
-    td_preload_spec all = spec(NULL, 0, 1, 1, 0, 0);
     td_grid_region r = {40, 180, 30, 20}; /* columns 40..69, file rows 180..199 */
     float *z = block(30, 20, 5000.0f);
     td_snapshot *before = NULL, *after = NULL;
     td_edit_result res;
     td_dataset_info di;
     (void)state;
-    assert_int_equal(td_store_add_grid(s, "t", "api", g, &e), TD_OK);
-    assert_int_equal(td_store_preload(s, &all, NULL, NULL, &built, &e), TD_OK);
     td_store_info(s, 0, &di);
     assert_int_equal(di.version, 1);
     assert_int_equal(di.chain, 0);
@@ -753,26 +762,26 @@ static int judge_edited(td_store *s, const td_ray *rays, int n)
 
 static void test_edit_against_reference(void **state)
 {
-    td_store *s = store_new(256u << 20, NULL);
-    td_grid *g = terrain(9);
+    td_store *s = preloaded(9);
+    td_dataset_info di;
     td_err e;
     size_t built;
-    td_preload_spec all = spec(NULL, 0, 1, 1, 0, 0);
     td_grid_region r = {60, 60, 80, 70}; /* columns 60..139, file rows 60..129: 4 x 4 tiles */
     float *z = malloc(80 * 70 * sizeof *z);
     td_ray rays[120];
     td_edit_result res;
     int hits = 0;
     (void)state;
-    float zmax = g->zmax;
+    float zmax, zmin;
+    td_store_info(s, 0, &di);
+    zmax = di.grid->zmax;
+    zmin = di.grid->zmin;
     for (int row = 0; row < 70; row++)
         for (int col = 0; col < 80; col++)
-            z[row * 80 + col] = col < 20 ? g->zmax + 300.0f           /* a wall */
-                              : col < 50 ? g->zmin - 200.0f + (float)row /* a pit, sloping */
-                              : row % 9 == 4 ? NAN                      /* void rows */
-                              : 0.5f * g->zmax + 3.0f * (float)(col - 50);
-    assert_int_equal(td_store_add_grid(s, "t", "api", g, &e), TD_OK);
-    assert_int_equal(td_store_preload(s, &all, NULL, NULL, &built, &e), TD_OK);
+            z[row * 80 + col] = col < 20 ? zmax + 300.0f           /* a wall */
+                              : col < 50 ? zmin - 200.0f + (float)row /* a pit, sloping */
+                              : row % 9 == 4 ? NAN                    /* void rows */
+                              : 0.5f * zmax + 3.0f * (float)(col - 50);
     assert_int_equal(td_store_edit(s, 0, &r, z, &res, &e), TD_OK);
     for (int i = 0; i < 120; i++) {
         td_ray *ry = &rays[i];
