@@ -88,6 +88,7 @@ struct td_http_req {
     char *path;
     char *body;
     size_t len, cap;
+    size_t body_max; /* td_http_opts.body_cap's answer */
     int too_big;
     int route;
     td_http_state state;
@@ -325,17 +326,11 @@ static void *watch_main(void *arg)
     return NULL;
 }
 
-/* The body cap of this request: max_put_body for PUT (heights edits) when set. */
-static size_t body_cap(const td_http_req *q)
-{
-    return !strcmp(q->method, "PUT") && q->h->o.max_put_body ? q->h->o.max_put_body : q->h->o.max_body;
-}
-
 static int body_append(td_http_req *q, const char *data, size_t n)
 {
     int rc = 0;
     size_t need = 0;
-    if (q->too_big || !td_add_size(q->len, n, &need) || need > body_cap(q)) {
+    if (q->too_big || !td_add_size(q->len, n, &need) || need > q->body_max) {
         q->too_big = 1;
         free(q->body);
         q->body = NULL;
@@ -409,13 +404,14 @@ static enum MHD_Result access_cb(void *cls, struct MHD_Connection *conn, const c
         q->route = -1;
         q->t0 = td_clock_s();
         snprintf(q->method, sizeof q->method, "%s", method);
+        q->body_max = h->o.body_cap ? h->o.body_cap(h->o.cls, q) : h->o.max_body;
         *con_cls = q;
         atomic_fetch_add(&h->active, 1);
         cl = MHD_lookup_connection_value(conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_LENGTH);
         if (cl) {
             char *end = NULL;
             unsigned long long n = strtoull(cl, &end, 10);
-            if (end != cl && n > body_cap(q)) {
+            if (end != cl && n > q->body_max) {
                 /* Refuse before reading: libmicrohttpd closes the connection after. */
                 q->too_big = 1;
                 ret = run_handler(h, q);

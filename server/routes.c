@@ -152,6 +152,18 @@ int td_routes_token_equal(const char *given, const char *want)
     return diff == 0;
 }
 
+size_t td_routes_body_cap(void *cls, const td_http_req *q)
+{
+    const td_app *app = cls;
+    const char *path = td_http_req_path(q), *auth = td_http_req_header(q, "Authorization");
+    const char *pre = "/v1/admin/datasets/", *suf = "/heights";
+    size_t pl = strlen(path), sl = strlen(suf);
+    int edit = !strcmp(td_http_req_method(q), "PUT") && !strncmp(path, pre, strlen(pre)) &&
+               pl > strlen(pre) + sl && !strcmp(path + pl - sl, suf) && app->cfg->admin_token && auth &&
+               !strncasecmp(auth, "Bearer ", 7) && td_routes_token_equal(auth + 7, app->cfg->admin_token);
+    return (size_t)(edit ? app->cfg->max_edit_kb : app->cfg->max_body_kb) << 10;
+}
+
 /* 0 when the request may use admin routes; else the response is filled. */
 static int admin_check(td_app *app, td_http_req *q, td_http_resp *r)
 {
@@ -1385,9 +1397,10 @@ void td_routes_handle(void *cls, td_http_req *q, td_http_resp *r)
     td_app *app = cls;
     if (td_http_req_too_big(q)) {
         td_http_req_set_route(q, TD_ROUTE_UNKNOWN);
-        int put = !strcmp(td_http_req_method(q), "PUT");
+        int edit = td_routes_body_cap(app, q) != (size_t)app->cfg->max_body_kb << 10;
         api_error(r, TD_AE_TOO_LARGE, NULL, "the body is over the limit of %ld KiB (%s)",
-                  put ? app->cfg->max_edit_kb : app->cfg->max_body_kb, put ? "--max-edit-kb" : "--max-body-kb");
+                  edit ? app->cfg->max_edit_kb : app->cfg->max_body_kb,
+                  edit ? "--max-edit-kb" : "--max-body-kb; heights edits with the admin token: --max-edit-kb");
         td_http_resp_header(r, "Connection", "close");
     } else {
         dispatch(app, q, r);

@@ -57,6 +57,10 @@ typedef struct td_app {
 void td_routes_handle(void *cls, td_http_req *q, td_http_resp *resp);
 void td_routes_done(void *cls, int route, int status, size_t bytes, double seconds);
 
+/* td_http_opts.body_cap: --max-edit-kb for a PUT of heights with the right bearer token,
+ * --max-body-kb for every other request (so only an admin can send large bodies). */
+size_t td_routes_body_cap(void *cls, const td_http_req *q);
+
 /* Constant-time comparison of a presented token with the configured one. */
 int td_routes_token_equal(const char *given, const char *want);
 

@@ -282,6 +282,14 @@ static void test_refusals(void **state)
     assert_non_null(strstr(r.body, "sample 3"));
     th_resp_free(&r);
     free(b);
+    /* over --max-body-kb (64) without the token: 413 before anything is read; with it the
+     * body is taken (and found the wrong size for the region) */
+    b = samples(160 * 160, 150.0f);
+    expect_refusal("PUT", "/v1/admin/datasets/trinidad/heights?x=0&y=0&w=10&h=10", no_auth, b, 160 * 160 * 4,
+                   413, "body_too_large", NULL);
+    expect_refusal("PUT", "/v1/admin/datasets/trinidad/heights?x=0&y=0&w=10&h=10", AUTH_BIN, b, 160 * 160 * 4,
+                   400, "bad_request", "body");
+    free(b);
     /* over --max-edit-kb 300: 413, before the body is read */
     b = samples(600 * 200, 150.0f);
     assert_int_equal(th_request(&S, "PUT", "/v1/admin/datasets/trinidad/heights?x=0&y=0&w=600&h=200", AUTH_BIN, b,
