@@ -501,6 +501,49 @@ static void test_renders_during_edits(void **state)
     free(st);
 }
 
+/* `terrad render --edit` refuses what the endpoint refuses, naming the parameter or the
+ * file, and renders nothing. */
+static void test_cli_edit_refusals(void **state)
+{
+    static const struct {
+        const char *edit, *says;
+    } bad[] = {
+        {"0,0,62,1,%s/e.f32", "w: 62 columns"},     /* volcano has 61 */
+        {"0,-1,1,1,%s/e.f32", "y: '-1'"},
+        {"0,0,1,1", "X,Y,W,H,FILE"},
+        {"0,0,2,1,%s/e.f32", "body: 4 bytes"},        /* the file holds one sample */
+        {"0,0,1,1,%s/none.f32", "none.f32"},
+    };
+    char scene[200], out[200], arg[300], cmd[1200], text[2000];
+    FILE *f;
+    (void)state;
+    snprintf(scene, sizeof scene, "%s/scene.json", tmp);
+    f = fopen(scene, "w");
+    assert_non_null(f);
+    fprintf(f, SCENE_JSON, VOLCANO.dataset, VOLCANO.x, VOLCANO.y, VOLCANO.z);
+    fclose(f);
+    snprintf(arg, sizeof arg, "%s/e.f32", tmp);
+    f = fopen(arg, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite("\0\0\x48\x43", 1, 4, f), 4); /* 200.0f */
+    fclose(f);
+    snprintf(out, sizeof out, "%s/refused.png", tmp);
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        size_t n;
+        FILE *p;
+        snprintf(arg, sizeof arg, bad[i].edit, tmp);
+        snprintf(cmd, sizeof cmd, "rm -f %s; %s render %s -o %s --edit %s 2>&1", out, TERRAD_BIN, scene, out, arg);
+        p = popen(cmd, "r");
+        assert_non_null(p);
+        n = fread(text, 1, sizeof text - 1, p);
+        text[n] = '\0';
+        assert_true(pclose(p) != 0);
+        if (!strstr(text, bad[i].says))
+            fail_msg("--edit %s: '%s' not in: %s", arg, bad[i].says, text);
+        assert_int_not_equal(access(out, F_OK), 0);
+    }
+}
+
 /* A restart forgets the edits: version 1 and the file's picture again. */
 static void test_restart_forgets(void **state)
 {
@@ -523,6 +566,7 @@ int main(void)
         cmocka_unit_test(test_edit_races_preload),
         cmocka_unit_test(test_renders_during_edits),
         cmocka_unit_test(test_restart_forgets),
+        cmocka_unit_test(test_cli_edit_refusals),
     };
     int rc;
     curl_global_init(CURL_GLOBAL_ALL);
