@@ -30,6 +30,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "accel.h"
 #include "bench_svg.h"
 #include "dem.h"
 #include "isogrid.h"
@@ -462,6 +463,122 @@ static td_status dems(FILE *f, const char *data, td_err *err)
     return rc;
 }
 
+/* Seconds of one run of all rays through trace_one (kind 0 square view, 1 and 2 the
+ * lattices); the steps go to *steps. */
+static double time_rays(int kind, const td_view *v, td_method m, const td_iso *l, const td_ray *rays,
+                        size_t n, double *steps, double *hits)
+{
+    struct timespec a, b;
+    td_hit h;
+    double st = 0, nh = 0;
+    clock_gettime(CLOCK_MONOTONIC, &a);
+    for (size_t i = 0; i < n; i++) {
+        if (kind == 0)
+            td_trace(v, m, TD_SURFACE_TRIANGLE, &rays[i], &h);
+        else
+            td_iso_trace(l, &rays[i], &h);
+        st += h.steps;
+        nh += h.t < INFINITY;
+    }
+    clock_gettime(CLOCK_MONOTONIC, &b);
+    *steps = st / (double)n;
+    *hits = nh / (double)n;
+    return (double)(b.tv_sec - a.tv_sec) + 1e-9 * (double)(b.tv_nsec - a.tv_nsec);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Rays per second of the square grid's triangle surface (incremental without acceleration,
+ * and auto with max-mipmaps and planes) and of the lattices' walk, on the same rays over the
+ * same samples: camera-like rays from above the highest point toward random ground points
+ * (median of 5 runs, one thread). */
+static td_status trace_cost(FILE *f, const char *data, td_err *err)
+{
+    static const char *const files[] = {"trinidad-crop.f32", "picos-dtm.asc", "volcano.asc"};
+    enum { NR = 20000, NRUN = 5 };
+    td_status rc = TD_OK;
+    td_ray *rays = malloc(NR * sizeof *rays);
+    fprintf(f, "\nTrace cost (median of %d runs of %d rays, one thread, on a shared 2-core machine: "
+               "indicative): rays from above the highest point toward random points of the grid.\n\n"
+               "| DEM | lattice, method | rays/s | steps/ray | hits |\n|---|---|---|---|---|\n", NRUN, NR);
+    for (int d = 0; d < 3 && !rc && rays; d++) {
+        char path[1024];
+        td_grid *g = NULL;
+        td_iso *iso[2] = {NULL, NULL};
+        td_accel *ac = NULL;
+        td_accel_opts ao = {1, 1, 8, 1};
+        td_accel_stats ast;
+        uint64_t seed = 31 + (uint64_t)d;
+        snprintf(path, sizeof path, "%s/%s", data, files[d]);
+        rc = td_dem_load(path, NULL, &g, err);
+        for (int k = 0; k < 2 && !rc; k++)
+            rc = td_iso_from_grid(g, 1, (td_iso_rows)k, &iso[k], err);
+        if (!rc)
+            rc = td_accel_build(g, &ao, &ac, &ast, err);
+        for (size_t i = 0; i < NR && !rc; i++) {
+            double X = (g->w - 1) * g->sx, Y = (g->h - 1) * g->sy, dz = g->zmax - g->zmin;
+            double o[3] = {X * rnd(&seed), Y * rnd(&seed), g->zmax + 0.2 * dz};
+            double p[3] = {X * rnd(&seed), Y * rnd(&seed), g->zmin + 0.5 * dz};
+            rays[i] = (td_ray){{o[0], o[1], o[2]}, {p[0] - o[0], p[1] - o[1], p[2] - o[2]}, 0.0, INFINITY};
+        }
+        for (int c = 0; c < 4 && !rc; c++) {
+            static const char *const names[4] = {"square, incremental (triangle)",
+                                                  "square, auto with max-mipmaps and planes (triangle)",
+                                                  "isometric square rows, walk", "isometric equilateral, walk"};
+            td_view v = {g, c == 1 ? ac->tiles : NULL};
+            double t[NRUN], steps = 0, hits = 0;
+            for (int k = 0; k < NRUN; k++)
+                t[k] = time_rays(c >= 2, &v, c == 1 ? TD_METHOD_AUTO : TD_METHOD_INCREMENTAL,
+                                 c >= 2 ? iso[c - 2] : NULL, rays, NR, &steps, &hits);
+            qsort(t, NRUN, sizeof t[0], cmp_double);
+            fprintf(f, "| %s | %s | %.3g | %.1f | %.3f |\n", files[d], names[c], NR / t[NRUN / 2], steps, hits);
+        }
+        td_accel_free(ac);
+        td_iso_free(iso[0]);
+        td_iso_free(iso[1]);
+        td_grid_free(g);
+    }
+    free(rays);
+    return rc;
+}
+
+/* The two-byte vertices of isogrid.h on the DEMs' lattices (tiles of 64 x 64). */
+static td_status packing(FILE *f, const char *data, td_err *err)
+{
+    static const char *const files[] = {"trinidad-crop.f32", "picos-dtm.asc", "volcano.asc"};
+    td_status rc = TD_OK;
+    fprintf(f, "\nTwo-byte vertices (tiles of 64 x 64 samples; square rows at 2x sample grid nodes "
+               "only, equilateral rows at 1x interpolate between them):\n\n| DEM | lattice | samples | "
+               "tiles lossless | largest error (m) | bytes per sample (float: 4) |\n|---|---|---|---|---|---|\n");
+    for (int d = 0; d < 3 && !rc; d++) {
+        char path[1024];
+        td_grid *g = NULL;
+        snprintf(path, sizeof path, "%s/%s", data, files[d]);
+        rc = td_dem_load(path, NULL, &g, err);
+        for (int k = 0; k < 2 && !rc; k++) {
+            td_iso *l = NULL;
+            td_iso_packed *p = NULL;
+            rc = td_iso_from_grid(g, k ? 1 : 2, (td_iso_rows)k, &l, err);
+            if (!rc)
+                rc = td_iso_pack(l, 6, &p, err);
+            if (!rc) {
+                size_t n = td_iso_row_offset(l->nx, l->ny);
+                fprintf(f, "| %s | %s %dx | %zu | %d / %d | %.3g | %.3f |\n", files[d],
+                        td_iso_rows_name((td_iso_rows)k), k ? 1 : 2, n, p->lossless,
+                        p->tiles_x * p->tiles_y, p->max_err, (double)p->bytes / (double)n);
+            }
+            td_iso_packed_free(p);
+            td_iso_free(l);
+        }
+        td_grid_free(g);
+    }
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
     static wave_res waves, sums;
@@ -498,6 +615,10 @@ int main(int argc, char **argv)
     }
     if (!rc)
         rc = dems(f, argv[1], &err);
+    if (!rc)
+        rc = packing(f, argv[1], &err);
+    if (!rc && !getenv("ISO_NO_TIMING"))
+        rc = trace_cost(f, argv[1], &err);
     if (!rc)
         rc = orientation_svg(argv[2], "iso-normal-orientation.svg",
                              "single sinusoids at 0.3 Nyquist: normal error", "mean angle (degrees)",
