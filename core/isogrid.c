@@ -66,9 +66,13 @@ td_status td_iso_create(int32_t nx, int32_t ny, double a, double b, td_iso **out
         goto out;
     }
     l = calloc(1, sizeof *l);
-    if (l)
+    if (l) {
+        l->bw = ((nx - 2) >> TD_ISO_BLOCK_LOG2) + 1;
+        l->bh = ((ny - 2) >> TD_ISO_BLOCK_LOG2) + 1;
         l->z = malloc(n);
-    if (!l || !l->z) {
+        l->bmax = malloc((size_t)l->bw * (size_t)l->bh * sizeof *l->bmax);
+    }
+    if (!l || !l->z || !l->bmax) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for a %d x %d isometric lattice", (int)nx,
                         (int)ny);
         goto out;
@@ -91,20 +95,42 @@ out:
 
 void td_iso_sample(td_iso *l, td_iso_fn f, void *ctx)
 {
-    float lo = INFINITY, hi = -INFINITY;
     for (int32_t r = 0; r < l->ny; r++) {
         float *row = l->z + td_iso_row_offset(l->nx, r);
+        for (int32_t c = 0; c < td_iso_row_len(l, r); c++)
+            row[c] = (float)f(ctx, td_iso_x(l, r, c), r * l->b);
+    }
+    td_iso_finish(l);
+}
+
+void td_iso_finish(td_iso *l)
+{
+    float lo = INFINITY, hi = -INFINITY;
+    const int32_t S = (int32_t)1 << TD_ISO_BLOCK_LOG2;
+    for (int32_t r = 0; r < l->ny; r++) {
         for (int32_t c = 0; c < td_iso_row_len(l, r); c++) {
-            float z = (float)f(ctx, td_iso_x(l, r, c), r * l->b);
-            row[c] = z;
-            if (!isnan(z)) {
-                lo = z < lo ? z : lo;
-                hi = z > hi ? z : hi;
-            }
+            float z = td_iso_at(l, r, c);
+            lo = z < lo ? z : lo; /* NaN compares false */
+            hi = z > hi ? z : hi;
         }
     }
     l->zmin = lo <= hi ? lo : NAN;
     l->zmax = lo <= hi ? hi : NAN;
+    /* a triangle over block (i, j) lies in strips j S .. j S + S - 1 and has its corners
+     * within a of the box in x: columns i S - 1 .. i S + S + 2 of either row bound it */
+    for (int32_t j = 0; j < l->bh; j++) {
+        for (int32_t i = 0; i < l->bw; i++) {
+            float m = -INFINITY;
+            for (int32_t r = j * S; r <= j * S + S && r < l->ny; r++) {
+                int32_t c1 = i * S + S + 2 < td_iso_row_len(l, r) - 1 ? i * S + S + 2 : td_iso_row_len(l, r) - 1;
+                for (int32_t c = i * S - 1 > 0 ? i * S - 1 : 0; c <= c1; c++) {
+                    float z = td_iso_at(l, r, c);
+                    m = z > m ? z : m;
+                }
+            }
+            l->bmax[(size_t)j * (size_t)l->bw + (size_t)i] = m;
+        }
+    }
 }
 
 /* The grid's surface at (x, y): its sample on a node, else the bilinear patch of the cell
@@ -173,6 +199,7 @@ out:
 void td_iso_free(td_iso *l)
 {
     if (l) {
+        free(l->bmax);
         free(l->z);
         free(l);
     }
@@ -189,12 +216,10 @@ void td_iso_locate(const td_iso *l, double x, double y, int32_t *r, int32_t *q)
     *q = clamp32((int32_t)(floor(u - 0.5 * Y) + floor(u + 0.5 * Y)) + 1, 0, 2 * l->nx - 2);
 }
 
-int td_iso_triangle(const td_iso *l, int32_t r, int32_t q, double v[3][3])
+/* Rows and columns of triangle (r, q)'s corners. */
+static void tri_index(int32_t r, int32_t q, int32_t rr[3], int32_t cc[3])
 {
     int32_t re = (r & 1) ? r + 1 : r, ro = (r & 1) ? r : r + 1, c = q / 2;
-    int32_t rr[3], cc[3];
-    int ok = 1;
-
     if (!(q & 1)) { /* O-based: O_c, O_c+1, E_c */
         rr[0] = ro, cc[0] = c;
         rr[1] = ro, cc[1] = c + 1;
@@ -204,6 +229,14 @@ int td_iso_triangle(const td_iso *l, int32_t r, int32_t q, double v[3][3])
         rr[1] = re, cc[1] = c + 1;
         rr[2] = ro, cc[2] = c + 1;
     }
+}
+
+int td_iso_triangle(const td_iso *l, int32_t r, int32_t q, double v[3][3])
+{
+    int32_t rr[3], cc[3];
+    int ok = 1;
+
+    tri_index(r, q, rr, cc);
     for (int k = 0; k < 3; k++) {
         v[k][0] = td_iso_x(l, rr[k], cc[k]);
         v[k][1] = rr[k] * l->b;
@@ -273,8 +306,16 @@ static double above(const td_ray *ray, const iso_plane *p, double t)
 static double segment_hit(const td_iso *l, const td_ray *ray, int32_t r, int32_t q, double t0,
                           double t1, iso_plane *p)
 {
-    double t = INFINITY;
-    if (plane_of(l, r, q, p)) {
+    double t = INFINITY, zr0 = ray->o[2] + t0 * ray->d[2], zr1 = ray->o[2] + t1 * ray->d[2];
+    int32_t rr[3], cc[3];
+    float m;
+    tri_index(r, q, rr, cc);
+    m = td_iso_at(l, rr[0], cc[0]);
+    m = td_iso_at(l, rr[1], cc[1]) > m ? td_iso_at(l, rr[1], cc[1]) : m;
+    m = td_iso_at(l, rr[2], cc[2]) > m ? td_iso_at(l, rr[2], cc[2]) : m;
+    /* above the triangle's highest corner at both ends (NaN corners: a hole, skipped by
+     * plane_of): nothing to solve */
+    if (!(zr0 > m && zr1 > m) && plane_of(l, r, q, p)) {
         double f0 = above(ray, p, t0), f1;
         if (f0 <= 0.0) {
             t = t0;
@@ -328,6 +369,39 @@ static void family_step(iso_family *f)
     f->tnext = f->dir > 0 ? (f->idx + 1 - f->v0) / f->dv : (f->idx - f->v0) / f->dv;
 }
 
+/* The three families of the walk at t: A = y/b, B = x/a - y/2b, C = x/a + y/2b. */
+static void walk_init(iso_family f[3], const td_iso *l, const td_ray *ray, double t)
+{
+    double ia = 1.0 / l->a, ib = 1.0 / l->b;
+    family_init(&f[0], ray->o[1] * ib, ray->d[1] * ib, t);
+    family_init(&f[1], ray->o[0] * ia - 0.5 * ray->o[1] * ib, ray->d[0] * ia - 0.5 * ray->d[1] * ib, t);
+    family_init(&f[2], ray->o[0] * ia + 0.5 * ray->o[1] * ib, ray->d[0] * ia + 0.5 * ray->d[1] * ib, t);
+}
+
+/* The block holding the ray's point at tc (ties toward the direction of travel): *te gets
+ * the t where the ray leaves its box (at most t1); returns whether the ray stays above the
+ * block's maximum until then (and leaves it after tc), so the walk may jump to *te. */
+static int block_skip(const td_iso *l, const td_ray *ray, double tc, double t1, double *te)
+{
+    const double S = (double)((int32_t)1 << TD_ISO_BLOCK_LOG2);
+    double w[2] = {S * l->a, S * l->b}, z0, z1;
+    int32_t bi[2], n[2] = {l->bw, l->bh};
+    float m;
+    *te = t1;
+    for (int k = 0; k < 2; k++) {
+        double v = (ray->o[k] + tc * ray->d[k]) / w[k];
+        bi[k] = clamp32((int32_t)(ray->d[k] < 0.0 ? ceil(v) - 1.0 : floor(v)), 0, n[k] - 1);
+        if (ray->d[k] != 0.0) {
+            double tk = ((ray->d[k] > 0.0 ? bi[k] + 1 : bi[k]) * w[k] - ray->o[k]) / ray->d[k];
+            *te = tk < *te ? tk : *te;
+        }
+    }
+    m = l->bmax[(size_t)bi[1] * (size_t)l->bw + (size_t)bi[0]];
+    z0 = ray->o[2] + tc * ray->d[2];
+    z1 = ray->o[2] + *te * ray->d[2];
+    return *te > tc && z0 > m && z1 > m;
+}
+
 void td_iso_trace(const td_iso *l, const td_ray *ray, td_hit *hit)
 {
     double t0 = ray->tmin, t1 = ray->tmax, t = INFINITY;
@@ -353,18 +427,25 @@ void td_iso_trace(const td_iso *l, const td_ray *ray, td_hit *hit)
                 t = tz;
         }
     } else {
-        /* the three families: A = y/b, B = x/a - y/2b, C = x/a + y/2b */
         iso_family f[3];
-        double ia = 1.0 / l->a, ib = 1.0 / l->b, tc = t0;
+        double tc = t0, tb = -INFINITY; /* blocks checked up to tb */
         uint32_t cap = 4u * (uint32_t)(l->nx + l->ny) + 16u;
-        family_init(&f[0], ray->o[1] * ib, ray->d[1] * ib, t0);
-        family_init(&f[1], ray->o[0] * ia - 0.5 * ray->o[1] * ib,
-                    ray->d[0] * ia - 0.5 * ray->d[1] * ib, t0);
-        family_init(&f[2], ray->o[0] * ia + 0.5 * ray->o[1] * ib,
-                    ray->d[0] * ia + 0.5 * ray->d[1] * ib, t0);
+        walk_init(f, l, ray, t0);
         for (;;) {
-            int k = f[1].tnext < f[0].tnext ? 1 : 0;
-            double tn;
+            int k;
+            double tn, te;
+            if (tc >= tb) {
+                if (block_skip(l, ray, tc, t1, &te)) {
+                    steps++;
+                    if (te >= t1 || steps >= cap)
+                        break;
+                    tc = te;
+                    walk_init(f, l, ray, tc);
+                    continue;
+                }
+                tb = te;
+            }
+            k = f[1].tnext < f[0].tnext ? 1 : 0;
             k = f[2].tnext < f[k].tnext ? 2 : k;
             tn = f[k].tnext < t1 ? f[k].tnext : t1;
             tn = tn < tc ? tc : tn;
@@ -522,21 +603,13 @@ td_status td_iso_unpack(const td_iso_packed *p, td_iso **out, td_err *err)
     td_status rc = td_iso_create(p->nx, p->ny, p->a, p->b, out, err);
     if (rc)
         goto out;
-    (*out)->zmin = INFINITY;
-    (*out)->zmax = -INFINITY;
     for (int32_t r = 0; r < p->ny; r++) {
         for (int32_t c = 0; c < p->nx + (r & 1); c++) {
             size_t ti = owner(p, r, c), i = td_iso_row_offset(p->nx, r) + (size_t)c;
-            float z = p->k[i] == 0xFFFF ? NAN : (float)decode(p->offset[ti], p->step[ti], p->k[i]);
-            (*out)->z[i] = z;
-            if (!isnan(z)) {
-                (*out)->zmin = z < (*out)->zmin ? z : (*out)->zmin;
-                (*out)->zmax = z > (*out)->zmax ? z : (*out)->zmax;
-            }
+            (*out)->z[i] = p->k[i] == 0xFFFF ? NAN : (float)decode(p->offset[ti], p->step[ti], p->k[i]);
         }
     }
-    if (!((*out)->zmin <= (*out)->zmax))
-        (*out)->zmin = (*out)->zmax = NAN;
+    td_iso_finish(*out);
 out:
     return rc;
 }

@@ -53,11 +53,18 @@ typedef enum td_iso_rows {
 
 const char *td_iso_rows_name(td_iso_rows r);
 
+#define TD_ISO_BLOCK_LOG2 3 /* blocks of 8 x 8 rows and columns */
+
 typedef struct td_iso {
     int32_t nx, ny;   /* samples per even row (>= 2), rows (>= 2); odd rows hold nx + 1 */
     double a, b;      /* column and row spacing, metres */
     float *z;         /* row r starts at z + td_iso_row_offset(r) */
     float zmin, zmax; /* over valid samples; NaN if all are void */
+    /* Block maxima (the walk's one-level hierarchy): block (i, j) is the box x in
+     * [i S a, (i+1) S a], y in [j S b, (j+1) S b], S = 1 << TD_ISO_BLOCK_LOG2; bmax[j bw +
+     * i] bounds every triangle over it (-inf if none is valid). */
+    int32_t bw, bh;
+    float *bmax;
 } td_iso;
 
 /* A height function for td_iso_sample: returns z at (x, y), NaN for a void. */
@@ -81,8 +88,11 @@ double td_iso_x(const td_iso *l, int32_t r, int32_t c);
 /* Allocates an nx x ny lattice (heights NaN) after checking sizes and overflow. */
 td_status td_iso_create(int32_t nx, int32_t ny, double a, double b, td_iso **out, td_err *err);
 
-/* Fills every sample from f and computes zmin/zmax. */
+/* Fills every sample from f, then td_iso_finish. */
 void td_iso_sample(td_iso *l, td_iso_fn f, void *ctx);
+
+/* zmin, zmax and the block maxima from the samples: call after writing l->z. */
+void td_iso_finish(td_iso *l);
 
 /* The lattice over grid g's extent (as much of it as whole rows and columns cover) with
  * the density of g subsampled every `step` samples: square rows a = step sx, b = step sy
@@ -106,7 +116,8 @@ int td_iso_eval(const td_iso *l, double x, double y, double *z, double n[3]);
 
 /* The first point where ray r (validated) meets the lattice's triangles in [tmin, tmax]:
  * the walk visits the triangles the ray's ground track crosses, in order (a DDA over the
- * three line families), and solves each one's plane along the ray in double. The same
+ * three line families), and solves each one's plane along the ray in double; it steps
+ * over a whole block where the ray stays above the block's maximum (a step too). The same
  * rules as td_trace: a ray that starts below the surface hits at tmin; holes are passed
  * through. hit->ci, cj hold the triangle (q, r); hit->method is TD_METHOD_INCREMENTAL. */
 void td_iso_trace(const td_iso *l, const td_ray *r, td_hit *hit);

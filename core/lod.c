@@ -91,20 +91,14 @@ static td_status iso_twin(const td_grid *src, const td_grid *sq, td_iso **out, t
     td_iso *l = *out;
     if (rc)
         goto out;
-    l->zmin = INFINITY;
-    l->zmax = -INFINITY;
     for (int32_t r = 0; r < l->ny; r++) {
         for (int32_t c = 0; c < td_iso_row_len(l, r); c++) {
             /* node of src under sample (r, c): x = td_iso_x / src->sx, exact halves */
             int32_t i = !(r & 1) ? 2 * c : (c == 0 ? 0 : (c == l->nx ? 2 * (l->nx - 1) : 2 * c - 1));
-            float z = filtered(src, i, 2 * r);
-            l->z[td_iso_row_offset(l->nx, r) + (size_t)c] = z;
-            l->zmin = z < l->zmin ? z : l->zmin;
-            l->zmax = z > l->zmax ? z : l->zmax;
+            l->z[td_iso_row_offset(l->nx, r) + (size_t)c] = filtered(src, i, 2 * r);
         }
     }
-    if (!(l->zmin <= l->zmax))
-        l->zmin = l->zmax = NAN;
+    td_iso_finish(l);
 out:
     return rc;
 }

@@ -23,7 +23,8 @@
  * the same samples (one thread; a shared machine: indicative).
  *
  * Usage: iso-accuracy DATA_DIR OUT_DIR  (writes OUT_DIR/isometric-tables.md and
- * OUT_DIR/bench/iso-*.svg; `make iso-accuracy`-style: run by hand, see docs/isometric.md). */
+ * OUT_DIR/bench/iso-*.svg; run by hand, see docs/isometric.md; about 3 minutes), or
+ * iso-accuracy DATA_DIR --timing (the trace-cost table only, to stdout). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -588,8 +589,11 @@ int main(int argc, char **argv)
     char path[1024];
     FILE *f = NULL;
 
+    if (argc == 3 && !strcmp(argv[2], "--timing")) /* the trace-cost table only, to stdout */
+        return trace_cost(stdout, argv[1], &err) ? 1 : 0;
     if (argc != 3) {
-        fprintf(stderr, "usage: %s DATA_DIR OUT_DIR (e.g. tests/data docs)\n", argv[0]);
+        fprintf(stderr, "usage: %s DATA_DIR OUT_DIR (e.g. tests/data docs) | DATA_DIR --timing\n",
+                argv[0]);
         return 2;
     }
     snprintf(path, sizeof path, "%s/isometric-tables.md", argv[2]);
