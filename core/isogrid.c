@@ -7,10 +7,11 @@
  * the walk keeps the three floors and the t at which each one next changes, and steps
  * the family whose line comes first, as Amanatides-Woo do with two families of lines on
  * the square grid. In each triangle the ray's height above the triangle's plane is
- * linear in t; the hit is the first t where it is <= 0 (a ray that enters a triangle
- * below it hits where it enters, so a crack between two planes that disagree by a
- * rounding cannot let a ray through: watertight across triangles and tiles, which share
- * their samples). Rejected: testing the candidate triangles of each row strip with a
+ * linear in t; the hit is its first zero (surfaces are two-sided, as trace.h's). The
+ * height where one triangle's segment ends is carried to the next: if the sign changed
+ * across their shared edge, that is a crossing there, so a crack between two planes that
+ * disagree by a rounding cannot let a ray through (watertight across triangles and tiles,
+ * which share their samples). Rejected: testing the candidate triangles of each row strip with a
  * ray-triangle test (needs a margin of neighbours to be watertight, and is what the
  * oracle's reference does instead, tests/oracle/iso_reference.c).
  *
@@ -302,9 +303,13 @@ static double above(const td_ray *ray, const iso_plane *p, double t)
     return ray->o[2] + t * ray->d[2] - (p->z0 + p->gx * (x - p->x0) + p->gy * (y - p->y0));
 }
 
-/* The first t in [t0, t1] where the ray is on or below triangle (r, q), or +inf. */
+/* The first t in [t0, t1] where the ray meets triangle (r, q), or +inf. *fprev is the
+ * ray's height above the surface where the previous triangle's segment ended (NaN after a
+ * hole or at the start): a sign change between it and this triangle's entry is a crossing
+ * on their shared edge, which the two planes' roundings could otherwise both miss. On
+ * return *fprev is the height at t1. */
 static double segment_hit(const td_iso *l, const td_ray *ray, int32_t r, int32_t q, double t0,
-                          double t1, iso_plane *p)
+                          double t1, iso_plane *p, double *fprev)
 {
     double t = INFINITY, zr0 = ray->o[2] + t0 * ray->d[2], zr1 = ray->o[2] + t1 * ray->d[2];
     int32_t rr[3], cc[3];
@@ -313,16 +318,19 @@ static double segment_hit(const td_iso *l, const td_ray *ray, int32_t r, int32_t
     m = td_iso_at(l, rr[0], cc[0]);
     m = td_iso_at(l, rr[1], cc[1]) > m ? td_iso_at(l, rr[1], cc[1]) : m;
     m = td_iso_at(l, rr[2], cc[2]) > m ? td_iso_at(l, rr[2], cc[2]) : m;
-    /* above the triangle's highest corner at both ends (NaN corners: a hole, skipped by
-     * plane_of): nothing to solve */
-    if (!(zr0 > m && zr1 > m) && plane_of(l, r, q, p)) {
-        double f0 = above(ray, p, t0), f1;
-        if (f0 <= 0.0) {
+    if (zr0 > m && zr1 > m) { /* above the highest corner at both ends: nothing to solve */
+        *fprev = 1.0;
+    } else if (!plane_of(l, r, q, p)) { /* a hole */
+        *fprev = NAN;
+    } else {
+        double f0 = above(ray, p, t0), f1 = t1 > t0 ? above(ray, p, t1) : f0;
+        if (f0 == 0.0 || (*fprev > 0.0 && f0 < 0.0) || (*fprev < 0.0 && f0 > 0.0)) {
             t = t0;
-        } else if (t1 > t0 && (f1 = above(ray, p, t1)) <= 0.0) {
+        } else if (f1 == 0.0 || (f0 < 0.0) != (f1 < 0.0)) {
             t = t0 + (t1 - t0) * (f0 / (f0 - f1));
             t = t < t0 ? t0 : (t > t1 ? t1 : t);
         }
+        *fprev = f1;
     }
     return t;
 }
@@ -421,14 +429,14 @@ void td_iso_trace(const td_iso *l, const td_ray *ray, td_hit *hit)
         if (plane_of(l, r, q, &p)) {
             double h = p.z0 + p.gx * (ray->o[0] - p.x0) + p.gy * (ray->o[1] - p.y0);
             double tz = ray->d[2] != 0.0 ? (h - ray->o[2]) / ray->d[2] : INFINITY;
-            if (ray->o[2] + t0 * ray->d[2] <= h)
+            if (ray->o[2] + t0 * ray->d[2] == h)
                 t = t0;
             else if (tz >= t0 && tz <= t1)
                 t = tz;
         }
     } else {
         iso_family f[3];
-        double tc = t0, tb = -INFINITY; /* blocks checked up to tb */
+        double tc = t0, tb = -INFINITY, fprev = NAN; /* blocks checked up to tb */
         uint32_t cap = 4u * (uint32_t)(l->nx + l->ny) + 16u;
         walk_init(f, l, ray, t0);
         for (;;) {
@@ -440,6 +448,7 @@ void td_iso_trace(const td_iso *l, const td_ray *ray, td_hit *hit)
                     if (te >= t1 || steps >= cap)
                         break;
                     tc = te;
+                    fprev = 1.0; /* above the block's triangles, those at its edge included */
                     walk_init(f, l, ray, tc);
                     continue;
                 }
@@ -452,7 +461,7 @@ void td_iso_trace(const td_iso *l, const td_ray *ray, td_hit *hit)
             r = clamp32(f[0].idx, 0, l->ny - 2);
             q = clamp32(f[1].idx + f[2].idx + 1, 0, 2 * l->nx - 2);
             steps++;
-            t = segment_hit(l, ray, r, q, tc, tn, &p);
+            t = segment_hit(l, ray, r, q, tc, tn, &p, &fprev);
             if (t < INFINITY || tn >= t1 || steps >= cap)
                 break;
             family_step(&f[k]);

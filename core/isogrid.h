@@ -118,8 +118,9 @@ int td_iso_eval(const td_iso *l, double x, double y, double *z, double n[3]);
  * the walk visits the triangles the ray's ground track crosses, in order (a DDA over the
  * three line families), and solves each one's plane along the ray in double; it steps
  * over a whole block where the ray stays above the block's maximum (a step too). The same
- * rules as td_trace: a ray that starts below the surface hits at tmin; holes are passed
- * through. hit->ci, cj hold the triangle (q, r); hit->method is TD_METHOD_INCREMENTAL. */
+ * rules as td_trace: the surface is two-sided (a ray that starts on it hits at tmin, one
+ * that starts below it where it first crosses it); holes are passed through. hit->ci, cj
+ * hold the triangle (q, r); hit->method is TD_METHOD_INCREMENTAL. */
 void td_iso_trace(const td_iso *l, const td_ray *r, td_hit *hit);
 
 /* Two-byte vertices (the paper's storage): the samples are cut into tiles of T x T

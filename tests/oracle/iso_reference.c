@@ -89,21 +89,28 @@ static int clip_tri(const td_ray *r, const vtx *p[3], double margin, clip *c)
     return ok && c->lo <= c->hi;
 }
 
+/* The ray over one valid triangle: [lo, hi] and its height above it, f0 + f1 t. */
+typedef struct piece {
+    double lo, hi, f0, f1;
+} piece;
+
 typedef struct ref_ctx {
     const td_ray *r;
     double eps, margin;
     td_iso_ref_hit *out;
+    piece *pc;
+    size_t n, cap;
 } ref_ctx;
 
-/* First t in [lo, hi] where f0 + f1 t <= level, or +inf. */
-static double first_below(const clip *c, double level)
+/* First t in [lo, hi] where f0 + f1 t = level, or +inf (lo itself when f(lo) = level). */
+static double first_at(const piece *c, double level)
 {
-    double t = INFINITY;
-    if (c->f0 + c->f1 * c->lo <= level)
+    double t = INFINITY, flo = c->f0 + c->f1 * c->lo;
+    if (flo == level)
         t = c->lo;
-    else if (c->f1 < 0.0) {
+    else if (c->f1 != 0.0) {
         double root = (level - c->f0) / c->f1;
-        t = root <= c->hi ? fmax(root, c->lo) : INFINITY;
+        t = root > c->lo && root <= c->hi ? root : INFINITY;
     }
     return t;
 }
@@ -122,9 +129,52 @@ static void on_tri(void *vctx, const vtx *a, const vtx *b, const vtx *c3)
     c.hi = fmin(c.hi, x->r->tmax);
     if (c.lo > c.hi)
         return;
-    x->out->t = fmin(x->out->t, first_below(&c, 0.0));
-    x->out->t_near = fmin(x->out->t_near, first_below(&c, x->eps));
-    x->out->t_strict = fmin(x->out->t_strict, first_below(&c, -x->eps));
+    if (x->n == x->cap) {
+        size_t nc = x->cap ? 2 * x->cap : 64;
+        piece *np = realloc(x->pc, nc * sizeof *np);
+        if (!np)
+            return;
+        x->pc = np;
+        x->cap = nc;
+    }
+    x->pc[x->n++] = (piece){c.lo, c.hi, c.f0, c.f1};
+}
+
+static int by_lo(const void *a, const void *b)
+{
+    double x = ((const piece *)a)->lo, y = ((const piece *)b)->lo;
+    return x < y ? -1 : x > y;
+}
+
+/* The answers from the pieces: the exact hit and t_near per piece; t_strict by a sweep in
+ * ray order that remembers which side the ray was definitely on (forgotten at a gap: a
+ * hole, where the ray may pass under an edge without crossing anything). */
+static void sweep(ref_ctx *x)
+{
+    double eps = x->eps, t_cov = -INFINITY;
+    int side = 0;
+    qsort(x->pc, x->n, sizeof *x->pc, by_lo);
+    for (size_t i = 0; i < x->n; i++) {
+        const piece *c = &x->pc[i];
+        double flo = c->f0 + c->f1 * c->lo, fhi = isfinite(c->hi) ? c->f0 + c->f1 * c->hi : NAN;
+        x->out->t = fmin(x->out->t, first_at(c, 0.0));
+        x->out->t_near = fmin(x->out->t_near, fabs(flo) <= eps ? c->lo : fmin(first_at(c, eps), first_at(c, -eps)));
+        if (c->lo > t_cov + 1e-9 * (1.0 + fabs(c->lo)))
+            side = 0; /* a gap */
+        if (side == 0)
+            side = flo > eps ? 1 : (flo < -eps ? -1 : 0);
+        if (side != 0) {
+            double ts = first_at(c, side > 0 ? -eps : eps);
+            if (side > 0 ? flo < -eps : flo > eps)
+                ts = c->lo;
+            x->out->t_strict = fmin(x->out->t_strict, ts);
+        }
+        if (isfinite(fhi) && fabs(fhi) > eps)
+            side = fhi > 0 ? 1 : -1;
+        else if (side == 0 && c->f1 != 0.0 && !isfinite(c->hi))
+            side = c->f1 > 0 ? 1 : -1;
+        t_cov = fmax(t_cov, c->hi);
+    }
 }
 
 /* Rows of strips the ray's ground track may touch: [*r0, *r1]. */
@@ -153,13 +203,15 @@ static void strips_of(const td_iso *l, const td_ray *r, int32_t *r0, int32_t *r1
 void td_iso_ref_trace(const td_iso *l, const td_ray *r, double eps, td_iso_ref_hit *out)
 {
     vtx *buf = malloc(2 * ((size_t)l->nx + 1) * sizeof *buf);
-    ref_ctx x = {r, eps, 1e-9 * fmin(l->a, l->b), out};
+    ref_ctx x = {r, eps, 1e-9 * fmin(l->a, l->b), out, NULL, 0, 0};
     int32_t r0, r1;
     out->t = out->t_near = out->t_strict = INFINITY;
     out->triangles = 0;
     strips_of(l, r, &r0, &r1);
     for (int32_t s = r0; buf && s <= r1; s++)
         strip(l, s, buf, on_tri, &x);
+    sweep(&x);
+    free(x.pc);
     free(buf);
 }
 

@@ -9,17 +9,19 @@
  * ray's ground track may touch is clipped against the ray's line by its three edges and
  * solved along the ray with barycentric heights. No DDA, no point location.
  *
- * Band of half-width eps (metres, vertical), as reference.h: t_near is the first t where
- * the ray comes within eps above the surface, t_strict the first where it is more than eps
- * below. Any answer in [t_near, t_strict] whose point is within eps of the surface is a
- * tie; a miss is consistent iff t_strict is +inf. */
+ * The surface is two-sided (isogrid.h): the exact hit is the first t where the ray meets
+ * a valid triangle. Band of half-width eps (metres, vertical), as reference.h: t_near is
+ * the first t where the ray comes within eps of the surface, t_strict the first where it
+ * has definitely crossed it (from more than eps on one side to more than eps on the other,
+ * over valid triangles without a hole between). Any answer in [t_near, t_strict] whose
+ * point is within eps of the surface is a tie; a miss is consistent iff t_strict is +inf. */
 #ifndef TD_ISO_REFERENCE_H
 #define TD_ISO_REFERENCE_H
 
 #include "isogrid.h"
 
 typedef struct td_iso_ref_hit {
-    double t;        /* first exact hit (a ray that starts below hits at tmin), +inf if none */
+    double t;        /* first exact hit, +inf if none */
     double t_near;   /* see above, +inf if never */
     double t_strict; /* see above, +inf if never */
     uint64_t triangles; /* triangles clipped */

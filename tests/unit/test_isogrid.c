@@ -5,8 +5,8 @@
  * half a step otherwise; and td_iso_trace against the double-precision reference on
  * random rays over a real DEM and a bumpy surface with holes, and on hard cases: rays
  * along each of the three families of lattice lines, through vertices, vertical, grazing
- * a peak, on flat terrain, starting below, from outside, through holes; every downward
- * ray over the lattice hits (watertight). */
+ * a peak, on flat terrain, from below (two-sided), from outside, through holes; every
+ * downward ray over the lattice hits (watertight). */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -18,6 +18,7 @@
 #include <cmocka.h>
 
 #include "dem.h"
+#include "lod.h"
 #include "isogrid.h"
 #include "iso_reference.h"
 
@@ -236,7 +237,7 @@ static void judge(const td_iso *l, const td_ray *r, tally *t)
     t->agree += v == TD_ISO_REF_AGREE;
     t->tie += v == TD_ISO_REF_TIE;
     t->wrong += v == TD_ISO_REF_WRONG;
-    if (h.t < INFINITY) { /* the hit lies on or under the (valid) triangle it names */
+    if (h.t < INFINITY) { /* the hit lies on the (valid) triangle it names */
         double tv[3][3], e1[3], e2[3], n[3];
         assert_true(h.t >= r->tmin && h.t <= r->tmax);
         assert_true(h.n[2] > 0.0f);
@@ -249,10 +250,7 @@ static void judge(const td_iso *l, const td_ray *r, tally *t)
         n[1] = e1[2] * e2[0] - e1[0] * e2[2];
         n[2] = e1[0] * e2[1] - e1[1] * e2[0];
         double zp = tv[0][2] - (n[0] * (h.p[0] - tv[0][0]) + n[1] * (h.p[1] - tv[0][1])) / n[2];
-        /* on it, or below it where the ray starts or enters the lattice under the surface */
-        if (!(h.p[2] <= zp + 1e-6 * (1.0 + fabs(zp))))
-            print_message("off %.17g above\n", h.p[2] - zp);
-        assert_true(h.p[2] <= zp + 1e-6 * (1.0 + fabs(zp)));
+        assert_true(fabs(h.p[2] - zp) <= 1e-6 * (1.0 + fabs(zp)));
     }
 }
 
@@ -340,16 +338,28 @@ static void test_iso_hardcases(void **state)
                 assert_true(h.t < INFINITY); /* watertight: the ground track stays inside */
             judge(m, &dn, &t);
         }
-        td_ray below = {{X / 2, Y / 2, -100.0}, {1.0, 0.3, 0.1}, 0.0, INFINITY};
+        /* two-sided: from below, a ray hits where it comes up through the surface */
+        double zc;
+        assert_true(td_iso_eval(m, X / 2, Y / 2, &zc, NULL));
+        td_ray below = {{X / 2, Y / 2, -100.0}, {0.0, 0.0, 2.0}, 0.0, INFINITY};
         td_hit h;
         td_iso_trace(m, &below, &h);
-        assert_true(h.t == 0.0);
+        assert_true(fabs(h.t - (zc + 100.0) / 2.0) < 1e-9);
+        below.d[2] = -1.0; /* and never going down */
+        td_iso_trace(m, &below, &h);
+        assert_true(h.t == INFINITY);
         td_ray outside = {{-10.0, Y / 3, 300.0}, {1.0, 0.0, 0.0}, 0.0, INFINITY};
         td_iso_trace(m, &outside, &h);
         assert_true(h.t == INFINITY);
-        td_ray wall = {{-10.0, Y / 3, -300.0}, {1.0, 0.0, 0.0}, 0.0, INFINITY};
-        td_iso_trace(m, &wall, &h); /* enters the lattice below its surface: hits at its edge */
-        assert_true(h.t == 10.0);
+        td_ray under = {{-10.0, Y / 3, -300.0}, {1.0, 0.0, 0.0}, 0.0, INFINITY};
+        td_iso_trace(m, &under, &h); /* under the lattice all along: no walls */
+        assert_true(h.t == INFINITY);
+        td_ray on = {{X / 2, Y / 2, zc}, {1.0, 0.5, 3.0}, 0.0, INFINITY};
+        td_iso_trace(m, &on, &h); /* starting on it */
+        assert_true(h.t == 0.0);
+        judge(m, &below, &t);
+        judge(m, &under, &t);
+        judge(m, &on, &t);
     }
     td_iso_free(l);
     td_iso_free(e);
@@ -384,6 +394,90 @@ static void test_iso_hardcases(void **state)
     assert_int_equal(t.wrong, 0);
 }
 
+/* Every block maximum bounds the surface over its box (checked at random points, vertices
+ * included), and is reached there or by a neighbouring triangle's corner. */
+static void test_iso_blocks(void **state)
+{
+    (void)state;
+    uint64_t seed = 5;
+    td_iso *l = make(45, 37, 1.0, sqrt(3.0) / 2.0, bumpy_fn, (void *)1);
+    const double S = 1 << TD_ISO_BLOCK_LOG2;
+    assert_int_equal(l->bw, (45 - 2) / 8 + 1);
+    assert_int_equal(l->bh, (37 - 2) / 8 + 1);
+    for (int k = 0; k < 40000; k++) {
+        double x = rnd(&seed) * 44 * l->a, y = rnd(&seed) * 36 * l->b, z;
+        if (k % 3 == 0) { /* a vertex */
+            int32_t r = (int32_t)(rnd(&seed) * 37), c = (int32_t)(rnd(&seed) * td_iso_row_len(l, r));
+            x = td_iso_x(l, r, c);
+            y = r * l->b;
+        }
+        if (!td_iso_eval(l, x, y, &z, NULL))
+            continue;
+        for (int32_t j = 0; j < l->bh; j++) /* every block whose closed box holds the point */
+            for (int32_t i = 0; i < l->bw; i++)
+                if (x >= i * S * l->a && x <= (i + 1) * S * l->a && y >= j * S * l->b &&
+                    y <= (j + 1) * S * l->b)
+                    assert_true(z <= l->bmax[j * l->bw + i]);
+    }
+    td_iso_free(l);
+}
+
+/* The levels of detail's isometric twins: even rows are the square level's samples, odd
+ * rows the finer level's filtered samples between them; td_lod_iso_trace names the square
+ * level's cell under the hit. */
+static void test_iso_lod_twin(void **state)
+{
+    (void)state;
+    td_grid *g = load("volcano.asc");
+    td_lod *lod = NULL;
+    td_accel_opts ao = {0, 0, 1, 1};
+    uint64_t seed = 3;
+    assert_int_equal(td_lod_build(g, 3, &ao, &lod, NULL), TD_OK);
+    assert_int_equal(lod->levels, 3);
+    for (int k = 1; k <= lod->levels; k++) {
+        const td_grid *sq = lod->grid[k], *fine = k == 1 ? g : lod->grid[k - 1];
+        const td_iso *l = lod->iso[k];
+        assert_non_null(l);
+        assert_int_equal(l->nx, sq->w);
+        assert_int_equal(l->ny, sq->h);
+        assert_true(l->a == sq->sx && l->b == sq->sy);
+        for (int32_t r = 0; r < l->ny; r += 2)
+            for (int32_t c = 0; c < l->nx; c++)
+                assert_true(td_iso_at(l, r, c) == td_grid_at(sq, c, r));
+        /* an odd row's inner sample: the 1-2-1 mean around the finer node (2c - 1, 2r) */
+        int32_t r = 1, c = 2, i = 2 * c - 1, j = 2 * r;
+        double sum = 0, w = 0;
+        for (int dj = -1; dj <= 1; dj++)
+            for (int di = -1; di <= 1; di++) {
+                double wt = (di ? 1.0 : 2.0) * (dj ? 1.0 : 2.0);
+                sum += wt * td_grid_at(fine, i + di, j + dj);
+                w += wt;
+            }
+        assert_true(fabs(td_iso_at(l, r, c) - sum / w) < 1e-4);
+        for (int n = 0; n < 200; n++) {
+            double X = (sq->w - 1) * sq->sx, Y = (sq->h - 1) * sq->sy;
+            td_ray ray = {{rnd(&seed) * X, rnd(&seed) * Y, g->zmax + 50.0},
+                          {rnd(&seed) - 0.5, rnd(&seed) - 0.5, -1.0}, 0.0, INFINITY};
+            td_hit h, hi;
+            td_lod_iso_trace(lod, k, &ray, &h);
+            td_iso_trace(l, &ray, &hi);
+            assert_true(h.t == hi.t);
+            if (h.t < INFINITY) {
+                assert_true(h.ci >= 0 && h.ci <= sq->w - 2 && h.cj >= 0 && h.cj <= sq->h - 2);
+                assert_true(h.p[0] >= h.ci * sq->sx - 1e-9 && h.p[0] <= (h.ci + 1) * sq->sx + 1e-9);
+                assert_true(h.p[1] >= h.cj * sq->sy - 1e-9 && h.p[1] <= (h.cj + 1) * sq->sy + 1e-9);
+            }
+        }
+    }
+    assert_int_equal(td_lod_grid_name(TD_LOD_GRID_ISOMETRIC)[0], 'i');
+    td_lod_grid gg = TD_LOD_GRID_ISOMETRIC;
+    assert_int_equal(td_lod_grid_parse("square", &gg), TD_OK);
+    assert_int_equal(gg, TD_LOD_GRID_SQUARE);
+    assert_int_equal(td_lod_grid_parse("hex", &gg), TD_EINVAL);
+    td_lod_free(lod);
+    td_grid_free(g);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -394,6 +488,8 @@ int main(void)
         cmocka_unit_test(test_iso_pack),
         cmocka_unit_test(test_iso_rays_reference),
         cmocka_unit_test(test_iso_hardcases),
+        cmocka_unit_test(test_iso_blocks),
+        cmocka_unit_test(test_iso_lod_twin),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
