@@ -15,8 +15,12 @@
  * ray-triangle test (needs a margin of neighbours to be watertight, and is what the
  * oracle's reference does instead, tests/oracle/iso_reference.c).
  *
- * Measured (docs/isometric.md): the walk takes 1.5 to 2 triangles per square cell the
- * square walk would cross for the same samples (three line families instead of two). */
+ * Hierarchy: a pyramid of block maxima (8 x 8 rows and columns, then doubling); where the
+ * ray stays above a block's maximum over the block's box the walk jumps to the box's exit
+ * and starts its three families again there (the "hierarchical" method on the lattice).
+ * Rejected for now: Paglieroni-Petersen cones on the lattice (distance transforms over a
+ * sheared grid; not done, see docs/isometric.md). Measured there: the walk's rays per
+ * second against the square grid's methods on the same samples. */
 #include "isogrid.h"
 
 #include <math.h>
@@ -68,12 +72,24 @@ td_status td_iso_create(int32_t nx, int32_t ny, double a, double b, td_iso **out
     }
     l = calloc(1, sizeof *l);
     if (l) {
-        l->bw = ((nx - 2) >> TD_ISO_BLOCK_LOG2) + 1;
-        l->bh = ((ny - 2) >> TD_ISO_BLOCK_LOG2) + 1;
+        size_t nb = 0;
+        int32_t bw = ((nx - 2) >> TD_ISO_BLOCK_LOG2) + 1, bh = ((ny - 2) >> TD_ISO_BLOCK_LOG2) + 1;
+        for (int k = 0; k < TD_ISO_BLEVELS; k++) { /* 2^24 samples: at most 22 levels */
+            l->bw[k] = bw;
+            l->bh[k] = bh;
+            nb += (size_t)bw * (size_t)bh;
+            l->blevels = k + 1;
+            if (bw == 1 && bh == 1)
+                break;
+            bw = (bw + 1) / 2;
+            bh = (bh + 1) / 2;
+        }
         l->z = malloc(n);
-        l->bmax = malloc((size_t)l->bw * (size_t)l->bh * sizeof *l->bmax);
+        l->bmax[0] = malloc(nb * sizeof(float));
+        for (int k = 1; l->bmax[0] && k < l->blevels; k++)
+            l->bmax[k] = l->bmax[k - 1] + (size_t)l->bw[k - 1] * (size_t)l->bh[k - 1];
     }
-    if (!l || !l->z || !l->bmax) {
+    if (!l || !l->z || !l->bmax[0]) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for a %d x %d isometric lattice", (int)nx,
                         (int)ny);
         goto out;
@@ -119,8 +135,8 @@ void td_iso_finish(td_iso *l)
     l->zmax = lo <= hi ? hi : NAN;
     /* a triangle over block (i, j) lies in strips j S .. j S + S - 1 and has its corners
      * within a of the box in x: columns i S - 1 .. i S + S + 2 of either row bound it */
-    for (int32_t j = 0; j < l->bh; j++) {
-        for (int32_t i = 0; i < l->bw; i++) {
+    for (int32_t j = 0; j < l->bh[0]; j++) {
+        for (int32_t i = 0; i < l->bw[0]; i++) {
             float m = -INFINITY;
             for (int32_t r = j * S; r <= j * S + S && r < l->ny; r++) {
                 int32_t c1 = i * S + S + 2 < td_iso_row_len(l, r) - 1 ? i * S + S + 2 : td_iso_row_len(l, r) - 1;
@@ -129,7 +145,20 @@ void td_iso_finish(td_iso *l)
                     m = z > m ? z : m;
                 }
             }
-            l->bmax[(size_t)j * (size_t)l->bw + (size_t)i] = m;
+            l->bmax[0][(size_t)j * (size_t)l->bw[0] + (size_t)i] = m;
+        }
+    }
+    for (int k = 1; k < l->blevels; k++) { /* a block's box is its four children's */
+        for (int32_t j = 0; j < l->bh[k]; j++) {
+            for (int32_t i = 0; i < l->bw[k]; i++) {
+                float m = -INFINITY;
+                for (int32_t y = 2 * j; y <= 2 * j + 1 && y < l->bh[k - 1]; y++)
+                    for (int32_t x = 2 * i; x <= 2 * i + 1 && x < l->bw[k - 1]; x++) {
+                        float v = l->bmax[k - 1][(size_t)y * (size_t)l->bw[k - 1] + (size_t)x];
+                        m = v > m ? v : m;
+                    }
+                l->bmax[k][(size_t)j * (size_t)l->bw[k] + (size_t)i] = m;
+            }
         }
     }
 }
@@ -200,7 +229,7 @@ out:
 void td_iso_free(td_iso *l)
 {
     if (l) {
-        free(l->bmax);
+        free(l->bmax[0]);
         free(l->z);
         free(l);
     }
@@ -386,28 +415,50 @@ static void walk_init(iso_family f[3], const td_iso *l, const td_ray *ray, doubl
     family_init(&f[2], ray->o[0] * ia + 0.5 * ray->o[1] * ib, ray->d[0] * ia + 0.5 * ray->d[1] * ib, t);
 }
 
-/* The block holding the ray's point at tc (ties toward the direction of travel): *te gets
- * the t where the ray leaves its box (at most t1); returns whether the ray stays above the
- * block's maximum until then (and leaves it after tc), so the walk may jump to *te. */
-static int block_skip(const td_iso *l, const td_ray *ray, double tc, double t1, double *te)
+/* The ray from tc against the block of level k holding its point there (ties toward the
+ * direction of travel): *te gets the t where it leaves the block's box (at most t1);
+ * returns whether it stays above the block's maximum until then (and leaves after tc). */
+static int block_clear(const td_iso *l, int k, const td_ray *ray, double tc, double t1, double *te)
 {
-    const double S = (double)((int32_t)1 << TD_ISO_BLOCK_LOG2);
+    const double S = ldexp(1.0, TD_ISO_BLOCK_LOG2 + k);
     double w[2] = {S * l->a, S * l->b}, z0, z1;
-    int32_t bi[2], n[2] = {l->bw, l->bh};
+    int32_t bi[2], n[2] = {l->bw[k], l->bh[k]};
     float m;
     *te = t1;
-    for (int k = 0; k < 2; k++) {
-        double v = (ray->o[k] + tc * ray->d[k]) / w[k];
-        bi[k] = clamp32((int32_t)(ray->d[k] < 0.0 ? ceil(v) - 1.0 : floor(v)), 0, n[k] - 1);
-        if (ray->d[k] != 0.0) {
-            double tk = ((ray->d[k] > 0.0 ? bi[k] + 1 : bi[k]) * w[k] - ray->o[k]) / ray->d[k];
-            *te = tk < *te ? tk : *te;
+    for (int a = 0; a < 2; a++) {
+        double v = (ray->o[a] + tc * ray->d[a]) / w[a];
+        bi[a] = clamp32((int32_t)(ray->d[a] < 0.0 ? ceil(v) - 1.0 : floor(v)), 0, n[a] - 1);
+        if (ray->d[a] != 0.0) {
+            double ta = ((ray->d[a] > 0.0 ? bi[a] + 1 : bi[a]) * w[a] - ray->o[a]) / ray->d[a];
+            *te = ta < *te ? ta : *te;
         }
     }
-    m = l->bmax[(size_t)bi[1] * (size_t)l->bw + (size_t)bi[0]];
+    m = l->bmax[k][(size_t)bi[1] * (size_t)l->bw[k] + (size_t)bi[0]];
     z0 = ray->o[2] + tc * ray->d[2];
     z1 = ray->o[2] + *te * ray->d[2];
     return *te > tc && z0 > m && z1 > m;
+}
+
+/* Where the walk may jump from tc: the exit of the largest block the ray clears (returns
+ * 1), or 0 and *te the exit of the level-0 block (no test again before it). The pyramid is
+ * climbed from the level of the last clear block, so a ray above the terrain pays one or
+ * two tests a jump, not one per level. */
+static int block_skip(const td_iso *l, const td_ray *ray, double tc, double t1, int *level,
+                      double *te)
+{
+    int k = *level, ok = block_clear(l, k, ray, tc, t1, te);
+    if (ok) {
+        double t2;
+        while (k + 1 < l->blevels && block_clear(l, k + 1, ray, tc, t1, &t2)) {
+            k++;
+            *te = t2;
+        }
+    } else {
+        while (k > 0 && !ok)
+            ok = block_clear(l, --k, ray, tc, t1, te);
+    }
+    *level = k;
+    return ok;
 }
 
 void td_iso_trace(const td_iso *l, const td_ray *ray, td_hit *hit)
@@ -437,13 +488,14 @@ void td_iso_trace(const td_iso *l, const td_ray *ray, td_hit *hit)
     } else {
         iso_family f[3];
         double tc = t0, tb = -INFINITY, fprev = NAN; /* blocks checked up to tb */
+        int level = l->blevels - 1;
         uint32_t cap = 4u * (uint32_t)(l->nx + l->ny) + 16u;
         walk_init(f, l, ray, t0);
         for (;;) {
             int k;
             double tn, te;
             if (tc >= tb) {
-                if (block_skip(l, ray, tc, t1, &te)) {
+                if (block_skip(l, ray, tc, t1, &level, &te)) {
                     steps++;
                     if (te >= t1 || steps >= cap)
                         break;

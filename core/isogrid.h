@@ -53,18 +53,21 @@ typedef enum td_iso_rows {
 
 const char *td_iso_rows_name(td_iso_rows r);
 
-#define TD_ISO_BLOCK_LOG2 3 /* blocks of 8 x 8 rows and columns */
+#define TD_ISO_BLOCK_LOG2 3 /* level-0 blocks of 8 x 8 rows and columns */
+#define TD_ISO_BLEVELS 24    /* block levels at most (each doubles the block) */
 
 typedef struct td_iso {
     int32_t nx, ny;   /* samples per even row (>= 2), rows (>= 2); odd rows hold nx + 1 */
     double a, b;      /* column and row spacing, metres */
     float *z;         /* row r starts at z + td_iso_row_offset(r) */
     float zmin, zmax; /* over valid samples; NaN if all are void */
-    /* Block maxima (the walk's one-level hierarchy): block (i, j) is the box x in
-     * [i S a, (i+1) S a], y in [j S b, (j+1) S b], S = 1 << TD_ISO_BLOCK_LOG2; bmax[j bw +
-     * i] bounds every triangle over it (-inf if none is valid). */
-    int32_t bw, bh;
-    float *bmax;
+    /* Block maxima (the walk's hierarchy, a max pyramid): at level k, block (i, j) is the
+     * box x in [i S a, (i+1) S a], y in [j S b, (j+1) S b], S = 2^(TD_ISO_BLOCK_LOG2 + k);
+     * bmax[k][j bw[k] + i] bounds every triangle over it (-inf if none is valid). The top
+     * level has one block. */
+    int blevels;
+    int32_t bw[TD_ISO_BLEVELS], bh[TD_ISO_BLEVELS];
+    float *bmax[TD_ISO_BLEVELS]; /* one allocation, at bmax[0] */
 } td_iso;
 
 /* A height function for td_iso_sample: returns z at (x, y), NaN for a void. */
@@ -117,7 +120,8 @@ int td_iso_eval(const td_iso *l, double x, double y, double *z, double n[3]);
 /* The first point where ray r (validated) meets the lattice's triangles in [tmin, tmax]:
  * the walk visits the triangles the ray's ground track crosses, in order (a DDA over the
  * three line families), and solves each one's plane along the ray in double; it steps
- * over a whole block where the ray stays above the block's maximum (a step too). The same
+ * over the largest block of the pyramid where the ray stays above the block's maximum
+ * (a step too). The same
  * rules as td_trace: the surface is two-sided (a ray that starts on it hits at tmin, one
  * that starts below it where it first crosses it); holes are passed through. hit->ci, cj
  * hold the triangle (q, r); hit->method is TD_METHOD_INCREMENTAL. */

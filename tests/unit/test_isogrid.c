@@ -394,16 +394,19 @@ static void test_iso_hardcases(void **state)
     assert_int_equal(t.wrong, 0);
 }
 
-/* Every block maximum bounds the surface over its box (checked at random points, vertices
- * included), and is reached there or by a neighbouring triangle's corner. */
+/* The pyramid's sizes, and every block maximum at every level bounds the surface over its
+ * box (checked at random points, vertices included). */
 static void test_iso_blocks(void **state)
 {
     (void)state;
     uint64_t seed = 5;
     td_iso *l = make(45, 37, 1.0, sqrt(3.0) / 2.0, bumpy_fn, (void *)1);
-    const double S = 1 << TD_ISO_BLOCK_LOG2;
-    assert_int_equal(l->bw, (45 - 2) / 8 + 1);
-    assert_int_equal(l->bh, (37 - 2) / 8 + 1);
+    assert_int_equal(l->bw[0], (45 - 2) / 8 + 1); /* 6 x 5 -> 3 x 3 -> 2 x 2 -> 1 x 1 */
+    assert_int_equal(l->bh[0], (37 - 2) / 8 + 1);
+    assert_int_equal(l->blevels, 4);
+    assert_int_equal(l->bw[3], 1);
+    assert_int_equal(l->bh[3], 1);
+    assert_true(l->bmax[3][0] == l->zmax);
     for (int k = 0; k < 40000; k++) {
         double x = rnd(&seed) * 44 * l->a, y = rnd(&seed) * 36 * l->b, z;
         if (k % 3 == 0) { /* a vertex */
@@ -413,11 +416,14 @@ static void test_iso_blocks(void **state)
         }
         if (!td_iso_eval(l, x, y, &z, NULL))
             continue;
-        for (int32_t j = 0; j < l->bh; j++) /* every block whose closed box holds the point */
-            for (int32_t i = 0; i < l->bw; i++)
-                if (x >= i * S * l->a && x <= (i + 1) * S * l->a && y >= j * S * l->b &&
-                    y <= (j + 1) * S * l->b)
-                    assert_true(z <= l->bmax[j * l->bw + i]);
+        for (int lv = 0; lv < l->blevels; lv++) { /* every block whose closed box holds the point */
+            double S = 8 << lv;
+            for (int32_t j = 0; j < l->bh[lv]; j++)
+                for (int32_t i = 0; i < l->bw[lv]; i++)
+                    if (x >= i * S * l->a && x <= (i + 1) * S * l->a && y >= j * S * l->b &&
+                        y <= (j + 1) * S * l->b)
+                        assert_true(z <= l->bmax[lv][j * l->bw[lv] + i]);
+        }
     }
     td_iso_free(l);
 }
