@@ -559,8 +559,21 @@ static int tile_exact(const td_iso *l, const td_iso_packed *p, size_t ti, double
         for (int32_t c = tx * T; ok && c < cend; c++) {
             float z = td_iso_at(l, r, c);
             double k = nearbyint(((double)z - offset) / step);
-            ok = isnan(z) || (k <= 65534.0 && decode(offset, step, (uint16_t)k) == (double)z);
+            ok = isnan(z) || (k >= 0.0 && k <= 65534.0 && decode(offset, step, (uint16_t)k) == (double)z);
         }
+    }
+    return ok;
+}
+
+/* Whether step s codes tile ti exactly, from an offset that is a whole number of steps
+ * (so decimal data, 2339.84 = 233984 x 0.01, stay decimal: float32 heights are not). */
+static int try_step(const td_iso *l, td_iso_packed *p, size_t ti, double lo, double hi, double s)
+{
+    double off = nearbyint(lo / s) * s;
+    int ok = (hi - off) / s <= 65534.0 && tile_exact(l, p, ti, off, s); /* off within s/2 of lo */
+    if (ok) {
+        p->offset[ti] = off;
+        p->step[ti] = s;
     }
     return ok;
 }
@@ -568,22 +581,17 @@ static int tile_exact(const td_iso *l, const td_iso_packed *p, size_t ti, double
 /* Picks tile ti's offset and step (lossless if a candidate step is exact). */
 static void tile_code(const td_iso *l, td_iso_packed *p, size_t ti, double lo, double hi)
 {
-    double step = 0.0;
-    for (int e = 4; e >= -16 && step == 0.0; e--) { /* 16, 8, .. 1, 1/2, .. 2^-16 */
-        double s = ldexp(1.0, e);
-        if ((hi - lo) / s <= 65534.0 && tile_exact(l, p, ti, lo, s))
-            step = s;
-        for (int d = 1; e == 0 && d <= 3 && step == 0.0; d++) { /* 1/10, 1/100, 1/1000 */
-            s = pow(10.0, -d);
-            if ((hi - lo) / s <= 65534.0 && tile_exact(l, p, ti, lo, s))
-                step = s;
-        }
+    int ok = 0;
+    for (int e = 4; e >= -16 && !ok; e--) { /* 16, 8, .. 1, 1/2, .. 2^-16 */
+        ok = try_step(l, p, ti, lo, hi, ldexp(1.0, e));
+        for (int d = 1; e == 0 && d <= 3 && !ok; d++) /* 1/10, 1/100, 1/1000 */
+            ok = try_step(l, p, ti, lo, hi, pow(10.0, -d));
     }
-    p->lossless += step > 0.0;
-    if (step == 0.0)
-        step = hi > lo ? (hi - lo) / 65534.0 : 1.0;
-    p->offset[ti] = lo;
-    p->step[ti] = step;
+    p->lossless += ok;
+    if (!ok) {
+        p->offset[ti] = lo;
+        p->step[ti] = hi > lo ? (hi - lo) / 65534.0 : 1.0;
+    }
 }
 
 td_status td_iso_pack(const td_iso *l, int tile_log2, td_iso_packed **out, td_err *err)

@@ -43,6 +43,12 @@ static double bumpy_fn(void *ctx, double x, double y)
     return z;
 }
 
+static double cm_fn(void *ctx, double x, double y) /* centimetre data, as many DEMs */
+{
+    (void)ctx;
+    return 1375.07 + nearbyint(100.0 * 40.0 * (1.0 + sin(0.3 * x) * cos(0.2 * y))) / 100.0;
+}
+
 static double flat_fn(void *ctx, double x, double y)
 {
     (void)ctx;
@@ -194,6 +200,17 @@ static void test_iso_pack(void **state)
     td_iso_free(u);
     td_iso_free(l);
     td_grid_free(g);
+
+    /* decimal data: float32 heights of centimetre values are coded exactly */
+    l = make(70, 50, 1.0, 1.0, cm_fn, NULL);
+    assert_int_equal(td_iso_pack(l, 4, &p, NULL), TD_OK);
+    assert_int_equal(p->lossless, p->tiles_x * p->tiles_y);
+    assert_true(p->max_err == 0.0);
+    assert_int_equal(td_iso_unpack(p, &u, NULL), TD_OK);
+    assert_memory_equal(u->z, l->z, td_iso_row_offset(l->nx, l->ny) * sizeof(float));
+    td_iso_packed_free(p);
+    td_iso_free(u);
+    td_iso_free(l);
 
     /* lossy: heights with every fraction, voids kept */
     l = make(70, 50, 1.0, 1.0, bumpy_fn, (void *)1);
