@@ -123,15 +123,12 @@ td_status td_lod_build(const td_grid *base, int levels, const td_accel_opts *o, 
         if (rc)
             goto out;
         rc = td_accel_build(l->grid[k], o, &l->accel[k], &st, err);
-        if (!rc)
-            rc = iso_twin(prev, l->grid[k], &l->iso[k], err);
         if (rc)
             goto out;
         l->view[k].grid = l->grid[k];
         l->view[k].accel = l->accel[k]->tiles;
         l->bytes += td_grid_bytes(l->grid[k]->w, l->grid[k]->h, l->grid[k]->tile_log2) +
-                    st.maxmip_bytes + st.planes_bytes +
-                    td_iso_row_offset(l->iso[k]->nx, l->iso[k]->ny) * sizeof(float);
+                    st.maxmip_bytes + st.planes_bytes;
         l->levels = k;
         prev = l->grid[k];
     }
@@ -154,6 +151,29 @@ void td_lod_free(td_lod *l)
         }
         free(l);
     }
+}
+
+td_status td_lod_add_iso(td_lod *l, const td_grid *base, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_iso *iso[TD_LOD_MAX + 1] = {NULL};
+    uint64_t bytes = 0;
+    for (int k = 1; k <= l->levels && !rc; k++) {
+        rc = iso_twin(k == 1 ? base : l->grid[k - 1], l->grid[k], &iso[k], err);
+        if (!rc)
+            bytes += td_iso_row_offset(iso[k]->nx, iso[k]->ny) * sizeof(float);
+    }
+    for (int k = 1; k <= l->levels; k++) {
+        if (rc) {
+            td_iso_free(iso[k]);
+        } else {
+            td_iso_free(l->iso[k]);
+            l->iso[k] = iso[k];
+        }
+    }
+    if (!rc)
+        l->bytes += bytes;
+    return rc;
 }
 
 void td_lod_iso_trace(const td_lod *l, int level, const td_ray *r, td_hit *hit)

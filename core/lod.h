@@ -7,11 +7,12 @@
  * where the base sample is void); the last row and column are clamped to the base edge so
  * the coarse grid covers the whole extent. Built levels are immutable.
  *
- * Beside each square level, its isometric twin (isogrid.h, square rows: issue 14): the
- * same rows, columns and spacing, odd rows slid half a cell east, every sample the same
- * 1-2-1 mean of the finer level at that point (a node of the finer level, since the
- * spacing doubles); quality.lod_grid picks which one far rays are traced on.
- * docs/isometric.md measures both; "square" is the default (why: there). */
+ * Beside each square level, on demand (td_lod_add_iso), its isometric twin (isogrid.h,
+ * square rows: issue 14): the same rows, columns and spacing, odd rows slid half a cell
+ * east, every sample the same 1-2-1 mean of the finer level at that point (a node of the
+ * finer level, since the spacing doubles); quality.lod_grid picks which one far rays are
+ * traced on. docs/isometric.md measures both; "square" is the default (why: there), so
+ * the twins (a third more of the levels' heights) are built only where asked. */
 #ifndef TD_LOD_H
 #define TD_LOD_H
 
@@ -40,7 +41,7 @@ typedef struct td_lod {
     td_grid *grid[TD_LOD_MAX + 1];  /* [1 .. levels]; [0] unused (the base is the caller's) */
     td_accel *accel[TD_LOD_MAX + 1];
     td_view view[TD_LOD_MAX + 1];   /* [1 .. levels] */
-    td_iso *iso[TD_LOD_MAX + 1];    /* [1 .. levels]: the isometric twins */
+    td_iso *iso[TD_LOD_MAX + 1];    /* [1 .. levels]: the isometric twins, or all NULL */
     uint64_t bytes;                 /* grids, lattices and acceleration */
 } td_lod;
 
@@ -49,6 +50,10 @@ typedef struct td_lod {
 td_status td_lod_build(const td_grid *base, int levels, const td_accel_opts *o, td_lod **out,
                        td_err *err);
 void td_lod_free(td_lod *l);
+
+/* Builds the isometric twin of every level of l (built from `base` by td_lod_build), and
+ * adds their bytes to l->bytes; call before l is shared. Nothing changes on failure. */
+td_status td_lod_add_iso(td_lod *l, const td_grid *base, td_err *err);
 
 /* Traces ray r on level `level` (1 .. levels)'s isometric twin (td_iso_trace); on a hit,
  * ci, cj name the square level's cell under the hit point (what callers that look up a

@@ -1099,6 +1099,9 @@ static td_status setup_lod(ctx *c, const td_lod *lod, td_err *err)
         for (int l = 1; l <= lod->levels; l++)
             c->views[l] = &lod->view[l];
         c->lod_iso = c->s->quality.lod_grid == TD_LOD_GRID_ISOMETRIC ? lod : NULL;
+        if (c->lod_iso && lod->levels > 0 && !lod->iso[1])
+            rc = td_err_field(err, TD_EUNSUPPORTED, "quality.lod_grid",
+                              "no isometric levels are resident for this dataset");
         if (c->cam.projection == TD_PROJ_ORTHOGRAPHIC) {
             /* the coarsest level whose cells still fit lod_pixels pixels */
             double foot = (c->cam.dx < c->cam.dy ? c->cam.dx : c->cam.dy) * c->s->quality.lod_pixels;

@@ -584,6 +584,8 @@ td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_
         ao.planes = 0;
         ao.threads = 1;
         rc = td_lod_build(g, TD_LOD_MAX, &ao, &lod, err);
+        if (!rc && s->o.lod_iso)
+            rc = td_lod_add_iso(lod, g, err);
         if (rc)
             goto out;
     }

@@ -66,6 +66,7 @@ typedef struct td_store_opts {
     int tile_log2;
     int planes_k;
     const char *cache_dir; /* NULL or "": no disk cache */
+    int lod_iso;           /* also the levels of detail's isometric twins (lod.h) */
 } td_store_opts;
 
 typedef struct td_dataset_info {

@@ -48,7 +48,7 @@ static td_grid *terrain(uint64_t seed)
 
 static td_store *store_new(uint64_t budget, const char *cache)
 {
-    td_store_opts o = {budget, TILE_LOG2, 8, cache};
+    td_store_opts o = {budget, TILE_LOG2, 8, cache, 0};
     td_store *s = NULL;
     td_err e;
     assert_int_equal(td_store_create(&o, &s, &e), TD_OK);

@@ -457,6 +457,10 @@ static void test_iso_lod_twin(void **state)
     uint64_t seed = 3;
     assert_int_equal(td_lod_build(g, 3, &ao, &lod, NULL), TD_OK);
     assert_int_equal(lod->levels, 3);
+    assert_null(lod->iso[1]); /* on demand only */
+    uint64_t before = lod->bytes;
+    assert_int_equal(td_lod_add_iso(lod, g, NULL), TD_OK);
+    assert_true(lod->bytes > before);
     for (int k = 1; k <= lod->levels; k++) {
         const td_grid *sq = lod->grid[k], *fine = k == 1 ? g : lod->grid[k - 1];
         const td_iso *l = lod->iso[k];

@@ -773,6 +773,9 @@ static void test_level_of_detail(void **state)
      * exact surface by about as much, a picture as close */
     td_render_result iso;
     scene.quality.lod_grid = TD_LOD_GRID_ISOMETRIC;
+    assert_int_equal(td_render(&v, &scene, &o, &iso, &err), TD_EUNSUPPORTED); /* not built */
+    assert_string_equal(err.field, "quality.lod_grid");
+    assert_int_equal(td_lod_add_iso(levels, grid, &err), TD_OK);
     assert_int_equal(td_render(&v, &scene, &o, &iso, &err), TD_OK);
     scene.quality.lod_grid = TD_LOD_GRID_SQUARE;
     assert_int_equal(iso.stats.lod_rays[0], lod.stats.lod_rays[0]);
