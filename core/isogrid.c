@@ -11,8 +11,8 @@
  * height where one triangle's segment ends is carried to the next: if the sign changed
  * across their shared edge, that is a crossing there, so a crack between two planes that
  * disagree by a rounding cannot let a ray through (watertight across triangles and tiles,
- * which share their samples). Rejected: testing the candidate triangles of each row strip with a
- * ray-triangle test (needs a margin of neighbours to be watertight, and is what the
+ * which share their samples). Rejected: testing the candidate triangles of each row strip
+ * with a ray-triangle test (needs a margin of neighbours to be watertight; it is what the
  * oracle's reference does instead, tests/oracle/iso_reference.c).
  *
  * Hierarchy: a pyramid of block maxima (8 x 8 rows and columns, then doubling); where the
@@ -139,7 +139,8 @@ void td_iso_finish(td_iso *l)
         for (int32_t i = 0; i < l->bw[0]; i++) {
             float m = -INFINITY;
             for (int32_t r = j * S; r <= j * S + S && r < l->ny; r++) {
-                int32_t c1 = i * S + S + 2 < td_iso_row_len(l, r) - 1 ? i * S + S + 2 : td_iso_row_len(l, r) - 1;
+                int32_t last = td_iso_row_len(l, r) - 1;
+                int32_t c1 = i * S + S + 2 < last ? i * S + S + 2 : last;
                 for (int32_t c = i * S - 1 > 0 ? i * S - 1 : 0; c <= c1; c++) {
                     float z = td_iso_at(l, r, c);
                     m = z > m ? z : m;

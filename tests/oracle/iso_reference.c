@@ -153,12 +153,14 @@ static void sweep(ref_ctx *x)
 {
     double eps = x->eps, t_cov = -INFINITY;
     int side = 0;
-    qsort(x->pc, x->n, sizeof *x->pc, by_lo);
+    if (x->n > 1)
+        qsort(x->pc, x->n, sizeof *x->pc, by_lo);
     for (size_t i = 0; i < x->n; i++) {
         const piece *c = &x->pc[i];
         double flo = c->f0 + c->f1 * c->lo, fhi = isfinite(c->hi) ? c->f0 + c->f1 * c->hi : NAN;
         x->out->t = fmin(x->out->t, first_at(c, 0.0));
-        x->out->t_near = fmin(x->out->t_near, fabs(flo) <= eps ? c->lo : fmin(first_at(c, eps), first_at(c, -eps)));
+        double tn = fabs(flo) <= eps ? c->lo : fmin(first_at(c, eps), first_at(c, -eps));
+        x->out->t_near = fmin(x->out->t_near, tn);
         if (c->lo > t_cov + 1e-9 * (1.0 + fabs(c->lo)))
             side = 0; /* a gap */
         if (side == 0)
