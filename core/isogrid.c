@@ -416,21 +416,29 @@ static void walk_init(iso_family f[3], const td_iso *l, const td_ray *ray, doubl
     family_init(&f[2], ray->o[0] * ia + 0.5 * ray->o[1] * ib, ray->d[0] * ia + 0.5 * ray->d[1] * ib, t);
 }
 
+/* What the block tests need of a ray, computed once per trace: 1/d and 1/(a, b). */
+typedef struct iso_inv {
+    double d[2], s[2];
+} iso_inv;
+
 /* The ray from tc against the block of level k holding its point there (ties toward the
- * direction of travel): *te gets the t where it leaves the block's box (at most t1);
- * returns whether it stays above the block's maximum until then (and leaves after tc). */
-static int block_clear(const td_iso *l, int k, const td_ray *ray, double tc, double t1, double *te)
+ * direction of travel; a point a rounding away from an edge may get the neighbour, whose
+ * maximum also bounds the triangles along that edge): *te gets the t where it leaves the
+ * block's box (at most t1); returns whether it stays above the block's maximum until then
+ * (and leaves after tc). */
+static int block_clear(const td_iso *l, int k, const td_ray *ray, const iso_inv *inv, double tc,
+                       double t1, double *te)
 {
-    const double S = ldexp(1.0, TD_ISO_BLOCK_LOG2 + k);
+    const double S = (double)(1u << (TD_ISO_BLOCK_LOG2 + k)), iS = 1.0 / S; /* powers of 2 */
     double w[2] = {S * l->a, S * l->b}, z0, z1;
     int32_t bi[2], n[2] = {l->bw[k], l->bh[k]};
     float m;
     *te = t1;
     for (int a = 0; a < 2; a++) {
-        double v = (ray->o[a] + tc * ray->d[a]) / w[a];
+        double v = (ray->o[a] + tc * ray->d[a]) * (inv->s[a] * iS);
         bi[a] = clamp32((int32_t)(ray->d[a] < 0.0 ? ceil(v) - 1.0 : floor(v)), 0, n[a] - 1);
         if (ray->d[a] != 0.0) {
-            double ta = ((ray->d[a] > 0.0 ? bi[a] + 1 : bi[a]) * w[a] - ray->o[a]) / ray->d[a];
+            double ta = ((ray->d[a] > 0.0 ? bi[a] + 1 : bi[a]) * w[a] - ray->o[a]) * inv->d[a];
             *te = ta < *te ? ta : *te;
         }
     }
@@ -444,19 +452,19 @@ static int block_clear(const td_iso *l, int k, const td_ray *ray, double tc, dou
  * 1), or 0 and *te the exit of the level-0 block (no test again before it). The pyramid is
  * climbed from the level of the last clear block, so a ray above the terrain pays one or
  * two tests a jump, not one per level. */
-static int block_skip(const td_iso *l, const td_ray *ray, double tc, double t1, int *level,
-                      double *te)
+static int block_skip(const td_iso *l, const td_ray *ray, const iso_inv *inv, double tc,
+                      double t1, int *level, double *te)
 {
-    int k = *level, ok = block_clear(l, k, ray, tc, t1, te);
+    int k = *level, ok = block_clear(l, k, ray, inv, tc, t1, te);
     if (ok) {
         double t2;
-        while (k + 1 < l->blevels && block_clear(l, k + 1, ray, tc, t1, &t2)) {
+        while (k + 1 < l->blevels && block_clear(l, k + 1, ray, inv, tc, t1, &t2)) {
             k++;
             *te = t2;
         }
     } else {
         while (k > 0 && !ok)
-            ok = block_clear(l, --k, ray, tc, t1, te);
+            ok = block_clear(l, --k, ray, inv, tc, t1, te);
     }
     *level = k;
     return ok;
@@ -491,12 +499,15 @@ void td_iso_trace(const td_iso *l, const td_ray *ray, td_hit *hit)
         double tc = t0, tb = -INFINITY, fprev = NAN; /* blocks checked up to tb */
         int level = l->blevels - 1;
         uint32_t cap = 4u * (uint32_t)(l->nx + l->ny) + 16u;
+        iso_inv inv = {{ray->d[0] != 0.0 ? 1.0 / ray->d[0] : 0.0,
+                        ray->d[1] != 0.0 ? 1.0 / ray->d[1] : 0.0},
+                       {1.0 / l->a, 1.0 / l->b}};
         walk_init(f, l, ray, t0);
         for (;;) {
             int k;
             double tn, te;
             if (tc >= tb) {
-                if (block_skip(l, ray, tc, t1, &level, &te)) {
+                if (block_skip(l, ray, &inv, tc, t1, &level, &te)) {
                     steps++;
                     if (te >= t1 || steps >= cap)
                         break;
