@@ -54,11 +54,12 @@ static int open_store(const td_config *cfg, td_app *app)
     so.budget_bytes = (uint64_t)cfg->memory_mb << 20;
     so.tile_log2 = log2_of(cfg->tile_size);
     so.planes_k = (int)cfg->planes_k;
-    so.lod_iso = (int)cfg->isometric_lod;
     so.cache_dir = cfg->cache_dir;
     if (td_store_create(&so, &app->store, &e)) {
         td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg));
         rc = -1;
+    } else {
+        td_store_set_lod_iso(app->store, (int)cfg->isometric_lod);
     }
     return rc;
 }

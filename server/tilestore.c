@@ -108,6 +108,7 @@ struct td_store {
     uint64_t tiles_built, tiles_evicted, cache_hits, cache_misses;
     td_ds *ds;
     size_t nds;
+    int lod_iso; /* td_store_set_lod_iso */
 };
 
 struct td_snapshot {
@@ -532,6 +533,8 @@ out:
     return rc;
 }
 
+void td_store_set_lod_iso(td_store *s, int on) { s->lod_iso = on != 0; }
+
 void td_store_free(td_store *s)
 {
     if (!s)
@@ -617,7 +620,7 @@ td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_
         ao.planes = 0;
         ao.threads = 1;
         rc = td_lod_build(g, TD_LOD_MAX, &ao, &lod, err);
-        if (!rc && s->o.lod_iso)
+        if (!rc && s->lod_iso)
             rc = td_lod_add_iso(lod, g, err);
         if (rc)
             goto out;
