@@ -206,6 +206,7 @@ struct ctx {
     int nlod;                            /* coarse levels in use */
     double lod_dist[TD_LOD_MAX + 2];     /* level l is traced from lod_dist[l] on */
     int ortho_level;                     /* orthographic view: the one level used */
+    const td_lod *lod_iso;               /* quality.lod_grid isometric: levels 1.. traced on its twins */
     const td_scene *s;
     td_camera cam;
     int n;           /* samples per axis */
@@ -403,7 +404,10 @@ static void trace_lod(const ctx *c, const td_ray *r, double t_clear, td_hit *hit
     int l = c->ortho_level;
     uint64_t n = 0;
     if (c->nlod == 0 || c->cam.projection == TD_PROJ_ORTHOGRAPHIC) {
-        td_trace_from(c->views[l], s->quality.method, s->quality.surface, r, t_clear, hit);
+        if (l > 0 && c->lod_iso)
+            td_lod_iso_trace(c->lod_iso, l, r, hit);
+        else
+            td_trace_from(c->views[l], s->quality.method, s->quality.surface, r, t_clear, hit);
         n = hit->steps;
     } else {
         td_ray seg = *r;
@@ -412,7 +416,10 @@ static void trace_lod(const ctx *c, const td_ray *r, double t_clear, td_hit *hit
             seg.tmax = l == c->nlod ? r->tmax : dmin_(r->tmax, c->lod_dist[l + 1]);
             if (seg.tmin > seg.tmax)
                 continue;
-            td_trace(c->views[l], s->quality.method, s->quality.surface, &seg, hit);
+            if (l > 0 && c->lod_iso)
+                td_lod_iso_trace(c->lod_iso, l, &seg, hit);
+            else
+                td_trace(c->views[l], s->quality.method, s->quality.surface, &seg, hit);
             n += hit->steps;
             if (hit->t < INFINITY)
                 break;
@@ -1132,6 +1139,10 @@ static td_status setup_lod(ctx *c, const td_lod *lod, td_err *err)
         c->nlod = lod->levels;
         for (int l = 1; l <= lod->levels; l++)
             c->views[l] = &lod->view[l];
+        c->lod_iso = c->s->quality.lod_grid == TD_LOD_GRID_ISOMETRIC ? lod : NULL;
+        if (c->lod_iso && lod->levels > 0 && !lod->iso[1])
+            rc = td_err_field(err, TD_EUNSUPPORTED, "quality.lod_grid",
+                              "no isometric levels are resident for this dataset");
         if (c->cam.projection == TD_PROJ_ORTHOGRAPHIC) {
             /* the coarsest level whose cells still fit lod_pixels pixels */
             double foot = (c->cam.dx < c->cam.dy ? c->cam.dx : c->cam.dy) * c->s->quality.lod_pixels;

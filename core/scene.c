@@ -75,6 +75,7 @@ void td_scene_defaults(td_scene *s)
     s->quality.samples = 1;
     s->quality.lod = 0;
     s->quality.lod_pixels = 1.0;
+    s->quality.lod_grid = 0; /* TD_LOD_GRID_SQUARE: docs/isometric.md */
     s->quality.smooth_normals = 0;
     s->effects.sun_azimuth = 315.0;
     s->effects.sun_elevation = 45.0;

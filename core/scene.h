@@ -95,6 +95,7 @@ typedef struct td_scene_quality {
     int samples;        /* n: n x n supersampling, 1 .. 8 */
     int lod;            /* level of detail on (render.c; needs td_render_opts.lod) */
     double lod_pixels;  /* with lod: pixels one coarse cell may span (default 1) */
+    int lod_grid;       /* with lod: td_lod_grid (lod.h) of the coarse levels (default square) */
     int smooth_normals; /* vertex normals interpolated across the cell */
 } td_scene_quality;
 

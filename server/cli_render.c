@@ -409,6 +409,9 @@ static int load_dataset(render_run *run)
         t = 1e3 * td_clock_s();
         if (td_lod_build(run->g, TD_LOD_MAX, &aopts, &run->lod, &err))
             goto out;
+        if (run->scene->quality.lod_grid == TD_LOD_GRID_ISOMETRIC &&
+            td_lod_add_iso(run->lod, run->g, &err))
+            goto out;
         run->accel_ms += 1e3 * td_clock_s() - t;
     }
     rc = 0;

@@ -58,6 +58,8 @@ static int open_store(const td_config *cfg, td_app *app)
     if (td_store_create(&so, &app->store, &e)) {
         td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg));
         rc = -1;
+    } else {
+        td_store_set_lod_iso(app->store, (int)cfg->isometric_lod);
     }
     return rc;
 }

@@ -62,7 +62,9 @@
     X(tile_size, INT, "--tile-size", "TERRAD_TILE_SIZE", "256", 2, 65536,                  \
       "cells per tile side (a power of two)")                                              \
     X(planes_k, INT, "--planes-k", "TERRAD_PLANES_K", "16", 1, 255,                        \
-      "height slices of the parameter planes")
+      "height slices of the parameter planes")                                             \
+    X(isometric_lod, INT, "--isometric-lod", "TERRAD_ISOMETRIC_LOD", "0", 0, 1,            \
+      "1: keep isometric twins of the levels of detail too (quality.lod_grid)")
 
 #define TD_CONFIG_TYPE_STR char *
 #define TD_CONFIG_TYPE_INT long

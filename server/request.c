@@ -13,6 +13,7 @@
  * messages would not name our fields the way the HTTP contract wants). */
 #include "request.h"
 #include "limit.h"
+#include "lod.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -481,10 +482,10 @@ static int parse_image(pctx *p, json_t *img, td_scene *s)
 
 static int parse_quality(pctx *p, json_t *q, td_scene *s)
 {
-    static const char *const keys[] = {"method", "surface", "samples", "lod", "smooth_normals",
-                                       NULL};
+    static const char *const keys[] = {"method", "surface", "samples", "lod", "lod_grid",
+                                       "smooth_normals", NULL};
     int rc = check_keys(p, q, keys);
-    const char *m = NULL, *sf = NULL;
+    const char *m = NULL, *sf = NULL, *lg = NULL;
     long long n = s->quality.samples;
     if (!rc && string(p, q, "method", &m) < 0)
         rc = -1;
@@ -514,6 +515,17 @@ static int parse_quality(pctx *p, json_t *q, td_scene *s)
         s->quality.lod = 1;
     } else if (!rc && boolean(p, q, "lod", &s->quality.lod) < 0) {
         rc = -1;
+    }
+    if (!rc && string(p, q, "lod_grid", &lg) < 0)
+        rc = -1;
+    if (!rc && lg) {
+        size_t old = push(p, "lod_grid");
+        td_lod_grid g;
+        if (td_lod_grid_parse(lg, &g))
+            rc = fail(p, TD_EINVAL, "'%.40s' is not square or isometric", lg);
+        else
+            s->quality.lod_grid = (int)g;
+        pop(p, old);
     }
     if (!rc && boolean(p, q, "smooth_normals", &s->quality.smooth_normals) < 0)
         rc = -1;

@@ -123,6 +123,7 @@ struct td_store {
     uint64_t tiles_built, tiles_evicted, cache_hits, cache_misses;
     td_ds *ds;
     size_t nds;
+    int lod_iso; /* td_store_set_lod_iso */
 };
 
 struct td_snapshot {
@@ -581,6 +582,8 @@ out:
     return rc;
 }
 
+void td_store_set_lod_iso(td_store *s, int on) { s->lod_iso = on != 0; }
+
 void td_store_free(td_store *s)
 {
     if (!s)
@@ -643,14 +646,19 @@ static uint64_t grid_fingerprint(const td_grid *g)
 }
 
 /* Levels of detail of a heights version: filtered coarse grids with their max-mipmaps (a
- * third of the heights and little more), resident with the heights. */
-static td_status lod_build(const td_grid *g, td_lod **lod, td_err *err)
+ * third of the heights and little more), resident with the heights; and their isometric
+ * twins where td_store_set_lod_iso asked for them. */
+static td_status lod_build(const td_store *s, const td_grid *g, td_lod **lod, td_err *err)
 {
     td_accel_opts ao;
+    td_status rc;
     td_accel_opts_default(&ao);
     ao.planes = 0;
     ao.threads = 1;
-    return td_lod_build(g, TD_LOD_MAX, &ao, lod, err);
+    rc = td_lod_build(g, TD_LOD_MAX, &ao, lod, err);
+    if (!rc && s->lod_iso)
+        rc = td_lod_add_iso(*lod, g, err);
+    return rc;
 }
 
 td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_grid *g,
@@ -670,7 +678,7 @@ td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_
         rc = td_err_set(err, TD_EINVAL, "dataset id '%s' is already taken", id);
         goto out;
     }
-    rc = lod_build(g, &lod, err);
+    rc = lod_build(s, g, &lod, err);
     if (rc)
         goto out;
     bytes = td_grid_bytes(g->w, g->h, g->tile_log2) + lod->bytes;
@@ -1581,7 +1589,7 @@ td_status td_store_edit(td_store *s, size_t idx, const td_grid_region *r, const 
         rc = td_grid_edit_tiles(g, r, &tiles, &n, err);
     if (rc)
         goto out;
-    rc = lod_build(g, &lod, err);
+    rc = lod_build(s, g, &lod, err);
     if (rc)
         goto out;
     bytes = td_grid_bytes(g->w, g->h, g->tile_log2) + lod->bytes;

@@ -142,6 +142,9 @@ static void write_method(FILE *f, const bench_ctx *b)
 {
     const bench_ds *d = &b->ds[0];
     fprintf(f, "## How this is measured\n\n");
+    fprintf(f, "- **Isometric lattice.** The error of McGuire and Sibley's isometric height field against "
+               "the square grid's with the same samples (their \"25%% less, strictly lower\"), and what it "
+               "costs to trace, are measured separately by `build/iso-accuracy`: [isometric.md](isometric.md).\n");
     fprintf(f,
             "- **Rays.** Per dataset, %d oblique pinhole views (camera above the highest sample by "
             "5%% of the shorter extent, 20%% of that extent from the centre, looking at the centre "

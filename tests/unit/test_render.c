@@ -769,6 +769,25 @@ static void test_level_of_detail(void **state)
                   (unsigned long long)coarse, 160 * 120, (unsigned long long)full.stats.steps,
                   (unsigned long long)lod.stats.steps, q);
     assert_true(q >= 25.0);
+    /* the same far levels on their isometric twins: the same rays per level, hits off the
+     * exact surface by about as much, a picture as close */
+    td_render_result iso;
+    scene.quality.lod_grid = TD_LOD_GRID_ISOMETRIC;
+    assert_int_equal(td_render(&v, &scene, &o, &iso, &err), TD_EUNSUPPORTED); /* not built */
+    assert_string_equal(err.field, "quality.lod_grid");
+    assert_int_equal(td_lod_add_iso(levels, grid, &err), TD_OK);
+    assert_int_equal(td_render(&v, &scene, &o, &iso, &err), TD_OK);
+    scene.quality.lod_grid = TD_LOD_GRID_SQUARE;
+    assert_int_equal(iso.stats.lod_rays[0], lod.stats.lod_rays[0]);
+    print_message("iso %g square %g\n", iso.stats.height_err_mean_m, lod.stats.height_err_mean_m);
+    assert_true(iso.stats.height_err_mean_m > 1e-3 &&
+                iso.stats.height_err_mean_m < 2.0 * lod.stats.height_err_mean_m);
+    double qi = psnr(full.rgba, iso.rgba, (size_t)160 * 120 * 4);
+    print_message("lod on the isometric twins: height error mean %.3g m (square %.3g m), PSNR %.1f dB\n",
+                  iso.stats.height_err_mean_m, lod.stats.height_err_mean_m, qi);
+    assert_true(qi >= 25.0);
+    assert_true(memcmp(iso.rgba, lod.rgba, (size_t)160 * 120 * 4) != 0);
+    td_render_result_free(&iso);
     td_render_result_free(&full);
     td_render_result_free(&lod);
 

@@ -20,6 +20,7 @@
 #include <jansson.h>
 
 #include "limit.h"
+#include "lod.h"
 #include "request.h"
 
 static td_scene scene; /* large (pick list): keep it off the stack */
@@ -114,6 +115,11 @@ static void test_defaults_and_variants(void **state)
                            "\"image\":{\"format\":\"pick\"},\"pick\":[[10,20],[639,479.5]]}", &e), TD_OK);
     assert_int_equal(scene.npick, 2);
     assert_float_equal(scene.pick[1][1], 479.5, 0);
+    /* levels of detail on the isometric lattice (square by default) */
+    assert_int_equal(scene.quality.lod_grid, TD_LOD_GRID_SQUARE);
+    assert_int_equal(parse("{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3}},"
+                           "\"quality\":{\"lod\":true,\"lod_grid\":\"isometric\"}}", &e), TD_OK);
+    assert_int_equal(scene.quality.lod_grid, TD_LOD_GRID_ISOMETRIC);
 }
 
 static void expect(const char *json, td_status st, const char *field, const char *msg_part)
@@ -197,6 +203,9 @@ static void test_refusals(void **state)
     /* level of detail: a boolean or pixels per coarse cell in 0.25 .. 64 */
     expect("{\"dataset\":\"a\"," CAM ",\"quality\":{\"lod\":100}}", TD_ERANGE, "quality.lod", NULL);
     expect("{\"dataset\":\"a\"," CAM ",\"quality\":{\"lod\":\"yes\"}}", TD_EINVAL, "quality.lod", NULL);
+    expect("{\"dataset\":\"a\"," CAM ",\"quality\":{\"lod_grid\":\"hexagonal\"}}", TD_EINVAL,
+           "quality.lod_grid", "square or isometric");
+    expect("{\"dataset\":\"a\"," CAM ",\"quality\":{\"lod_grid\":1}}", TD_EINVAL, "quality.lod_grid", NULL);
     /* ids: no paths from the network */
     expect("{\"dataset\":\"../etc/passwd\"," CAM "}", TD_EINVAL, "dataset", "id");
     expect("{\"dataset\":\"a\"," CAM ",\"effects\":{\"drape\":\"/etc/x.png\"}}", TD_EINVAL, "effects.drape", NULL);
