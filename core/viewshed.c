@@ -27,6 +27,7 @@
 
 #include "accel.h"
 #include "clock.h"
+#include "limit.h"
 
 void td_viewshed_opts_default(td_viewshed_opts *o)
 {
@@ -140,16 +141,18 @@ static td_status check_common(const td_grid *g, td_surface s, td_method m, int c
         rc = td_err_field(err, TD_EINVAL, "surface", "unknown surface %d", (int)s);
     else if ((unsigned)m >= TD_METHOD_COUNT)
         rc = td_err_field(err, TD_EINVAL, "method", "unknown method %d", (int)m);
-    else if (curvature && !(k >= -0.99 && k <= 0.99))
-        rc = td_err_field(err, TD_ERANGE, "curvature.k", "%g is outside -0.99 .. 0.99", k);
+    else if (curvature && td_limit_check(TD_LIMIT_CURVATURE_K, k, err))
+        rc = td_err_field(err, TD_ERANGE, "curvature.k", "%g is outside %g .. %g", k,
+                          td_limit_get(TD_LIMIT_CURVATURE_K)->min, td_limit_get(TD_LIMIT_CURVATURE_K)->max);
     return rc;
 }
 
 static td_status check_height(double h, const char *field, td_err *err)
 {
+    const td_limit_row *row = td_limit_get(TD_LIMIT_VS_HEIGHT);
     td_status rc = TD_OK;
-    if (!(h >= 0 && h <= 100000.0))
-        rc = td_err_field(err, TD_ERANGE, field, "%g m is outside 0 .. 100000", h);
+    if (!(h >= row->min && h <= row->max))
+        rc = td_err_field(err, TD_ERANGE, field, "%g m is outside %g .. %g", h, row->min, row->max);
     return rc;
 }
 
@@ -157,9 +160,10 @@ td_status td_viewshed_check(const td_grid *g, const td_viewshed_opts *o, td_err 
 {
     td_status rc = check_common(g, o->surface, o->method, o->curvature, o->k, err);
     char field[32];
-    if (!rc && !(o->nobs >= 1 && o->nobs <= TD_VS_MAX_OBSERVERS && o->obs))
-        rc = td_err_field(err, TD_ERANGE, "observers", "%d observers: give 1 .. %d", o->nobs,
-                          TD_VS_MAX_OBSERVERS);
+    if (!rc)
+        rc = td_limit_check(TD_LIMIT_VS_OBSERVERS, o->nobs, err);
+    if (!rc && !o->obs)
+        rc = td_err_field(err, TD_EINVAL, "observers", "no observer list");
     for (int k = 0; !rc && k < o->nobs; k++) {
         if (o->nobs == 1)
             snprintf(field, sizeof field, "observer");

@@ -47,7 +47,7 @@
 #include "trace.h"
 
 #define TD_VS_OUTSIDE 255       /* void, or beyond max_distance of every observer */
-#define TD_VS_MAX_OBSERVERS 254 /* counts must stay below TD_VS_OUTSIDE */
+#define TD_VS_MAX_OBSERVERS 254 /* counts must stay below TD_VS_OUTSIDE (limit.h's max) */
 #define TD_LOS_TEPS 0x1p-30     /* ends of the segment left out of the search */
 #define TD_EARTH_RADIUS_M 6371000.0
 #define TD_LOS_PROFILE_MAX 2048 /* points of a line of sight's profile, at most */
