@@ -220,7 +220,7 @@ static int run_gdal(oracle *o, const char *raw, td_vs_point p, double height, td
     td_viewshed_opts vo;
     td_viewshed_stats st;
     td_err err;
-    uint64_t both = 0, same = 0, verdict[2][3] = {{0}}; /* [gdal visible][ref: hidden, visible, tie] */
+    uint64_t both = 0, same = 0, verdict[2][3] = {{0}}; /* [gdal visible][gdal wrong, tie, terrad wrong] */
     double eye[3];
     int ok = gd && out && f && fread(gd, 1, n, f) == n, shown = 0;
     if (f)
@@ -254,25 +254,28 @@ static int run_gdal(oracle *o, const char *raw, td_vs_point p, double height, td
         if (td_viewshed_ray(o->g, s, eye[0], eye[1], eye[2], i, j, 0.0, &r) != 0)
             continue;
         want = ref_visible(o, s, &r, &h, &band);
-        verdict[gd[k] == 255][want != (gd[k] == 255) && band ? 2 : want]++;
+        verdict[gd[k] == 255][band ? 1 : want == (out[k] == 1) ? 0 : 2]++;
         if (!band && shown < 3 && want != (gd[k] == 255)) {
             double t = h.t < INFINITY ? h.t : 0.5, x = r.o[0] + t * r.d[0], y = r.o[1] + t * r.d[1];
             printf("  e.g. sample (col %d, row %d): gdal %s, terrad and the reference %s",
                    (int)i, (int)(o->g->h - 1 - j), gd[k] ? "visible" : "hidden", want ? "visible" : "hidden");
-            if (h.t < INFINITY)
-                printf(": the segment meets the %s surface at (%.1f, %.1f, %.2f), %.0f m from the eye\n",
-                       td_surface_name(s), x, y, r.o[2] + t * r.d[2], td_ref_dist(&r, 0, t));
-            else
+            if (h.t < INFINITY) {
+                const td_grid *g = o->g;
+                printf(": the segment meets the %s surface at (%.1f, %.1f, %.2f), %.0f m from the eye, in the "
+                       "cell whose corners are %.2f %.2f %.2f %.2f m\n",
+                       td_surface_name(s), x, y, r.o[2] + t * r.d[2], td_ref_dist(&r, 0, t),
+                       td_grid_at(g, h.ci, h.cj), td_grid_at(g, h.ci + 1, h.cj), td_grid_at(g, h.ci, h.cj + 1),
+                       td_grid_at(g, h.ci + 1, h.cj + 1));
+            } else
                 printf(": the segment clears the surface all the way\n");
             shown++;
         }
     }
-    printf("%s: agreement %.2f%% of %" PRIu64 " samples both answer; %" PRIu64 " differ: "
-           "gdal visible where the reference sees a hit %" PRIu64 " (reference agrees with gdal %" PRIu64
-           ", tie %" PRIu64 "), gdal hidden where the segment is clear %" PRIu64 " (reference agrees with gdal %"
-           PRIu64 ", tie %" PRIu64 ")\n",
+    printf("%s: agreement %.2f%% of %" PRIu64 " samples both answer; %" PRIu64 " differ. By the reference: "
+           "gdal visible, wrong %" PRIu64 ", tie %" PRIu64 ", terrad wrong %" PRIu64 "; gdal hidden, wrong %" PRIu64
+           ", tie %" PRIu64 ", terrad wrong %" PRIu64 "\n",
            td_surface_name(s), 100.0 * (double)same / (double)(both ? both : 1), both, both - same,
-           verdict[1][0], verdict[1][1], verdict[1][2], verdict[0][1], verdict[0][0], verdict[0][2]);
+           verdict[1][0], verdict[1][1], verdict[1][2], verdict[0][0], verdict[0][1], verdict[0][2]);
 out:
     free(gd);
     free(out);
