@@ -186,7 +186,8 @@ td_status td_viewshed_check(const td_grid *g, const td_viewshed_opts *o, td_err 
 typedef struct eye {
     double x, y, z;
     td_grid *lowered; /* with curvature, else NULL (the dataset's view is used) */
-    td_accel *acc;
+    td_accel *acc;       /* built for the lowered grid (parametric, or nothing resident) */
+    td_tile_accel *bound; /* or the dataset's max-mipmaps, borrowed (see lowered_view) */
     td_view view;
 } eye;
 
@@ -217,13 +218,29 @@ static td_status lowered_view(const td_view *v, td_method m, double c, double px
     rc = td_grid_finish(e->lowered, err);
     if (rc)
         goto out;
+    e->view.grid = e->lowered;
+    if (v->accel && m != TD_METHOD_PARAMETRIC) {
+        /* The dataset's max-mipmaps bound the lowered heights too (they only fall), and a
+         * bound is all a skip needs (DESIGN.md: never skip a hit): borrow them, tile by
+         * tile as resident, instead of building new ones per observer. Not the planes:
+         * their slices are measured from the tile's own zmin. */
+        size_t n = (size_t)g->tiles_x * (size_t)g->tiles_y;
+        e->bound = calloc(n, sizeof *e->bound);
+        if (!e->bound) {
+            rc = td_err_set(err, TD_ENOMEM, "viewshed: out of memory");
+            goto out;
+        }
+        for (size_t i = 0; i < n; i++)
+            e->bound[i].maxmip = v->accel[i].maxmip;
+        e->view.accel = e->bound;
+        goto out;
+    }
     td_accel_opts_default(&ao);
     ao.maxmip = m == TD_METHOD_HIERARCHICAL || m == TD_METHOD_AUTO;
     ao.planes = m == TD_METHOD_PARAMETRIC;
     ao.threads = threads;
     if (ao.maxmip || ao.planes)
         rc = td_accel_build(e->lowered, &ao, &e->acc, NULL, err);
-    e->view.grid = e->lowered;
     e->view.accel = e->acc ? e->acc->tiles : NULL;
 out:
     return rc;
@@ -233,6 +250,7 @@ static void free_eyes(eye *eyes, int n)
 {
     for (int k = 0; eyes && k < n; k++) {
         td_accel_free(eyes[k].acc);
+        free(eyes[k].bound);
         td_grid_free(eyes[k].lowered);
     }
     free(eyes);

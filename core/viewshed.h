@@ -28,7 +28,8 @@
  * the observer by c*s^2 at horizontal distance s, c = (1 - k) / (2 R), R = 6371000 m, and
  * a ray bent by refraction (radius R/k) is straight in the frame where every sample is
  * lowered by c*s^2. So with curvature the traces run on a copy of the grid whose samples
- * are lowered by c*s^2 (s from that observer), with its own max-mipmaps: the obstacles
+ * are lowered by c*s^2 (s from that observer), skipped through the dataset's max-mipmaps
+ * (they bound the lowered heights too; planes are built anew for `parametric`): the obstacles
  * along the way are lowered as well as the target, which lowering the target alone would
  * miss. Heights reported by td_los (profile, blocking point) are in the dataset's frame.
  *

@@ -7,10 +7,13 @@
  *       any, and a random point, on every surface: the viewshed (method auto), then K
  *       random targets (and every target within 3 cells of the observer) re-traced by
  *       td_ref_trace on the same segment (td_viewshed_ray) and by td_occluded with every
- *       other method. A visible answer agrees when the reference finds no hit; hidden,
- *       when it finds one; either is a tie when the segment comes within the float band
- *       of the surface without crossing it (oracle.c's band: 1 mm plus float32 rounding,
- *       times 1 + the steepest slope). Exit 1 on any other answer.
+ *       method; then from the peak again with Earth curvature (k = 0.13), judged on a
+ *       grid lowered here by c s^2 (viewshed.h's model). A visible answer agrees when the
+ *       reference finds no hit, hidden when it finds one; the other answer is a tie when
+ *       the reference's hit never definitely crosses the surface, or a clear segment comes
+ *       within the float band of it before the target's last tenth of a cell (oracle.c's
+ *       band: 1 mm plus float32 rounding, times 1 + the steepest slope). Exit 1 on any
+ *       other answer.
  *   viewshed_oracle DEM --gdal RAW X Y H [--surface S]
  *       RAW: gdal_viewshed's output as raw bytes in file order (255 seen, 0 not, else
  *       outside). Prints the agreement with terrad in per cent of the samples both answer
@@ -129,41 +132,89 @@ static int pick_observers(const td_grid *g, uint64_t *seed, td_vs_point *p)
     return n;
 }
 
-/* One observer on one surface: the viewshed, then the targets judged. */
-static int check_observer(oracle *o, td_surface s, td_vs_point p, double height, int targets,
+/* The grid lowered by c s^2 about p, computed here as the curvature model says (viewshed.h),
+ * and a view of it through the dataset's max-mipmaps (upper bounds of it too). */
+static td_grid *lowered(const td_grid *g, td_vs_point p, double c)
+{
+    td_grid *l = NULL;
+    if (td_grid_create(g->w, g->h, g->sx, g->sy, g->tile_log2, NULL, &l, NULL))
+        return NULL;
+    for (int32_t j = 0; j < g->h; j++)
+        for (int32_t i = 0; i < g->w; i++) {
+            double dx = i * g->sx - p.x, dy = j * g->sy - p.y;
+            size_t k = (size_t)j * g->w + i;
+            l->z[k] = (float)((double)g->z[k] - c * (dx * dx + dy * dy));
+        }
+    if (td_grid_finish(l, NULL)) {
+        td_grid_free(l);
+        l = NULL;
+    }
+    return l;
+}
+
+/* One observer on one surface (with curvature k = 0.13 when curv): the viewshed, then the
+ * targets judged (with curvature, on the lowered grid). */
+static int check_observer(oracle *o, td_surface s, td_vs_point p, double height, int curv, int targets,
                           uint64_t *seed, uint8_t *out)
 {
     td_viewshed_opts vo;
     td_viewshed_stats st;
     td_err err;
+    oracle low = *o, *jo = curv ? &low : o;
+    td_tile_accel *bound = NULL;
     double eye[3];
+    int ok = 0;
     td_viewshed_opts_default(&vo);
     vo.obs = &p;
     vo.nobs = 1;
     vo.height = height;
     vo.surface = s;
     vo.threads = 2;
+    vo.curvature = curv;
     if (td_viewshed(&o->v, &vo, out, &st, &err)) {
         printf("  viewshed from (%g, %g) on %s refused: %s\n", p.x, p.y, td_surface_name(s), err.msg);
         return 0;
     }
+    if (curv) {
+        size_t n = (size_t)o->g->tiles_x * o->g->tiles_y;
+        low.g = lowered(o->g, p, (1.0 - vo.k) / (2.0 * TD_EARTH_RADIUS_M));
+        bound = calloc(n, sizeof *bound);
+        if (!low.g || !bound)
+            goto out;
+        for (size_t k = 0; k < n; k++)
+            bound[k].maxmip = o->acc->tiles[k].maxmip;
+        low.v.grid = low.g;
+        low.v.accel = bound;
+        low.agree = low.tie = low.wrong = low.methods_wrong = 0;
+    }
     eye[0] = p.x;
     eye[1] = p.y;
-    eye[2] = td_viewshed_ground(o->g, s, p.x, p.y) + height;
+    eye[2] = td_viewshed_ground(jo->g, s, p.x, p.y) + height;
     for (int k = 0; k < targets; k++) {
         int32_t i = (int32_t)(rnd(seed) % (uint64_t)o->g->w), j = (int32_t)(rnd(seed) % (uint64_t)o->g->h);
-        judge_target(o, s, eye, i, j, out[(size_t)(o->g->h - 1 - j) * o->g->w + i]);
+        judge_target(jo, s, eye, i, j, out[(size_t)(o->g->h - 1 - j) * o->g->w + i]);
     }
     for (int32_t dj = -3; dj <= 3; dj++) /* the observer's own cells and their neighbours */
         for (int32_t di = -3; di <= 3; di++) {
             int32_t i = (int32_t)floor(p.x / o->g->sx) + di, j = (int32_t)floor(p.y / o->g->sy) + dj;
             if (i >= 0 && j >= 0 && i < o->g->w && j < o->g->h)
-                judge_target(o, s, eye, i, j, out[(size_t)(o->g->h - 1 - j) * o->g->w + i]);
+                judge_target(jo, s, eye, i, j, out[(size_t)(o->g->h - 1 - j) * o->g->w + i]);
         }
-    printf("  %-8s from (%9.2f, %9.2f) +%.0f m: %5.1f%% of %" PRIu64 " samples seen, %.1f steps a ray\n",
-           td_surface_name(s), p.x, p.y, height, 100.0 * (double)st.visible / (double)(st.inside ? st.inside : 1),
-           st.inside, (double)st.steps / (double)(st.rays ? st.rays : 1));
-    return 1;
+    printf("  %-8s from (%9.2f, %9.2f) +%.0f m%s: %5.1f%% of %" PRIu64 " samples seen, %.1f steps a ray\n",
+           td_surface_name(s), p.x, p.y, height, curv ? ", curvature" : "",
+           100.0 * (double)st.visible / (double)(st.inside ? st.inside : 1), st.inside,
+           (double)st.steps / (double)(st.rays ? st.rays : 1));
+    ok = 1;
+out:
+    if (curv) {
+        o->agree += low.agree;
+        o->tie += low.tie;
+        o->wrong += low.wrong;
+        o->methods_wrong += low.methods_wrong;
+        td_grid_free(low.g);
+    }
+    free(bound);
+    return ok;
 }
 
 static int load(const char *path, oracle *o)
@@ -203,7 +254,9 @@ static int run_check(oracle *o, int targets, uint64_t seed)
         return 0;
     for (int k = 0; k < n; k++)
         for (int s = 0; s < TD_SURFACE_COUNT; s++)
-            ok &= check_observer(o, (td_surface)s, obs[k], k == 1 ? 10.0 : 2.0, targets, &seed, out);
+            ok &= check_observer(o, (td_surface)s, obs[k], k == 1 ? 10.0 : 2.0, 0, targets, &seed, out);
+    for (int s = 0; s < TD_SURFACE_COUNT; s++) /* from the peak, over the curved Earth */
+        ok &= check_observer(o, (td_surface)s, obs[0], 2.0, 1, targets, &seed, out);
     printf("targets judged: %" PRIu64 " agree, %" PRIu64 " ties (float band %.3g m), %" PRIu64
            " wrong; td_occluded by each method on the same segments: %" PRIu64 " wrong\n",
            o->agree, o->tie, o->eps, o->wrong, o->methods_wrong);
@@ -222,7 +275,7 @@ static int run_gdal(oracle *o, const char *raw, td_vs_point p, double height, td
     td_err err;
     uint64_t both = 0, same = 0, verdict[2][3] = {{0}}; /* [gdal visible][gdal wrong, tie, terrad wrong] */
     double eye[3];
-    int ok = gd && out && f && fread(gd, 1, n, f) == n, shown = 0;
+    int ok = gd && out && f && fread(gd, 1, n, f) == n, shown = 0, ties_shown = 0;
     if (f)
         fclose(f);
     td_viewshed_opts_default(&vo);
@@ -255,6 +308,14 @@ static int run_gdal(oracle *o, const char *raw, td_vs_point p, double height, td
             continue;
         want = ref_visible(o, s, &r, &h, &band);
         verdict[gd[k] == 255][band ? 1 : want == (out[k] == 1) ? 0 : 2]++;
+        if (band && ties_shown < 3 && getenv("ORACLE_SHOW_TIES")) {
+            double t = h.t < INFINITY ? h.t : h.t_near;
+            printf("  tie: sample (col %d, row %d), terrad %s, segment within %.3g m of the surface at t %.9f "
+                   "(%.3f, %.3f, %.4f; cell %d %d)\n", (int)i, (int)(o->g->h - 1 - j), out[k] ? "visible" : "hidden",
+                   o->eps, t, (r.o[0] + t * r.d[0]) / o->g->sx, (r.o[1] + t * r.d[1]) / o->g->sy, r.o[2] + t * r.d[2],
+                   (int)h.ci, (int)h.cj);
+            ties_shown++;
+        }
         if (!band && shown < 3 && want != (gd[k] == 255)) {
             double t = h.t < INFINITY ? h.t : 0.5, x = r.o[0] + t * r.d[0], y = r.o[1] + t * r.d[1];
             printf("  e.g. sample (col %d, row %d): gdal %s, terrad and the reference %s",
