@@ -15,7 +15,7 @@
 static void usage(FILE *f)
 {
     fprintf(f, "usage: terrad <command> [options]\n\ncommands:\n");
-#define TD_X_USAGE(name, fn, help) fprintf(f, "  %-7s %s\n", name, help);
+#define TD_X_USAGE(name, fn, help) fprintf(f, "  %-8s %s\n", name, help);
     TD_SUBCOMMANDS(TD_X_USAGE)
 #undef TD_X_USAGE
     fprintf(f, "\n`terrad <command> --help` describes each one.\n");
