@@ -17,9 +17,6 @@
  * The values are those docs/api.md and the README describe (samples capped at 4 by the
  * parser, lod 0.25 .. 64 pixels, ...) and those request.c and render.c held before.
  *
- * The TD_LIMIT_VS_ rows are those of viewsheds and lines of sight (core/viewshed.c,
- * server/viewshed.c); td_los's end heights use the height row's range.
- *
  * Not here: the camera's fields (heading, pitch, fov, position, extent) are ranges of
  * the parser alone; td_camera_setup checks only what its arithmetic needs (fov in
  * (0, 180), a finite position). Pixel and sample totals (max_pixels,
@@ -40,10 +37,7 @@
     X(TD_LIMIT_SUN_ELEVATION, "effects.sun.elevation", -90, 90, 90)                       \
     X(TD_LIMIT_HAZE_KM, "effects.haze.visibility_km", 0.01, 10000, 10000)                 \
     X(TD_LIMIT_CURVATURE_K, "effects.curvature.k", -0.99, 0.99, 0.99)                     \
-    X(TD_LIMIT_PICK, "pick", 0, 256, TD_SCENE_PICK_MAX)                                 \
-    X(TD_LIMIT_VS_OBSERVERS, "observers", 1, 64, 254)                                     \
-    X(TD_LIMIT_VS_HEIGHT, "height", 0, 100000, 100000)                                    \
-    X(TD_LIMIT_VS_TARGET_HEIGHT, "target_height", 0, 100000, 100000)
+    X(TD_LIMIT_PICK, "pick", 0, 256, TD_SCENE_PICK_MAX)
 
 typedef enum td_limit {
 #define TD_X_ENUM(id, path, min, api_max, max) id,

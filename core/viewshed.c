@@ -29,6 +29,17 @@
 #include "clock.h"
 #include "limit.h"
 
+static const td_limit_row td_vs_limit_rows[TD_VS_LIMIT_COUNT] = {
+#define TD_X_ROW(id, path, min, api_max, max) {path, min, api_max, max},
+    TD_VS_LIMIT_LIST(TD_X_ROW)
+#undef TD_X_ROW
+};
+
+const td_limit_row *td_vs_limit_get(td_vs_limit id)
+{
+    return (unsigned)id < TD_VS_LIMIT_COUNT ? &td_vs_limit_rows[id] : NULL;
+}
+
 void td_viewshed_opts_default(td_viewshed_opts *o)
 {
     memset(o, 0, sizeof *o);
@@ -149,7 +160,7 @@ static td_status check_common(const td_grid *g, td_surface s, td_method m, int c
 
 static td_status check_height(double h, const char *field, td_err *err)
 {
-    const td_limit_row *row = td_limit_get(TD_LIMIT_VS_HEIGHT);
+    const td_limit_row *row = td_vs_limit_get(TD_VS_LIMIT_HEIGHT);
     td_status rc = TD_OK;
     if (!(h >= row->min && h <= row->max))
         rc = td_err_field(err, TD_ERANGE, field, "%g m is outside %g .. %g", h, row->min, row->max);
@@ -160,8 +171,8 @@ td_status td_viewshed_check(const td_grid *g, const td_viewshed_opts *o, td_err 
 {
     td_status rc = check_common(g, o->surface, o->method, o->curvature, o->k, err);
     char field[32];
-    if (!rc)
-        rc = td_limit_check(TD_LIMIT_VS_OBSERVERS, o->nobs, err);
+    if (!rc && !(o->nobs >= td_vs_limit_get(TD_VS_LIMIT_OBSERVERS)->min && o->nobs <= TD_VS_MAX_OBSERVERS))
+        rc = td_err_field(err, TD_ERANGE, "observers", "%d observers: give 1 .. %d", o->nobs, TD_VS_MAX_OBSERVERS);
     if (!rc && !o->obs)
         rc = td_err_field(err, TD_EINVAL, "observers", "no observer list");
     for (int k = 0; !rc && k < o->nobs; k++) {

@@ -45,6 +45,7 @@
 #include <stdatomic.h>
 #include <stdint.h>
 
+#include "limit.h"
 #include "trace.h"
 
 #define TD_VS_OUTSIDE 255       /* void, or beyond max_distance of every observer */
@@ -52,6 +53,24 @@
 #define TD_LOS_TEPS 0x1p-30     /* ends of the segment left out of the search */
 #define TD_EARTH_RADIUS_M 6371000.0
 #define TD_LOS_PROFILE_MAX 2048 /* points of a line of sight's profile, at most */
+
+/* The ranges of the viewshed and line-of-sight fields, with limit.h's columns (JSON path,
+ * min, api_max: the service's largest, max: core's). Kept apart from limit.h, whose table
+ * is the scene's fields (its tests walk every row as one). */
+#define TD_VS_LIMIT_LIST(X)                                                           \
+    X(TD_VS_LIMIT_OBSERVERS, "observers", 1, 64, TD_VS_MAX_OBSERVERS)                 \
+    X(TD_VS_LIMIT_HEIGHT, "height", 0, 100000, 100000)                                \
+    X(TD_VS_LIMIT_TARGET_HEIGHT, "target_height", 0, 100000, 100000)
+
+typedef enum td_vs_limit {
+#define TD_X_ENUM(id, path, min, api_max, max) id,
+    TD_VS_LIMIT_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_VS_LIMIT_COUNT
+} td_vs_limit;
+
+/* The row of a limit (NULL outside the table). */
+const td_limit_row *td_vs_limit_get(td_vs_limit id);
 
 typedef struct td_vs_point {
     double x, y; /* dataset frame, metres from the south-west sample */

@@ -131,15 +131,6 @@ static int vs_args(int argc, char **argv, vs_cli *c)
     return rc;
 }
 
-static int write_file(const char *path, const void *data, size_t n)
-{
-    FILE *f = fopen(path, "wb");
-    int ok = f && fwrite(data, 1, n, f) == n;
-    if (f && fclose(f))
-        ok = 0;
-    return ok;
-}
-
 /* Loads, builds the max-mipmaps (or planes) the method needs, computes, writes. */
 static int vs_run(vs_cli *c)
 {
@@ -183,7 +174,7 @@ static int vs_run(vs_cli *c)
         goto out;
     }
     js = td_vs_answer(c->dem, g, &c->o, &st, counts);
-    if (td_vs_encode(g, c->o.nobs, counts, &png, &err) || !write_file(c->out, png.data, png.len)) {
+    if (td_vs_encode(g, c->o.nobs, counts, &png, &err) || !td_cli_write_file(c->out, png.data, png.len)) {
         fprintf(stderr, "terrad viewshed: cannot write %s: %s\n", c->out, err.msg[0] ? err.msg : "i/o error");
         goto out;
     }

@@ -144,7 +144,7 @@ static td_status number(json_t *obj, const char *key, const char *field, double 
 static td_status parse_pt(json_t *v, const char *field, int with_height, vs_pt *p, td_err *err)
 {
     static const char *const keys[] = {"x", "y", "lon", "lat", "height", NULL};
-    const td_limit_row *hr = td_limit_get(TD_LIMIT_VS_HEIGHT);
+    const td_limit_row *hr = td_vs_limit_get(TD_VS_LIMIT_HEIGHT);
     char f[64];
     int hx = 0, hy = 0, hlon = 0, hlat = 0;
     td_status rc = TD_OK;
@@ -198,7 +198,7 @@ static td_status parse_quality(json_t *root, td_viewshed_opts *o, td_err *err)
 static td_status parse_observers(json_t *root, vs_req *q, td_err *err)
 {
     json_t *one = json_object_get(root, "observer"), *many = json_object_get(root, "observers");
-    const td_limit_row *lr = td_limit_get(TD_LIMIT_VS_OBSERVERS);
+    const td_limit_row *lr = td_vs_limit_get(TD_VS_LIMIT_OBSERVERS);
     td_status rc = TD_OK;
     char f[32];
     if (one && many)
@@ -224,7 +224,7 @@ static td_status parse_viewshed(json_t *root, vs_req *q, td_err *err)
 {
     static const char *const keys[] = {"dataset", "observer", "observers", "height", "target_height",
                                        "max_distance", "curvature", "surface", "method", "format", NULL};
-    const td_limit_row *hr = td_limit_get(TD_LIMIT_VS_HEIGHT), *tr = td_limit_get(TD_LIMIT_VS_TARGET_HEIGHT);
+    const td_limit_row *hr = td_vs_limit_get(TD_VS_LIMIT_HEIGHT), *tr = td_vs_limit_get(TD_VS_LIMIT_TARGET_HEIGHT);
     json_t *fmt = json_object_get(root, "format");
     int had = 0;
     td_status rc = keys_known(root, keys, "", err);

@@ -132,6 +132,17 @@ static int pick_observers(const td_grid *g, uint64_t *seed, td_vs_point *p)
     return n;
 }
 
+/* Options of a one-observer viewshed (two threads). */
+static void one_observer(td_viewshed_opts *vo, const td_vs_point *p, double height, td_surface s)
+{
+    td_viewshed_opts_default(vo);
+    vo->obs = p;
+    vo->nobs = 1;
+    vo->height = height;
+    vo->surface = s;
+    vo->threads = 2;
+}
+
 /* The grid lowered by c s^2 about p, computed here as the curvature model says (viewshed.h),
  * and a view of it through the dataset's max-mipmaps (upper bounds of it too). */
 static td_grid *lowered(const td_grid *g, td_vs_point p, double c)
@@ -164,12 +175,7 @@ static int check_observer(oracle *o, td_surface s, td_vs_point p, double height,
     td_tile_accel *bound = NULL;
     double eye[3];
     int ok = 0;
-    td_viewshed_opts_default(&vo);
-    vo.obs = &p;
-    vo.nobs = 1;
-    vo.height = height;
-    vo.surface = s;
-    vo.threads = 2;
+    one_observer(&vo, &p, height, s);
     vo.curvature = curv;
     if (td_viewshed(&o->v, &vo, out, &st, &err)) {
         printf("  viewshed from (%g, %g) on %s refused: %s\n", p.x, p.y, td_surface_name(s), err.msg);
@@ -278,12 +284,7 @@ static int run_gdal(oracle *o, const char *raw, td_vs_point p, double height, td
     int ok = gd && out && f && fread(gd, 1, n, f) == n, shown = 0, ties_shown = 0;
     if (f)
         fclose(f);
-    td_viewshed_opts_default(&vo);
-    vo.obs = &p;
-    vo.nobs = 1;
-    vo.height = height;
-    vo.surface = s;
-    vo.threads = 2;
+    one_observer(&vo, &p, height, s);
     if (!ok || td_viewshed(&o->v, &vo, out, &st, &err)) {
         fprintf(stderr, "viewshed_oracle: %s\n", ok ? err.msg : "cannot read the GDAL raster");
         ok = 0;
