@@ -4,12 +4,13 @@
  * One segment a target sample and observer, searched with td_occluded (any hit, no hit
  * point), so each answer is exactly what the tracers say of that segment: there is no
  * sweep, no reference plane and no interpolation of horizons to disagree with them. The
- * oracle tests (tests/oracle, --viewshed) trace the same segments (td_viewshed_ray) with
- * the double-precision reference.
+ * oracle tests (tests/oracle/viewshed_oracle.c) trace the same segments (td_viewshed_ray)
+ * with the double-precision reference.
  *
  * Layout: per observer an `eye` (its view: the dataset's, or with curvature a lowered
- * copy of the grid and its max-mipmaps, built in setup_eyes); workers take rows of
- * samples from an atomic counter and, per sample, ask every eye in range.
+ * copy of the grid skipped through the dataset's max-mipmaps, built in setup_eyes);
+ * workers take rows of samples from an atomic counter and, per sample, ask every eye of
+ * the pass in range (one pass for all observers, or one an observer with curvature).
  *
  * Alternative rejected for now: a sweep (Van Kreveld, or GDAL's reference planes) visits
  * each sample once, but decides on flattened cells or interpolated horizons; making one
@@ -302,7 +303,9 @@ out:
 
 typedef struct vs_ctx {
     const td_grid *g;
-    const eye *eyes;
+    const eye *eyes; /* neyes observers this pass */
+    int neyes;
+    int merge;       /* add to out's counts (a later pass) instead of writing them */
     const td_viewshed_opts *o;
     double maxd2;
     uint8_t *out;
@@ -312,17 +315,17 @@ typedef struct vs_ctx {
 typedef struct vs_worker {
     vs_ctx *c;
     pthread_t th;
-    uint64_t rays, steps, inside, visible;
+    uint64_t rays, steps;
     int cancelled;
 } vs_worker;
 
-/* One sample (i, j) against every observer in range: its output byte. */
+/* One sample (i, j) against every observer of the pass in range: its output byte. */
 static uint8_t vs_sample(vs_worker *w, int32_t i, int32_t j)
 {
     const vs_ctx *c = w->c;
     const td_viewshed_opts *o = c->o;
     int count = 0, in_range = 0, isvoid = 0;
-    for (int k = 0; k < o->nobs && !isvoid; k++) {
+    for (int k = 0; k < c->neyes && !isvoid; k++) {
         const eye *e = &c->eyes[k];
         double dx = i * c->g->sx - e->x, dy = j * c->g->sy - e->y;
         td_ray r;
@@ -342,11 +345,13 @@ static uint8_t vs_sample(vs_worker *w, int32_t i, int32_t j)
             w->steps += steps;
         }
     }
-    if (isvoid || !in_range)
-        return TD_VS_OUTSIDE;
-    w->inside++;
-    w->visible += count > 0;
-    return (uint8_t)count;
+    return isvoid || !in_range ? TD_VS_OUTSIDE : (uint8_t)count;
+}
+
+/* A later pass's byte v into out's (counts add; outside only where outside for all). */
+static uint8_t vs_merge(uint8_t old, uint8_t v)
+{
+    return v == TD_VS_OUTSIDE ? old : old == TD_VS_OUTSIDE ? v : (uint8_t)(old + v);
 }
 
 static void *vs_work(void *arg)
@@ -363,8 +368,10 @@ static void *vs_work(void *arg)
         row = atomic_fetch_add_explicit(&c->next, 1, memory_order_relaxed);
         if (row >= g->h)
             break;
-        for (int32_t i = 0; i < g->w; i++)
-            c->out[(size_t)row * (size_t)g->w + (size_t)i] = vs_sample(w, i, g->h - 1 - row);
+        for (int32_t i = 0; i < g->w; i++) {
+            uint8_t *o = &c->out[(size_t)row * (size_t)g->w + (size_t)i], v = vs_sample(w, i, g->h - 1 - row);
+            *o = c->merge ? vs_merge(*o, v) : v;
+        }
     }
     return NULL;
 }
@@ -400,8 +407,6 @@ static td_status vs_run(vs_ctx *c, int nthreads, td_viewshed_stats *st, td_err *
     for (int k = 0; k < started; k++) {
         st->rays += ws[k].rays;
         st->steps += ws[k].steps;
-        st->inside += ws[k].inside;
-        st->visible += ws[k].visible;
         if (ws[k].cancelled)
             rc = td_err_set(err, TD_ECANCELED, "viewshed: cancelled");
     }
@@ -410,39 +415,56 @@ out:
     return rc;
 }
 
+/* The samples inside and seen, from the finished output. */
+static void vs_count(const td_grid *g, const uint8_t *out, td_viewshed_stats *st)
+{
+    size_t n = (size_t)g->w * (size_t)g->h;
+    for (size_t k = 0; k < n; k++) {
+        st->inside += out[k] != TD_VS_OUTSIDE;
+        st->visible += out[k] != TD_VS_OUTSIDE && out[k] > 0;
+    }
+    st->samples = n;
+    st->visible_area_m2 = (double)st->visible * g->sx * g->sy;
+}
+
+/* Without curvature one pass asks every observer per sample; with it, one pass an
+ * observer, so that one lowered grid at a time is resident (64 observers over trinidad
+ * would otherwise hold 64 copies, 0.7 GB), each pass adding its counts. */
 td_status td_viewshed(const td_view *v, const td_viewshed_opts *o, uint8_t *out,
                       td_viewshed_stats *st, td_err *err)
 {
     const td_grid *g = v->grid;
     eye *eyes = NULL;
     vs_ctx c;
-    int nthreads = thread_count(o->threads, g->h);
-    double t0 = td_clock_s(), t1;
+    int nthreads = thread_count(o->threads, g->h), per = o->curvature ? 1 : o->nobs;
     td_status rc;
 
     memset(st, 0, sizeof *st);
     rc = td_viewshed_check(g, o, err);
-    if (rc)
-        goto out;
-    rc = setup_eyes(v, o->obs, o->nobs, o->height, o->curvature, o->k, o->surface, o->method,
-                    nthreads, &eyes, err);
-    if (rc)
-        goto out;
-    t1 = td_clock_s();
-    memset(&c, 0, sizeof c);
-    c.g = g;
-    c.eyes = eyes;
-    c.o = o;
-    c.maxd2 = o->max_distance * o->max_distance;
-    c.out = out;
-    atomic_init(&c.next, 0);
-    rc = vs_run(&c, nthreads, st, err);
-    st->samples = (uint64_t)g->w * (uint64_t)g->h;
-    st->visible_area_m2 = (double)st->visible * g->sx * g->sy;
-    st->setup_ms = 1e3 * (t1 - t0);
-    st->trace_ms = 1e3 * (td_clock_s() - t1);
-out:
-    free_eyes(eyes, o->nobs);
+    for (int first = 0; rc == TD_OK && first < o->nobs; first += per) {
+        double t0 = td_clock_s(), t1;
+        rc = setup_eyes(v, o->obs + first, per, o->height, o->curvature, o->k, o->surface, o->method,
+                        nthreads, &eyes, err);
+        if (rc)
+            break;
+        t1 = td_clock_s();
+        memset(&c, 0, sizeof c);
+        c.g = g;
+        c.eyes = eyes;
+        c.neyes = per;
+        c.merge = first > 0;
+        c.o = o;
+        c.maxd2 = o->max_distance * o->max_distance;
+        c.out = out;
+        atomic_init(&c.next, 0);
+        rc = vs_run(&c, nthreads, st, err);
+        st->setup_ms += 1e3 * (t1 - t0);
+        st->trace_ms += 1e3 * (td_clock_s() - t1);
+        free_eyes(eyes, per);
+        eyes = NULL;
+    }
+    if (rc == TD_OK)
+        vs_count(g, out, st);
     return rc;
 }
 

@@ -327,6 +327,24 @@ static void test_curvature(void **state)
             }
         }
     }
+    /* two observers 40 km apart, each with its own lowered grid (one pass each): seen by
+     * one within 12.1 km of either, by none between, never by both */
+    {
+        td_vs_point two[2] = {{0, 100}, {40000, 100}};
+        o.obs = two;
+        o.nobs = 2;
+        o.target_height = 0;
+        o.method = TD_METHOD_AUTO;
+        assert_int_equal(td_viewshed(&v, &o, out, &st, NULL), TD_OK);
+        for (int32_t i = 0; i < 401; i++) {
+            double s = i * 100.0, near = s < 20000 ? s : 40000 - s;
+            if (near < 12002)
+                assert_int_equal(out[401 + i], 1);
+            else if (near > 12202)
+                assert_int_equal(out[401 + i], 0);
+        }
+        assert_int_equal(st.inside, 401 * 3);
+    }
     free(out);
     td_accel_free(a);
     td_grid_free(g);
