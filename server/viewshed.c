@@ -165,6 +165,8 @@ static td_status parse_pt(json_t *v, const char *field, int with_height, vs_pt *
     snprintf(f, sizeof f, "%s.height", field);
     if (!rc && with_height)
         rc = number(v, "height", f, hr->min, hr->api_max, &p->h, NULL, err);
+    if (!rc && (hx || hy) && (json_object_get(v, "lon") || json_object_get(v, "lat")))
+        rc = td_err_field(err, TD_EINVAL, field, "give x, y or lon, lat, not both");
     if (!rc && !((hx && hy) || (hlon && hlat)))
         rc = td_err_field(err, TD_EINVAL, field, "give x, y (dataset frame, metres) or lon, lat");
     p->geo = hlon;

@@ -228,6 +228,8 @@ static void test_viewshed_refusals(void **state)
     expect_error("/v1/viewshed", "{\"dataset\":\"volcano\",\"observer\":{\"x\":1,\"y\":1,\"z\":3},\"height\":2}", 400,
                  "observer.z");
     expect_error("/v1/viewshed", "{\"dataset\":\"volcano\",\"observer\":{\"lon\":1,\"lat\":1},\"height\":2}", 400, "observer");
+    expect_error("/v1/viewshed", "{\"dataset\":\"volcano\",\"observer\":{\"x\":1,\"y\":1,\"lon\":1},\"height\":2}", 400,
+                 "observer");
     expect_error("/v1/viewshed", "{\"dataset\":\"volcano\",\"observer\":{\"x\":1,\"y\":1},\"height\":2,\"curvature\":{\"k\":3}}",
                  400, "curvature.k");
     expect_error("/v1/viewshed", "{\"dataset\":\"volcano\",\"observer\":{\"x\":1,\"y\":1},\"height\":2,\"surface\":\"smooth\"}",
