@@ -26,6 +26,7 @@
     X(TD_ROUTE_PRELOAD, "admin_preload")                                       \
     X(TD_ROUTE_JOB, "admin_job")                                               \
     X(TD_ROUTE_EVICT, "admin_evict")                                           \
+    X(TD_ROUTE_HEIGHTS, "admin_heights")                                       \
     X(TD_ROUTE_HEALTHZ, "healthz")                                             \
     X(TD_ROUTE_READYZ, "readyz")                                               \
     X(TD_ROUTE_METRICS, "metrics")                                             \
@@ -51,6 +52,8 @@ typedef struct td_app {
     td_metrics *metrics;
     td_http *http;     /* set once the server runs (queue depth for /metrics) */
     atomic_int ready;  /* /readyz: 1 once serving, 0 again when stopping */
+    atomic_int loaded; /* 1 once the datasets are loaded: before, only /healthz and
+                          /readyz answer (503), and nothing reads the store */
     char web_dir[PATH_MAX];     /* realpath, or "" when absent */
     char leaflet_dir[PATH_MAX]; /* realpath of web/node_modules/leaflet/dist, or "" */
 } td_app;
@@ -66,6 +69,10 @@ void td_routes_done(void *cls, int route, int status, size_t bytes, double secon
 void td_routes_error(td_http_resp *r, const char *code, const char *field, const char *msg);
 void td_routes_json(td_http_resp *r, int status, json_t *j);
 int td_routes_json_body(td_http_req *q, td_http_resp *r);
+
+/* td_http_opts.body_cap: --max-edit-kb for a PUT of heights with the right bearer token,
+ * --max-body-kb for every other request (so only an admin can send large bodies). */
+size_t td_routes_body_cap(void *cls, const td_http_req *q);
 
 /* Constant-time comparison of a presented token with the configured one. */
 int td_routes_token_equal(const char *given, const char *want);

@@ -273,7 +273,7 @@ static td_status cam_exact(cam_run *c, td_err *err)
         v->emb_hits += c->t[k] < INFINITY;
     for (int off = 0; off < 2 && rc == TD_OK; off++) {
         td_render_result res;
-        rc = cam_render(c, TD_SURFACE_TRIANGLE, TD_FORMAT_DEPTH32F, off ? TD_RENDER_OFF_HORIZON : 0, NULL, &res,
+        rc = cam_render(c, TD_SURFACE_TRIANGLE, TD_FORMAT_DEPTH32F, off ? TD_RENDER_OFF_CAMERA : 0, NULL, &res,
                         err);
         for (size_t k = 0; k < c->n && rc == TD_OK; k++)
             v->depth_differ[off] += (uint64_t)depth_differs(res.depth[tile_pixel(k, c->w)], c->t[k]);
@@ -500,7 +500,7 @@ static void cam_write_views(FILE *f, const bench_ctx *b)
             "{\"sun\": {\"azimuth\": .., \"elevation\": ..}, \"shadows\": true}}`, and `terrad render SCENE -o OUT"
             " --threads 1 --rays R --shadow-rays S` writes the camera and shadow rays timed here (the numbers "
             "below are exact).\n\n| dataset | view | camera x, y, z (m) | heading | pitch | roll | sun azimuth, "
-            "elevation | camera rays | hits (triangle) | started from a horizon bound (triangle) "
+            "elevation | camera rays | hits (triangle) | started from a horizon or beam bound (triangle) "
             "|\n|---|---|---|---|---|---|---|---|---|---|\n", b->cam_w, b->cam_h);
     for (int k = 0; k < b->nds; k++) {
         const bench_ds *d = &b->ds[k];
@@ -543,7 +543,7 @@ static void cam_write_row(FILE *f, const bench_ds *d, int q, int s)
 static void cam_write_table(FILE *f, const bench_ctx *b)
 {
     fprintf(f, "### Camera views: rays per second against Embree, one thread\n\n"
-               "M rays/s; *on*: every coherence device on (camera rays: the horizon bound; shadow rays: the "
+               "M rays/s; *on*: every coherence device on (camera rays: the horizon and beam bounds; shadow rays: the "
                "occlusion query and the sun bound); *no sun*: the sun bound off (`TD_RENDER_OFF_SUNLIT`), the "
                "occlusion query kept; *off*: every device off; x Embree = terrad / Embree on the same rays.\n\n"
                "| dataset | view | surface | camera M rays/s, on | off | Embree rtcIntersect16 | x Embree, on | "
@@ -616,7 +616,7 @@ void td_bench_camera_write(FILE *f, const bench_ctx *b)
                 "ray per pixel (tables below), one thread on each side, terrad's method `auto` with every "
                 "structure built as for section 1, Embree's triangle mesh. Per view and surface, each of %d rounds"
                 " renders (`td_render`, PNG, shadows on with the view's sun) with every coherence device on, with "
-                "the sun bound off, and with every device off (`TD_RENDER_OFF_HORIZON | TD_RENDER_OFF_OCCLUSION | "
+                "the sun bound off, and with every device off (`TD_RENDER_OFF_CAMERA | TD_RENDER_OFF_OCCLUSION | "
                 "TD_RENDER_OFF_SUNLIT`), then Embree traces the same rays: rtcOccluded16 on the render's shadow "
                 "rays (`td_render_opts.shadow_rays`, image order, 16 consecutive rays a packet) and, once a round,"
                 " rtcIntersect16 on the camera rays (`td_camera_ray` of every pixel centre, as `terrad render "

@@ -86,7 +86,7 @@ const char *td_bench_cam_name(int v);
     X(TD_BENCH_CONF_ON, "on", 0u)                                              \
     X(TD_BENCH_CONF_NO_SUNLIT, "no sun bound", TD_RENDER_OFF_SUNLIT)           \
     X(TD_BENCH_CONF_OFF, "off",                                                \
-      TD_RENDER_OFF_HORIZON | TD_RENDER_OFF_OCCLUSION | TD_RENDER_OFF_SUNLIT)
+      TD_RENDER_OFF_CAMERA | TD_RENDER_OFF_OCCLUSION | TD_RENDER_OFF_SUNLIT)
 
 typedef enum td_bench_conf {
 #define TD_X_ENUM(e, name, off) e,
