@@ -81,7 +81,7 @@ static void on_png_warning(png_structp png, png_const_charp msg)
     (void)msg;
 }
 
-/* bit_depth 8 with 4 channels, or 16 with 1 channel. */
+/* bit_depth 8 with 4 or 1 channels, or 16 with 1 channel. */
 static td_status encode(const void *pixels, int32_t width, int32_t height, int color_type,
                         int bit_depth, int channels, const char *key, const char *value,
                         td_buf *out, td_err *err)
@@ -162,6 +162,12 @@ td_status td_image_encode_gray16(const uint16_t *v, int32_t width, int32_t heigh
                                  const char *key, const char *value, td_buf *out, td_err *err)
 {
     return encode(v, width, height, PNG_COLOR_TYPE_GRAY, 16, 1, key, value, out, err);
+}
+
+td_status td_image_encode_gray8(const uint8_t *v, int32_t width, int32_t height, td_buf *out,
+                                td_err *err)
+{
+    return encode(v, width, height, PNG_COLOR_TYPE_GRAY, 8, 1, NULL, NULL, out, err);
 }
 
 td_status td_image_encode_f32(const float *v, int32_t width, int32_t height, td_buf *out,

@@ -36,6 +36,10 @@ td_status td_image_encode_rgba(const uint8_t *rgba, int32_t width, int32_t heigh
 td_status td_image_encode_gray16(const uint16_t *v, int32_t width, int32_t height,
                                  const char *key, const char *value, td_buf *out, td_err *err);
 
+/* 8-bit grayscale PNG, rows top to bottom (viewsheds). */
+td_status td_image_encode_gray8(const uint8_t *v, int32_t width, int32_t height, td_buf *out,
+                                td_err *err);
+
 /* Raw little-endian float32, width*height values, rows top to bottom. */
 td_status td_image_encode_f32(const float *v, int32_t width, int32_t height, td_buf *out,
                               td_err *err);

@@ -37,3 +37,17 @@ int td_cli_sibling(const char *name, char *out, size_t cap)
     }
     return ok;
 }
+
+int td_cli_write_file(const char *path, const void *data, size_t len)
+{
+    int ok = 0;
+    FILE *f = strcmp(path, "-") ? fopen(path, "wb") : stdout;
+    if (f) {
+        ok = fwrite(data, 1, len, f) == len;
+        if (f != stdout)
+            ok = (fclose(f) == 0) && ok;
+        else
+            ok = (fflush(f) == 0) && ok;
+    }
+    return ok;
+}

@@ -156,20 +156,6 @@ static char *read_file(const char *path, size_t *len)
     return buf;
 }
 
-static int write_out(const char *path, const void *data, size_t len)
-{
-    int ok = 0;
-    FILE *f = strcmp(path, "-") ? fopen(path, "wb") : stdout;
-    if (f) {
-        ok = fwrite(data, 1, len, f) == len;
-        if (f != stdout)
-            ok = (fclose(f) == 0) && ok;
-        else
-            ok = (fflush(f) == 0) && ok;
-    }
-    return ok;
-}
-
 static json_t *stats_json(const td_render_stats *st)
 {
     json_t *o = json_object(), *rays = json_object(), *stages = json_object();
@@ -437,7 +423,7 @@ static int write_picks(const render_run *run, const td_view *view, json_t **stat
     }
     pjson = td_answer_picks(run->scene->dataset, run->g, picks, run->scene->npick); /* as /v1/pick */
     text = json_dumps(pjson, JSON_INDENT(2) | JSON_REAL_PRECISION(12));
-    if (!text || !write_out(run->out_path, text, strlen(text))) {
+    if (!text || !td_cli_write_file(run->out_path, text, strlen(text))) {
         fprintf(stderr, "terrad render: %s: cannot write\n", run->out_path);
         goto out;
     }
@@ -543,7 +529,7 @@ static int write_image(const render_run *run, const td_view *view, json_t **stat
     if ((run->rays_path && write_camera_rays(run, view->grid)) ||
         (run->shadow_path && write_shadow_rays(run, ropts.shadow_rays, nslots)))
         goto out;
-    if (!write_out(run->out_path, buf.data, buf.len)) {
+    if (!td_cli_write_file(run->out_path, buf.data, buf.len)) {
         fprintf(stderr, "terrad render: %s: cannot write: %s\n", run->out_path, strerror(errno));
         goto out;
     }

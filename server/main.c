@@ -9,12 +9,13 @@
     X("render", td_cli_render, "render a scene JSON to an image")                  \
     X("trace", td_cli_trace, "trace binary rays from stdin, write hit distances")   \
     X("info", td_cli_info, "describe a DEM file")                                  \
+    X("viewshed", td_cli_viewshed, "what can be seen from points of a DEM (PNG)")  \
     X("bench", td_cli_bench, "measure methods and surfaces against Embree")
 
 static void usage(FILE *f)
 {
     fprintf(f, "usage: terrad <command> [options]\n\ncommands:\n");
-#define TD_X_USAGE(name, fn, help) fprintf(f, "  %-7s %s\n", name, help);
+#define TD_X_USAGE(name, fn, help) fprintf(f, "  %-8s %s\n", name, help);
     TD_SUBCOMMANDS(TD_X_USAGE)
 #undef TD_X_USAGE
     fprintf(f, "\n`terrad <command> --help` describes each one.\n");

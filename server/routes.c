@@ -39,6 +39,7 @@
 #include "render.h"
 #include "request.h"
 #include "static.h"
+#include "viewshed_api.h"
 
 const char *const td_route_names[TD_ROUTE_COUNT] = {
 #define TD_X_NAME(e, name) name,
@@ -1319,6 +1320,8 @@ static const td_route_row td_routes[] = {
     {TD_ROUTE_METRICS, "/metrics", NULL, 0, 0, "GET, HEAD", h_metrics, NULL},
     {TD_ROUTE_RENDER, "/v1/render", NULL, 0, 0, "GET, HEAD, POST", h_render_route, NULL},
     {TD_ROUTE_PICK, "/v1/pick", NULL, 0, 0, "POST", h_pick, NULL},
+    {TD_ROUTE_VIEWSHED, "/v1/viewshed", NULL, 0, 0, "POST", td_vs_route, NULL},
+    {TD_ROUTE_LOS, "/v1/los", NULL, 0, 0, "POST", td_los_route, NULL},
     {TD_ROUTE_TILES, "/v1/tiles/", "*/*/*/*", 4, 0, "GET, HEAD", h_tile, NULL},
     {TD_ROUTE_TILES, "/v1/tiles/", "", 0, 0, NULL, NULL, "tile paths are /v1/tiles/{dataset}/{z}/{x}/{y}.png"},
     {TD_ROUTE_DATASETS, "/v1/datasets", NULL, 0, 0, "GET, HEAD", h_datasets, NULL},
@@ -1423,3 +1426,18 @@ void td_routes_done(void *cls, int route, int status, size_t bytes, double secon
     (void)seconds;
     td_metrics_request(app->metrics, route, status);
 }
+
+/* --- for handlers in other files (routes.h) ----------------------------------------- */
+
+void td_routes_error(td_http_resp *r, const char *code, const char *field, const char *msg)
+{
+    td_apierr e = TD_AE_INTERNAL;
+    for (int k = 0; k < TD_AE_COUNT; k++)
+        if (!strcmp(td_apierrs[k].code, code))
+            e = (td_apierr)k;
+    api_error(r, e, field, "%s", msg);
+}
+
+void td_routes_json(td_http_resp *r, int status, json_t *j) { send_json(r, status, j); }
+
+int td_routes_json_body(td_http_req *q, td_http_resp *r) { return json_body_check(q, r); }

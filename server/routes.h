@@ -8,6 +8,7 @@
 #define TD_ROUTES_H
 
 #include <limits.h>
+#include <jansson.h>
 #include <stdatomic.h>
 
 #include "config.h"
@@ -30,6 +31,8 @@
     X(TD_ROUTE_READYZ, "readyz")                                               \
     X(TD_ROUTE_METRICS, "metrics")                                             \
     X(TD_ROUTE_WEB, "web")                                                     \
+    X(TD_ROUTE_VIEWSHED, "viewshed")                                           \
+    X(TD_ROUTE_LOS, "los")                                                     \
     X(TD_ROUTE_UNKNOWN, "unknown")
 
 typedef enum td_route {
@@ -58,6 +61,14 @@ typedef struct td_app {
 /* td_http_handler and td_http_done_fn for td_http_start (cls: the td_app). */
 void td_routes_handle(void *cls, td_http_req *q, td_http_resp *resp);
 void td_routes_done(void *cls, int route, int status, size_t bytes, double seconds);
+
+/* For handlers in other files (viewshed.c): a JSON error with one of routes.c's codes
+ * ("bad_request", "unknown_dataset", "internal", "busy", "stopping", "render_timeout";
+ * an unknown code is "internal"), a JSON body (taken, NULL: 500), and the Content-Type
+ * check of POST bodies (0 when JSON, else answered 415). */
+void td_routes_error(td_http_resp *r, const char *code, const char *field, const char *msg);
+void td_routes_json(td_http_resp *r, int status, json_t *j);
+int td_routes_json_body(td_http_req *q, td_http_resp *r);
 
 /* td_http_opts.body_cap: --max-edit-kb for a PUT of heights with the right bearer token,
  * --max-body-kb for every other request (so only an admin can send large bodies). */
