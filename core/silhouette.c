@@ -15,11 +15,11 @@
  * takes the maximum of the strip's two sample lines over the part's cross range (one
  * pass over those samples, NaN dropped), then each wedge's maximum over its own cells,
  * its bound B and its running maximum. A wedge's cells in a strip are those its rays can
- * cross there, widened by a cell on each side (rays along a grid line, rounding).
+ * cross there (both cells where a range ends on a sample line; a margin for rounding).
  *
  * Sizes: a fan has at most TD_SILH_ENTRIES_MAX / ns wedges and all fans together at most
- * one per image column (the paper's screen columns); a wedge is at least a pixel's
- * angle wide. Measured on trinidad (2401 x 1201) and 640 x 480 views, see README
+ * one per TD_SILH_WEDGE_PX image columns (the paper has one per screen column); a wedge is
+ * at least that many pixels' angle wide. Measured on trinidad (2401 x 1201) and 640 x 480 views, see README
  * (Silhouette partitioning). Rejected: Sakalauskas' binary tree of silhouettes (each node
  * the nearer child's silhouette): it exists to let a GPU search with a fixed number of
  * texture reads; the running maximum per wedge answers the same query (the first strip
@@ -33,6 +33,13 @@
 #include <string.h>
 
 #define TD_SILH_PART 64              /* wedges a thread builds at once */
+/* A wedge's width in image columns (at the image's mean angle per column, at least a
+ * pixel's): measured by instructions (callgrind, deterministic on a shared machine) on
+ * trinidad views of 640 x 400, one ray a pixel: 1 -> 2 -> 4 -> 8 -> 16 columns gave
+ * 679 -> 645 -> 633 -> 634 -> 648 M instructions for the whole `terrad render` (sunset)
+ * and 673 / 679 / 704 M for 4 / 8 / 16 on levi; the build halves with each doubling and
+ * the walk grows by 2-10% of a step a ray. */
+#define TD_SILH_WEDGE_PX 4.0
 #define TD_SILH_ENTRIES_MAX (1 << 24) /* P_s per fan at most (64 MiB of floats) */
 #define TD_SILH_THREADS_MAX 64
 
@@ -135,17 +142,26 @@ static inline float fan_sample(const td_grid *g, int axis, int32_t a, int32_t x)
     return axis ? g->z[(size_t)a * (size_t)g->w + (size_t)x] : g->z[(size_t)x * (size_t)g->w + (size_t)a];
 }
 
+/* floor of a finite value well inside int32 (a cast and a correction: no libm call) */
+static inline int32_t ifloor(double u)
+{
+    int32_t i = (int32_t)u;
+    return i - ((double)i > u);
+}
+
 /* Cells [*j0, *j1] across strip s that rays of slopes [ml, mh] can cross between along-
- * distances qn and qf (widened by a cell each side, clamped; isc = 1 / the cross
- * spacing: its rounding is far inside the widening); 0 if none. */
+ * distances qn and qf, clamped to the grid; 0 if none. isc = 1 / the cross spacing. A
+ * cross range ending on a sample line takes the cells on both sides of it (a ray along a
+ * grid line may be in either); the margin, 1e-9 of a cell and more, is far above the
+ * rounding of the positions (1e-16 of their size). */
 static inline int cross_cells(double ec, double isc, int32_t nc, double qn, double qf, double ml, double mh,
                               int32_t *j0, int32_t *j1)
 {
     double ulo = (ec + dmin(qn * ml, qf * ml)) * isc, uhi = (ec + dmax(qn * mh, qf * mh)) * isc;
     ulo = dmax(-4.0, dmin((double)nc + 4.0, ulo)); /* NaN-free: every input is finite */
     uhi = dmax(-4.0, dmin((double)nc + 4.0, uhi));
-    *j0 = (int32_t)floor(ulo) - 1;
-    *j1 = (int32_t)floor(uhi) + 1;
+    *j0 = ifloor(ulo - 1e-9 * (1.0 + (ulo > 0.0 ? ulo : -ulo)));
+    *j1 = ifloor(uhi + 1e-9 * (1.0 + (uhi > 0.0 ? uhi : -uhi)));
     *j0 = *j0 < 0 ? 0 : *j0;
     *j1 = *j1 > nc - 1 ? nc - 1 : *j1;
     return *j0 <= *j1;
@@ -272,7 +288,8 @@ static void build_run(build_job *job, int threads)
 }
 
 /* Sets up the fans the image reaches: slopes, strips, wedges (all fans together at most
- * one wedge per image column, each at least a pixel's angle wide). */
+ * one wedge per TD_SILH_WEDGE_PX image columns, each at least that many pixels' angle
+ * wide). */
 static void setup_fans(td_silhouette *s, const td_grid *g, const td_camera *cam)
 {
     double az0 = 0.0, az1 = 0.0, mlo[TD_SILH_FANS], mhi[TD_SILH_FANS], ang[TD_SILH_FANS], total = 0.0;
@@ -288,7 +305,7 @@ static void setup_fans(td_silhouette *s, const td_grid *g, const td_camera *cam)
             total += ang[q];
         }
     }
-    double per = fmax(cam->pixel_angle, total / (double)(cam->width > 0 ? cam->width : 1));
+    double per = TD_SILH_WEDGE_PX * fmax(cam->pixel_angle, total / (double)(cam->width > 0 ? cam->width : 1));
     for (int q = 0; q < TD_SILH_FANS; q++) {
         td_silh_fan *f = &s->fan[q];
         if (ang[q] > 0.0 && f->ns > 0) {
@@ -356,8 +373,9 @@ double td_silhouette_clear(const td_silhouette *s, const double d[3], uint32_t *
         t = INFINITY; /* the fan's rays leave the grid behind them */
     } else if (f && f->nw > 0) {
         double along = f->sign * d[f->axis], m = d[1 - f->axis] / along;
-        double k = floor((m - f->m0) * f->idm);
-        if (k >= 0.0 && k < (double)f->nw) {
+        double u = (m - f->m0) * f->idm;
+        int32_t k = u >= 0.0 && u < (double)f->nw ? ifloor(u) : -1;
+        if (k >= 0) {
             const float *row = f->p + (size_t)k * (size_t)f->ns;
             double e = d[2] / sqrt(d[0] * d[0] + d[1] * d[1]); /* finite: |d_xy| >= |along| > 0 */
             int32_t lo = 0, hi = f->ns;

@@ -17,8 +17,8 @@
  *   strip    the cells between two consecutive sample lines across that axis (a column
  *            of cells for x), taken from the eye's strip outward to the grid's edge
  *   wedge    the paper's screen column: the fan's rays with slope m = d_cross / d_along in
- *            [m0 + k dm, m0 + (k+1) dm], about a pixel's angle wide (wedges are uniform in
- *            m; at most one wedge per image column over all fans)
+ *            [m0 + k dm, m0 + (k+1) dm], about 4 pixels' angle wide (wedges are uniform in
+ *            m; at most one wedge per 4 image columns over all fans; silhouette.c)
  *
  * For wedge k and strip s, every ray of the wedge crosses the strip between along-
  * distances q_n and q_f from the eye, at cross positions inside [e_c + min(q m),
