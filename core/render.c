@@ -76,6 +76,12 @@
  *              normal, the max-mipmap climbed from 4 x 4 blocks.
  *   sunlit     one sweep against the sun per render bounds, per 16 x 16 cells, the height
  *              above which a point is surely lit (sunlit.h); a shadow ray ends there.
+ * Method silhouette (issue 13) replaces the horizon for the camera rays: one partition of
+ * the view per render from the heights alone (silhouette.h, built with the render's
+ * threads before the blocks, timed in the primary stage), each ray started where its
+ * wedge's running silhouette allows, again through td_trace_from; `auto` does the same
+ * where most tiles lack a max-mipmap (a cold dataset), since the horizon's bins there fall
+ * back to tiles' zmax (auto_silhouette). Its secondary rays are the plain walk's.
  * Measured (docs/accuracy-vs-time.md, camera views): steps per camera ray fall from 9-25
  * to 1.1-8, camera rays get up to 2x and shadow rays up to 1.6x faster, but a camera ray
  * still costs about 1,300 instructions (walk setup, the cell tests near the hit, the
@@ -1261,9 +1267,10 @@ static td_status setup_sunlit(ctx *c, const td_render_opts *o, td_err *err)
 
 /* Whether `auto` starts its camera rays from the silhouette partition rather than the
  * horizon device: when fewer than TD_AUTO_SILH_MAXMIPS of the grid's tiles hold a
- * max-mipmap (a cold dataset, or one whose structures are being rebuilt), the horizon's
- * bins fall back to tiles' zmax there and the partition bounds far better. Measured: see
- * README (Silhouette partitioning). */
+ * max-mipmap (a cold dataset, or one whose structures are being rebuilt). Measured on
+ * views without any max-mipmap (README, Silhouette partitioning: primary stage medians
+ * lower in 7 of 8 views, fewer instructions in all that callgrind counted); the mixed
+ * case (some tiles built) is not measured: the half is a guess. */
 #define TD_AUTO_SILH_MAXMIPS 0.5
 
 static int auto_silhouette(const td_view *v)

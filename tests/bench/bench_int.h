@@ -95,6 +95,11 @@ typedef enum td_bench_conf {
     TD_BENCH_CONF_COUNT
 } td_bench_conf;
 
+/* Sections 1-6 time the methods on given rays (td_trace, as `terrad trace`): every method
+ * but silhouette, whose partition is built per camera view (on other rays it is the
+ * incremental walk); section 7 times it on its camera views (TD_BENCH_COLD_LIST). */
+static inline int td_bench_traced(int m) { return m != TD_METHOD_SILHOUETTE; }
+
 /* Camera rays with no preprocessing (issue 13), timed per camera view on the bilinear
  * surface over the grid alone (no max-mipmap, no planes): the walk from each ray's start
  * (devices off), the walk with the horizon device (what `auto` does on a cold dataset),

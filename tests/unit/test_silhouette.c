@@ -10,7 +10,8 @@
  * And renders with method silhouette equal the plain walk (devices off) bit for bit:
  * depth and colour with shadows, 2 threads, 2 x 2 samples, perspective and orthographic
  * (which the partition does not handle: its rays take the walk), with the stats counting
- * the partition's rays, entries and steps. */
+ * the partition's rays, entries and steps; and `auto` uses the partition on a view without
+ * max-mipmaps, the horizon device on one with them, with the same pixels. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -21,6 +22,7 @@
 #include <string.h>
 #include <cmocka.h>
 
+#include "accel.h"
 #include "camera.h"
 #include "dem.h"
 #include "render.h"
@@ -210,6 +212,49 @@ static void test_silhouette_render(void **state)
     }
 }
 
+/* `auto` starts its camera rays from the partition on a view whose tiles mostly lack a
+ * max-mipmap (a cold dataset: the same pixels as the walk, labelled silhouette), and
+ * from the horizon device once they are built. */
+static void test_silhouette_auto(void **state)
+{
+    td_grid *g = load("trinidad-crop.f32");
+    td_accel *a = NULL;
+    td_accel_opts ao;
+    td_scene s;
+    td_render_opts o;
+    td_render_result cold, warm, plain;
+    td_view vc = {g, NULL}, vw;
+    (void)state;
+    td_accel_opts_default(&ao);
+    assert_int_equal(td_accel_build(g, &ao, &a, NULL, NULL), TD_OK);
+    vw.grid = g;
+    vw.accel = a->tiles;
+    scene_of(g, &cams[0], 48, 36, &s);
+    s.image.format = TD_FORMAT_DEPTH32F;
+    s.quality.method = TD_METHOD_AUTO;
+    td_render_opts_default(&o);
+    o.threads = 2;
+    assert_int_equal(td_render(&vc, &s, &o, &cold, NULL), TD_OK);
+    assert_int_equal(td_render(&vw, &s, &o, &warm, NULL), TD_OK);
+    o.off = TD_RENDER_OFF_HORIZON;
+    assert_int_equal(td_render(&vc, &s, &o, &plain, NULL), TD_OK);
+    assert_memory_equal(cold.depth, plain.depth, (size_t)48 * 36 * sizeof(float));
+    assert_memory_equal(warm.depth, plain.depth, (size_t)48 * 36 * sizeof(float));
+    assert_int_equal(cold.stats.silhouette_rays, cold.stats.rays[TD_RAY_PRIMARY]);
+    assert_true(cold.stats.silhouette_entries > 0);
+    assert_int_equal(cold.stats.method_rays[TD_METHOD_SILHOUETTE], cold.stats.rays[TD_RAY_PRIMARY]);
+    assert_int_equal(cold.stats.coherent_rays, 0);
+    assert_int_equal(warm.stats.silhouette_rays, 0);
+    assert_int_equal(warm.stats.silhouette_entries, 0);
+    assert_true(warm.stats.coherent_rays > 0);
+    assert_int_equal(plain.stats.silhouette_rays, 0);
+    td_render_result_free(&cold);
+    td_render_result_free(&warm);
+    td_render_result_free(&plain);
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
 /* The method's name parses and prints through the table. */
 static void test_silhouette_name(void **state)
 {
@@ -226,6 +271,7 @@ int main(void)
         cmocka_unit_test(test_silhouette_bounds),
         cmocka_unit_test(test_silhouette_orthographic),
         cmocka_unit_test(test_silhouette_render),
+        cmocka_unit_test(test_silhouette_auto),
         cmocka_unit_test(test_silhouette_name),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
