@@ -11,19 +11,21 @@
  *   ...
  *
  * Build: the wedges are cut into parts of up to TD_SILH_PART wedges, taken by the threads
- * from a counter; a part walks the strips from the eye outward and, per strip, first
- * takes the maximum of the strip's two sample lines over the part's cross range (one
- * pass over those samples, NaN dropped), then each wedge's maximum over its own cells,
- * its bound B and its running maximum. A wedge's cells in a strip are those its rays can
- * cross there (both cells where a range ends on a sample line; a margin for rounding).
+ * from a counter; a part walks the strips from the eye outward and, per strip and wedge,
+ * takes the cells the wedge's rays can cross there (both cells where a range ends on a
+ * sample line; a margin for rounding), bounds them by their tiles' zmax and, only where
+ * that bound could raise the wedge's running maximum, by their samples (NaN dropped):
+ * terrain hidden behind a nearer silhouette is never read.
  *
  * Sizes: a fan has at most TD_SILH_ENTRIES_MAX / ns wedges and all fans together at most
  * one per TD_SILH_WEDGE_PX image columns (the paper has one per screen column); a wedge is
- * at least that many pixels' angle wide. Measured on trinidad (2401 x 1201) and 640 x 480 views, see README
- * (Silhouette partitioning). Rejected: Sakalauskas' binary tree of silhouettes (each node
- * the nearer child's silhouette): it exists to let a GPU search with a fixed number of
- * texture reads; the running maximum per wedge answers the same query (the first strip
- * whose silhouette reaches the ray) by a plain binary search in half the memory. */
+ * at least that many pixels' angle wide. Measured: README, Silhouette partitioning.
+ * Rejected: Sakalauskas' binary tree of silhouettes (each node the nearer child's
+ * silhouette): it exists to let a GPU search with a fixed number of texture reads; the
+ * running maximum per wedge answers the same query (the first strip whose silhouette
+ * reaches the ray) by a plain binary search in half the memory. Also rejected: one pass
+ * over a part's cross range per strip shared by its wedges (every sample read, hidden or
+ * not), and wedges one column wide (the build 4x dearer for 2-10% of a step a ray). */
 #include "silhouette.h"
 
 #include <math.h>
@@ -94,15 +96,14 @@ static int fan_slopes(int q, int full, double az0, double az1, double *mlo, doub
     return ok;
 }
 
-/* Where fan q's strips lie: the first from the eye and how many to the grid's edge. */
-static void fan_strips(td_silh_fan *f, const td_grid *g, const double eye[3], int q)
+/* Where fan f's strips lie: the first from the eye and how many to the grid's edge. */
+static void fan_strips(td_silh_fan *f, const td_grid *g, const double eye[3])
 {
     const int32_t na = f->axis == 0 ? g->w - 1 : g->h - 1;
     double pe;
     f->sa = f->axis == 0 ? g->sx : g->sy;
     f->ea = eye[f->axis];
     pe = fmax(-2.0, fmin((double)na + 2.0, f->ea / f->sa)); /* the eye in cells, clamped */
-    (void)q;
     if (f->sign > 0) {
         /* the strip whose far line is at or past the eye: no strip behind it is reached */
         f->first = (int32_t)ceil(pe) - 1;
@@ -135,12 +136,6 @@ typedef struct build_job {
     int part_fan[TD_SILH_FANS + 1]; /* parts of fan q: [part_fan[q], part_fan[q+1]) */
     atomic_int next;
 } build_job;
-
-/* Sample (along index a, cross index x) of fan f's grid. */
-static inline float fan_sample(const td_grid *g, int axis, int32_t a, int32_t x)
-{
-    return axis ? g->z[(size_t)a * (size_t)g->w + (size_t)x] : g->z[(size_t)x * (size_t)g->w + (size_t)a];
-}
 
 /* floor of a finite value well inside int32 (a cast and a correction: no libm call) */
 static inline int32_t ifloor(double u)
@@ -300,7 +295,7 @@ static void setup_fans(td_silhouette *s, const td_grid *g, const td_camera *cam)
         f->sign = q < 2 ? 1 : -1;
         ang[q] = 0.0;
         if (fan_slopes(q, full, az0, az1, &mlo[q], &mhi[q])) {
-            fan_strips(f, g, s->eye, q);
+            fan_strips(f, g, s->eye);
             ang[q] = atan(mhi[q]) - atan(mlo[q]);
             total += ang[q];
         }

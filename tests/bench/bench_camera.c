@@ -32,6 +32,11 @@
  *     coherent. Embree's rays are clipped and converted (td_embree_prepare) before its
  *     clock starts: only the tracing calls are timed, Embree's triangle mesh built with
  *     one thread.
+ *   then, on the grid alone (no max-mipmap, no planes), the camera rays on the bilinear
+ *     surface in each row of TD_BENCH_COLD_LIST (bench_int.h: the walk from each ray's
+ *     start, the walk with the horizon device, silhouette partitioning with its build):
+ *     issue 13's question, what no preprocessing costs; the first round also counts the
+ *     silhouette depths that differ from the walk's (reported; the tests judge).
  * Exactness (triangle surface, untimed, reported and never judged: the oracle tests
  * judge): a depth32f render (horizon on, and off) against Embree's t on the same rays, a
  * disagreement being a hit against a miss or distances more than 1e-4 of Embree's apart;
@@ -170,9 +175,10 @@ static void cam_view_setup(const td_grid *g, int k, bench_cam_view *v)
     v->sun_el = q->sun_el;
 }
 
-/* One render of the view with one thread; res is the caller's to free. */
-static td_status cam_render(const cam_run *c, td_surface s, td_format fmt, unsigned off, td_ray *slots,
-                            td_render_result *res, td_err *err)
+/* One render of the view with one thread, method m on view tv (the shadows run in the
+ * colour formats only); res is the caller's to free. */
+static td_status cam_render_on(const cam_run *c, const td_view *tv, td_method m, td_surface s, td_format fmt,
+                               unsigned off, td_ray *slots, td_render_result *res, td_err *err)
 {
     td_scene sc;
     td_render_opts ro;
@@ -181,7 +187,7 @@ static td_status cam_render(const cam_run *c, td_surface s, td_format fmt, unsig
     sc.image.width = c->w;
     sc.image.height = c->h;
     sc.image.format = fmt;
-    sc.quality.method = TD_METHOD_AUTO;
+    sc.quality.method = m;
     sc.quality.surface = s;
     sc.quality.samples = 1;
     sc.effects.sun_azimuth = c->v->sun_az;
@@ -192,7 +198,14 @@ static td_status cam_render(const cam_run *c, td_surface s, td_format fmt, unsig
     ro.off = off;
     ro.shadow_rays = slots;
     memset(res, 0, sizeof *res);
-    return td_render(&c->view, &sc, &ro, res, err);
+    return td_render(tv, &sc, &ro, res, err);
+}
+
+/* `auto` with every structure (what sections 1-6 built). */
+static td_status cam_render(const cam_run *c, td_surface s, td_format fmt, unsigned off, td_ray *slots,
+                            td_render_result *res, td_err *err)
+{
+    return cam_render_on(c, &c->view, TD_METHOD_AUTO, s, fmt, off, slots, res, err);
 }
 
 /* Surface s's shadow rays (an untimed render, every device on), in image order,
@@ -295,25 +308,12 @@ static const struct cold_conf {
 #undef TD_X_COLD
 };
 
-/* Camera rays of the view on the grid alone (bilinear, depth32f, no effects), one thread,
+/* Camera rays of the view on the grid alone (bilinear, depth32f: no effects), one thread,
  * in configuration k of TD_BENCH_COLD_LIST; res is the caller's to free. */
 static td_status cam_cold_render(const cam_run *c, int k, td_render_result *res, td_err *err)
 {
-    td_scene sc;
-    td_render_opts ro;
-    td_scene_defaults(&sc);
-    sc.camera = c->v->cam;
-    sc.image.width = c->w;
-    sc.image.height = c->h;
-    sc.image.format = TD_FORMAT_DEPTH32F;
-    sc.quality.method = cold_confs[k].m;
-    sc.quality.surface = TD_SURFACE_BILINEAR;
-    sc.quality.samples = 1;
-    td_render_opts_default(&ro);
-    ro.threads = 1;
-    ro.off = cold_confs[k].off;
-    memset(res, 0, sizeof *res);
-    return td_render(&c->cold, &sc, &ro, res, err);
+    return cam_render_on(c, &c->cold, cold_confs[k].m, TD_SURFACE_BILINEAR, TD_FORMAT_DEPTH32F, cold_confs[k].off,
+                         NULL, res, err);
 }
 
 /* Every no-preprocessing configuration once (round r): the primary stage's time; in the
