@@ -1269,8 +1269,12 @@ static td_status setup_sunlit(ctx *c, const td_render_opts *o, td_err *err)
  * horizon device: when fewer than TD_AUTO_SILH_MAXMIPS of the grid's tiles hold a
  * max-mipmap (a cold dataset, or one whose structures are being rebuilt). Measured on
  * views without any max-mipmap (README, Silhouette partitioning: primary stage medians
- * lower in 7 of 8 views, fewer instructions in all that callgrind counted); the mixed
- * case (some tiles built) is not measured: the half is a guess. */
+ * lower in 7 of 8 views, fewer instructions in all that callgrind counted). With every
+ * max-mipmap built the horizon wins on 3 of 5 views (primary stage instructions, auto
+ * with the horizon / with the partition: trinidad sunset 414 / 430 M, levi 427 / 438 M,
+ * trinidad grazing 387 / 404 M, picos level 347 / 340 M, picos rolled 422 / 334 M), so
+ * built datasets keep it. Between the two (some tiles built) nothing was measured: the
+ * half is a guess. */
 #define TD_AUTO_SILH_MAXMIPS 0.5
 
 static int auto_silhouette(const td_view *v)
