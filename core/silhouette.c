@@ -42,7 +42,7 @@
  * and 673 / 679 / 704 M for 4 / 8 / 16 on levi; the build halves with each doubling and
  * the walk grows by 2-10% of a step a ray. */
 #define TD_SILH_WEDGE_PX 4.0
-#define TD_SILH_ENTRIES_MAX (1 << 24) /* P_s per fan at most (64 MiB of floats) */
+#define TD_SILH_ENTRIES_MAX (1 << 22) /* P_s per fan at most (16 MiB of floats; past it, wider wedges) */
 #define TD_SILH_THREADS_MAX 64
 
 /* max that drops a NaN (a void) in v */
