@@ -19,8 +19,13 @@
  * size times the .prj's linear unit is the spacing in metres: the projected CRS's last
  * UNIT["name", metres] (WKT1: the GEOGCS's angular unit comes before it) or LENGTHUNIT
  * (WKT2), e.g. 0.3048006096 for US survey feet; without one, metres. A unit that is
- * there but not a positive number is refused, naming the .prj. Heights are taken as
- * metres whatever the unit (a .prj has no vertical unit). */
+ * there but not a positive number is refused, naming the .prj, and so is a .prj whose CRS
+ * does not fit the coordinates (asc_prj_fits). Heights are taken as metres whatever the
+ * unit (a .prj has no vertical unit).
+ *
+ * Memory follows the data: before the grid is allocated, the header's ncols*nrows must fit
+ * in what is left of the file (asc_fits_file), so a short file claiming a huge grid is
+ * refused without the allocation. Only regular files are read (the size must be known). */
 #include "demasc.h"
 
 #include <ctype.h>
@@ -38,6 +43,8 @@
 
 typedef struct asc_reader {
     FILE *f;
+    long long size;   /* the file's bytes (a regular file) */
+    long long taken;  /* bytes read into buf so far */
     size_t len, pos;
     long line;
     char buf[1 << 16];
@@ -48,6 +55,7 @@ static int asc_getc(asc_reader *r)
     int c = EOF;
     if (r->pos == r->len) {
         r->len = fread(r->buf, 1, sizeof r->buf, r->f);
+        r->taken += (long long)r->len;
         r->pos = 0;
     }
     if (r->pos < r->len)
@@ -149,18 +157,20 @@ static const char *prj_linear_unit(const char *text)
     return u;
 }
 
-/* Reads `<name>.prj` beside the file, if there is one: *kind 1 geographic, 0 projected,
- * -1 none or undecided; *unit_m the projected CRS's linear unit in metres (1 if none). */
-static td_status asc_prj_read(const char *path, int *kind, double *unit_m, td_err *err)
+/* Reads `<name>.prj` beside the file (its path into prj), if there is one: *kind 1
+ * geographic, 0 projected, -1 none or undecided; *unit_m the projected CRS's linear unit in
+ * metres (1 if none). */
+static td_status asc_prj_read(const char *path, char prj[TD_DEMUTIL_PATH_MAX], int *kind,
+                              double *unit_m, td_err *err)
 {
     td_status rc = TD_OK;
-    char prj[4096], text[TD_ASC_PRJ_MAX];
+    char text[TD_ASC_PRJ_MAX];
     size_t n;
     FILE *f = NULL;
     char *dot = NULL;
     *kind = -1;
     *unit_m = 1.0;
-    if (snprintf(prj, sizeof prj, "%s", path) < (int)sizeof prj - 4)
+    if (snprintf(prj, TD_DEMUTIL_PATH_MAX, "%s", path) < TD_DEMUTIL_PATH_MAX - 4)
         dot = strrchr(prj, '.');
     if (dot && !strchr(dot, '/')) {
         strcpy(dot, ".prj"); /* fits: the path had room for 4 more bytes */
@@ -200,8 +210,12 @@ static td_status asc_open(const char *path, asc_reader **out, td_err *err)
     if (!r) {
         rc = td_err_set(err, TD_ENOMEM, "%s: out of memory", path);
     } else {
+        struct stat st;
         r->line = 1;
-        rc = td_demutil_open(path, &r->f, NULL, err);
+        rc = td_demutil_open(path, &r->f, &st, err);
+        if (rc == TD_OK && !S_ISREG(st.st_mode))
+            rc = td_err_set(err, TD_EINVAL, "%s: not a regular file", path);
+        r->size = rc == TD_OK ? (long long)st.st_size : 0;
     }
     *out = r;
     return rc;
@@ -251,6 +265,26 @@ static td_status asc_read_header(const char *path, asc_reader *r, asc_header *hd
     }
     if (rc == TD_OK && t == 0)
         rc = td_err_set(err, TD_EFORMAT, "%s: ends in the header (no data)", path);
+    return rc;
+}
+
+/* Can the rest of the file hold ncols*nrows values? Each takes a character and all but the
+ * last a separator, so from the first data token (in tok, just read) to the end there must
+ * be 2n - 1 bytes: a 65-byte file claiming 16000 x 16000 is refused before the grid (1 GB)
+ * is allocated, and the grid is never more than twice the file. */
+static td_status asc_fits_file(const char *path, const asc_reader *r, const char *tok,
+                               int32_t w, int32_t h, td_err *err)
+{
+    td_status rc = TD_OK;
+    const long long consumed = r->taken - (long long)(r->len - r->pos);
+    const long long left = r->size - consumed + (long long)strlen(tok) + 1;
+    const unsigned long long n = (unsigned long long)w * (unsigned long long)h;
+    if (left < 0 || (unsigned long long)left < 2 * n - 1)
+        rc = td_err_set(err, TD_EFORMAT,
+                        "%s: its header claims %ld x %ld = %llu values, but the %lld bytes after it hold "
+                        "at most %llu: truncated, or the header is wrong",
+                        path, (long)w, (long)h, n, left > 0 ? left : 0LL,
+                        left > 0 ? ((unsigned long long)left + 1) / 2 : 0ULL);
     return rc;
 }
 
@@ -304,6 +338,39 @@ static td_status asc_cell(const char *path, const asc_header *hd, td_georef *geo
     return rc;
 }
 
+/* Whether the grid's extent reads as lon/lat degrees: every cell's outer edge within
+ * longitude -180 .. 360 (some global grids count 0 .. 360) and latitude -90 .. 90. */
+static int asc_extent_lonlat(const td_georef *geo, int32_t w, int32_t h)
+{
+    const double tol = 1e-9;
+    return geo->x0 - 0.5 * geo->dx >= -180.0 - tol && geo->x0 + ((double)w - 0.5) * geo->dx <= 360.0 + tol &&
+           geo->y0 - 0.5 * geo->dy >= -90.0 - tol && geo->y0 + ((double)h - 0.5) * geo->dy <= 90.0 + tol;
+}
+
+/* A .prj whose CRS does not fit the coordinates is refused, naming it: a geographic CRS over
+ * an extent that is not degrees (projected coordinates: the spacing would be taken at a
+ * meaningless latitude), or a projected one over what can only be degrees (cells under a
+ * centimetre, after the unit, whose extent reads as lon/lat: a DEM's cells in metres are
+ * not that small over such an area near the CRS's origin). */
+static td_status asc_prj_fits(const char *path, const char *prj, int geographic, double unit_m,
+                              const td_georef *geo, int32_t w, int32_t h, td_err *err)
+{
+    td_status rc = TD_OK;
+    const int lonlat = asc_extent_lonlat(geo, w, h);
+    if (geographic && !lonlat)
+        rc = td_err_set(err, TD_EFORMAT,
+                        "%s: %s says geographic (lon/lat degrees), but the grid's extent %g .. %g x %g .. %g "
+                        "is not degrees: projected coordinates? fix or remove the .prj",
+                        path, prj, geo->x0 - 0.5 * geo->dx, geo->x0 + ((double)w - 0.5) * geo->dx,
+                        geo->y0 - 0.5 * geo->dy, geo->y0 + ((double)h - 0.5) * geo->dy);
+    else if (!geographic && lonlat && geo->dx * unit_m < 0.01 && geo->dy * unit_m < 0.01)
+        rc = td_err_set(err, TD_EFORMAT,
+                        "%s: %s says projected, but cells of %g x %g m over an extent that reads as lon/lat "
+                        "are degrees: fix or remove the .prj",
+                        path, prj, geo->dx * unit_m, geo->dy * unit_m);
+    return rc;
+}
+
 /* Lon/lat or projected (the .prj, else the extent; see the top of the file) and the
  * spacing in metres. */
 static td_status asc_georef(const char *path, const td_dem_opts *o, const asc_header *hd,
@@ -313,12 +380,15 @@ static td_status asc_georef(const char *path, const td_dem_opts *o, const asc_he
     td_status rc;
     int geographic, prj;
     double unit_m = 1.0;
+    char prj_path[TD_DEMUTIL_PATH_MAX];
     td_demside sc;
 
     memset(geo, 0, sizeof *geo);
     rc = asc_cell(path, hd, geo, err);
     if (rc == TD_OK)
-        rc = asc_prj_read(path, &prj, &unit_m, err);
+        rc = asc_prj_read(path, prj_path, &prj, &unit_m, err);
+    if (rc == TD_OK && prj >= 0)
+        rc = asc_prj_fits(path, prj_path, prj, unit_m, geo, w, h, err);
     if (rc != TD_OK)
         goto out;
     if (prj >= 0)
@@ -401,6 +471,8 @@ td_status td_demasc_load(const char *path, const td_dem_opts *o, td_grid **out, 
         rc = asc_read_header(path, r, &hd, tok, err);
     if (rc == TD_OK)
         rc = asc_size(path, o, &hd, &w, &h, err);
+    if (rc == TD_OK)
+        rc = asc_fits_file(path, r, tok, w, h, err);
     if (rc == TD_OK)
         rc = asc_georef(path, o, &hd, w, h, &geo, &sx, &sy, err);
     if (rc == TD_OK)

@@ -14,11 +14,17 @@
  * declared nodata. Palette PNGs (what lossless optimisers such as optipng make of a tile with
  * few colours) are expanded to RGB by libpng, and a tRNS chunk to alpha, so a transparent
  * palette entry or colour is a void. Rows are decoded one at a time (one row buffer) into
- * their south-based place; an interlaced PNG is only complete after its last pass, so it is
- * read whole into one buffer first, which must fit the same byte budget as the grid.
+ * their south-based place; an interlaced PNG's Adam7 passes are read the same way, one pass
+ * row at a time, each pixel decoded straight to its place in the grid (libpng's interlace
+ * handling is not used: it would need the whole image in a buffer as large as the grid).
  * libpng reports errors by longjmp: everything the error path frees lives in a context
- * struct so no local is clobbered across setjmp. IHDR sizes are checked against the
- * limits before the row buffer or grid is allocated. */
+ * struct so no local is clobbered across setjmp.
+ *
+ * Memory follows the data, not the header: before the grid is allocated, IHDR's size is
+ * checked against the limits, against what the file's bytes can decompress to (deflate
+ * expands at most 1032:1, so a 51-byte file cannot hold 16000 x 16000 pixels), and the grid
+ * together with the decode buffers (ours and libpng's rows) against the byte budget, so a
+ * decompression bomb is refused by the budget with a message naming the file and sizes. */
 #include "dempng.h"
 
 #include <float.h>
@@ -36,10 +42,10 @@
 typedef struct png_ctx {
     const char *path;
     FILE *f;
+    long long file_bytes;          /* the file's size, for the decompression bound */
     png_structp png;
     png_infop info;
-    unsigned char *row;            /* one row, or the whole image if interlaced */
-    png_bytepp rows;               /* row pointers into it, interlaced only */
+    unsigned char *row;            /* one (pass) row of transformed pixels */
     td_grid *g;
     char msg[256];
     jmp_buf jmp;
@@ -93,9 +99,10 @@ static td_status resolve_params(const char *path, const td_dem_opts *o, const td
     return rc;
 }
 
-/* Decodes one row of raw pixels into heights. Returns 0 if a height is not a float. */
+/* Decodes w raw pixels into heights dst[0], dst[step], ... Returns 0 if a height is not a
+ * float. */
 static int decode_row(const png_params *p, const unsigned char *src, int channels, int32_t w,
-                      float *dst)
+                      float *dst, size_t step)
 {
     int ok = 1;
     for (int32_t i = 0; i < w && ok; i++) {
@@ -117,9 +124,9 @@ static int decode_row(const png_params *p, const unsigned char *src, int channel
                 m = raw / p->divisor;
         }
         if (transparent || (p->has_nodata && raw == p->nodata))
-            dst[i] = NAN;
+            dst[(size_t)i * step] = NAN;
         else if (fabs(m) <= FLT_MAX)
-            dst[i] = (float)m;
+            dst[(size_t)i * step] = (float)m;
         else
             ok = 0;
     }
@@ -133,40 +140,37 @@ typedef struct png_shape {
     int channels; /* gray16: 1 or 2 (alpha); the RGB encodings: 3 or 4 (alpha) */
 } png_shape;
 
-/* Reads the pixels into the grid's south-based rows: one row at a time, or, for an
- * interlaced PNG, the whole image first (all passes) within the byte budget. */
-static td_status read_pixels(png_ctx *c, const td_dem_opts *o, const png_params *p,
-                             const png_shape *s, td_err *err)
+/* Reads the pixels into the grid's south-based rows, one (pass) row at a time through
+ * c->row. A plain PNG is one pass of every row and column; an interlaced one is Adam7's
+ * seven passes, pass row r holding image row start_row + r*row_step at columns start_col,
+ * start_col + col_step, ... (libpng skips empty passes as we do). */
+static td_status read_pixels(png_ctx *c, const png_params *p, const png_shape *s, td_err *err)
 {
     td_status rc = TD_OK;
-    size_t rowbytes = png_get_rowbytes(c->png, c->info);
-    size_t nrows = s->interlaced ? (size_t)s->h : 1;
+    const int passes = s->interlaced ? 7 : 1;
 
-    if (nrows > SIZE_MAX / rowbytes ||
-        (o->limits.max_bytes && (uint64_t)rowbytes * nrows > o->limits.max_bytes)) {
-        rc = td_err_set(err, TD_ETOOBIG, "%s: decoding needs %lu x %lu bytes, over the budget of %llu",
-                        c->path, (unsigned long)rowbytes, (unsigned long)nrows,
-                        (unsigned long long)o->limits.max_bytes);
+    c->row = malloc(png_get_rowbytes(c->png, c->info));
+    if (!c->row) {
+        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory for a row", c->path);
         goto out;
     }
-    c->row = malloc(rowbytes * nrows);
-    c->rows = s->interlaced ? malloc(nrows * sizeof *c->rows) : NULL;
-    if (!c->row || (s->interlaced && !c->rows)) {
-        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory for %s", c->path,
-                        s->interlaced ? "the image" : "a row");
-        goto out;
-    }
-    if (s->interlaced) {
-        for (size_t r = 0; r < nrows; r++)
-            c->rows[r] = c->row + r * rowbytes;
-        png_read_image(c->png, c->rows);
-    }
-    for (int32_t r = 0; r < s->h && rc == TD_OK; r++) {
-        unsigned char *src = s->interlaced ? c->rows[r] : c->row;
-        if (!s->interlaced)
-            png_read_row(c->png, src, NULL);
-        if (!decode_row(p, src, s->channels, s->w, td_demutil_file_row(c->g, r)))
-            rc = td_err_set(err, TD_ERANGE, "%s: row %ld decodes to a height beyond float range", c->path, (long)r);
+    for (int pass = 0; pass < passes && rc == TD_OK; pass++) {
+        uint32_t r0 = s->interlaced ? PNG_PASS_START_ROW(pass) : 0;
+        uint32_t c0 = s->interlaced ? PNG_PASS_START_COL(pass) : 0;
+        uint32_t rstep = s->interlaced ? 1u << PNG_PASS_ROW_SHIFT(pass) : 1;
+        uint32_t cstep = s->interlaced ? 1u << PNG_PASS_COL_SHIFT(pass) : 1;
+        uint32_t rows = s->interlaced ? PNG_PASS_ROWS((uint32_t)s->h, pass) : (uint32_t)s->h;
+        uint32_t cols = s->interlaced ? PNG_PASS_COLS((uint32_t)s->w, pass) : (uint32_t)s->w;
+        if (rows == 0 || cols == 0)
+            continue;
+        for (uint32_t k = 0; k < rows && rc == TD_OK; k++) {
+            int32_t r = (int32_t)(r0 + k * rstep);
+            png_read_row(c->png, c->row, NULL);
+            if (!decode_row(p, c->row, s->channels, (int32_t)cols, td_demutil_file_row(c->g, r) + c0,
+                            cstep))
+                rc = td_err_set(err, TD_ERANGE, "%s: row %ld decodes to a height beyond float range",
+                                c->path, (long)r);
+        }
     }
 out:
     return rc;
@@ -178,7 +182,11 @@ static td_status png_open(png_ctx *c, td_err *err)
     td_status rc;
     unsigned char sig[8];
 
-    rc = td_demutil_open(c->path, &c->f, NULL, err);
+    struct stat st;
+
+    rc = td_demutil_open(c->path, &c->f, &st, err);
+    if (rc == TD_OK)
+        c->file_bytes = (long long)st.st_size;
     if (rc == TD_OK && (fread(sig, 1, 8, c->f) != 8 || png_sig_cmp(sig, 0, 8)))
         rc = td_err_set(err, TD_EFORMAT, "%s: not a PNG file (bad signature)", c->path);
     if (rc == TD_OK) {
@@ -216,6 +224,31 @@ static td_status png_channels(const char *path, td_dem_encoding enc, int depth, 
     return rc;
 }
 
+/* Deflate expands at most 1032:1 (a 258-byte match in about 2 bits), whatever the encoder. */
+#define TD_PNG_DEFLATE_RATIO 1032u
+
+/* Can the file hold IHDR's pixels? They are at least w*h*bits/8 bytes once decompressed
+ * (Adam7 or not; filter bytes come on top), which the file's bytes times deflate's largest
+ * ratio must reach. A header claiming more is refused before anything is allocated. */
+static td_status png_fits_file(const png_ctx *c, const png_shape *s, int depth, int ctype,
+                               td_err *err)
+{
+    td_status rc = TD_OK;
+    const unsigned chans = ctype == PNG_COLOR_TYPE_GRAY_ALPHA ? 2u :
+                           ctype == PNG_COLOR_TYPE_RGB ? 3u :
+                           ctype == PNG_COLOR_TYPE_RGB_ALPHA ? 4u : 1u;
+    const uint64_t bits = (uint64_t)depth * chans;
+    const uint64_t need = ((uint64_t)s->w * (uint64_t)s->h * bits + 7u) / 8u;
+    const uint64_t most = (uint64_t)(c->file_bytes > 0 ? c->file_bytes : 0) * TD_PNG_DEFLATE_RATIO;
+    if (need > most)
+        rc = td_err_set(err, TD_EFORMAT,
+                        "%s: its header claims %ld x %ld pixels of %llu bits (%llu bytes decompressed), "
+                        "more than its %lld bytes can hold (at most %llu): truncated or corrupt",
+                        c->path, (long)s->w, (long)s->h, (unsigned long long)bits,
+                        (unsigned long long)need, c->file_bytes, (unsigned long long)most);
+    return rc;
+}
+
 /* IHDR: the size within the limits, then the transformations to one layout per encoding
  * (palette to RGB, tRNS to alpha, interlace handling). libpng's errors longjmp to the
  * setjmp in load. */
@@ -238,6 +271,8 @@ static td_status png_header(png_ctx *c, const td_dem_opts *o, const png_params *
     s->h = (int32_t)h;
     s->interlaced = interlace != PNG_INTERLACE_NONE;
     rc = td_demutil_check_limits(c->path, o, s->w, s->h, err);
+    if (rc == TD_OK)
+        rc = png_fits_file(c, s, depth, ctype, err);
     if (rc != TD_OK)
         goto out;
     if (p->enc != TD_ENC_GRAY16 && depth <= 8 && ctype == PNG_COLOR_TYPE_PALETTE)
@@ -245,8 +280,6 @@ static td_status png_header(png_ctx *c, const td_dem_opts *o, const png_params *
     if (p->enc != TD_ENC_GRAY16 && depth == 8 && (ctype & PNG_COLOR_MASK_COLOR) &&
         png_get_valid(c->png, c->info, PNG_INFO_tRNS))
         png_set_tRNS_to_alpha(c->png);
-    if (s->interlaced)
-        (void)png_set_interlace_handling(c->png);
     png_read_update_info(c->png, c->info);
     depth = png_get_bit_depth(c->png, c->info);
     ctype = png_get_color_type(c->png, c->info);
@@ -254,6 +287,12 @@ static td_status png_header(png_ctx *c, const td_dem_opts *o, const png_params *
     if (rc == TD_OK &&
         png_get_rowbytes(c->png, c->info) != (size_t)w * (size_t)s->channels * (size_t)(depth / 8))
         rc = td_err_set(err, TD_EFORMAT, "%s: unexpected row size", c->path);
+    /* our row and libpng's two (the row being unfiltered and the previous one), each
+       a transformed row at most, with libpng's padding */
+    if (rc == TD_OK)
+        rc = td_demutil_check_budget(c->path, o, s->w, s->h,
+                                     3u * ((uint64_t)png_get_rowbytes(c->png, c->info) + 64u),
+                                     "decode buffers", err);
 out:
     return rc;
 }
@@ -286,7 +325,7 @@ static td_status load(png_ctx *c, const td_dem_opts *o, td_err *err)
     if (rc == TD_OK)
         rc = td_demutil_create(path, o, s.w, s.h, sx, sy, &sc.geo, &c->g, err);
     if (rc == TD_OK)
-        rc = read_pixels(c, o, &p, &s, err);
+        rc = read_pixels(c, &p, &s, err);
     if (rc == TD_OK)
         png_read_end(c->png, NULL);
 out:
@@ -309,7 +348,6 @@ td_status td_dempng_load(const char *path, const td_dem_opts *o, td_grid **out, 
         if (c->f)
             fclose(c->f);
         free(c->row);
-        free(c->rows);
         g = c->g;
         free(c);
     }

@@ -378,6 +378,22 @@ td_status td_demutil_check_limits(const char *path, const td_dem_opts *o, int32_
     return rc;
 }
 
+td_status td_demutil_check_budget(const char *path, const td_dem_opts *o, int32_t w, int32_t h,
+                                  uint64_t extra, const char *what, td_err *err)
+{
+    td_status rc = TD_OK;
+    const uint64_t grid = td_grid_bytes(w, h, o->tile_log2 ? o->tile_log2 : TD_TILE_LOG2_DEFAULT);
+    const uint64_t max = o->limits.max_bytes;
+    if (max && (grid > max || extra > max - grid))
+        rc = td_err_set(err, TD_ETOOBIG,
+                        "%s: grid of %ld x %ld samples (%llu bytes) and %s (%llu bytes) need %llu bytes, "
+                        "over the budget of %llu",
+                        path, (long)w, (long)h, (unsigned long long)grid, what,
+                        (unsigned long long)extra, (unsigned long long)(grid + extra),
+                        (unsigned long long)max);
+    return rc;
+}
+
 td_status td_demutil_side_georef(const char *path, const td_dem_opts *o, td_demside *sc,
                                  int32_t w, int32_t h, double *sx, double *sy, td_err *err)
 {

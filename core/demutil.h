@@ -62,6 +62,13 @@ td_status td_demutil_spacing(const char *path, const td_dem_opts *o, const td_de
 td_status td_demutil_check_limits(const char *path, const td_dem_opts *o, int32_t w, int32_t h,
                                   td_err *err);
 
+/* The byte budget of o->limits for the grid together with `extra` bytes the loader holds
+ * while filling it (decode buffers, named by `what` in the message), checked before the
+ * grid is allocated: "path: grid of W x H samples (G bytes) and WHAT (E bytes) need T
+ * bytes, over the budget of B". */
+td_status td_demutil_check_budget(const char *path, const td_dem_opts *o, int32_t w, int32_t h,
+                                  uint64_t extra, const char *what, td_err *err);
+
 /* Spacing and georeference of a grid of w x h samples described by a sidecar: sc->geo
  * arrives as read (y0 the north row, a projected origin without its step) and leaves in
  * grid.h's south-west convention, a projected origin taking the spacing as its step. */

@@ -118,9 +118,12 @@ typedef struct td_render_opts {
 } td_render_opts;
 
 #define TD_RENDER_OFF_HORIZON 1u   /* camera rays each traced from their start (no horizon,
-                                      no silhouette partition) */
+                                      no silhouette partition; the beam is OFF_BEAM's) */
 #define TD_RENDER_OFF_OCCLUSION 2u /* shadow and AO rays traced for their nearest hit */
 #define TD_RENDER_OFF_SUNLIT 4u    /* shadow rays without the sun bound (sunlit.h) */
+#define TD_RENDER_OFF_BEAM 8u      /* camera rays the horizon cannot bound: no beam (beam.h) */
+/* camera rays each traced from their start, as a pick traces them */
+#define TD_RENDER_OFF_CAMERA (TD_RENDER_OFF_HORIZON | TD_RENDER_OFF_BEAM)
 
 typedef struct td_render_result {
     int32_t width, height;

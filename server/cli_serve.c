@@ -1,6 +1,14 @@
-/* cli_serve.c: `terrad serve`: reads the settings, loads the demo and --data datasets
- * into the tile store, starts the preload builder and the HTTP server (whose workers
- * render, each with --render-timeout as its deadline), then waits for SIGTERM/SIGINT.
+/* cli_serve.c: `terrad serve`: reads the settings, makes the tile store, starts the preload
+ * builder and the HTTP server (whose workers render, each with --render-timeout as its
+ * deadline), then loads the demo and --data datasets into the store, and waits for
+ * SIGTERM/SIGINT.
+ * The listener comes first so that a load (seconds for a large DEM) never leaves the
+ * server mute: /healthz answers from the first moment, while /readyz and every other route
+ * answer 503 (Retry-After: 1) until the datasets are loaded (app->loaded, set once after
+ * the last one; handlers read the store only after it, so the store is still filled by
+ * one thread before anyone reads it). Then the `ready` log line. With
+ * TERRAD_TEST_LOAD_GATE=FILE in the environment the load waits while FILE exists (the
+ * tests' way to hold a load, tests/server/test_robust.c).
  * On a signal it stops accepting, lets requests in flight finish for --shutdown-timeout
  * seconds (then cancels renders still running), and exits 0.
  *
@@ -13,6 +21,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
+#include <unistd.h>
 
 #include "accel.h"
 #include "config.h"
@@ -32,11 +42,10 @@ static int log2_of(long v)
     return k;
 }
 
-/* The tile store with the demo and --data datasets (a missing demo folder is a warning,
- * a bad --data folder an error). 0, or -1 with the error logged. */
+/* The empty tile store. 0, or -1 with the error logged. */
 static int open_store(const td_config *cfg, td_app *app)
 {
-    int rc = -1, loaded = 0;
+    int rc = 0;
     td_store_opts so;
     td_err e = {0};
     char q[600];
@@ -48,8 +57,29 @@ static int open_store(const td_config *cfg, td_app *app)
     so.cache_dir = cfg->cache_dir;
     if (td_store_create(&so, &app->store, &e)) {
         td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg));
-        goto out;
+        rc = -1;
     }
+    return rc;
+}
+
+/* TERRAD_TEST_LOAD_GATE: waits while that file exists (see the top of the file). */
+static void load_gate(void)
+{
+    const char *gate = getenv("TERRAD_TEST_LOAD_GATE");
+    struct timespec nap = {0, 20 * 1000 * 1000};
+    while (gate && *gate && access(gate, F_OK) == 0)
+        nanosleep(&nap, NULL);
+}
+
+/* The demo and --data datasets into the store (a missing demo folder is a warning, a bad
+ * --data folder an error). 0, or -1 with the error logged. */
+static int load_datasets(const td_config *cfg, td_app *app)
+{
+    int rc = -1, loaded = 0;
+    td_err e = {0};
+    char q[600];
+
+    load_gate();
     if (cfg->demo_dir[0]) {
         int n = 0;
         if (td_store_add_dir(app->store, cfg->demo_dir, "demo", &n, &e))
@@ -74,7 +104,8 @@ out:
     return rc;
 }
 
-/* The HTTP server over the routes; ready once it listens. 0, or -1 with the error logged. */
+/* The HTTP server over the routes (not ready until the datasets are loaded). 0, or -1 with
+ * the error logged. */
 static int start_http(const td_config *cfg, td_app *app)
 {
     td_http_opts ho;
@@ -101,7 +132,6 @@ static int start_http(const td_config *cfg, td_app *app)
         td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg));
         goto out;
     }
-    atomic_store(&app->ready, 1);
     td_log(TD_LOG_INFO, "listening", "url=http://%s%s%s:%d/ port=%d threads=%ld workers=%ld queue=%ld",
            strchr(cfg->host, ':') ? "[" : "", cfg->host, strchr(cfg->host, ':') ? "]" : "",
            td_http_port(app->http), td_http_port(app->http), cfg->threads, cfg->render_workers, cfg->queue);
@@ -185,8 +215,11 @@ int td_cli_serve(int argc, char **argv)
         td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg[0] ? e.msg : "out of memory"));
         goto out;
     }
-    if (start_http(&cfg, &app))
+    if (start_http(&cfg, &app) || load_datasets(&cfg, &app))
         goto out;
+    atomic_store(&app.loaded, 1);
+    atomic_store(&app.ready, 1);
+    td_log(TD_LOG_INFO, "ready", "datasets=%zu", td_store_count(app.store));
     if (!strcmp(cfg.preload, "all"))
         preload_all(&app);
     wait_and_stop(&cfg, &app, &set);

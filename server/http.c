@@ -7,6 +7,18 @@
  * the body cap, checked against Content-Length before any byte is read and again while
  * a chunked body streams in.
  *
+ * Lingering close: a body over the cap is refused (413), but not before it has been read.
+ * Answering at once makes libmicrohttpd stop reading and close the socket with the rest of
+ * the body unread, and the kernel then resets the connection, so a client still sending
+ * (most do: they read only after sending) sees a broken pipe or a reset instead of the
+ * 413. So the rest of the body is read and discarded (nothing is kept) and the 413 goes
+ * out when it ends, as nginx's lingering close lets its client read the answer. Bounded:
+ * after TD_HTTP_LINGER_BYTES discarded or TD_HTTP_LINGER_S seconds the answer is queued
+ * anyway (libmicrohttpd then closes; a silent client meets the connection timeout). A
+ * client that sent `Expect: 100-continue` has sent no body yet: it gets the 413 at once.
+ * Other refusals of a body (415, 401) are the handler's, after the body (within the cap)
+ * was read, so they need no lingering.
+ *
  * Deferred work: td_http_defer reserves one of (workers + queue) slots under the queue
  * lock or refuses. The connection is suspended after the handler returns and only then
  * pushed to the queue, so a worker can never resume a connection that is not yet
@@ -37,11 +49,16 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
 
 #include "log.h"
+
+/* Lingering close of a refused body: at most this many bytes, for at most this long. */
+#define TD_HTTP_LINGER_BYTES ((size_t)16 << 20)
+#define TD_HTTP_LINGER_S 5.0
 
 static const int td_http_codes[] = {
 #define TD_X_CODE(code, reason) code,
@@ -89,6 +106,8 @@ struct td_http_req {
     char *body;
     size_t len, cap;
     int too_big;
+    size_t discarded;  /* body bytes dropped since too_big (lingering close) */
+    double t_refused;  /* when too_big was set */
     int route;
     td_http_state state;
     double t0, t_enq, t_start;
@@ -325,12 +344,28 @@ static void *watch_main(void *arg)
     return NULL;
 }
 
+/* Marks the request's body as over the cap: from now on it is discarded (lingering). */
+static void refuse_body(td_http_req *q)
+{
+    if (!q->too_big) {
+        q->too_big = 1;
+        q->t_refused = td_clock_s();
+    }
+}
+
+/* Whether a refused body has been read for long enough: the 413 goes out now. */
+static int linger_over(const td_http_req *q)
+{
+    return q->discarded > TD_HTTP_LINGER_BYTES || td_clock_s() - q->t_refused > TD_HTTP_LINGER_S;
+}
+
 static int body_append(td_http_req *q, const char *data, size_t n)
 {
     int rc = 0;
     size_t need = 0;
     if (q->too_big || !td_add_size(q->len, n, &need) || need > q->h->o.max_body) {
-        q->too_big = 1;
+        refuse_body(q);
+        q->discarded = q->discarded + n < q->discarded ? SIZE_MAX : q->discarded + n;
         free(q->body);
         q->body = NULL;
         q->len = q->cap = 0;
@@ -410,9 +445,13 @@ static enum MHD_Result access_cb(void *cls, struct MHD_Connection *conn, const c
             char *end = NULL;
             unsigned long long n = strtoull(cl, &end, 10);
             if (end != cl && n > h->o.max_body) {
-                /* Refuse before reading: libmicrohttpd closes the connection after. */
-                q->too_big = 1;
-                ret = run_handler(h, q);
+                /* Refused; answered at once only to a client waiting for 100 Continue,
+                   else after the body is read and discarded (lingering close, above) */
+                const char *expect = MHD_lookup_connection_value(conn, MHD_HEADER_KIND,
+                                                                 MHD_HTTP_HEADER_EXPECT);
+                refuse_body(q);
+                if (expect && !strcasecmp(expect, "100-continue"))
+                    ret = run_handler(h, q);
             }
         }
         goto out;
@@ -427,6 +466,8 @@ static enum MHD_Result access_cb(void *cls, struct MHD_Connection *conn, const c
         if (body_append(q, upload_data, *upload_data_size))
             ret = MHD_NO;
         *upload_data_size = 0;
+        if (ret == MHD_YES && q->too_big && linger_over(q))
+            ret = run_handler(h, q); /* lingered enough: answer, libmicrohttpd closes */
         goto out;
     }
     ret = run_handler(h, q);

@@ -60,6 +60,7 @@ const char *const td_route_names[TD_ROUTE_COUNT] = {
     X(TD_AE_INTERNAL, 500, "internal")                                         \
     X(TD_AE_BUSY, 503, "busy")                                                 \
     X(TD_AE_STOPPING, 503, "stopping")                                         \
+    X(TD_AE_LOADING, 503, "loading")                                           \
     X(TD_AE_TIMEOUT, 503, "render_timeout")
 
 typedef enum td_apierr {
@@ -322,11 +323,16 @@ static void h_readyz(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
     (void)q;
     (void)seg;
-    if (atomic_load(&app->ready))
+    if (atomic_load(&app->ready)) {
         send_json(r, 200, json_pack("{s:s,s:I}", "status", "ready", "datasets",
                                     (json_int_t)td_store_count(app->store)));
-    else
-        api_error(r, TD_AE_STOPPING, NULL, "not ready (starting or stopping)");
+    } else {
+        td_http_resp_header(r, "Retry-After", "1");
+        if (!atomic_load(&app->loaded))
+            api_error(r, TD_AE_LOADING, NULL, "not ready: the datasets are loading");
+        else
+            api_error(r, TD_AE_STOPPING, NULL, "not ready (stopping)");
+    }
 }
 
 /* --- admin --------------------------------------------------------------------------- */
@@ -1248,7 +1254,10 @@ static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
             break;
         }
     td_http_req_set_route(q, w->route);
-    if (w->admin && admin_check(app, q, r)) {
+    if (!atomic_load(&app->loaded) && w->route != TD_ROUTE_HEALTHZ && w->route != TD_ROUTE_READYZ) {
+        td_http_resp_header(r, "Retry-After", "1");
+        api_error(r, TD_AE_LOADING, NULL, "the datasets are loading; retry shortly");
+    } else if (w->admin && admin_check(app, q, r)) {
         /* answered: 404 admin_disabled or 401 */
     } else if (w->allow && !method_allowed(w->allow, m)) {
         method_not_allowed(r, w->allow, m);

@@ -48,6 +48,8 @@ typedef struct td_app {
     td_metrics *metrics;
     td_http *http;     /* set once the server runs (queue depth for /metrics) */
     atomic_int ready;  /* /readyz: 1 once serving, 0 again when stopping */
+    atomic_int loaded; /* 1 once the datasets are loaded: before, only /healthz and
+                          /readyz answer (503), and nothing reads the store */
     char web_dir[PATH_MAX];     /* realpath, or "" when absent */
     char leaflet_dir[PATH_MAX]; /* realpath of web/node_modules/leaflet/dist, or "" */
 } td_app;

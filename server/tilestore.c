@@ -124,7 +124,8 @@ struct td_snapshot {
 /* --- the kinds of part: per-kind operations --------------------------------------- */
 
 #define TD_CACHE_MAGIC "TDACCEL"
-#define TD_CACHE_VERSION 3u /* 2: planes stored as interleaved cones; 3: quantised cones */
+#define TD_CACHE_VERSION 4u /* 2: planes stored as interleaved cones; 3: quantised cones;
+                               4: the checksum covers the header too */
 
 /* A cache file: this header, then the payload (the kind's pieces in order). The layout
  * is version 3's: `param` was named planes_k, and the shape fields (levels, dim, offset,
@@ -171,6 +172,9 @@ typedef struct td_part_ops {
      * object whose pieces the payload fills; returns NULL, or why not */
     const char *(*alloc)(const td_cache_hdr *h, void **obj, size_t *bytes, td_piece *pc,
                          int *npc);
+    /* cache read: checks the filled object's values where a tracer indexes with them
+     * (a file can pass its checksum and still be wrong); returns NULL, or why not */
+    const char *(*check)(const void *obj);
 } td_part_ops;
 
 /* max-mipmaps (maxmip.h) */
@@ -222,18 +226,27 @@ static const char *maxmip_alloc(const td_cache_hdr *h, void **obj, size_t *bytes
 {
     const char *why = NULL;
     td_maxmip *m = calloc(1, sizeof *m);
+    /* exactly the shape td_maxmip_build gives this tile (maxmip.c): levels 1 .. L of a
+       2^L side covering its cells, each level right after the one before */
+    const int32_t n = h->nx > h->ny ? h->nx : h->ny;
+    int L = 1;
+    uint64_t total = 0;
+    while (L < (int)h->tile_log2 && L < 16 && ((int32_t)1 << L) < n)
+        L++;
     *obj = m;
-    if (!m || h->levels < 0 || h->levels > 16 || h->payload % sizeof(float)) {
+    if (!m || h->levels != L) {
         why = "bad shape";
         goto out;
     }
-    for (int L = 1; L <= h->levels; L++) {
-        size_t end = (size_t)h->offset[L] + (size_t)h->dim[L] * (size_t)h->dim[L];
-        if (h->dim[L] < 0 || end * sizeof(float) > h->payload) {
+    for (int l = 1; l <= L && !why; l++) {
+        if (h->dim[l] != ((int32_t)1 << L) >> l || h->offset[l] != total)
             why = "bad shape";
-            goto out;
-        }
+        total += (uint64_t)h->dim[l] * (uint64_t)h->dim[l];
     }
+    if (!why && h->payload != total * sizeof(float))
+        why = "bad shape";
+    if (why)
+        goto out;
     m->levels = h->levels;
     for (int i = 0; i < 17; i++) {
         m->dim[i] = h->dim[i];
@@ -251,6 +264,12 @@ static const char *maxmip_alloc(const td_cache_hdr *h, void **obj, size_t *bytes
     *npc = 1;
 out:
     return why;
+}
+
+static const char *maxmip_check(const void *obj)
+{
+    (void)obj; /* maxima are only compared with: any float is safe */
+    return NULL;
 }
 
 /* parameter planes (planes.h) */
@@ -324,10 +343,24 @@ out:
     return why;
 }
 
+/* Every cone's apex indexes the k + 1 apex heights, which must be numbers. */
+static const char *planes_check(const void *obj)
+{
+    const td_planes *p = obj;
+    const char *why = NULL;
+    for (int i = 0; i <= p->k && !why; i++)
+        if (isnan(p->apex[i]))
+            why = "bad apex heights";
+    for (size_t c = 0; c < (size_t)p->nx * (size_t)p->ny && !why; c++)
+        if (p->cone[c].apex > p->k)
+            why = "cone apex out of range";
+    return why;
+}
+
 static const td_part_ops td_part_ops_of[TD_PART_COUNT] = {
 #define TD_X_OPS(K, name, ext)                                                                  \
     [TD_PART_##K] = {#name, ext, name##_param, name##_build, name##_free, name##_bound,         \
-                     name##_attach, name##_pieces, name##_alloc},
+                     name##_attach, name##_pieces, name##_alloc, name##_check},
     TD_PART_LIST(TD_X_OPS)
 #undef TD_X_OPS
 };
@@ -1022,15 +1055,23 @@ static void cache_hdr_init(const td_store *s, const td_ds *d, size_t tile, td_pa
     h->ny = t->ny;
 }
 
-static uint64_t pieces_checksum(const td_piece *pc, int npc)
+/* FNV-1a of the header (its checksum field taken as 0) and then the payload's pieces: a
+ * flipped bit anywhere in the file, shape fields included, fails it. */
+static uint64_t cache_checksum(const td_cache_hdr *hdr, const td_piece *pc, int npc)
 {
-    uint64_t h = TD_FNV1A_INIT;
+    td_cache_hdr h0 = *hdr;
+    uint64_t h;
+    h0.checksum = 0;
+    h = td_fnv1a(TD_FNV1A_INIT, &h0, sizeof h0);
     for (int i = 0; i < npc; i++)
         h = td_fnv1a(h, pc[i].ptr, pc[i].len);
     return h;
 }
 
-/* Writes a part to the cache through a temporary file and rename (no torn files). */
+/* Writes a part to the cache through a temporary file, fsync and rename: a crash or kill
+ * mid-write leaves at most a *.tmp file, which is never read, and never a torn file under
+ * the real name. A failed write (disk full) is logged and dropped: the part is served
+ * anyway, only not cached. */
 static void cache_write(const td_store *s, const td_ds *d, size_t tile, const td_part *p)
 {
     char path[PATH_MAX], tmp[PATH_MAX + 16];
@@ -1046,11 +1087,13 @@ static void cache_write(const td_store *s, const td_ds *d, size_t tile, const td
     npc = td_part_ops_of[p->kind].pieces(p->ptr, &h, pc);
     for (int i = 0; i < npc; i++)
         h.payload += pc[i].len;
-    h.checksum = pieces_checksum(pc, npc);
+    h.checksum = cache_checksum(&h, pc, npc);
     f = fopen(tmp, "wb");
     ok = f && fwrite(&h, sizeof h, 1, f) == 1;
     for (int i = 0; i < npc && ok; i++)
         ok = fwrite(pc[i].ptr, 1, pc[i].len, f) == pc[i].len;
+    if (ok && (fflush(f) || fsync(fileno(f))))
+        ok = 0;
     if (f && fclose(f))
         ok = 0;
     if (!ok || rename(tmp, path)) {
@@ -1099,8 +1142,10 @@ static td_part *cache_read(td_store *s, const td_ds *d, size_t tile, td_part_kin
     for (int i = 0; i < npc && !why; i++)
         if (fread(pc[i].ptr, 1, pc[i].len, f) != pc[i].len)
             why = "checksum mismatch or short payload";
-    if (!why && pieces_checksum(pc, npc) != h.checksum)
+    if (!why && cache_checksum(&h, pc, npc) != h.checksum)
         why = "checksum mismatch or short payload";
+    if (!why)
+        why = td_part_ops_of[kind].check(obj);
     if (why)
         goto out;
     part = part_new(kind, obj, bytes);

@@ -34,7 +34,7 @@
  *     one thread.
  *   then, on the grid alone (no max-mipmap, no planes), the camera rays on the bilinear
  *     surface in each row of TD_BENCH_COLD_LIST (bench_int.h: the walk from each ray's
- *     start, the walk with the horizon device, silhouette partitioning with its build):
+ *     start, the walk with the horizon and beam, silhouette partitioning with its build):
  *     issue 13's question, what no preprocessing costs; the first round also counts the
  *     silhouette depths that differ from the walk's (reported; the tests judge); the
  *     report also spreads section 1's build times over 1, 10 and 100 frames of `auto`.
@@ -289,7 +289,7 @@ static td_status cam_exact(cam_run *c, td_err *err)
         v->emb_hits += c->t[k] < INFINITY;
     for (int off = 0; off < 2 && rc == TD_OK; off++) {
         td_render_result res;
-        rc = cam_render(c, TD_SURFACE_TRIANGLE, TD_FORMAT_DEPTH32F, off ? TD_RENDER_OFF_HORIZON : 0, NULL, &res,
+        rc = cam_render(c, TD_SURFACE_TRIANGLE, TD_FORMAT_DEPTH32F, off ? TD_RENDER_OFF_CAMERA : 0, NULL, &res,
                         err);
         for (size_t k = 0; k < c->n && rc == TD_OK; k++)
             v->depth_differ[off] += (uint64_t)depth_differs(res.depth[tile_pixel(k, c->w)], c->t[k]);
@@ -567,7 +567,7 @@ static void cam_write_views(FILE *f, const bench_ctx *b)
             "{\"sun\": {\"azimuth\": .., \"elevation\": ..}, \"shadows\": true}}`, and `terrad render SCENE -o OUT"
             " --threads 1 --rays R --shadow-rays S` writes the camera and shadow rays timed here (the numbers "
             "below are exact).\n\n| dataset | view | camera x, y, z (m) | heading | pitch | roll | sun azimuth, "
-            "elevation | camera rays | hits (triangle) | started from a horizon bound (triangle) "
+            "elevation | camera rays | hits (triangle) | started from a horizon or beam bound (triangle) "
             "|\n|---|---|---|---|---|---|---|---|---|---|\n", b->cam_w, b->cam_h);
     for (int k = 0; k < b->nds; k++) {
         const bench_ds *d = &b->ds[k];
@@ -610,7 +610,7 @@ static void cam_write_row(FILE *f, const bench_ds *d, int q, int s)
 static void cam_write_table(FILE *f, const bench_ctx *b)
 {
     fprintf(f, "### Camera views: rays per second against Embree, one thread\n\n"
-               "M rays/s; *on*: every coherence device on (camera rays: the horizon bound; shadow rays: the "
+               "M rays/s; *on*: every coherence device on (camera rays: the horizon and beam bounds; shadow rays: the "
                "occlusion query and the sun bound); *no sun*: the sun bound off (`TD_RENDER_OFF_SUNLIT`), the "
                "occlusion query kept; *off*: every device off; x Embree = terrad / Embree on the same rays.\n\n"
                "| dataset | view | surface | camera M rays/s, on | off | Embree rtcIntersect16 | x Embree, on | "
@@ -680,12 +680,12 @@ static void cam_write_cold(FILE *f, const bench_ctx *b)
     fprintf(f, "### Without preprocessing: silhouette partitioning against the walk (issue 13)\n\n"
                "The same views' camera rays on the grid alone (no max-mipmap, no planes: a cold dataset), "
                "bilinear surface, depth32f, one thread, medians of the rounds' primary stage: the walk from each "
-               "ray's start (devices off), the walk with the horizon device (its bins bounded by samples and "
-               "tiles' zmax: what `auto` does where nothing is built), and method `silhouette` (its partition "
+               "ray's start (camera devices off), the walk with the horizon and beam devices (their bounds "
+               "from samples and tiles' zmax: method `incremental`), and method `silhouette` (its partition "
                "built in the stage, its entries counted as steps). Silhouette depths against the walk's are "
                "compared bit for bit.\n\n"
-               "| dataset | view | walk M rays/s | walk + horizon | silhouette | silhouette / walk + horizon | "
-               "steps a ray: walk | walk + horizon | silhouette | partition entries | depths differing |\n"
+               "| dataset | view | walk M rays/s | walk + devices | silhouette | silhouette / walk + devices | "
+               "steps a ray: walk | walk + devices | silhouette | partition entries | depths differing |\n"
                "|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (int k = 0; k < b->nds; k++) {
         for (int q = 0; q < TD_BENCH_CAM_COUNT; q++) {
@@ -761,7 +761,7 @@ void td_bench_camera_write(FILE *f, const bench_ctx *b)
                 "ray per pixel (tables below), one thread on each side, terrad's method `auto` with every "
                 "structure built as for section 1, Embree's triangle mesh. Per view and surface, each of %d rounds"
                 " renders (`td_render`, PNG, shadows on with the view's sun) with every coherence device on, with "
-                "the sun bound off, and with every device off (`TD_RENDER_OFF_HORIZON | TD_RENDER_OFF_OCCLUSION | "
+                "the sun bound off, and with every device off (`TD_RENDER_OFF_CAMERA | TD_RENDER_OFF_OCCLUSION | "
                 "TD_RENDER_OFF_SUNLIT`), then Embree traces the same rays: rtcOccluded16 on the render's shadow "
                 "rays (`td_render_opts.shadow_rays`, image order, 16 consecutive rays a packet) and, once a round,"
                 " rtcIntersect16 on the camera rays (`td_camera_ray` of every pixel centre, as `terrad render "

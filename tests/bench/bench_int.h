@@ -86,7 +86,7 @@ const char *td_bench_cam_name(int v);
     X(TD_BENCH_CONF_ON, "on", 0u)                                              \
     X(TD_BENCH_CONF_NO_SUNLIT, "no sun bound", TD_RENDER_OFF_SUNLIT)           \
     X(TD_BENCH_CONF_OFF, "off",                                                \
-      TD_RENDER_OFF_HORIZON | TD_RENDER_OFF_OCCLUSION | TD_RENDER_OFF_SUNLIT)
+      TD_RENDER_OFF_CAMERA | TD_RENDER_OFF_OCCLUSION | TD_RENDER_OFF_SUNLIT)
 
 typedef enum td_bench_conf {
 #define TD_X_ENUM(e, name, off) e,
@@ -102,12 +102,12 @@ static inline int td_bench_traced(int m) { return m != TD_METHOD_SILHOUETTE; }
 
 /* Camera rays with no preprocessing (issue 13), timed per camera view on the bilinear
  * surface over the grid alone (no max-mipmap, no planes): the walk from each ray's start
- * (devices off), the walk with the horizon device (what `auto` does on a cold dataset),
- * and silhouette partitioning (its per-render build counted). Enum, name, method, devices
- * turned off. */
+ * (camera devices off), the walk with the horizon and beam devices (what `incremental`
+ * does, and `auto` did on a cold dataset), and silhouette partitioning (its per-render
+ * build counted). Enum, name, method, devices turned off. */
 #define TD_BENCH_COLD_LIST(X)                                                  \
-    X(TD_BENCH_COLD_WALK, "walk", TD_METHOD_INCREMENTAL, TD_RENDER_OFF_HORIZON) \
-    X(TD_BENCH_COLD_HORIZON, "walk + horizon", TD_METHOD_INCREMENTAL, 0u)      \
+    X(TD_BENCH_COLD_WALK, "walk", TD_METHOD_INCREMENTAL, TD_RENDER_OFF_CAMERA) \
+    X(TD_BENCH_COLD_HORIZON, "walk + devices", TD_METHOD_INCREMENTAL, 0u)      \
     X(TD_BENCH_COLD_SILH, "silhouette", TD_METHOD_SILHOUETTE, 0u)
 
 typedef enum td_bench_cold {

@@ -1053,7 +1053,7 @@ static void camera_render(hc_stats *st, const hc_scene *sc, const hc_cam *c, td_
         bad += !(res.depth[q] == INFINITY || (isfinite(res.depth[q]) && res.depth[q] >= 0.0f));
     hc_check(st, bad == 0 && (res.depth || res.rgba), "camera fov %g: %s/%s render has %lld NaN/negative/-inf depths",
              c->fov, td_method_name(m), td_surface_name(sf), (long long)bad);
-    ro.off = TD_RENDER_OFF_HORIZON;
+    ro.off = TD_RENDER_OFF_CAMERA;
     if (res.depth && hc_check(st, td_render(&sc->view, scene, &ro, &plain, &err) == TD_OK,
                               "camera fov %g: plain render %s/%s failed: %s", c->fov, td_method_name(m),
                               td_surface_name(sf), err.msg)) {

@@ -602,7 +602,7 @@ static uint64_t camera_check(ctx *c, const cam_view *cv, td_method m, td_surface
     o.threads = 1;
     memset(&on, 0, sizeof on), memset(&off, 0, sizeof off);
     td_render_opts plain = o;
-    plain.off = TD_RENDER_OFF_HORIZON;
+    plain.off = TD_RENDER_OFF_CAMERA;
     if (!sh || td_render(&c->view, &sc, &o, &on, &err) || td_render(&c->view, &sc, &plain, &off, &err) ||
         td_camera_setup(&sc.camera, W, H, g, &cam, &err)) {
         printf("ERROR %s %s/%s: %s\n", cv->name, td_method_name(m), td_surface_name(sf), err.msg);

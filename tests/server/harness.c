@@ -32,6 +32,12 @@ int th_log_has(const th_server *s, const char *needle)
     return found;
 }
 
+/* Whether the server logged `event=ready` (its datasets are loaded). */
+static int logged_ready(const th_server *s)
+{
+    return th_log_has(s, "event=ready ");
+}
+
 static int read_port(const th_server *s)
 {
     FILE *f = fopen(s->log, "r");
@@ -75,7 +81,8 @@ static void th_track(pid_t pid, pid_t old)
         }
 }
 
-int th_start(th_server *s, const char *terrad, const char *const *argv, const char *const *env)
+static int start(th_server *s, const char *terrad, const char *const *argv, const char *const *env,
+                 int until_ready)
 {
     const char *args[64];
     int n = 0;
@@ -114,7 +121,20 @@ int th_start(th_server *s, const char *terrad, const char *const *argv, const ch
         nap_ms(25);
         s->port = read_port(s);
     }
-    return s->port ? 0 : -1;
+    for (int i = 0; s->port && until_ready && i < 2400 && !logged_ready(s); i++)
+        nap_ms(25);
+    return s->port && (!until_ready || logged_ready(s)) ? 0 : -1;
+}
+
+int th_start(th_server *s, const char *terrad, const char *const *argv, const char *const *env)
+{
+    return start(s, terrad, argv, env, 1);
+}
+
+int th_start_listening(th_server *s, const char *terrad, const char *const *argv,
+                       const char *const *env)
+{
+    return start(s, terrad, argv, env, 0);
 }
 
 int th_stop(th_server *s)

@@ -14,8 +14,12 @@ typedef struct th_server {
 } th_server;
 
 /* argv: extra arguments after `serve --listen 127.0.0.1:0`, NULL-terminated; env: extra
- * "K=V" strings, NULL-terminated (may be NULL). Returns 0 when terrad is listening. */
+ * "K=V" strings, NULL-terminated (may be NULL). Returns 0 when terrad is listening and has
+ * loaded its datasets (its `ready` log line; it listens before it loads). */
 int th_start(th_server *s, const char *terrad, const char *const *argv, const char *const *env);
+/* The same, returning as soon as terrad listens (its datasets may still be loading). */
+int th_start_listening(th_server *s, const char *terrad, const char *const *argv,
+                       const char *const *env);
 /* SIGTERM, wait; returns the exit status (or -1 if it did not exit by itself in 60 s, in
  * which case it was killed). */
 int th_stop(th_server *s);

@@ -34,10 +34,10 @@ start_terrad() { # $1 = name; started from this shell, so that `wait` can collec
   echo $! >"$T/$1.pid"
   PIDS+=("$!")
 }
-port_of() { # $1 = name; prints the port from its `listening` line
+port_of() { # $1 = name; prints the port from its `listening` line, once it is `ready`
   for _ in $(seq 200); do
     port=$(grep -o 'event=listening.* port=[0-9]*' "$T/$1.log" | grep -o 'port=[0-9]*' | cut -d= -f2)
-    [ -n "$port" ] && { echo "$port"; return 0; }
+    [ -n "$port" ] && grep -q 'event=ready ' "$T/$1.log" && { echo "$port"; return 0; }
     sleep 0.05
   done
   return 1

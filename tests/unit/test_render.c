@@ -1004,7 +1004,7 @@ static void pick_all_matches_render(const td_view *v, int32_t w, int32_t h, int 
     assert_int_equal(ps.hits, r.stats.hits);
     td_render_result_free(&r);
     /* and traced from their starts, as a pick traces them: the same steps too */
-    o.off = TD_RENDER_OFF_HORIZON;
+    o.off = TD_RENDER_OFF_CAMERA;
     assert_int_equal(td_render(v, &scene, &o, &r, &err), TD_OK);
     for (int i = 0; i < w * h; i++) {
         float d = pk[i].hit ? (float)pk[i].distance : INFINITY;

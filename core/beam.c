@@ -1,0 +1,60 @@
+/* beam.c: the floor of a descending beam of camera rays (see beam.h for the proof).
+ * Called by render.c's primary stage for the slices of a pixel block that the horizon
+ * cannot bound. A few max-mipmap queries a slice, shared by all its rays.
+ *
+ * Measured: see render.c's top comment and docs/accuracy-vs-time.md (camera views). */
+#include "beam.h"
+
+#include <math.h>
+
+/* The cell column (or row) of coordinate x with spacing s, saturated to [-1, 2^31 - 2]
+ * (the box may reach far off the grid; NaN gives -1). */
+static int32_t beam_cell(double x, double s)
+{
+    double c = floor(x / s);
+    return !(c >= 0.0) ? -1 : (int32_t)fmin(c, 2147483646.0);
+}
+
+/* The highest cell corner under the box of the beam's points between heights zlo and zhi,
+ * or -inf if no cell with terrain lies under it. */
+static double beam_box_max(const td_view *v, const double o[3], const double (*d)[3], int nd, double zlo,
+                           double zhi)
+{
+    const td_grid *g = v->grid;
+    double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+    for (int k = 0; k < nd; k++) {
+        for (int e = 0; e < 2; e++) {
+            double s = (o[2] - (e ? zhi : zlo)) / -d[k][2];
+            double x = o[0] + s * d[k][0], y = o[1] + s * d[k][1];
+            x0 = fmin(x0, x), x1 = fmax(x1, x), y0 = fmin(y0, y), y1 = fmax(y1, y);
+        }
+    }
+    double pad = 1e-9 * fmax(fmax(fabs(x0), fabs(x1)), fmax(fabs(y0), fabs(y1))) + 1e-6;
+    return td_view_max(v, beam_cell(x0 - pad, g->sx), beam_cell(x1 + pad, g->sx), beam_cell(y0 - pad, g->sy),
+                       beam_cell(y1 + pad, g->sy));
+}
+
+double td_beam_floor(const td_view *v, const double o[3], const double (*d)[3], int nd, uint32_t *steps)
+{
+    const td_grid *g = v->grid;
+    double zhi = INFINITY;
+    int ok = nd > 0 && !isnan(g->zmax) && isfinite(o[0]) && isfinite(o[1]) && isfinite(o[2]);
+    for (int k = 0; k < nd; k++)
+        ok = ok && d[k][2] < 0.0 && isfinite(d[k][0]) && isfinite(d[k][1]);
+    if (ok) {
+        const double zeps = 1e-6 * (1.0 + fmax(fabs((double)g->zmin), fabs((double)g->zmax)));
+        const double zlo = (double)g->zmin - zeps;
+        zhi = fmin(o[2], (double)g->zmax + zeps);
+        for (int round = 0; round < TD_BEAM_ROUNDS && zhi > zlo; round++) {
+            double m = beam_box_max(v, o, d, nd, zlo, zhi);
+            (*steps)++;
+            /* no terrain under the box: nothing above zlo (the walls of the solid
+               surfaces reach below it) */
+            m = m == -INFINITY ? zlo : fmax(m + zeps, zlo);
+            if (m >= zhi)
+                break;
+            zhi = m;
+        }
+    }
+    return zhi;
+}
