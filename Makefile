@@ -11,16 +11,17 @@ BUILD      ?= build
 ASAN_BUILD ?= build-asan
 FUZZ_BUILD ?= build-fuzz
 FUZZ_SECONDS ?= 600
-FUZZ_TARGETS ?= asc hgt png raw cache request
+FUZZ_TARGETS ?= asc hgt png raw cache request edit
 CLANG ?= $(shell command -v clang 2>/dev/null)
 SOAK_SECONDS ?= 600
+TSAN_BUILD ?= build-tsan
 JOBS       ?= $(shell nproc)
 CMAKE_FLAGS ?=
 ifdef CI
 CMAKE_FLAGS += -DTERRAD_WERROR=ON
 endif
 
-.PHONY: all deps build run test test-asan fuzz fuzz-build fuzz-replay soak bench clean
+.PHONY: all deps build run test test-asan tsan fuzz fuzz-build fuzz-replay soak bench clean
 
 all: build
 
@@ -63,9 +64,19 @@ fuzz-replay:
 soak: build
 	./scripts/soak --terrad $(BUILD)/terrad --seconds $(SOAK_SECONDS)
 
+# The concurrency tests under ThreadSanitizer, terrad included: the tile store alone
+# (snapshots during preloads, evictions and a stream of edits) and the heights endpoint
+# over HTTP (renders during a stream of edits, an edit racing a preload). A race makes
+# terrad or the test exit 66. A few minutes on two cores (mostly the build).
+tsan: deps
+	cmake -S . -B $(TSAN_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DTERRAD_TSAN=ON $(CMAKE_FLAGS) >/dev/null
+	cmake --build $(TSAN_BUILD) -j $(JOBS) --target terrad test_tilestore test_server_edit
+	cd $(TSAN_BUILD) && TSAN_OPTIONS="halt_on_error=1 exitcode=66 second_deadlock_stack=1" \
+		ctest --output-on-failure -R '^(server_tilestore|server_edit)$$'
+
 # `terrad bench` runs build/terrad-bench (tests/bench), built beside terrad by `build`.
 bench: build
 	./$(BUILD)/terrad bench --out docs
 
 clean:
-	rm -rf $(BUILD) $(ASAN_BUILD) $(FUZZ_BUILD)
+	rm -rf $(BUILD) $(ASAN_BUILD) $(FUZZ_BUILD) $(TSAN_BUILD)

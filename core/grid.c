@@ -166,6 +166,26 @@ void td_grid_free(td_grid *g)
     }
 }
 
+td_status td_grid_tile_range(const td_grid *g, int32_t tx0, int32_t tx1, int32_t ty0, int32_t ty1,
+                             size_t **tiles, size_t *n, td_err *err)
+{
+    td_status rc = TD_OK;
+    size_t k = 0, cnt = (size_t)(tx1 - tx0 + 1) * (size_t)(ty1 - ty0 + 1);
+
+    *n = 0;
+    *tiles = malloc(cnt * sizeof **tiles);
+    if (!*tiles) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for %zu tile indices", cnt);
+        goto out;
+    }
+    for (int32_t ty = ty0; ty <= ty1; ty++)
+        for (int32_t tx = tx0; tx <= tx1; tx++)
+            (*tiles)[k++] = (size_t)ty * (size_t)g->tiles_x + (size_t)tx;
+    *n = k;
+out:
+    return rc;
+}
+
 int td_grid_bilinear_cell(const td_grid *g, int32_t ci, int32_t cj, double x, double y, double *z,
                           double n[3])
 {

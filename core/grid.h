@@ -93,6 +93,11 @@ static inline const td_tile *td_grid_tile_of_cell(const td_grid *g, int32_t ci, 
                      (size_t)(ci >> g->tile_log2)];
 }
 
+/* The tiles tx0..tx1 x ty0..ty1 (inclusive, inside the grid) as a malloc'ed list of tile
+ * indices, row-major, south first (as g->tiles); *n of them. */
+td_status td_grid_tile_range(const td_grid *g, int32_t tx0, int32_t tx1, int32_t ty0, int32_t ty1,
+                             size_t **tiles, size_t *n, td_err *err);
+
 /* The bilinear surface of cell (ci, cj) at (x, y) in the dataset frame (clamped to the
  * cell): the exact surface the others are measured against. Its unit normal goes to n
  * unless n is NULL. Returns 0, leaving z and n alone, where a corner is a void. */

@@ -1,5 +1,5 @@
 /* cli_render.c: `terrad render SCENE.json -o OUT [--stats FILE] [--threads N] [--rays FILE]
- * [--shadow-rays FILE]`: the
+ * [--shadow-rays FILE] [--edit X,Y,W,H,FILE ...]`: the
  * render path of the server without HTTP. The scene is parsed by the same pure function
  * as POST /v1/render (server/request.c), with file paths allowed.
  *
@@ -17,7 +17,11 @@
  * curve_segments, height_error_m {mean, max, hits},
  * stages_ms (one entry per stage that ran), load_ms, accel_ms, render_ms, total_ms,
  * threads, bytes. --rays and --shadow-rays write the render's rays for another tracer
- * (the benchmark traces them with Embree).
+ * (the benchmark traces them with Embree). --edit applies a heights edit to the loaded
+ * DEM before anything is built, by the same functions as PUT .../heights (gridedit.h:
+ * X, Y the region's north-west sample, row 0 north; FILE W*H little-endian float32, row
+ * 0 north, NaN void); repeated, the edits apply in order, so a render of the edited
+ * file can be compared with the service's after the same edits.
  * Exit status: 0 ok, 1 runtime failure, 2 usage or scene error. */
 #include "cli.h"
 #include "answer.h"
@@ -34,6 +38,7 @@
 
 #include "accel.h"
 #include "dem.h"
+#include "gridedit.h"
 #include "limit.h"
 #include "render.h"
 #include "request.h"
@@ -59,7 +64,10 @@ static void render_usage(FILE *f)
                "                  primary rays when samples is 1), row-major from the top-left\n"
                "                  pixel, as `terrad trace` input (float64 ox oy oz dx dy dz)\n"
                "  --shadow-rays FILE  write the shadow rays the render traced, in image order,\n"
-               "                  in the same format\n",
+               "                  in the same format\n"
+               "  --edit X,Y,W,H,FILE  apply a heights edit first, as PUT /v1/admin/datasets/\n"
+               "                  {id}/heights?x=X&y=Y&w=W&h=H with FILE as the body (W*H\n"
+               "                  little-endian float32, row 0 north, NaN void); repeatable\n",
                TERRAD_SOURCE_DIR);
 }
 
@@ -207,10 +215,14 @@ static json_t *stats_json(const td_render_stats *st)
     return o;
 }
 
+#define TD_CLI_EDITS_MAX 64
+
 /* What one `terrad render` run reads, builds and writes. */
 typedef struct render_run {
     const char *scene_path, *out_path, *stats_path, *rays_path, *shadow_path;
     int threads;
+    const char *edits[TD_CLI_EDITS_MAX]; /* --edit arguments, in order */
+    int nedits;
     td_scene *scene; /* large (the pick list): heap */
     char scene_dir[4096], dem_path[4096];
     td_grid *g;
@@ -235,6 +247,13 @@ static int parse_args(int argc, char **argv, render_run *run)
             run->rays_path = argv[++i];
         } else if (!strcmp(argv[i], "--shadow-rays") && i + 1 < argc) {
             run->shadow_path = argv[++i];
+        } else if (!strcmp(argv[i], "--edit") && i + 1 < argc) {
+            if (run->nedits == TD_CLI_EDITS_MAX) {
+                fprintf(stderr, "terrad render: at most %d --edit options\n", TD_CLI_EDITS_MAX);
+                rc = 2;
+            } else {
+                run->edits[run->nedits++] = argv[++i];
+            }
         } else if (!strcmp(argv[i], "--threads") && i + 1 < argc) {
             char *end = NULL;
             long v = strtol(argv[++i], &end, 10);
@@ -328,6 +347,38 @@ out:
     return rc;
 }
 
+/* --edit X,Y,W,H,FILE: the four numbers checked as the API checks its query (the same
+ * messages), FILE read as its body; run->g replaced by the edited copy. */
+static td_status apply_edit(render_run *run, const char *arg, td_err *err)
+{
+    td_status rc;
+    char num[4][24];
+    const char *p = arg;
+    static const char *const names[4] = {"x", "y", "w", "h"};
+    td_grid_region r;
+    td_grid *g = NULL;
+
+    for (int k = 0; k < 4; k++) {
+        size_t l = strcspn(p, ",");
+        if (!p[l] || l >= sizeof num[k]) {
+            rc = td_err_set(err, TD_EINVAL, "--edit %s: want X,Y,W,H,FILE (%s missing or too long)", arg, names[k]);
+            goto out;
+        }
+        memcpy(num[k], p, l);
+        num[k][l] = '\0';
+        p += l + 1;
+    }
+    rc = td_grid_edit_parse(run->g, num[0], num[1], num[2], num[3], INT64_MAX, &r, err);
+    if (!rc)
+        rc = td_grid_edit_file(run->g, &r, p, &g, err);
+    if (rc)
+        goto out;
+    td_grid_free(run->g);
+    run->g = g;
+out:
+    return rc;
+}
+
 /* Loads the DEM and builds what the method needs for the whole grid (and the levels of
  * detail when asked), timed as load_ms and accel_ms. 0, or 1 with the error printed. */
 static int load_dataset(render_run *run)
@@ -343,6 +394,9 @@ static int load_dataset(render_run *run)
     td_dem_opts_default(&dopts);
     if (td_dem_load(run->dem_path, &dopts, &run->g, &err))
         goto out;
+    for (int i = 0; i < run->nedits; i++)
+        if (apply_edit(run, run->edits[i], &err))
+            goto out;
     run->load_ms = 1e3 * td_clock_s() - t;
     td_accel_opts_default(&aopts);
     aopts.maxmip = m == TD_METHOD_HIERARCHICAL || m == TD_METHOD_AUTO;

@@ -120,6 +120,7 @@ static int start_http(const td_config *cfg, td_app *app)
     ho.workers = (int)cfg->render_workers;
     ho.queue = (int)cfg->queue;
     ho.max_body = (size_t)cfg->max_body_kb << 10;
+    ho.body_cap = td_routes_body_cap;
     ho.conn_timeout_s = (unsigned)cfg->conn_timeout_s;
     ho.per_ip = (unsigned)cfg->per_ip;
     ho.handler = td_routes_handle;

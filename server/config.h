@@ -45,6 +45,8 @@
       "renders waiting beyond those running; more are refused with 503")                   \
     X(max_body_kb, INT, "--max-body-kb", "TERRAD_MAX_BODY_KB", "64", 1, 65536,             \
       "largest request body, KiB (more: 413)")                                             \
+    X(max_edit_kb, INT, "--max-edit-kb", "TERRAD_MAX_EDIT_KB", "16384", 1, 1048576,        \
+      "largest heights edit (PUT body), KiB: 4 bytes a sample (more: 413)")               \
     X(max_pixels, INT, "--max-pixels", "TERRAD_MAX_PIXELS", "4194304", 1, 268435456,       \
       "largest image, pixels")                                                             \
     X(max_samples, INT, "--max-samples", "TERRAD_MAX_SAMPLES", "16", 1, 1024,              \

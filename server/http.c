@@ -105,6 +105,7 @@ struct td_http_req {
     char *path;
     char *body;
     size_t len, cap;
+    size_t body_max; /* td_http_opts.body_cap's answer */
     int too_big;
     size_t discarded;  /* body bytes dropped since too_big (lingering close) */
     double t_refused;  /* when too_big was set */
@@ -363,7 +364,7 @@ static int body_append(td_http_req *q, const char *data, size_t n)
 {
     int rc = 0;
     size_t need = 0;
-    if (q->too_big || !td_add_size(q->len, n, &need) || need > q->h->o.max_body) {
+    if (q->too_big || !td_add_size(q->len, n, &need) || need > q->body_max) {
         refuse_body(q);
         q->discarded = q->discarded + n < q->discarded ? SIZE_MAX : q->discarded + n;
         free(q->body);
@@ -438,13 +439,14 @@ static enum MHD_Result access_cb(void *cls, struct MHD_Connection *conn, const c
         q->route = -1;
         q->t0 = td_clock_s();
         snprintf(q->method, sizeof q->method, "%s", method);
+        q->body_max = h->o.body_cap ? h->o.body_cap(h->o.cls, q) : h->o.max_body;
         *con_cls = q;
         atomic_fetch_add(&h->active, 1);
         cl = MHD_lookup_connection_value(conn, MHD_HEADER_KIND, MHD_HTTP_HEADER_CONTENT_LENGTH);
         if (cl) {
             char *end = NULL;
             unsigned long long n = strtoull(cl, &end, 10);
-            if (end != cl && n > h->o.max_body) {
+            if (end != cl && n > q->body_max) {
                 /* Refused; answered at once only to a client waiting for 100 Continue,
                    else after the body is read and discarded (lingering close, above) */
                 const char *expect = MHD_lookup_connection_value(conn, MHD_HEADER_KIND,

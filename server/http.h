@@ -117,6 +117,9 @@ typedef struct td_http_opts {
     int workers;      /* deferred-work threads, >= 1 */
     int queue;        /* deferred requests waiting beyond the running ones, >= 0 */
     size_t max_body;  /* bytes */
+    /* The body cap of one request, asked once its headers are in (NULL: max_body for
+     * all): a route may take larger bodies from whom it trusts (heights edits, token). */
+    size_t (*body_cap)(void *cls, const td_http_req *q);
     unsigned conn_timeout_s;
     unsigned per_ip;
     td_http_handler handler;

@@ -153,6 +153,18 @@ int td_routes_token_equal(const char *given, const char *want)
     return diff == 0;
 }
 
+size_t td_routes_body_cap(void *cls, const td_http_req *q)
+{
+    const td_app *app = cls;
+    const char *path = td_http_req_path(q), *auth = td_http_req_header(q, "Authorization");
+    const char *pre = "/v1/admin/datasets/", *suf = "/heights";
+    size_t pl = strlen(path), sl = strlen(suf);
+    int edit = !strcmp(td_http_req_method(q), "PUT") && !strncmp(path, pre, strlen(pre)) &&
+               pl > strlen(pre) + sl && !strcmp(path + pl - sl, suf) && app->cfg->admin_token && auth &&
+               !strncasecmp(auth, "Bearer ", 7) && td_routes_token_equal(auth + 7, app->cfg->admin_token);
+    return (size_t)(edit ? app->cfg->max_edit_kb : app->cfg->max_body_kb) << 10;
+}
+
 /* 0 when the request may use admin routes; else the response is filled. */
 static int admin_check(td_app *app, td_http_req *q, td_http_resp *r)
 {
@@ -235,9 +247,9 @@ static json_t *dataset_json(td_app *app, size_t idx)
                         r->x0 + r->dx * (g->w - 1), r->y0 + r->dy * (g->h - 1), "crs", r->crs);
     }
     return json_pack(
-        "{s:s,s:s,s:s,s:{s:i,s:i},s:[f,f],s:{s:[f,f],s:[f,f],s:[f,f]},s:I,s:o,"
+        "{s:s,s:s,s:s,s:I,s:{s:i,s:i},s:[f,f],s:{s:[f,f],s:[f,f],s:[f,f]},s:I,s:o,"
         "s:{s:i,s:i,s:i,s:I},s:{s:I,s:I,s:I,s:I,s:I,s:I},s:o}",
-        "id", di.id, "file", di.file, "origin", di.origin,
+        "id", di.id, "file", di.file, "origin", di.origin, "version", (json_int_t)di.version,
         "size", "width", (int)g->w, "height", (int)g->h,
         "spacing", g->sx, g->sy,
         "extent", "x", 0.0, g->sx * (g->w - 1), "y", 0.0, g->sy * (g->h - 1),
@@ -642,6 +654,118 @@ static void h_evict(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     }
 }
 
+/* The region of the query (x, y, w, h) of dataset idx; 0, or -1 with a 400 naming the
+ * parameter. At most --max-edit-kb of samples, reading or writing. */
+static int heights_region(td_app *app, td_http_req *q, td_http_resp *r, size_t idx,
+                          td_grid_region *reg)
+{
+    td_dataset_info di;
+    td_err e = {0};
+    int rc;
+    td_store_info(app->store, idx, &di);
+    rc = td_grid_edit_parse(di.grid, td_http_req_query(q, "x"), td_http_req_query(q, "y"),
+                            td_http_req_query(q, "w"), td_http_req_query(q, "h"),
+                            (int64_t)(app->cfg->max_edit_kb << 10) / 4, reg, &e) ? -1 : 0;
+    if (rc)
+        api_error(r, TD_AE_BAD_REQUEST, e.field, "%s", e.msg);
+    return rc;
+}
+
+/* GET /v1/admin/datasets/{id}/heights?x=&y=&w=&h=: the region's heights now, as the body
+ * a PUT takes (w*h little-endian float32, row 0 north, NaN void), with X-Terrad-Version:
+ * a client reads, changes and writes back (the web page's disc edits). */
+static void heights_get(td_app *app, td_http_req *q, td_http_resp *r, const char *id, size_t idx)
+{
+    td_grid_region reg;
+    td_snapshot *snap = NULL;
+    unsigned char *body = NULL;
+    size_t len;
+    td_err e = {0};
+
+    if (heights_region(app, q, r, idx, &reg))
+        goto out;
+    len = (size_t)reg.w * (size_t)reg.h * 4; /* at most --max-edit-kb */
+    body = malloc(len);
+    if (!body || td_store_acquire(app->store, id, &snap, &e)) {
+        api_error(r, TD_AE_INTERNAL, NULL, "%s", body ? e.msg : "out of memory");
+        goto out;
+    }
+    td_grid_edit_read(td_snapshot_view(snap)->grid, &reg, body);
+    td_http_resp_header(r, "X-Terrad-Version", "%llu", (unsigned long long)td_snapshot_version(snap, NULL));
+    td_http_resp_header(r, "Cache-Control", "no-store");
+    r->status = 200;
+    td_http_resp_take(r, body, len, "application/octet-stream");
+    body = NULL;
+out:
+    td_snapshot_release(snap);
+    free(body);
+}
+
+/* PUT /v1/admin/datasets/{id}/heights?x=&y=&w=&h=: the region and the body are checked
+ * first (400 naming the parameter or `body`; nothing changes then), then applied as the
+ * dataset's next heights version at once (td_store_edit), and the touched tiles that
+ * held acceleration are queued for rebuilding as a preload job. 200 with the version,
+ * the touched tiles and the job (null when nothing was resident there, or when the
+ * queue is full: those tiles are then traced without acceleration until a preload).
+ * GET reads the region instead (heights_get). */
+static void h_heights(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
+{
+    const char *id = seg[1], *ct = td_http_req_header(q, "Content-Type"), *body;
+    const size_t ctl = strlen("application/octet-stream");
+    long idx = td_store_find(app->store, id);
+    td_grid_region reg;
+    td_edit_result res;
+    size_t len = 0;
+    float *z = NULL;
+    unsigned job = 0;
+    td_err e = {0};
+    td_status rc;
+    double t0 = td_clock_s();
+
+    memset(&res, 0, sizeof res);
+    if (idx < 0) {
+        api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", id);
+        goto out;
+    }
+    if (strcmp(td_http_req_method(q), "PUT")) {
+        heights_get(app, q, r, id, (size_t)idx);
+        goto out;
+    }
+    if (!ct || strncasecmp(ct, "application/octet-stream", ctl) || (ct[ctl] && ct[ctl] != ';' && ct[ctl] != ' ')) {
+        api_error(r, TD_AE_MEDIA_TYPE, NULL, "the body must be application/octet-stream: w*h "
+                  "little-endian float32 (got %s)", ct ? ct : "no Content-Type");
+        goto out;
+    }
+    if (heights_region(app, q, r, (size_t)idx, &reg))
+        goto out;
+    body = td_http_req_body(q, &len);
+    rc = td_grid_edit_decode(&reg, body, body ? len : 0, &z, &e);
+    if (!rc)
+        rc = td_store_edit(app->store, (size_t)idx, &reg, z, &res, &e);
+    if (rc) {
+        api_error(r, e.field[0] ? TD_AE_BAD_REQUEST : TD_AE_INTERNAL, e.field[0] ? e.field : NULL, "%s", e.msg);
+        goto out;
+    }
+    if (res.rebuild.ntiles && td_jobs_submit(app->jobs, &res.rebuild, &job, &e)) {
+        td_log(TD_LOG_WARN, "heights_rebuild_refused", "dataset=%s tiles=%zu reason=\"queue full\"", id,
+               res.rebuild.ntiles);
+        job = 0;
+    }
+    td_log(TD_LOG_INFO, "heights_edited", "dataset=%s version=%llu x=%d y=%d w=%d h=%d tiles=%zu job=%u", id,
+           (unsigned long long)res.version, (int)reg.x, (int)reg.y, (int)reg.w, (int)reg.h, res.touched, job);
+    if (job)
+        td_http_resp_header(r, "Location", "/v1/admin/jobs/%u", job);
+    send_json(r, 200, json_pack("{s:s,s:I,s:{s:i,s:i,s:i,s:i},s:I,s:I,s:o,s:f}", "dataset", id, "version",
+                                (json_int_t)res.version, "region", "x", (int)reg.x, "y", (int)reg.y, "w",
+                                (int)reg.w, "h", (int)reg.h, "tiles", (json_int_t)res.touched, "rebuild",
+                                (json_int_t)res.rebuild.ntiles,
+                                "job", job ? json_integer((json_int_t)job) : json_null(),
+                                "apply_ms", 1e3 * (td_clock_s() - t0)));
+out:
+    free(z);
+    free((void *)res.rebuild.tiles);
+}
+
 /* --- static files (static.c) ----------------------------------------------------------- */
 
 static void h_static(const char *root, const char *rel, int vendor, td_http_resp *r)
@@ -679,7 +803,7 @@ typedef struct td_rjob {
     td_rkind kind;
     int get;           /* GET: ETag and Cache-Control */
     double parse_ms;
-    char etag[40];
+    char etag[80];
     td_snapshot *snap; /* the dataset, acquired by render_defer, released with the job */
     td_scene scene;    /* large (the pick list): the job is heap-allocated */
 } td_rjob;
@@ -693,14 +817,16 @@ static void request_limits(const td_app *app, td_request_limits *lim)
     lim->allow_paths = 0;
 }
 
-static void scene_etag(const td_scene *s, const td_grid *g, char *out, size_t n)
+static void scene_etag(const td_scene *s, const td_snapshot *snap, char *out, size_t n)
 {
     size_t bytes = offsetof(td_scene, pick) + (size_t)s->npick * sizeof s->pick[0];
-    uint64_t h = td_fnv1a(TD_FNV1A_INIT, s, bytes);
+    uint64_t h = td_fnv1a(TD_FNV1A_INIT, s, bytes), chain = 0, ver = td_snapshot_version(snap, &chain);
+    const td_grid *g = td_snapshot_view(snap)->grid;
     /* The dataset too: same scene over different heights is a different picture. */
     h ^= (uint64_t)g->w * 2654435761u ^ (uint64_t)g->h ^ (uint64_t)(g->zmax * 1000.0);
     h *= TD_FNV1A_PRIME;
-    snprintf(out, n, "\"%016llx\"", (unsigned long long)h);
+    snprintf(out, n, "\"%016llx-v%llu.%08llx\"", (unsigned long long)h, (unsigned long long)ver,
+             (unsigned long long)(chain & 0xffffffffu));
 }
 
 static int etag_matches(td_http_req *q, const char *etag)
@@ -939,8 +1065,14 @@ static void render_defer(td_app *app, td_http_req *q, td_http_resp *r, td_rjob *
         }
         memcpy(j->scene.effects.drape, path, strlen(path) + 1); /* fits: checked above */
     }
-    if (j->get && j->kind != TD_RK_TILE)
-        scene_etag(&j->scene, td_snapshot_view(j->snap)->grid, j->etag, sizeof j->etag);
+    if (j->get && j->kind != TD_RK_TILE) {
+        scene_etag(&j->scene, j->snap, j->etag, sizeof j->etag);
+    } else if (j->get) { /* a map tile: its tag (h_tile) and the heights version */
+        uint64_t chain = 0, ver = td_snapshot_version(j->snap, &chain);
+        size_t l = strlen(j->etag);
+        snprintf(j->etag + l - 1, sizeof j->etag - (l - 1), "-v%llu.%08llx\"", (unsigned long long)ver,
+                 (unsigned long long)(chain & 0xffffffffu));
+    }
     if (j->get && etag_matches(q, j->etag)) {
         r->status = 304;
         td_http_resp_header(r, "ETag", "%s", j->etag);
@@ -1197,6 +1329,7 @@ static const td_route_row td_routes[] = {
     {TD_ROUTE_JOB, "/v1/admin/", "jobs/*", 4, 1, "GET, HEAD", h_job, NULL},
     {TD_ROUTE_JOB, "/v1/admin/jobs/", "", 0, 1, NULL, NULL, "no such admin route"},
     {TD_ROUTE_EVICT, "/v1/admin/", "datasets/*/tiles", 4, 1, "DELETE", h_evict, NULL},
+    {TD_ROUTE_HEIGHTS, "/v1/admin/", "datasets/*/heights", 4, 1, "GET, HEAD, PUT", h_heights, NULL},
     {TD_ROUTE_EVICT, "/v1/admin/", "", 0, 1, NULL, NULL, "no such admin route"},
     {TD_ROUTE_WEB, TD_STATIC_VENDOR_PREFIX, "", 0, 0, "GET, HEAD", h_vendor, NULL},
     {TD_ROUTE_UNKNOWN, "/v1", NULL, 0, 0, NULL, h_no_route, NULL},
@@ -1273,8 +1406,10 @@ void td_routes_handle(void *cls, td_http_req *q, td_http_resp *r)
     td_app *app = cls;
     if (td_http_req_too_big(q)) {
         td_http_req_set_route(q, TD_ROUTE_UNKNOWN);
-        api_error(r, TD_AE_TOO_LARGE, NULL, "the body is over the limit of %ld KiB (--max-body-kb)",
-                  app->cfg->max_body_kb);
+        int edit = td_routes_body_cap(app, q) != (size_t)app->cfg->max_body_kb << 10;
+        api_error(r, TD_AE_TOO_LARGE, NULL, "the body is over the limit of %ld KiB (%s)",
+                  edit ? app->cfg->max_edit_kb : app->cfg->max_body_kb,
+                  edit ? "--max-edit-kb" : "--max-body-kb; heights edits with the admin token: --max-edit-kb");
         td_http_resp_header(r, "Connection", "close");
     } else {
         dispatch(app, q, r);

@@ -25,6 +25,7 @@
     X(TD_ROUTE_PRELOAD, "admin_preload")                                       \
     X(TD_ROUTE_JOB, "admin_job")                                               \
     X(TD_ROUTE_EVICT, "admin_evict")                                           \
+    X(TD_ROUTE_HEIGHTS, "admin_heights")                                       \
     X(TD_ROUTE_HEALTHZ, "healthz")                                             \
     X(TD_ROUTE_READYZ, "readyz")                                               \
     X(TD_ROUTE_METRICS, "metrics")                                             \
@@ -57,6 +58,10 @@ typedef struct td_app {
 /* td_http_handler and td_http_done_fn for td_http_start (cls: the td_app). */
 void td_routes_handle(void *cls, td_http_req *q, td_http_resp *resp);
 void td_routes_done(void *cls, int route, int status, size_t bytes, double seconds);
+
+/* td_http_opts.body_cap: --max-edit-kb for a PUT of heights with the right bearer token,
+ * --max-body-kb for every other request (so only an admin can send large bodies). */
+size_t td_routes_body_cap(void *cls, const td_http_req *q);
 
 /* Constant-time comparison of a presented token with the configured one. */
 int td_routes_token_equal(const char *given, const char *want);

@@ -1,12 +1,15 @@
 /* tilestore.c: datasets, per-tile reference-counted acceleration, LRU under a memory
- * budget, preload, the disk cache and the datasets' decoded drapes (see tilestore.h for
- * the model). Called by the daemon's routes and admin jobs, and by `terrad serve` at
+ * budget, preload, the disk cache, the datasets' decoded drapes and heights edits (see
+ * tilestore.h for the model). Called by the daemon's routes and admin jobs, and by `terrad serve` at
  * start; tests/server/test_tilestore.c drives it alone (also under ThreadSanitizer).
  *
  * Layout:
- *   td_store { mu, clock, resident_bytes, ds[] }
- *     td_ds { id, grid, lod, slots[ntiles], counters, drapes }
- *       td_slot { part[TD_PART_COUNT], stamp (LRU clock), pinned, job (in a running preload) }
+ *   td_store { mu, edit, clock, resident_bytes, ds[] }
+ *     td_ds { id, shape, cur, slots[ntiles], counters, drapes }
+ *       td_hver { atomic refs, version, chain, grid, lod }   the heights now (cur); a
+ *                 snapshot holds one; an edit swaps in a new one (copy-on-write)
+ *       td_slot { part[TD_PART_COUNT], stamp (LRU clock), pinned, job (in a running preload),
+ *                 hver (the version that last changed the tile's heights) }
  *         td_part { atomic refs, kind, object, bytes }   immutable once built
  *       td_drape { atomic refs, path, RGB image, bytes } immutable, kept for the store's life
  * Slots and counters are read and written under `mu` only; a part's refcount is atomic
@@ -41,6 +44,7 @@
 #include <unistd.h>
 
 #include "dem.h"
+#include "gridedit.h"
 #include "log.h"
 #include "maxmip.h"
 #include "planes.h"
@@ -70,7 +74,17 @@ typedef struct td_slot {
     uint64_t stamp;
     int pinned; /* only while resident */
     int job;
+    uint64_t hver; /* the dataset version that last changed this tile's heights (1: loaded) */
 } td_slot;
+
+/* One version of a dataset's heights (tilestore.h, "Edits"): immutable once published. */
+typedef struct td_hver {
+    atomic_int refs;
+    uint64_t version; /* 1 as loaded, +1 an edit */
+    uint64_t chain;   /* 0 as loaded; then a hash of every edit applied, in order */
+    td_grid *grid;
+    td_lod *lod;      /* coarse levels for quality.lod, built from this grid */
+} td_hver;
 
 typedef struct td_drape {
     atomic_int refs;
@@ -85,8 +99,8 @@ typedef struct td_ds {
     char file[256];
     char dir[PATH_MAX];
     const char *origin;
-    td_grid *grid;
-    td_lod *lod;          /* coarse levels for quality.lod, built at load, immutable */
+    td_hver *cur;         /* the heights now: swapped under `mu` by an edit (one at a time) */
+    td_grid shape;        /* the grid's fixed fields (size, spacing, tiling, geo); no z, tiles */
     size_t ntiles;
     td_slot *slots;
     uint64_t grid_bytes;
@@ -103,6 +117,7 @@ struct td_store {
     int param[TD_PART_COUNT]; /* each kind's build parameter (planes: K) */
     pthread_mutex_t mu;       /* slots, drapes, clock, resident_bytes, counters */
     pthread_mutex_t preload;  /* one preload at a time */
+    pthread_mutex_t edit;     /* one edit at a time (the only writer of td_ds.cur) */
     uint64_t clock;
     uint64_t resident_bytes;  /* grids + parts in slots + kept drapes */
     uint64_t tiles_built, tiles_evicted, cache_hits, cache_misses;
@@ -114,6 +129,7 @@ struct td_snapshot {
     td_view view;
     td_store *store;
     size_t ds;
+    td_hver *hv; /* the heights version this snapshot traces */
     td_tile_accel *accel;
     td_part **parts;
     size_t nparts;
@@ -392,6 +408,38 @@ static void part_ref(td_part *p)
     atomic_fetch_add_explicit(&p->refs, 1, memory_order_relaxed);
 }
 
+static void hver_unref(td_hver *hv)
+{
+    if (hv && atomic_fetch_sub_explicit(&hv->refs, 1, memory_order_acq_rel) == 1) {
+        td_lod_free(hv->lod);
+        td_grid_free(hv->grid);
+        free(hv);
+    }
+}
+
+/* A version record for grid g and its levels (taken, also on failure). */
+static td_status hver_new(td_grid *g, td_lod *lod, uint64_t version, uint64_t chain,
+                          td_hver **out, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_hver *hv = calloc(1, sizeof *hv);
+    *out = NULL;
+    if (!hv) {
+        td_lod_free(lod);
+        td_grid_free(g);
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for a heights version");
+        goto out;
+    }
+    atomic_init(&hv->refs, 1);
+    hv->version = version;
+    hv->chain = chain;
+    hv->grid = g;
+    hv->lod = lod;
+    *out = hv;
+out:
+    return rc;
+}
+
 static void drape_unref(td_drape *dr)
 {
     if (dr && atomic_fetch_sub_explicit(&dr->refs, 1, memory_order_acq_rel) == 1) {
@@ -522,6 +570,7 @@ td_status td_store_create(const td_store_opts *o, td_store **out, td_err *err)
         s->param[k] = td_part_ops_of[k].param(&s->o);
     pthread_mutex_init(&s->mu, NULL);
     pthread_mutex_init(&s->preload, NULL);
+    pthread_mutex_init(&s->edit, NULL);
     *out = s;
     s = NULL;
 out:
@@ -547,13 +596,13 @@ void td_store_free(td_store *s)
             ds->drapes = next;
         }
         free(ds->slots);
-        td_lod_free(ds->lod);
-        td_grid_free(ds->grid);
+        hver_unref(ds->cur);
     }
     free(s->ds);
     free(s->cache_dir);
     pthread_mutex_destroy(&s->mu);
     pthread_mutex_destroy(&s->preload);
+    pthread_mutex_destroy(&s->edit);
     free(s);
 }
 
@@ -593,12 +642,24 @@ static uint64_t grid_fingerprint(const td_grid *g)
     return h;
 }
 
+/* Levels of detail of a heights version: filtered coarse grids with their max-mipmaps (a
+ * third of the heights and little more), resident with the heights. */
+static td_status lod_build(const td_grid *g, td_lod **lod, td_err *err)
+{
+    td_accel_opts ao;
+    td_accel_opts_default(&ao);
+    ao.planes = 0;
+    ao.threads = 1;
+    return td_lod_build(g, TD_LOD_MAX, &ao, lod, err);
+}
+
 td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_grid *g,
                             td_err *err)
 {
     td_status rc = TD_OK;
     td_ds *nds = NULL, *d;
     td_lod *lod = NULL;
+    td_hver *hv = NULL;
     uint64_t bytes;
 
     if (!td_store_id_valid(id)) {
@@ -609,17 +670,9 @@ td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_
         rc = td_err_set(err, TD_EINVAL, "dataset id '%s' is already taken", id);
         goto out;
     }
-    /* Levels of detail: filtered coarse grids with their max-mipmaps (a third of the
-     * heights and little more), resident with the heights for the dataset's lifetime. */
-    {
-        td_accel_opts ao;
-        td_accel_opts_default(&ao);
-        ao.planes = 0;
-        ao.threads = 1;
-        rc = td_lod_build(g, TD_LOD_MAX, &ao, &lod, err);
-        if (rc)
-            goto out;
-    }
+    rc = lod_build(g, &lod, err);
+    if (rc)
+        goto out;
     bytes = td_grid_bytes(g->w, g->h, g->tile_log2) + lod->bytes;
     if (s->resident_bytes + bytes > s->o.budget_bytes) {
         rc = td_err_set(err, TD_ETOOBIG,
@@ -643,14 +696,23 @@ td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_
         rc = td_err_set(err, TD_ENOMEM, "out of memory for the tiles of '%s'", id);
         goto out;
     }
+    for (size_t t = 0; t < d->ntiles; t++)
+        d->slots[t].hver = 1;
     snprintf(d->id, sizeof d->id, "%s", id);
     d->origin = origin ? origin : "api";
-    d->grid = g;
-    d->lod = lod;
-    lod = NULL;
-    d->grid_bytes = bytes;
     d->fingerprint = s->cache_dir ? grid_fingerprint(g) : 0;
+    d->shape = *g;
+    d->shape.z = NULL;
+    d->shape.tiles = NULL;
+    rc = hver_new(g, lod, 1, 0, &hv, err);
     g = NULL;
+    lod = NULL;
+    if (rc) {
+        free(d->slots);
+        goto out;
+    }
+    d->cur = hv;
+    d->grid_bytes = bytes;
     s->resident_bytes += bytes;
     s->nds++;
 out:
@@ -710,7 +772,7 @@ static int load_one(td_store *s, const char *path, const char *name, const char 
     }
     set_file(s, id, path, name);
     {
-        const td_grid *gg = s->ds[s->nds - 1].grid;
+        const td_grid *gg = s->ds[s->nds - 1].cur->grid;
         td_log(TD_LOG_INFO, "dataset_loaded",
                "id=%s origin=%s path=%s width=%d height=%d spacing=%gx%g zmin=%g zmax=%g voids=%lld tiles=%dx%d",
                id, origin, td_log_quote(qp, sizeof qp, path), (int)gg->w, (int)gg->h, gg->sx, gg->sy,
@@ -807,10 +869,15 @@ void td_store_info(td_store *s, size_t idx, td_dataset_info *out)
     out->file = d->file;
     out->dir = d->dir;
     out->origin = d->origin;
-    out->grid = d->grid;
     out->ntiles = d->ntiles;
-    out->grid_bytes = d->grid_bytes;
     pthread_mutex_lock(&s->mu);
+    out->grid_bytes = d->grid_bytes;
+    out->grid_hdr = *d->cur->grid;
+    out->grid_hdr.z = NULL;
+    out->grid_hdr.tiles = NULL;
+    out->grid = &out->grid_hdr;
+    out->version = d->cur->version;
+    out->chain = d->cur->chain;
     out->resident_tiles = d->resident_tiles;
     for (int k = 0; k < TD_PART_COUNT; k++)
         out->part_tiles[k] = d->part_tiles[k];
@@ -865,9 +932,12 @@ td_status td_store_acquire(td_store *s, const char *id, td_snapshot **out, td_er
     }
     snap->store = s;
     snap->ds = (size_t)idx;
-    snap->view.grid = d->grid;
     snap->view.accel = snap->accel;
     pthread_mutex_lock(&s->mu);
+    /* the heights and the parts in one critical section: an edit swaps both in one */
+    snap->hv = d->cur;
+    atomic_fetch_add_explicit(&snap->hv->refs, 1, memory_order_relaxed);
+    snap->view.grid = snap->hv->grid;
     stamp = ++s->clock;
     for (size_t t = 0; t < d->ntiles; t++) {
         td_slot *sl = &d->slots[t];
@@ -892,7 +962,14 @@ out:
 
 const td_view *td_snapshot_view(const td_snapshot *snap) { return &snap->view; }
 
-const td_lod *td_snapshot_lod(const td_snapshot *snap) { return snap->store->ds[snap->ds].lod; }
+const td_lod *td_snapshot_lod(const td_snapshot *snap) { return snap->hv->lod; }
+
+uint64_t td_snapshot_version(const td_snapshot *snap, uint64_t *chain)
+{
+    if (chain)
+        *chain = snap->hv->chain;
+    return snap->hv->version;
+}
 
 const char *td_snapshot_dir(const td_snapshot *snap) { return snap->store->ds[snap->ds].dir; }
 
@@ -908,6 +985,7 @@ void td_snapshot_release(td_snapshot *snap)
     for (size_t i = 0; i < snap->nparts; i++)
         part_unref(snap->parts[i]);
     drape_unref(snap->drape);
+    hver_unref(snap->hv);
     free(snap->parts);
     free(snap->accel);
     free(snap);
@@ -1029,25 +1107,45 @@ void td_store_evict_dataset(td_store *s, size_t idx, size_t *evicted)
 
 /* --- disk cache ------------------------------------------------------------------- */
 
-static int cache_path(const td_store *s, const td_ds *d, size_t tile, td_part_kind kind,
-                      char *out, size_t n)
+/* What a part is built from: the heights and the fingerprint that keys its cache file. */
+typedef struct td_src {
+    const td_grid *grid;
+    uint64_t fp;
+} td_src;
+
+/* A tile's cache fingerprint: the dataset's as loaded while the tile is unedited (hver
+ * 1), else the hash of the tile's own samples chained to it, so a structure cached
+ * from other heights never matches, whatever the version numbers (they restart at 1). */
+static uint64_t tile_fingerprint(const td_store *s, const td_ds *d, const td_grid *g,
+                                 size_t tile, uint64_t hver)
+{
+    uint64_t h = d->fingerprint;
+    const td_tile *t = &g->tiles[tile];
+    for (int32_t j = t->j0; s->cache_dir && hver != 1 && j <= t->j0 + t->ny; j++)
+        h = td_fnv1a(h, g->z + (size_t)j * (size_t)g->w + (size_t)t->i0,
+                     ((size_t)t->nx + 1) * sizeof(float));
+    return h;
+}
+
+static int cache_path(const td_store *s, const td_ds *d, const td_src *src, size_t tile,
+                      td_part_kind kind, char *out, size_t n)
 {
     int w = snprintf(out, n, "%s/%s-%016llx-t%d-%zu.%s", s->cache_dir, d->id,
-                     (unsigned long long)d->fingerprint, s->o.tile_log2, tile,
+                     (unsigned long long)src->fp, s->o.tile_log2, tile,
                      td_part_ops_of[kind].ext);
     return w > 0 && (size_t)w < n;
 }
 
 /* The header's fields common to every kind, as a file for this part must have them. */
-static void cache_hdr_init(const td_store *s, const td_ds *d, size_t tile, td_part_kind kind,
+static void cache_hdr_init(const td_store *s, const td_src *src, size_t tile, td_part_kind kind,
                            td_cache_hdr *h)
 {
-    const td_tile *t = &d->grid->tiles[tile];
+    const td_tile *t = &src->grid->tiles[tile];
     memset(h, 0, sizeof *h);
     memcpy(h->magic, TD_CACHE_MAGIC, sizeof TD_CACHE_MAGIC);
     h->version = TD_CACHE_VERSION;
     h->kind = kind;
-    h->fingerprint = d->fingerprint;
+    h->fingerprint = src->fp;
     h->tile_log2 = (uint32_t)s->o.tile_log2;
     h->param = (uint32_t)s->param[kind];
     h->tile = tile;
@@ -1072,7 +1170,8 @@ static uint64_t cache_checksum(const td_cache_hdr *hdr, const td_piece *pc, int 
  * mid-write leaves at most a *.tmp file, which is never read, and never a torn file under
  * the real name. A failed write (disk full) is logged and dropped: the part is served
  * anyway, only not cached. */
-static void cache_write(const td_store *s, const td_ds *d, size_t tile, const td_part *p)
+static void cache_write(const td_store *s, const td_ds *d, const td_src *src, size_t tile,
+                        const td_part *p)
 {
     char path[PATH_MAX], tmp[PATH_MAX + 16];
     td_cache_hdr h;
@@ -1080,10 +1179,10 @@ static void cache_write(const td_store *s, const td_ds *d, size_t tile, const td
     FILE *f = NULL;
     int ok, npc;
 
-    if (!s->cache_dir || !cache_path(s, d, tile, p->kind, path, sizeof path))
+    if (!s->cache_dir || !cache_path(s, d, src, tile, p->kind, path, sizeof path))
         return;
     snprintf(tmp, sizeof tmp, "%s.%ld.tmp", path, (long)getpid());
-    cache_hdr_init(s, d, tile, p->kind, &h);
+    cache_hdr_init(s, src, tile, p->kind, &h);
     npc = td_part_ops_of[p->kind].pieces(p->ptr, &h, pc);
     for (int i = 0; i < npc; i++)
         h.payload += pc[i].len;
@@ -1104,7 +1203,8 @@ static void cache_write(const td_store *s, const td_ds *d, size_t tile, const td
 }
 
 /* Reads a part from the cache if present and valid in every field; NULL otherwise. */
-static td_part *cache_read(td_store *s, const td_ds *d, size_t tile, td_part_kind kind)
+static td_part *cache_read(td_store *s, const td_ds *d, const td_src *src, size_t tile,
+                           td_part_kind kind)
 {
     char path[PATH_MAX], q[600];
     td_cache_hdr h, want;
@@ -1117,9 +1217,9 @@ static td_part *cache_read(td_store *s, const td_ds *d, size_t tile, td_part_kin
     const char *why = NULL;
     int npc = 0;
 
-    if (!s->cache_dir || !cache_path(s, d, tile, kind, path, sizeof path) || stat(path, &st))
+    if (!s->cache_dir || !cache_path(s, d, src, tile, kind, path, sizeof path) || stat(path, &st))
         goto out;
-    cache_hdr_init(s, d, tile, kind, &want);
+    cache_hdr_init(s, src, tile, kind, &want);
     f = fopen(path, "rb");
     if (!f || fread(&h, sizeof h, 1, f) != 1) {
         why = "short header";
@@ -1171,6 +1271,7 @@ out:
 
 typedef struct td_stage_tile {
     size_t tile;
+    uint64_t hver;                /* the tile's heights version when marked */
     int want[TD_PART_COUNT];      /* what to build for this tile */
     td_part *part[TD_PART_COUNT]; /* built, not yet published */
 } td_stage_tile;
@@ -1179,18 +1280,18 @@ typedef struct td_stage_tile {
 static size_t spec_tile(const td_preload_spec *p, size_t i) { return p->tiles ? p->tiles[i] : i; }
 
 /* Builds one part, or reads it from the cache (and writes what it built there). */
-static td_status build_part(td_store *s, td_ds *d, size_t tile, td_part_kind kind,
-                            td_part **out, td_err *err)
+static td_status build_part(td_store *s, td_ds *d, const td_src *src, size_t tile,
+                            td_part_kind kind, td_part **out, td_err *err)
 {
     td_status rc = TD_OK;
     const td_part_ops *ops = &td_part_ops_of[kind];
     void *obj = NULL;
     size_t bytes = 0;
 
-    *out = cache_read(s, d, tile, kind);
+    *out = cache_read(s, d, src, tile, kind);
     if (*out)
         goto out;
-    rc = ops->build(d->grid, tile, s->param[kind], &obj, &bytes, err);
+    rc = ops->build(src->grid, tile, s->param[kind], &obj, &bytes, err);
     if (rc)
         goto out;
     *out = part_new(kind, obj, bytes);
@@ -1202,7 +1303,7 @@ static td_status build_part(td_store *s, td_ds *d, size_t tile, td_part_kind kin
     pthread_mutex_lock(&s->mu);
     s->tiles_built++;
     pthread_mutex_unlock(&s->mu);
-    cache_write(s, d, tile, *out);
+    cache_write(s, d, src, tile, *out);
 out:
     if (obj)
         ops->free(obj);
@@ -1241,7 +1342,7 @@ out:
  * build, and checks the budget up front: heights + drapes + pinned tiles + requested
  * tiles we keep + the bound of what we build. The tiles stay marked on failure too. */
 static td_status preload_mark(td_store *s, const td_preload_spec *p, size_t n,
-                              td_stage_tile *stage, size_t *nstage, td_err *err)
+                              td_stage_tile *stage, size_t *nstage, td_hver **hv, td_err *err)
 {
     td_status rc = TD_OK;
     td_ds *d = &s->ds[p->dataset];
@@ -1249,6 +1350,8 @@ static td_status preload_mark(td_store *s, const td_preload_spec *p, size_t n,
 
     *nstage = 0;
     pthread_mutex_lock(&s->mu);
+    *hv = d->cur; /* built from these heights; published only where they still hold */
+    atomic_fetch_add_explicit(&(*hv)->refs, 1, memory_order_relaxed);
     for (size_t i = 0; i < n; i++) {
         size_t t = spec_tile(p, i);
         td_slot *sl = &d->slots[t];
@@ -1260,11 +1363,12 @@ static td_status preload_mark(td_store *s, const td_preload_spec *p, size_t n,
         for (int k = 0; k < TD_PART_COUNT; k++) {
             st->want[k] = p->build[k] && (!sl->part[k] || p->rebuild);
             if (st->want[k])
-                need += td_part_ops_of[k].bound(&d->grid->tiles[t], s->o.tile_log2, s->param[k]);
+                need += td_part_ops_of[k].bound(&(*hv)->grid->tiles[t], s->o.tile_log2, s->param[k]);
             any |= st->want[k];
         }
         if (any) {
             st->tile = t;
+            st->hver = sl->hver;
             (*nstage)++;
         }
     }
@@ -1282,11 +1386,12 @@ static td_status preload_mark(td_store *s, const td_preload_spec *p, size_t n,
 
 /* Builds the staged parts, kind by kind, each after evicting what it needs to fit
  * (resident + staged + this part within the budget). */
-static td_status preload_build(td_store *s, td_ds *d, td_stage_tile *stage, size_t nstage,
-                               td_preload_progress cb, void *cls, td_err *err)
+static td_status preload_build(td_store *s, td_ds *d, const td_hver *hv, td_stage_tile *stage,
+                               size_t nstage, td_preload_progress cb, void *cls, td_err *err)
 {
     td_status rc = TD_OK;
     uint64_t staged = 0;
+    td_src src;
 
     for (int k = 0; k < TD_PART_COUNT; k++) {
         const td_part_ops *ops = &td_part_ops_of[k];
@@ -1298,12 +1403,14 @@ static td_status preload_build(td_store *s, td_ds *d, td_stage_tile *stage, size
                 rc = td_err_set(err, TD_ECANCELED, "preload cancelled (server stopping)");
                 goto out;
             }
-            bound = ops->bound(&d->grid->tiles[stage[i].tile], s->o.tile_log2, s->param[k]);
+            bound = ops->bound(&hv->grid->tiles[stage[i].tile], s->o.tile_log2, s->param[k]);
             pthread_mutex_lock(&s->mu);
             while (s->resident_bytes + staged + bound > s->o.budget_bytes && evict_lru_locked(s))
                 ;
             pthread_mutex_unlock(&s->mu);
-            rc = build_part(s, d, stage[i].tile, (td_part_kind)k, &stage[i].part[k], err);
+            src.grid = hv->grid;
+            src.fp = tile_fingerprint(s, d, hv->grid, stage[i].tile, stage[i].hver);
+            rc = build_part(s, d, &src, stage[i].tile, (td_part_kind)k, &stage[i].part[k], err);
             if (rc)
                 goto out;
             staged += stage[i].part[k]->bytes;
@@ -1313,14 +1420,21 @@ out:
     return rc;
 }
 
-/* Puts every staged part in its slot at once, then pins the requested tiles if asked. */
-static void preload_publish(td_store *s, const td_preload_spec *p, size_t n,
-                            td_stage_tile *stage, size_t nstage)
+/* Puts every staged part in its slot at once, then pins the requested tiles if asked.
+ * A tile whose heights an edit changed since it was marked keeps its parts out (they
+ * are left in the stage, dropped by the caller): the edit's own job rebuilds it.
+ * Returns the tiles published. */
+static size_t preload_publish(td_store *s, const td_preload_spec *p, size_t n,
+                              td_stage_tile *stage, size_t nstage)
 {
     td_ds *d = &s->ds[p->dataset];
+    size_t published = 0;
     pthread_mutex_lock(&s->mu);
     for (size_t i = 0; i < nstage; i++) {
         td_slot *sl = &d->slots[stage[i].tile];
+        if (sl->hver != stage[i].hver)
+            continue;
+        published++;
         for (int k = 0; k < TD_PART_COUNT; k++)
             if (stage[i].part[k]) {
                 slot_put_locked(s, d, sl, (td_part_kind)k, stage[i].part[k]);
@@ -1331,6 +1445,7 @@ static void preload_publish(td_store *s, const td_preload_spec *p, size_t n,
     for (size_t i = 0; i < n && p->pin; i++)
         slot_pin_locked(d, &d->slots[spec_tile(p, i)]);
     pthread_mutex_unlock(&s->mu);
+    return published;
 }
 
 /* Unmarks the requested tiles and evicts down to the budget. */
@@ -1351,6 +1466,7 @@ td_status td_store_preload(td_store *s, const td_preload_spec *p, td_preload_pro
     td_status rc;
     size_t n = 0, nstage = 0;
     td_stage_tile *stage = NULL;
+    td_hver *hv = NULL;
     int marked = 0;
 
     *built = 0;
@@ -1367,23 +1483,23 @@ td_status td_store_preload(td_store *s, const td_preload_spec *p, td_preload_pro
         goto out;
     }
     marked = 1;
-    rc = preload_mark(s, p, n, stage, &nstage, err);
+    rc = preload_mark(s, p, n, stage, &nstage, &hv, err);
     if (rc)
         goto out;
-    rc = preload_build(s, &s->ds[p->dataset], stage, nstage, cb, cls, err);
+    rc = preload_build(s, &s->ds[p->dataset], hv, stage, nstage, cb, cls, err);
     if (rc)
         goto out;
     if (cb)
         cb(cls, "publishing", nstage, nstage);
-    preload_publish(s, p, n, stage, nstage);
-    *built = nstage;
+    *built = preload_publish(s, p, n, stage, nstage);
 out:
     if (marked)
         preload_unmark(s, p, n);
     for (size_t i = 0; stage && i < nstage; i++)
         for (int k = 0; k < TD_PART_COUNT; k++)
-            part_unref(stage[i].part[k]); /* left over only when the preload failed */
+            part_unref(stage[i].part[k]); /* left over when the preload failed or an edit won */
     free(stage);
+    hver_unref(hv);
     pthread_mutex_unlock(&s->preload);
     return rc;
 }
@@ -1392,10 +1508,9 @@ td_status td_store_tiles_in_box(td_store *s, size_t idx, const double box[4], si
                                 size_t *n, td_err *err)
 {
     td_status rc = TD_OK;
-    const td_grid *g = s->ds[idx].grid;
+    const td_grid *g = &s->ds[idx].shape;
     double cx0, cx1, cy0, cy1;
     int32_t tx0, tx1, ty0, ty1, T = td_grid_tile_size(g);
-    size_t k = 0, cnt;
 
     *tiles = NULL;
     *n = 0;
@@ -1418,16 +1533,90 @@ td_status td_store_tiles_in_box(td_store *s, size_t idx, const double box[4], si
     tx1 = (int32_t)cx1 / T;
     ty0 = (int32_t)cy0 / T;
     ty1 = (int32_t)cy1 / T;
-    cnt = (size_t)(tx1 - tx0 + 1) * (size_t)(ty1 - ty0 + 1);
-    *tiles = malloc(cnt * sizeof **tiles);
-    if (!*tiles) {
+    rc = td_grid_tile_range(g, tx0, tx1, ty0, ty1, tiles, n, err);
+out:
+    return rc;
+}
+
+/* --- edits ------------------------------------------------------------------------ */
+
+/* The touched slots' parts out, their heights version moved on, and the new heights in,
+ * all under the store lock: a snapshot sees all of the old or all of the new. Fills res
+ * (rebuild: the touched tiles that held a part, and the kinds they held). */
+static void edit_publish_locked(td_store *s, td_ds *d, td_hver *hv, const size_t *tiles,
+                                size_t n, td_edit_result *res)
+{
+    for (size_t i = 0; i < n; i++) {
+        td_slot *sl = &d->slots[tiles[i]];
+        if (slot_resident(sl)) {
+            res->rebuild.pin |= sl->pinned;
+            for (int k = 0; k < TD_PART_COUNT; k++)
+                res->rebuild.build[k] |= sl->part[k] != NULL;
+            ((size_t *)res->rebuild.tiles)[res->rebuild.ntiles++] = tiles[i];
+        }
+        for (int k = 0; k < TD_PART_COUNT; k++)
+            slot_put_locked(s, d, sl, (td_part_kind)k, NULL);
+        sl->hver = hv->version;
+    }
+    d->cur = hv;
+}
+
+td_status td_store_edit(td_store *s, size_t idx, const td_grid_region *r, const float *z,
+                        td_edit_result *res, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_ds *d = &s->ds[idx];
+    td_grid *g = NULL;
+    td_lod *lod = NULL;
+    td_hver *hv = NULL, *old = NULL;
+    size_t *tiles = NULL, n = 0;
+    uint64_t chain, bytes;
+
+    memset(res, 0, sizeof *res);
+    res->rebuild.dataset = idx;
+    pthread_mutex_lock(&s->edit); /* d->cur changes only under this lock: read it freely */
+    old = d->cur;
+    rc = td_grid_edit_apply(old->grid, r, z, &g, err);
+    if (!rc)
+        rc = td_grid_edit_tiles(g, r, &tiles, &n, err);
+    if (rc)
+        goto out;
+    rc = lod_build(g, &lod, err);
+    if (rc)
+        goto out;
+    bytes = td_grid_bytes(g->w, g->h, g->tile_log2) + lod->bytes;
+    chain = td_fnv1a(old->chain ? old->chain : TD_FNV1A_INIT, r, sizeof *r);
+    chain = td_fnv1a(chain, z, (size_t)r->w * (size_t)r->h * sizeof *z);
+    rc = hver_new(g, lod, old->version + 1, chain, &hv, err);
+    g = NULL;
+    lod = NULL;
+    if (rc)
+        goto out;
+    res->rebuild.tiles = malloc(n * sizeof *tiles);
+    if (!res->rebuild.tiles) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory");
         goto out;
     }
-    for (int32_t ty = ty0; ty <= ty1; ty++)
-        for (int32_t tx = tx0; tx <= tx1; tx++)
-            (*tiles)[k++] = (size_t)ty * (size_t)g->tiles_x + (size_t)tx;
-    *n = k;
+    pthread_mutex_lock(&s->mu);
+    edit_publish_locked(s, d, hv, tiles, n, res);
+    s->resident_bytes = s->resident_bytes - d->grid_bytes + bytes;
+    d->grid_bytes = bytes;
+    pthread_mutex_unlock(&s->mu);
+    res->version = hv->version;
+    res->chain = hv->chain;
+    res->touched = n;
+    hv = NULL;
+    hver_unref(old); /* the store's reference: freed when the last snapshot ends */
 out:
+    pthread_mutex_unlock(&s->edit);
+    if (rc) {
+        free((void *)res->rebuild.tiles);
+        res->rebuild.tiles = NULL;
+        res->rebuild.ntiles = 0;
+    }
+    hver_unref(hv);
+    td_lod_free(lod);
+    td_grid_free(g);
+    free(tiles);
     return rc;
 }

@@ -1,10 +1,10 @@
 /* tilestore.h: the datasets terrad serves and the per-tile acceleration it keeps
  * resident (max-mipmaps, parameter planes), shared by concurrent renders.
  *
- * Datasets are loaded before the server starts (td_store_add_dir, td_store_add_grid)
- * and then never change: their heights stay resident and their list can be read
- * without a lock. What changes at run time is, per tile, which acceleration is
- * resident. Each built structure is immutable and reference-counted (C11 atomics):
+ * Datasets are loaded before the server starts (td_store_add_dir, td_store_add_grid);
+ * their list can be read without a lock. What changes at run time is, per tile, which
+ * acceleration is resident, and a dataset's heights (td_store_edit). Each built
+ * structure is immutable and reference-counted (C11 atomics):
  *
  *   store --(1 ref)--> part {refs, kind, object, bytes} <--(1 ref each)-- snapshots
  *
@@ -29,6 +29,19 @@
  * if a build fails the staging list is dropped and the resident tiles stay as they were
  * (apart from LRU evictions made to fit the budget, which only lose cached work).
  *
+ * Edits: a dataset's heights are a refcounted version (grid + levels of detail, number,
+ * edit hash), copied on write (gridedit.h) and published with one pointer swap under
+ * the store lock, in the same critical section that drops the touched tiles' parts and
+ * moves their per-tile heights version on; a snapshot takes the version and the parts
+ * in one critical section too, so it sees all old or all new heights and only parts
+ * built from the heights it traces. Old versions are freed by the last snapshot that
+ * holds one. A preload records each tile's heights version when it marks it and
+ * publishes a part only where it still holds (an edit racing a preload wins; the
+ * edit's own rebuild job, queued behind, builds the tile again). Cache files of an
+ * edited tile are keyed by the hash of its samples. Edits live in memory only: a
+ * restart loads the files again. During an edit, the old and new grids are both
+ * resident (the new one is counted against the budget once published).
+ *
  * With a cache directory, built parts are also written to disk (header with magic,
  * version, kind, dataset fingerprint, tile and shape, payload size and an FNV-1a
  * checksum) and read back instead of rebuilt when every field checks out. */
@@ -38,6 +51,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "gridedit.h"
 #include "image.h"
 #include "lod.h"
 #include "trace.h"
@@ -73,7 +87,10 @@ typedef struct td_dataset_info {
     const char *file;       /* file name of the source (no directory) */
     const char *dir;        /* its directory (server side only; never sent to clients) */
     const char *origin;     /* "demo", "data" or "api" */
-    const td_grid *grid;
+    const td_grid *grid;    /* &grid_hdr below: the current heights' fields, no z or tiles */
+    td_grid grid_hdr;
+    uint64_t version;       /* of the heights: 1 as loaded, +1 an edit */
+    uint64_t chain;         /* 0 as loaded, then a hash of the edits applied in order */
     size_t ntiles;
     size_t resident_tiles;  /* with any acceleration */
     union {                 /* tiles holding each kind, by name or by kind */
@@ -129,6 +146,9 @@ const td_view *td_snapshot_view(const td_snapshot *snap);
 const td_lod *td_snapshot_lod(const td_snapshot *snap);
 /* The directory of the dataset's file ("" for a dataset added as a grid). */
 const char *td_snapshot_dir(const td_snapshot *snap);
+/* The version of the heights the snapshot holds (and, if chain is not NULL, their edit
+ * hash: 0 as loaded), for ETags. */
+uint64_t td_snapshot_version(const td_snapshot *snap, uint64_t *chain);
 /* Tiles of the snapshot holding a part of this kind. */
 size_t td_snapshot_count(const td_snapshot *snap, td_part_kind kind);
 /* The drape PNG at `path` as RGB (td_render_opts.drape), held by the snapshot until its
@@ -173,5 +193,19 @@ void td_store_evict_dataset(td_store *s, size_t idx, size_t *evicted);
  * frame (metres). Returns a malloc'ed list (NULL with *n = 0 when none meet it). */
 td_status td_store_tiles_in_box(td_store *s, size_t idx, const double box[4], size_t **tiles,
                                 size_t *n, td_err *err);
+
+typedef struct td_edit_result {
+    uint64_t version, chain; /* the dataset's new heights version */
+    size_t touched;          /* tiles whose heights changed */
+    td_preload_spec rebuild; /* the touched tiles that held acceleration and the kinds they
+                                held (tiles malloc'ed: free it; ntiles 0 when none) */
+} td_edit_result;
+
+/* Applies a checked region (td_grid_edit_parse) and its heights (td_grid_edit_decode:
+ * w*h, row 0 north) to dataset idx as a new version, at once and atomically for
+ * snapshots; the touched tiles lose their acceleration (res->rebuild says what to build
+ * again: a preload). Edits run one at a time. On failure nothing changed. */
+td_status td_store_edit(td_store *s, size_t idx, const td_grid_region *r, const float *z,
+                        td_edit_result *res, td_err *err);
 
 #endif

@@ -5,7 +5,10 @@
  * corrupted file), drapes decoded once and kept within the budget, and the concurrency
  * contract: renders tracing through snapshots (and sharing a drape) while another
  * thread rebuilds and evicts tiles see every hit exactly as the incremental tracer
- * does. Built twice: plainly (and under ASan by `make test`), and with
+ * does; heights edits (versions, old snapshots intact, the touched tiles' parts out and
+ * rebuilt from the new heights, an edit racing a preload, the disk cache keyed by edited
+ * heights, a restart forgetting edits) and renders during a stream of edits, each seeing
+ * exactly the heights of its version. Built twice: plainly (and under ASan by `make test`), and with
  * ThreadSanitizer (test_tilestore_tsan). */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -13,8 +16,10 @@
 #include <stdint.h>
 
 #include <cmocka.h>
+#include <float.h>
 #include <math.h>
 #include <pthread.h>
+#include <sched.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -25,6 +30,7 @@
 #include "image.h"
 #include "maxmip.h"
 #include "planes.h"
+#include "reference.h"
 #include "terrain.h"
 #include "tilestore.h"
 
@@ -498,6 +504,329 @@ static void test_drape(void **state)
     unlink(path);
 }
 
+/* --- edits (td_store_edit) ------------------------------------------------------------- */
+
+/* A region of w x h samples at (x, y), file order, all at height z (a block). */
+static float *block(int32_t w, int32_t h, float z)
+{
+    float *b = malloc((size_t)w * (size_t)h * sizeof *b);
+    for (int32_t k = 0; k < w * h; k++)
+        b[k] = z;
+    return b;
+}
+
+/* Every part of the snapshot equals a fresh build from the grid it traces. */
+static void check_parts_fresh(td_store *s, const char *id)
+{
+    td_snapshot *snap = NULL;
+    td_err e;
+    const td_view *v;
+    assert_int_equal(td_store_acquire(s, id, &snap, &e), TD_OK);
+    v = td_snapshot_view(snap);
+    for (size_t t = 0; t < (size_t)(v->grid->tiles_x * v->grid->tiles_y); t++) {
+        if (v->accel[t].maxmip) {
+            td_maxmip *m = NULL;
+            assert_int_equal(td_maxmip_build(v->grid, t, &m, &e), TD_OK);
+            assert_int_equal(v->accel[t].maxmip->bytes, m->bytes);
+            assert_memory_equal(v->accel[t].maxmip->max, m->max, m->bytes - sizeof *m);
+            td_maxmip_free(m);
+        }
+        if (v->accel[t].planes) {
+            td_planes *p = NULL;
+            assert_int_equal(td_planes_build(v->grid, t, 8, &p, &e), TD_OK);
+            assert_memory_equal(v->accel[t].planes->cone, p->cone,
+                                sizeof(td_cone) * (size_t)p->nx * (size_t)p->ny);
+            td_planes_free(p);
+        }
+    }
+    td_snapshot_release(snap);
+}
+
+/* A store holding terrain(seed) as "t", every tile preloaded. */
+static td_store *preloaded(uint64_t seed)
+{
+    td_store *s = store_new(256u << 20, NULL);
+    td_preload_spec all = spec(NULL, 0, 1, 1, 0, 0);
+    td_err e;
+    size_t built;
+    assert_int_equal(td_store_add_grid(s, "t", "api", terrain(seed), &e), TD_OK);
+    assert_int_equal(td_store_preload(s, &all, NULL, NULL, &built, &e), TD_OK);
+    assert_int_equal(built, 64);
+    return s;
+}
+
+/* An edit: a new version at once, the old one intact for a snapshot that holds it, the
+ * touched tiles' parts out (and listed for the rebuild), the others kept. */
+static void test_edit_versions(void **state)
+{
+    td_store *s = preloaded(5);
+    td_err e;
+    size_t built;
+    td_grid_region r = {40, 180, 30, 20}; /* columns 40..69, file rows 180..199 */
+    float *z = block(30, 20, 5000.0f);
+    td_snapshot *before = NULL, *after = NULL;
+    td_edit_result res;
+    td_dataset_info di;
+    (void)state;
+    td_store_info(s, 0, &di);
+    assert_int_equal(di.version, 1);
+    assert_int_equal(di.chain, 0);
+    assert_int_equal(td_store_acquire(s, "t", &before, &e), TD_OK);
+    assert_int_equal(td_store_edit(s, 0, &r, z, &res, &e), TD_OK);
+    /* grid rows 256-180 = 76 down to 57: tile rows 1 (samples 32..64) and 2 (64..96);
+     * columns 40..69: tile columns 1 (32..64) and 2 (64..96) */
+    assert_int_equal(res.version, 2);
+    assert_true(res.chain != 0);
+    assert_int_equal(res.touched, 4);
+    assert_int_equal(res.rebuild.ntiles, 4);
+    assert_true(res.rebuild.maxmip && res.rebuild.planes && !res.rebuild.pin);
+    {
+        size_t want[4] = {1 * 8 + 1, 1 * 8 + 2, 2 * 8 + 1, 2 * 8 + 2};
+        for (int i = 0; i < 4; i++) {
+            int found = 0;
+            for (size_t k = 0; k < res.rebuild.ntiles; k++)
+                found |= res.rebuild.tiles[k] == want[i];
+            assert_true(found);
+        }
+    }
+    td_store_info(s, 0, &di);
+    assert_int_equal(di.version, 2);
+    assert_true(di.grid->zmax == 5000.0f);
+    assert_int_equal(di.resident_tiles, 64 - 4);
+    check_counters(s, 0);
+    /* the old snapshot: the old heights and all its parts, untouched */
+    assert_int_equal(td_snapshot_version(before, NULL), 1);
+    assert_true(td_snapshot_view(before)->grid->zmax < 5000.0f);
+    assert_int_equal(td_snapshot_count(before, TD_PART_MAXMIP), 64);
+    assert_int_equal(td_store_acquire(s, "t", &after, &e), TD_OK);
+    {
+        const td_view *v = td_snapshot_view(after);
+        uint64_t chain = 0;
+        assert_int_equal(td_snapshot_version(after, &chain), 2);
+        assert_true(chain == res.chain);
+        assert_true(td_grid_at(v->grid, 40, 76) == 5000.0f);
+        assert_true(td_grid_at(v->grid, 69, 57) == 5000.0f);
+        assert_true(td_grid_at(v->grid, 70, 57) != 5000.0f);
+        assert_true(td_grid_at(v->grid, 40, 56) != 5000.0f);
+        assert_true(td_grid_at(v->grid, 39, 76) != 5000.0f);
+        for (size_t k = 0; k < res.rebuild.ntiles; k++)
+            assert_null(v->accel[res.rebuild.tiles[k]].maxmip);
+        assert_int_equal(td_snapshot_count(after, TD_PART_PLANES), 60);
+    }
+    td_snapshot_release(before);
+    td_snapshot_release(after);
+    /* the rebuild job's preload: everything back, built from the new heights */
+    assert_int_equal(td_store_preload(s, &res.rebuild, NULL, NULL, &built, &e), TD_OK);
+    assert_int_equal(built, 4);
+    td_store_info(s, 0, &di);
+    assert_int_equal(di.resident_tiles, 64);
+    check_parts_fresh(s, "t");
+    check_counters(s, 0);
+    free((void *)res.rebuild.tiles);
+    free(z);
+    td_store_free(s);
+}
+
+typedef struct race {
+    td_store *s;
+    int fired;
+    td_edit_result res;
+} race;
+
+/* The preload's progress: the first time it reaches the planes, an edit lands. */
+static int edit_midway(void *cls, const char *phase, size_t done, size_t total)
+{
+    race *rc = cls;
+    (void)done;
+    (void)total;
+    if (!rc->fired && !strcmp(phase, "planes")) {
+        td_grid_region r = {0, 0, 257, 40}; /* the northern 40 rows: tile row 7 and 6 */
+        float *z = block(257, 40, 1.0f);
+        td_err e;
+        rc->fired = 1;
+        assert_int_equal(td_store_edit(rc->s, 0, &r, z, &rc->res, &e), TD_OK);
+        free(z);
+    }
+    return 0;
+}
+
+/* An edit racing a preload of the same tiles: the preload's parts of the touched tiles
+ * (built from the old heights) are never published; the edit's rebuild makes them. */
+static void test_edit_races_preload(void **state)
+{
+    race rc;
+    td_err e;
+    size_t built;
+    td_preload_spec all = spec(NULL, 0, 1, 1, 0, 0);
+    td_dataset_info di;
+    (void)state;
+    memset(&rc, 0, sizeof rc);
+    rc.s = store_new(256u << 20, NULL);
+    assert_int_equal(td_store_add_grid(rc.s, "t", "api", terrain(6), &e), TD_OK);
+    assert_int_equal(td_store_preload(rc.s, &all, edit_midway, &rc, &built, &e), TD_OK);
+    assert_true(rc.fired);
+    assert_int_equal(rc.res.touched, 16);     /* rows 256..217: tile rows 6 and 7 */
+    assert_int_equal(rc.res.rebuild.ntiles, 0); /* nothing was resident yet */
+    assert_int_equal(built, 64 - 16);
+    td_store_info(rc.s, 0, &di);
+    assert_int_equal(di.resident_tiles, 48);
+    check_parts_fresh(rc.s, "t");
+    /* a preload now builds them from the new heights */
+    assert_int_equal(td_store_preload(rc.s, &all, NULL, NULL, &built, &e), TD_OK);
+    assert_int_equal(built, 16);
+    check_parts_fresh(rc.s, "t");
+    check_counters(rc.s, 0);
+    free((void *)rc.res.rebuild.tiles);
+    td_store_free(rc.s);
+}
+
+/* The disk cache after an edit: the edited tiles' files are keyed by their heights, so
+ * the old ones are not read for the new heights; a restart (edits are in memory only)
+ * reads the original ones back; the same edit again finds its own files. */
+static void test_edit_cache(void **state)
+{
+    char dir[256], cmd[600];
+    td_store *s;
+    td_store_stats st;
+    td_err e;
+    size_t built;
+    td_preload_spec all = spec(NULL, 0, 1, 1, 0, 0);
+    td_grid_region r = {100, 100, 10, 10}; /* one tile: samples 100..109 */
+    float *z = block(10, 10, 3000.0f);
+    td_edit_result res;
+    td_dataset_info di;
+    (void)state;
+    snprintf(dir, sizeof dir, "%s/terrad-cache-edit-%ld", P_tmpdir, (long)getpid());
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    assert_int_equal(system(cmd), 0);
+    for (int run = 0; run < 3; run++) {
+        s = store_new(256u << 20, dir);
+        assert_int_equal(td_store_add_grid(s, "t", "api", terrain(7), &e), TD_OK);
+        td_store_info(s, 0, &di);
+        assert_int_equal(di.version, 1); /* a restart: the file's heights again */
+        assert_true(di.grid->zmax < 3000.0f);
+        assert_int_equal(td_store_preload(s, &all, NULL, NULL, &built, &e), TD_OK);
+        td_store_stats_get(s, &st);
+        assert_int_equal(st.cache_hits, run == 0 ? 0 : 128);
+        if (run < 2) {
+            assert_int_equal(td_store_edit(s, 0, &r, z, &res, &e), TD_OK);
+            assert_int_equal(res.rebuild.ntiles, 1);
+            assert_int_equal(td_store_preload(s, &res.rebuild, NULL, NULL, &built, &e), TD_OK);
+            td_store_stats_get(s, &st);
+            /* first run: built (the old files do not match); second: its own files */
+            assert_int_equal(st.cache_hits, run == 0 ? 0 : 130);
+            assert_int_equal(st.tiles_built, run == 0 ? 130 : 0);
+            check_parts_fresh(s, "t");
+            free((void *)res.rebuild.tiles);
+        }
+        td_store_free(s);
+    }
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    assert_int_equal(system(cmd), 0);
+    free(z);
+}
+
+
+/* Rays into an edited region judged by the double-precision reference of the edited
+ * heights (tests/oracle/reference.c), every method on every surface, before the rebuild
+ * (the touched tiles without acceleration) and after it: a structure built from the old
+ * heights would step over the new wall. Returns the wrong answers. */
+static int judge_edited(td_store *s, const td_ray *rays, int n)
+{
+    static const td_method methods[] = {TD_METHOD_INCREMENTAL, TD_METHOD_HIERARCHICAL,
+                                        TD_METHOD_PARAMETRIC, TD_METHOD_AUTO};
+    td_snapshot *snap = NULL;
+    td_err e;
+    const td_view *v;
+    const td_grid *g;
+    double scale, eps;
+    int wrong = 0;
+    assert_int_equal(td_store_acquire(s, "t", &snap, &e), TD_OK);
+    v = td_snapshot_view(snap);
+    g = v->grid;
+    scale = fmax(fmax((g->w - 1) * g->sx, (g->h - 1) * g->sy), fmax(fabs(g->zmin), fabs(g->zmax)));
+    eps = (1e-3 + 2.0 * FLT_EPSILON * scale) * (1.0 + td_ref_max_slope(g));
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++)
+        for (int i = 0; i < n; i++) {
+            td_ref_hit ref;
+            td_ref_trace(g, (td_surface)sf, &rays[i], eps, &ref);
+            for (size_t m = 0; m < sizeof methods / sizeof methods[0]; m++) {
+                td_hit h;
+                td_trace(v, methods[m], (td_surface)sf, &rays[i], &h);
+                wrong += td_ref_judge(g, (td_surface)sf, &rays[i], &ref, h.t, eps) == TD_REF_WRONG;
+            }
+        }
+    td_snapshot_release(snap);
+    return wrong;
+}
+
+static void test_edit_against_reference(void **state)
+{
+    td_store *s = preloaded(9);
+    td_dataset_info di;
+    td_err e;
+    size_t built;
+    td_grid_region r = {60, 60, 80, 70}; /* columns 60..139, file rows 60..129: 4 x 4 tiles */
+    float *z = malloc(80 * 70 * sizeof *z);
+    td_ray rays[120];
+    td_edit_result res;
+    int hits = 0;
+    (void)state;
+    float zmax, zmin;
+    td_store_info(s, 0, &di);
+    zmax = di.grid->zmax;
+    zmin = di.grid->zmin;
+    for (int row = 0; row < 70; row++)
+        for (int col = 0; col < 80; col++)
+            z[row * 80 + col] = col < 20 ? zmax + 300.0f           /* a wall */
+                              : col < 50 ? zmin - 200.0f + (float)row /* a pit, sloping */
+                              : row % 9 == 4 ? NAN                    /* void rows */
+                              : 0.5f * zmax + 3.0f * (float)(col - 50);
+    assert_int_equal(td_store_edit(s, 0, &r, z, &res, &e), TD_OK);
+    for (int i = 0; i < 120; i++) {
+        td_ray *ry = &rays[i];
+        ry->tmin = 0.0;
+        ry->tmax = INFINITY;
+        ry->o[1] = (256 - 128 + 66.0 * (i % 40) / 40.0) * 30.0; /* the region's rows */
+        ry->d[0] = 1.0;
+        ry->d[1] = 0.02 * ((i % 5) - 2);
+        if (i < 40) { /* from the west, level, into the wall (or grazing its top) */
+            ry->o[0] = 100.0;
+            ry->o[2] = zmax + 50.0 + 7.5 * i;
+            ry->d[2] = 0.0;
+        } else if (i < 80) { /* from above the wall, steeply down into the pit */
+            ry->o[0] = 1900.0;
+            ry->o[2] = zmax + 400.0;
+            ry->d[2] = -1.2 - 0.02 * (i - 40);
+        } else { /* straight down onto the pit, the slope and its void rows */
+            ry->o[0] = (62.0 + 1.9 * (i - 80)) * 30.0;
+            ry->o[2] = zmax + 1000.0;
+            ry->d[0] = 0.01;
+            ry->d[1] = -0.01;
+            ry->d[2] = -1.0;
+        }
+    }
+    {
+        td_snapshot *snap = NULL;
+        assert_int_equal(td_store_acquire(s, "t", &snap, &e), TD_OK);
+        for (int i = 0; i < 120; i++) {
+            td_hit h;
+            td_trace(td_snapshot_view(snap), TD_METHOD_INCREMENTAL, TD_SURFACE_BILINEAR, &rays[i], &h);
+            hits += isfinite(h.t) && h.p[0] >= 60 * 30.0 && h.p[0] <= 139 * 30.0;
+        }
+        td_snapshot_release(snap);
+    }
+    assert_true(hits > 60); /* most rays end in the edited region */
+    assert_int_equal(judge_edited(s, rays, 120), 0);
+    assert_int_equal(res.touched, 16);
+    assert_int_equal(td_store_preload(s, &res.rebuild, NULL, NULL, &built, &e), TD_OK);
+    assert_int_equal(built, 16);
+    assert_int_equal(judge_edited(s, rays, 120), 0);
+    free((void *)res.rebuild.tiles);
+    free(z);
+    td_store_free(s);
+}
+
 /* --- concurrency ------------------------------------------------------------------------ */
 
 enum { NRAYS = 96 };
@@ -623,6 +952,119 @@ static void test_concurrent_snapshots(void **state)
     free(sh);
 }
 
+
+/* Renders during a stream of edits: one thread flips a block of the grid up and back
+ * down (odd versions hold the original heights, even ones the block), and rebuilds the
+ * touched tiles' acceleration after every other edit, while two threads trace rays
+ * through snapshots with every method. Each snapshot's hits must all equal the
+ * incremental tracer's on the heights of its version: never a mix, never a part built
+ * from other heights. The editor waits until some snapshot has seen each version. */
+typedef struct edits_shared {
+    td_store *s;
+    td_ray rays[NRAYS];
+    double ref[2][NRAYS]; /* [0] the block (even versions), [1] the original (odd) */
+    atomic_int stop, mismatches, snapshots;
+    atomic_uint_fast64_t seen; /* highest version a snapshot traced */
+} edits_shared;
+
+static void *edit_reader(void *arg)
+{
+    edits_shared *sh = arg;
+    static const td_method methods[] = {TD_METHOD_HIERARCHICAL, TD_METHOD_PARAMETRIC,
+                                        TD_METHOD_AUTO, TD_METHOD_INCREMENTAL};
+    int k = 0;
+    while (!atomic_load(&sh->stop)) {
+        td_snapshot *snap = NULL;
+        td_err e;
+        uint64_t ver, seen;
+        if (td_store_acquire(sh->s, "t", &snap, &e) != TD_OK)
+            continue;
+        ver = td_snapshot_version(snap, NULL);
+        for (int i = 0; i < NRAYS; i++) {
+            td_hit h;
+            td_trace(td_snapshot_view(snap), methods[k % 4], TD_SURFACE_BILINEAR, &sh->rays[i], &h);
+            if (!same_t(h.t, sh->ref[ver & 1][i]))
+                atomic_fetch_add(&sh->mismatches, 1);
+        }
+        td_snapshot_release(snap);
+        seen = atomic_load(&sh->seen);
+        while (ver > seen && !atomic_compare_exchange_weak(&sh->seen, &seen, ver))
+            ;
+        atomic_fetch_add(&sh->snapshots, 1);
+        k++;
+    }
+    return NULL;
+}
+
+static void test_edits_under_renders(void **state)
+{
+    edits_shared *sh = calloc(1, sizeof *sh);
+    td_grid *a = terrain(12), *b = NULL;
+    td_grid_region r = {96, 96, 64, 64}; /* 9 tiles */
+    float *up = block(64, 64, 0.0f), *down = malloc(64 * 64 * sizeof *down);
+    td_view view = {NULL, NULL};
+    pthread_t th[2];
+    td_err e;
+    size_t built, differ = 0;
+    td_preload_spec all = spec(NULL, 0, 1, 1, 0, 0);
+    (void)state;
+    for (int32_t row = 0; row < 64; row++)
+        for (int32_t col = 0; col < 64; col++) {
+            down[row * 64 + col] = td_grid_at(a, 96 + col, a->h - 1 - (96 + row));
+            up[row * 64 + col] = a->zmax + 1000.0f;
+        }
+    assert_int_equal(td_grid_edit_apply(a, &r, up, &b, &e), TD_OK);
+    for (int i = 0; i < NRAYS; i++) {
+        td_ray *ry = &sh->rays[i];
+        td_hit h;
+        /* from the west toward the block's rows (grid rows 97..160), descending */
+        ry->o[0] = -500.0;
+        ry->o[1] = (100.0 + 56.0 * i / NRAYS) * 30.0;
+        ry->o[2] = (double)a->zmax + 200.0;
+        ry->d[0] = 1.0;
+        ry->d[1] = 0.05 * (i % 7 - 3) / 3.0;
+        ry->d[2] = -0.01 - 0.04 * (i % 5) / 4.0;
+        ry->tmin = 0.0;
+        ry->tmax = INFINITY;
+        view.grid = b;
+        td_trace(&view, TD_METHOD_INCREMENTAL, TD_SURFACE_BILINEAR, ry, &h);
+        sh->ref[0][i] = h.t;
+        view.grid = a;
+        td_trace(&view, TD_METHOD_INCREMENTAL, TD_SURFACE_BILINEAR, ry, &h);
+        sh->ref[1][i] = h.t;
+        differ += !same_t(sh->ref[0][i], sh->ref[1][i]);
+    }
+    assert_true(differ > NRAYS / 2); /* the two pictures can be told apart */
+    sh->s = store_new(256u << 20, NULL);
+    assert_int_equal(td_store_add_grid(sh->s, "t", "api", a, &e), TD_OK);
+    assert_int_equal(td_store_preload(sh->s, &all, NULL, NULL, &built, &e), TD_OK);
+    atomic_store(&sh->seen, 0);
+    for (int i = 0; i < 2; i++)
+        assert_int_equal(pthread_create(&th[i], NULL, edit_reader, sh), 0);
+    for (int round = 0; round < 16; round++) {
+        td_edit_result res;
+        assert_int_equal(td_store_edit(sh->s, 0, &r, round % 2 ? down : up, &res, &e), TD_OK);
+        assert_int_equal(res.version, (uint64_t)round + 2);
+        if (round % 4 < 2 && res.rebuild.ntiles)
+            assert_int_equal(td_store_preload(sh->s, &res.rebuild, NULL, NULL, &built, &e), TD_OK);
+        free((void *)res.rebuild.tiles);
+        while (atomic_load(&sh->seen) < res.version)
+            sched_yield();
+    }
+    atomic_store(&sh->stop, 1);
+    for (int i = 0; i < 2; i++)
+        pthread_join(th[i], NULL);
+    assert_int_equal(atomic_load(&sh->mismatches), 0);
+    assert_true(atomic_load(&sh->snapshots) >= 16);
+    check_parts_fresh(sh->s, "t");
+    check_counters(sh->s, 0);
+    td_store_free(sh->s);
+    td_grid_free(b);
+    free(up);
+    free(down);
+    free(sh);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -633,6 +1075,11 @@ int main(void)
         cmocka_unit_test(test_failed_preload_publishes_nothing),
         cmocka_unit_test(test_drape),
         cmocka_unit_test(test_concurrent_snapshots),
+        cmocka_unit_test(test_edit_versions),
+        cmocka_unit_test(test_edit_races_preload),
+        cmocka_unit_test(test_edit_cache),
+        cmocka_unit_test(test_edit_against_reference),
+        cmocka_unit_test(test_edits_under_renders),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -212,6 +212,28 @@ export async function job(token, id, signal) {
   return resp.json();
 }
 
+// GET /v1/admin/datasets/{id}/heights?x&y&w&h -> {buf (w*h float32 LE), version}.
+export async function heights(token, id, reg) {
+  const q = `x=${reg.x}&y=${reg.y}&w=${reg.w}&h=${reg.h}`;
+  const resp = await fetch(`/v1/admin/datasets/${encodeURIComponent(id)}/heights?${q}`, {
+    headers: { Authorization: `Bearer ${token}` }, cache: 'no-store',
+  });
+  if (!resp.ok) throw await apiError(resp);
+  return { buf: await resp.arrayBuffer(), version: Number(resp.headers.get('X-Terrad-Version')) };
+}
+
+// PUT the same -> {dataset, version, region, tiles, rebuild, job}.
+export async function putHeights(token, id, reg, buf) {
+  const q = `x=${reg.x}&y=${reg.y}&w=${reg.w}&h=${reg.h}`;
+  const resp = await fetch(`/v1/admin/datasets/${encodeURIComponent(id)}/heights?${q}`, {
+    method: 'PUT',
+    headers: { Authorization: `Bearer ${token}`, 'Content-Type': 'application/octet-stream' },
+    body: buf,
+  });
+  if (!resp.ok) throw await apiError(resp);
+  return resp.json();
+}
+
 // Overall progress of a preload job in [0, 1]. The builds (maxmip, then planes) each
 // report tiles done of total and share the bar equally; checking counts as 0 and
 // publishing as nearly done (both are short).

@@ -19,6 +19,7 @@ import {
 } from './frame.js';
 import { drawTimingChart, totalOf, fmtMs } from './chart.js';
 import { diffImages } from './diff.js';
+import { discRegion, raiseDisc, encodeHeights, decodeHeights } from './disc.js';
 
 const $ = (id) => document.getElementById(id);
 const DEBOUNCE_MS = 150, MAX_WAIT_MS = 500;
@@ -113,8 +114,15 @@ async function refreshDatasetInfo() {
     const i = state.datasets.findIndex((x) => x.id === d.id);
     if (i >= 0) state.datasets[i] = d;
     if (state.ds.id === d.id) {
+      const was = state.ds.version;
       state.ds = d;
       $('dataset-info').textContent = describeDataset(d);
+      $('dataset-version').textContent = String(d.version);
+      if (d.version !== was && state.layers) {
+        // a new layer, not setUrl: Leaflet's redraw asks for tiles at a fractional zoom
+        state.map.removeLayer(state.layers.tiles);
+        state.layers.tiles = tileLayer(d).addTo(state.map);
+      }
     }
   } catch (e) { /* informational only */ }
 }
@@ -124,6 +132,7 @@ function selectDataset(id, cam) {
   state.ds = ds;
   $('dataset').value = ds.id;
   $('dataset-info').textContent = describeDataset(ds);
+  $('dataset-version').textContent = String(ds.version);
   $('attribution-current').innerHTML = attributionFor(ds.id);
   const relief = Math.max(ds.zmax - ds.zmin, 1);
   $('cam-agl-range').max = String(Math.max(200, Math.ceil((relief * 2) / 100) * 100));
@@ -138,6 +147,17 @@ function selectDataset(id, cam) {
 // --- map ------------------------------------------------------------------------------
 
 const LL = (x, y) => L.latLng(y, x);
+// The heights version in the URL: the browser keeps tiles for a day, and an edit must show.
+const tileUrl = (ds) => `/v1/tiles/${encodeURIComponent(ds.id)}/{z}/{x}/{y}.png?v=${ds.version}`;
+
+function tileLayer(ds) {
+  const nz = maxNativeZoom(ds);
+  return L.tileLayer(tileUrl(ds), {
+    tileSize: 256, minNativeZoom: 0, maxNativeZoom: nz, minZoom: -2, maxZoom: nz + 3,
+    bounds: L.latLngBounds(LL(ds.xmin, ds.ymin), LL(ds.xmax, ds.ymax)), noWrap: true,
+    attribution: shortAttribution(ds.id), className: 'terrad-tiles',
+  });
+}
 
 function buildMap() {
   const ds = state.ds;
@@ -151,10 +171,7 @@ function buildMap() {
     maxBounds: bounds.pad(0.5), maxBoundsViscosity: 0.8,
   });
   map.attributionControl.setPrefix('Leaflet');
-  L.tileLayer(`/v1/tiles/${encodeURIComponent(ds.id)}/{z}/{x}/{y}.png`, {
-    tileSize: 256, minNativeZoom: 0, maxNativeZoom: nz, minZoom: -2, maxZoom: nz + 3,
-    bounds, noWrap: true, attribution: shortAttribution(ds.id), className: 'terrad-tiles',
-  }).addTo(map);
+  const tiles = tileLayer(ds).addTo(map);
   L.control.scale({ imperial: false }).addTo(map);
   map.fitBounds(bounds, { padding: [8, 8] });
 
@@ -172,7 +189,7 @@ function buildMap() {
   }).addTo(map);
   const picks = L.layerGroup().addTo(map);
   state.map = map;
-  state.layers = { camera, handle, wedgeLayer, headingLine, picks };
+  state.layers = { camera, handle, wedgeLayer, headingLine, picks, tiles };
 
   // While dragging, previews (half size, no comparison); the full view when dropped.
   camera.on('drag', () => {
@@ -188,6 +205,10 @@ function buildMap() {
   handle.on('dragend', () => setCamera({}));
   map.on('click', (e) => {
     const [x, y] = clampToDataset(ds, e.latlng.lng, e.latlng.lat);
+    if ($('edit-mode').checked) {
+      editTerrainAt(x, y);
+      return;
+    }
     setCamera({ x, y });
     setStatus(`Camera placed at ${fmtM(x)} E, ${fmtM(y)} N.`);
   });
@@ -651,6 +672,37 @@ function wireAdmin() {
       $('admin-preload').disabled = false;
     }
   });
+}
+
+// The terrain control: read the disc's region, add the bump, write it back; then the
+// new version, the map's tiles and the view show the change.
+async function editTerrainAt(x, y) {
+  const out = $('edit-result'), token = $('admin-token').value.trim(), ds = state.ds;
+  const r = Number($('edit-radius').value), delta = Number($('edit-delta').value);
+  if (!token) {
+    out.textContent = 'Enter the admin token first.';
+    $('admin-token').focus();
+    return;
+  }
+  const reg = discRegion(ds, x, y, r);
+  if (!reg || !Number.isFinite(delta)) {
+    out.textContent = 'The disc does not meet the grid (or the change is not a number).';
+    return;
+  }
+  try {
+    out.textContent = `Editing ${reg.w} × ${reg.h} samples at ${fmtM(x)} E, ${fmtM(y)} N…`;
+    const cur = await api.heights(token, ds.id, reg);
+    const z = raiseDisc(decodeHeights(cur.buf), reg, ds, x, y, r, delta);
+    const a = await api.putHeights(token, ds.id, reg, encodeHeights(z));
+    out.textContent = `${delta >= 0 ? 'Raised' : 'Lowered'} a disc of ${fmtM(r)} by ${Math.abs(delta)} m at ` +
+      `${fmtM(x)} E, ${fmtM(y)} N: heights version ${a.version}` +
+      (a.job ? ` (acceleration of ${a.rebuild} tiles rebuilding, job ${a.job}).` : '.');
+    document.body.dataset.edits = String(Number(document.body.dataset.edits || 0) + 1);
+    await refreshDatasetInfo();
+    scheduleRender({ now: true });
+  } catch (err) {
+    out.textContent = `Edit refused: ${err.message}`;
+  }
 }
 
 // --- start ----------------------------------------------------------------------------

@@ -30,6 +30,7 @@ export function normaliseDataset(d) {
     geo: d.georeference || null,
     tiles: d.tiles || null,
     residency: d.residency || null,
+    version: Number.isInteger(d.version) ? d.version : 1, // of the heights: +1 an edit
   };
 }
 

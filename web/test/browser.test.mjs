@@ -377,6 +377,41 @@ test('the admin panel preloads the visible area with a progress bar', async () =
   assert.match(await page.textContent('#admin-progress-label'), /401/);
 });
 
+test('the terrain control raises a disc where the map is clicked, and the version shows', async () => {
+  assert.equal(await page.textContent('#dataset-version'), '1');
+  await page.fill('#admin-token', TOKEN);
+  await page.check('#edit-mode');
+  await page.fill('#edit-radius', '3000');
+  await page.fill('#edit-delta', '800');
+  const n = await renders();
+  const cam = { x: await camField('cam-x'), y: await camField('cam-y') };
+  const before = await viewStats('#view-img');
+  await page.locator('#map').scrollIntoViewIfNeeded();
+  const box = await page.locator('#map').boundingBox();
+  // a point a little ahead of the camera (heading is where the view looks)
+  const at = await page.evaluate(([x, y]) => {
+    const t = window.terrad, h = (t.cam.heading * Math.PI) / 180;
+    const p = t.map.latLngToContainerPoint(L.latLng(y + 6000 * Math.cos(h), x + 6000 * Math.sin(h)));
+    return { x: p.x, y: p.y };
+  }, [cam.x, cam.y]);
+  assert.ok(at.x > 20 && at.x < box.width - 20 && at.y > 20 && at.y < box.height - 20, `the point is on the map: ${JSON.stringify(at)} ${JSON.stringify(box)}`);
+  await page.mouse.click(Math.round(box.x + at.x), Math.round(box.y + at.y));
+  await page.waitForFunction(() => Number(document.body.dataset.edits || 0) >= 1 || /refused|not/.test(document.getElementById('edit-result').textContent)).catch(async (e) => {
+    throw new Error(`${e.message}; edit-result: ${await page.textContent('#edit-result')}; status: ${await page.textContent('#status')}`);
+  });
+  assert.match(await page.textContent('#edit-result'), /Raised a disc of 3,000 m by 800 m .*heights version 2/);
+  await page.waitForFunction(() => document.getElementById('dataset-version').textContent === '2');
+  await waitRenders(n + 1);
+  // the camera stayed where it was, and the view changed
+  assert.equal(await camField('cam-x'), cam.x);
+  const after = await viewStats('#view-img');
+  assert.notDeepEqual(after, before, 'the view shows the raised disc');
+  const ds = await (await fetch(`${base}/v1/datasets/${await page.inputValue('#dataset')}`)).json();
+  assert.equal(ds.version, 2);
+  await page.waitForFunction(() => [...document.querySelectorAll('img.leaflet-tile')].some((t) => t.src.endsWith('?v=2')));
+  await page.uncheck('#edit-mode');
+});
+
 test('every control is labelled and reachable by Tab in reading order', async () => {
   const unlabelled = await page.$$eval('input, select, button, textarea', (els) => els
     .filter((e) => !e.disabled && !(e.labels && e.labels.length) && !e.getAttribute('aria-label') && !e.getAttribute('aria-labelledby') &&

@@ -9,6 +9,7 @@ import {
   keyMove, defaultCamera, frameToGeo, roundNice,
 } from '../js/frame.js';
 import { diffRGBA, imageStats } from '../js/diff.js';
+import { discRegion, raiseDisc, encodeHeights, decodeHeights } from '../js/disc.js';
 
 const near = (a, b, eps = 1e-9) => Math.abs(a - b) <= eps;
 
@@ -202,4 +203,33 @@ test('image statistics: transparent pixels do not count', () => {
   assert.equal(s.opaque, 2);
   assert.ok(near(s.mean, 127.5, 1e-9));
   assert.ok(near(s.variance, 127.5 * 127.5, 1e-6));
+});
+
+test('terrain disc: the region in file order, the bump, the body both ways', () => {
+  const ds = { width: 11, height: 9, sx: 10, sy: 20 }; // x 0..100, y 0..160
+  // radius 25 around (50, 80): columns 3..7 (30..70), south rows 3..5 (60..100) = file rows 5..3
+  assert.deepEqual(discRegion(ds, 50, 80, 25), { x: 3, y: 3, w: 5, h: 3 });
+  // clipped at the grid's south-west corner: column 0..2, south rows 0..1 = file rows 8..7
+  assert.deepEqual(discRegion(ds, 0, 0, 25), { x: 0, y: 7, w: 3, h: 2 });
+  assert.equal(discRegion(ds, 500, 80, 25), null);
+  assert.equal(discRegion(ds, 50, 80, 0), null);
+  const reg = discRegion(ds, 50, 80, 25);
+  const z = new Float32Array(reg.w * reg.h).fill(100);
+  z[0] = NaN;
+  const out = raiseDisc(z, reg, ds, 50, 80, 25, 40);
+  // the centre (column 5, south row 4 = file row 4: region row 1, column 2) rises by 40
+  assert.equal(out[1 * 5 + 2], 140);
+  // 10 m east: cos bump 0.5 * (1 + cos(pi * 10 / 25))
+  assert.ok(near(out[1 * 5 + 3], 100 + 20 * (1 + Math.cos(Math.PI * 0.4)), 1e-4));
+  // 20 m north (file row 3 = region row 0), 20 m west: d = 28.3 > 25, untouched; voids stay
+  assert.equal(out[0 * 5 + 0], z[0 * 5 + 0]);
+  assert.ok(Number.isNaN(out[0]));
+  const lowered = raiseDisc(z, reg, ds, 50, 80, 25, -40);
+  assert.equal(lowered[7], 60);
+  const buf = encodeHeights(new Float32Array([1.5, -0.25, NaN]));
+  assert.deepEqual([...new Uint8Array(buf)].slice(0, 8), [0, 0, 0xc0, 0x3f, 0, 0, 0x80, 0xbe]);
+  const back = decodeHeights(buf);
+  assert.equal(back[0], 1.5);
+  assert.equal(back[1], -0.25);
+  assert.ok(Number.isNaN(back[2]));
 });
