@@ -86,6 +86,12 @@
  *              normal, the max-mipmap climbed from 4 x 4 blocks.
  *   sunlit     one sweep against the sun per render bounds, per 16 x 16 cells, the height
  *              above which a point is surely lit (sunlit.h); a shadow ray ends there.
+ * Method silhouette (issue 13) replaces the horizon and the beam for the camera rays: one
+ * partition of the view per render from the heights alone (silhouette.h, built with the
+ * render's threads before the blocks, timed in the primary stage), each ray started where
+ * its wedge's running silhouette allows, again through td_trace_from; `auto` does the same
+ * where most tiles lack a max-mipmap (a cold dataset), since the horizon's bins there fall
+ * back to tiles' zmax (auto_silhouette). Its secondary rays are the plain walk's.
  * Measured (docs/accuracy-vs-time.md, camera views): steps per camera ray fall from 9-25
  * to 1.1-8, camera rays get up to 2x and shadow rays up to 1.6x faster, but a camera ray
  * still costs about 1,300 instructions (walk setup, the cell tests near the hit, the
@@ -106,6 +112,7 @@
 #include "effects.h"
 #include "beam.h"
 #include "horizon.h"
+#include "silhouette.h"
 #include "sunlit.h"
 #include "limit.h"
 #include "lod.h"
@@ -152,6 +159,8 @@ void td_render_stats_add(td_render_stats *sum, const td_render_stats *part)
         sum->kind_steps[k] += part->kind_steps[k];
     sum->coherent_rays += part->coherent_rays;
     sum->horizon_bins += part->horizon_bins;
+    sum->silhouette_rays += part->silhouette_rays;
+    sum->silhouette_entries += part->silhouette_entries;
     sum->hits += part->hits;
     sum->curved_rays += part->curved_rays;
     sum->curved_secondary += part->curved_secondary;
@@ -220,6 +229,8 @@ struct ctx {
     int plain_secondary; /* shadow and AO rays traced for their nearest hit (OFF_OCCLUSION) */
     td_ray *shadow_rays; /* the caller's copy of the shadow rays, or NULL */
     td_sunlit *sunlit;   /* heights surely in the sun (shadow rays end there), or NULL */
+    td_silhouette *silh; /* the camera rays' silhouette partition (method silhouette), or NULL */
+    double silh_ms;      /* its build */
     double sunlit_ms;    /* its build */
     int on[TD_STAGE_COUNT]; /* the stages this render runs (their on_<name>) */
     double sun[3];
@@ -599,6 +610,8 @@ static void camera_trace(worker *w, smp *sm, double t_clear)
     } else {
         trace_camera(c, &r, 0, t_clear, &hit, &sm->level, &w->st);
     }
+    if (c->silh && hit.method == TD_METHOD_INCREMENTAL)
+        hit.method = TD_METHOD_SILHOUETTE; /* started by the partition, then the walk */
     w->st.lod_rays[sm->level]++;
     keep_camera_hit(&w->st, &hit, sm);
 }
@@ -678,9 +691,28 @@ static void trace_slice(worker *w, const blk *b, int32_t xa, int32_t xb, int32_t
     w->st.kind_steps[TD_RAY_PRIMARY] += bins + boxes;
 }
 
-/* Camera rays. With the horizon device on (perspective, full grid), the block is cut into
- * TD_SLICES slices across the image direction of the verticals, each traced from its
- * wedge's horizon; else every ray is traced from its start. Rays that must bend are
+/* Camera rays from the silhouette partition (silhouette.h): each starts where its wedge's
+ * running silhouette says nothing precedes its hit (0: from its start, when the partition
+ * says nothing for it; +inf: a miss without a walk). A probe of the binary search is a
+ * step of the ray. */
+static void trace_silhouette(worker *w, const blk *b)
+{
+    uint32_t probes = 0;
+    for (int i = 0; i < b->ns; i++) {
+        smp *sm = &w->s[i];
+        if (sm->flags & F_CURVE)
+            continue;
+        camera_trace(w, sm, td_silhouette_clear(w->c->silh, sm->d, &probes));
+        w->st.silhouette_rays++;
+    }
+    w->st.steps += probes;
+    w->st.kind_steps[TD_RAY_PRIMARY] += probes;
+}
+
+/* Camera rays. With the silhouette partition, each ray starts from it. Else, with the
+ * horizon or beam device on (perspective, full grid), the block is cut into TD_SLICES
+ * slices across the image direction of the verticals, each traced from its wedge's
+ * horizon and beam; else every ray is traced from its start. Rays that must bend are
  * flagged for the curvature stage. */
 static void stage_primary(worker *w, const blk *b)
 {
@@ -692,7 +724,9 @@ static void stage_primary(worker *w, const blk *b)
             for (int sr = 0; sr < n; sr++)
                 for (int sc = 0; sc < n; sc++)
                     camera_sample(c, x + (sc + 0.5) / n - 0.5, y + (sr + 0.5) / n - 0.5, &w->s[k++]);
-    if (c->horizon || c->beam) {
+    if (c->silh) {
+        trace_silhouette(w, b);
+    } else if (c->horizon || c->beam) {
         double vert[2];
         td_camera_rising(&c->cam, 0.5 * (b->x0 + b->x1 - 1), 0.5 * (b->y0 + b->y1 - 1), vert);
         int rows = fabs(vert[1]) >= fabs(vert[0]); /* verticals run up the image: slices are columns */
@@ -1285,6 +1319,48 @@ static td_status setup_sunlit(ctx *c, const td_render_opts *o, td_err *err)
     return rc;
 }
 
+/* Whether `auto` starts its camera rays from the silhouette partition rather than the
+ * horizon device: when fewer than TD_AUTO_SILH_MAXMIPS of the grid's tiles hold a
+ * max-mipmap (a cold dataset, or one whose structures are being rebuilt). Measured on
+ * views without any max-mipmap (README, Silhouette partitioning: primary stage medians
+ * lower in 7 of 8 views, fewer instructions in all that callgrind counted). With every
+ * max-mipmap built the horizon wins on 3 of 5 views (primary stage instructions, auto
+ * with the horizon / with the partition: trinidad sunset 414 / 430 M, levi 427 / 438 M,
+ * trinidad grazing 387 / 404 M, picos level 347 / 340 M, picos rolled 422 / 334 M), so
+ * built datasets keep it. Between the two (some tiles built) nothing was measured: the
+ * half is a guess. */
+#define TD_AUTO_SILH_MAXMIPS 0.5
+
+static int auto_silhouette(const td_view *v)
+{
+    const td_grid *g = v->grid;
+    size_t nt = (size_t)g->tiles_x * (size_t)g->tiles_y, with = 0;
+    for (size_t k = 0; v->accel && k < nt; k++)
+        with += v->accel[k].maxmip != NULL;
+    return (double)with < TD_AUTO_SILH_MAXMIPS * (double)nt;
+}
+
+/* The silhouette partition of the camera rays (silhouette.h), once per render, with the
+ * render's threads; its time is the primary stage's, its entries steps of primary rays.
+ * For method silhouette, and for `auto` on a view whose tiles mostly lack a max-mipmap
+ * (auto_silhouette); it replaces the horizon and beam devices. Not for what it cannot bound:
+ * orthographic views, levels of detail (coarse heights), or with the devices off
+ * (TD_RENDER_OFF_HORIZON: camera rays from their start); those rays take the walk. */
+static td_status setup_silhouette(ctx *c, const td_render_opts *o, int nthreads, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_method m = c->s->quality.method;
+    if ((m == TD_METHOD_SILHOUETTE || (m == TD_METHOD_AUTO && auto_silhouette(c->v))) && c->nlod == 0 &&
+        c->cam.projection == TD_PROJ_PERSPECTIVE && !(o->off & TD_RENDER_OFF_HORIZON)) {
+        double t = td_clock_s();
+        rc = td_silhouette_build(c->v->grid, &c->cam, nthreads, &c->silh, err);
+        c->silh_ms = 1000.0 * (td_clock_s() - t);
+        c->horizon = c->horizon && !c->silh;
+        c->beam = c->beam && !c->silh;
+    }
+    return rc;
+}
+
 /* Runs the workers (the caller's thread is the first; a thread that cannot be started
  * leaves its share to the others) and adds their stats into st in thread order. */
 static td_status run_workers(worker *ws, int nthreads, td_render_stats *st, td_err *err)
@@ -1348,14 +1424,23 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
     rc = alloc_workers(c, nthreads, &ws, err);
     if (!rc)
         rc = setup_sunlit(c, o, err);
+    if (!rc)
+        rc = setup_silhouette(c, o, nthreads, err);
     if (rc)
         goto out;
     rc = run_workers(ws, nthreads, &res->stats, err);
     res->stats.stage_ms[TD_STAGE_SHADOWS] += c->sunlit_ms;
+    res->stats.stage_ms[TD_STAGE_PRIMARY] += c->silh_ms;
+    if (c->silh) {
+        res->stats.silhouette_entries = c->silh->entries;
+        res->stats.steps += c->silh->entries;
+        res->stats.kind_steps[TD_RAY_PRIMARY] += c->silh->entries;
+    }
     res->stats.total_ms = 1000.0 * (td_clock_s() - t_start);
 out:
     free_workers(ws, nthreads);
     td_sunlit_free(c ? c->sunlit : NULL);
+    td_silhouette_free(c ? c->silh : NULL);
     td_image_free(drape);
     free(c);
     if (rc)

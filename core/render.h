@@ -81,6 +81,9 @@ typedef struct td_render_stats {
                                                horizon bins built for them) */
     uint64_t coherent_rays;    /* camera rays started from a horizon bound (horizon.h) */
     uint64_t horizon_bins;     /* horizon bins built for them */
+    uint64_t silhouette_rays;  /* camera rays started from the silhouette partition */
+    uint64_t silhouette_entries; /* its bounds built (wedges x strips, silhouette.h); also
+                                    in steps, as the primary kind's */
     uint64_t hits;             /* camera samples that hit the terrain */
     uint64_t curved_rays;      /* camera rays traced bent */
     uint64_t curved_secondary; /* shadow and reflection rays traced bent */
@@ -114,7 +117,8 @@ typedef struct td_render_opts {
                                   the same rays with another tracer (benchmark, CLI) */
 } td_render_opts;
 
-#define TD_RENDER_OFF_HORIZON 1u   /* camera rays each traced from their start */
+#define TD_RENDER_OFF_HORIZON 1u   /* camera rays each traced from their start (no horizon,
+                                      no silhouette partition; the beam is OFF_BEAM's) */
 #define TD_RENDER_OFF_OCCLUSION 2u /* shadow and AO rays traced for their nearest hit */
 #define TD_RENDER_OFF_SUNLIT 4u    /* shadow rays without the sun bound (sunlit.h) */
 #define TD_RENDER_OFF_BEAM 8u      /* camera rays the horizon cannot bound: no beam (beam.h) */

@@ -7,6 +7,8 @@
  *   hierarchical  skips whole blocks of a tile's max-mipmap the ray passes above;
  *   parametric    skips the span over which the ray stays above the current cell's cone
  *                 of empty space (planes.c explains why that is safe);
+ *   silhouette    the incremental walk: its camera rays come with a start from the
+ *                 render's silhouette partition (silhouette.h) through td_trace_from;
  *   auto          picks one of these per tile from what is resident and how many cells
  *                 the ray crosses there.
  *
@@ -756,6 +758,7 @@ static const method_run method_runs[TD_METHOD_COUNT] = {
     [TD_METHOD_INCREMENTAL] = walk_run,
     [TD_METHOD_HIERARCHICAL] = hier_run,
     [TD_METHOD_PARAMETRIC] = cone_run,
+    [TD_METHOD_SILHOUETTE] = walk_run, /* choose_method never leaves it: for completeness */
 };
 
 /* `auto`, per tile and ray: a tile crossed by fewer cells than this is walked
@@ -782,7 +785,7 @@ static td_method choose_method(td_method m, const td_tile_accel *ta, double cell
             used = TD_METHOD_INCREMENTAL;
     } else if (m == TD_METHOD_HIERARCHICAL && !(ta && ta->maxmip)) {
         used = TD_METHOD_INCREMENTAL;
-    } else if (m == TD_METHOD_PARAMETRIC && !(ta && ta->planes)) {
+    } else if ((m == TD_METHOD_PARAMETRIC && !(ta && ta->planes)) || m == TD_METHOD_SILHOUETTE) {
         used = TD_METHOD_INCREMENTAL;
     }
     return used;
@@ -987,7 +990,7 @@ void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r,
     walk_state st;
     hit_rec hr = {.t = INFINITY};
     uint32_t steps = 0;
-    td_method used = m == TD_METHOD_AUTO ? TD_METHOD_INCREMENTAL : m;
+    td_method used = m == TD_METHOD_AUTO || m == TD_METHOD_SILHOUETTE ? TD_METHOD_INCREMENTAL : m;
     double scale = 1.0;
 
     memset(hit, 0, sizeof *hit);
@@ -1016,7 +1019,7 @@ int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r,
     walk w;
     walk_state st;
     hit_rec hr = {.t = INFINITY};
-    td_method used = m == TD_METHOD_AUTO ? TD_METHOD_INCREMENTAL : m;
+    td_method used = m == TD_METHOD_AUTO || m == TD_METHOD_SILHOUETTE ? TD_METHOD_INCREMENTAL : m;
     double scale = 1.0;
     int hit = 0;
     if (valid_call(v->grid, m, s) && walk_setup(&w, v->grid, s, r, &scale, &st)) {

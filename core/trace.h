@@ -4,7 +4,10 @@
  * grid and, per tile, whatever acceleration is resident (a view): `incremental` needs
  * nothing, `hierarchical` uses a tile's max-mipmap where present, `parametric` its
  * parameter planes; both fall back to the incremental walk in tiles that lack them.
- * `auto` picks per tile from what is resident.
+ * `silhouette` needs nothing either: it is a camera-ray method (silhouette.h: the render
+ * builds a partition of its view and starts each camera ray with td_trace_from); every
+ * walk it makes, and any ray traced with it here, is the incremental walk (a hit reports
+ * `incremental`). `auto` picks per tile from what is resident.
  *
  * Rays are given in the dataset frame in double precision; the walk re-bases them per
  * tile. Surfaces are two-sided: the hit is the first t in [tmin, tmax] where the ray
@@ -30,6 +33,7 @@
     X(TD_METHOD_INCREMENTAL, "incremental")                                    \
     X(TD_METHOD_HIERARCHICAL, "hierarchical")                                  \
     X(TD_METHOD_PARAMETRIC, "parametric")                                      \
+    X(TD_METHOD_SILHOUETTE, "silhouette")                                      \
     X(TD_METHOD_AUTO, "auto")
 
 #define TD_SURFACE_LIST(X)                                                     \

@@ -492,7 +492,7 @@ static int parse_quality(pctx *p, json_t *q, td_scene *s)
     if (!rc && m) {
         size_t old = push(p, "method");
         if (td_method_parse(m, &s->quality.method))
-            rc = fail(p, TD_EINVAL, "'%.40s' is not incremental, hierarchical, parametric or auto", m);
+            rc = fail(p, TD_EINVAL, "'%.40s' is not incremental, hierarchical, parametric, silhouette or auto", m);
         pop(p, old);
     }
     if (!rc && string(p, q, "surface", &sf) < 0)

@@ -446,7 +446,7 @@ static td_status run_speed(bench_ctx *b, bench_ds *d, td_err *err)
     for (int r = 0; r < b->runs; r++) {
         td_bench_progress(b, "%s: tracing, round %s", d->name, r == 0 ? "1" : r == 1 ? "2" : "3+");
         for (int m = 0; m < TD_METHOD_COUNT; m++) {
-            for (int s = 0; s < TD_SURFACE_COUNT; s++) {
+            for (int s = 0; s < TD_SURFACE_COUNT && td_bench_traced(m); s++) {
                 bench_trace *o = &d->tr[m][s];
                 uint64_t steps, hits;
                 secs[(size_t)(m * TD_SURFACE_COUNT + s) * (size_t)b->runs + (size_t)r] =
@@ -474,7 +474,7 @@ static td_status run_speed(bench_ctx *b, bench_ds *d, td_err *err)
         }
     }
     for (int m = 0; m < TD_METHOD_COUNT; m++)
-        for (int s = 0; s < TD_SURFACE_COUNT; s++) {
+        for (int s = 0; s < TD_SURFACE_COUNT && td_bench_traced(m); s++) {
             bench_trace *o = &d->tr[m][s];
             o->seconds = td_bench_median(secs + (size_t)(m * TD_SURFACE_COUNT + s) * (size_t)b->runs, b->runs);
             o->rps = o->seconds > 0 ? (double)d->n / o->seconds : 0;

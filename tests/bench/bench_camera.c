@@ -32,6 +32,12 @@
  *     coherent. Embree's rays are clipped and converted (td_embree_prepare) before its
  *     clock starts: only the tracing calls are timed, Embree's triangle mesh built with
  *     one thread.
+ *   then, on the grid alone (no max-mipmap, no planes), the camera rays on the bilinear
+ *     surface in each row of TD_BENCH_COLD_LIST (bench_int.h: the walk from each ray's
+ *     start, the walk with the horizon and beam, silhouette partitioning with its build):
+ *     issue 13's question, what no preprocessing costs; the first round also counts the
+ *     silhouette depths that differ from the walk's (reported; the tests judge); the
+ *     report also spreads section 1's build times over 1, 10 and 100 frames of `auto`.
  * Exactness (triangle surface, untimed, reported and never judged: the oracle tests
  * judge): a depth32f render (horizon on, and off) against Embree's t on the same rays, a
  * disagreement being a hit against a miss or distances more than 1e-4 of Embree's apart;
@@ -97,7 +103,8 @@ static const unsigned conf_off[TD_BENCH_CONF_COUNT] = {
  * configuration, Embree occluded; then Embree's camera rays. */
 #define NCONF TD_BENCH_CONF_COUNT
 #define NQ_SURF (2 * NCONF + 1)
-#define NQ (TD_SURFACE_COUNT * NQ_SURF + 1)
+#define NQ_COLD0 (TD_SURFACE_COUNT * NQ_SURF + 1) /* then one timing per TD_BENCH_COLD_LIST row */
+#define NQ (NQ_COLD0 + TD_BENCH_COLD_COUNT)
 #define Q_PRIM(s, k) ((s) * NQ_SURF + (k))
 #define Q_SHADOW(s, k) ((s) * NQ_SURF + NCONF + (k))
 #define Q_EOCC(s) ((s) * NQ_SURF + 2 * NCONF)
@@ -107,6 +114,7 @@ typedef struct cam_run {
     bench_ctx *b;
     bench_cam_view *v;        /* the view being measured */
     td_view view;             /* grid + every structure (what `auto` sees) */
+    td_view cold;             /* the grid alone (no preprocessing) */
     const td_embree *emb;     /* triangle mesh */
     int w, h;
     size_t n;                 /* camera rays, one a pixel */
@@ -168,9 +176,10 @@ static void cam_view_setup(const td_grid *g, int k, bench_cam_view *v)
     v->sun_el = q->sun_el;
 }
 
-/* One render of the view with one thread; res is the caller's to free. */
-static td_status cam_render(const cam_run *c, td_surface s, td_format fmt, unsigned off, td_ray *slots,
-                            td_render_result *res, td_err *err)
+/* One render of the view with one thread, method m on view tv (the shadows run in the
+ * colour formats only); res is the caller's to free. */
+static td_status cam_render_on(const cam_run *c, const td_view *tv, td_method m, td_surface s, td_format fmt,
+                               unsigned off, td_ray *slots, td_render_result *res, td_err *err)
 {
     td_scene sc;
     td_render_opts ro;
@@ -179,7 +188,7 @@ static td_status cam_render(const cam_run *c, td_surface s, td_format fmt, unsig
     sc.image.width = c->w;
     sc.image.height = c->h;
     sc.image.format = fmt;
-    sc.quality.method = TD_METHOD_AUTO;
+    sc.quality.method = m;
     sc.quality.surface = s;
     sc.quality.samples = 1;
     sc.effects.sun_azimuth = c->v->sun_az;
@@ -190,7 +199,14 @@ static td_status cam_render(const cam_run *c, td_surface s, td_format fmt, unsig
     ro.off = off;
     ro.shadow_rays = slots;
     memset(res, 0, sizeof *res);
-    return td_render(&c->view, &sc, &ro, res, err);
+    return td_render(tv, &sc, &ro, res, err);
+}
+
+/* `auto` with every structure (what sections 1-6 built). */
+static td_status cam_render(const cam_run *c, td_surface s, td_format fmt, unsigned off, td_ray *slots,
+                            td_render_result *res, td_err *err)
+{
+    return cam_render_on(c, &c->view, TD_METHOD_AUTO, s, fmt, off, slots, res, err);
 }
 
 /* Surface s's shadow rays (an untimed render, every device on), in image order,
@@ -284,6 +300,51 @@ static td_status cam_exact(cam_run *c, td_err *err)
     return rc;
 }
 
+static const struct cold_conf {
+    td_method m;
+    unsigned off;
+} cold_confs[TD_BENCH_COLD_COUNT] = {
+#define TD_X_COLD(e, name, m, off) {m, off},
+    TD_BENCH_COLD_LIST(TD_X_COLD)
+#undef TD_X_COLD
+};
+
+/* Camera rays of the view on the grid alone (bilinear, depth32f: no effects), one thread,
+ * in configuration k of TD_BENCH_COLD_LIST; res is the caller's to free. */
+static td_status cam_cold_render(const cam_run *c, int k, td_render_result *res, td_err *err)
+{
+    return cam_render_on(c, &c->cold, cold_confs[k].m, TD_SURFACE_BILINEAR, TD_FORMAT_DEPTH32F, cold_confs[k].off,
+                         NULL, res, err);
+}
+
+/* Every no-preprocessing configuration once (round r): the primary stage's time; in the
+ * first round also the steps, the partition's entries and its depths against the walk's
+ * (bit for bit: the method's claim, reported here, judged by the oracle tests). */
+static td_status cam_cold_round(cam_run *c, int r, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_render_result res[TD_BENCH_COLD_COUNT];
+    memset(res, 0, sizeof res);
+    for (int k = 0; k < TD_BENCH_COLD_COUNT && rc == TD_OK; k++) {
+        rc = cam_cold_render(c, k, &res[k], err);
+        if (rc == TD_OK) {
+            const td_render_stats *st = &res[k].stats;
+            c->ms[(size_t)(NQ_COLD0 + k) * (size_t)c->b->runs + (size_t)r] = st->stage_ms[TD_STAGE_PRIMARY];
+            c->v->cold_steps[k] = st->rays[TD_RAY_PRIMARY]
+                                      ? (double)st->kind_steps[TD_RAY_PRIMARY] / (double)st->rays[TD_RAY_PRIMARY]
+                                      : NAN;
+            if (k == TD_BENCH_COLD_SILH)
+                c->v->silh_entries = st->silhouette_entries;
+        }
+    }
+    for (size_t p = 0; rc == TD_OK && r == 0 && p < c->n; p++)
+        c->v->silh_differ += memcmp(&res[TD_BENCH_COLD_SILH].depth[p], &res[TD_BENCH_COLD_WALK].depth[p],
+                                    sizeof(float)) != 0;
+    for (int k = 0; k < TD_BENCH_COLD_COUNT; k++)
+        td_render_result_free(&res[k]);
+    return rc;
+}
+
 /* Counts of the first round's renders (the same every round). */
 static void cam_counts(cam_run *c, int s, int k, const td_render_stats *st)
 {
@@ -329,6 +390,8 @@ static td_status cam_round(cam_run *c, int r, td_err *err)
     t0 = td_clock_s();
     td_embree_trace16(c->emb, c->er, c->n, c->t);
     c->ms[(size_t)Q_EPRIM * runs + rr] = ms_since(t0);
+    if (rc == TD_OK)
+        rc = cam_cold_round(c, r, err);
     return rc;
 }
 
@@ -350,6 +413,8 @@ static void cam_medians(cam_run *c)
         o->emb_shadow_rps = per_s(c->nsh[s], td_bench_median(c->ms + (size_t)Q_EOCC(s) * (size_t)runs, runs));
     }
     v->emb_prim_rps = per_s(c->n, td_bench_median(c->ms + (size_t)Q_EPRIM * (size_t)runs, runs));
+    for (int k = 0; k < TD_BENCH_COLD_COUNT; k++)
+        v->cold_rps[k] = per_s(c->n, td_bench_median(c->ms + (size_t)(NQ_COLD0 + k) * (size_t)runs, runs));
 }
 
 static void cam_free_shadows(cam_run *c)
@@ -428,6 +493,8 @@ td_status td_bench_camera_run(bench_ctx *b, bench_ds *d, td_err *err)
     c.n = (size_t)c.w * (size_t)c.h;
     c.view.grid = d->g;
     c.view.accel = d->acc->tiles;
+    c.cold.grid = d->g;
+    c.cold.accel = NULL;
     td_bench_progress(b, "%s: camera views, building Embree's %s", d->name, "triangle mesh (one thread)");
     td_embree_opts_default(&eo);
     eo.threads = 1;
@@ -607,6 +674,84 @@ static void cam_write_exact(FILE *f, const bench_ctx *b)
             (unsigned long long)tot[2], (unsigned long long)tot[4], (unsigned long long)tot[3]);
 }
 
+/* Issue 13: the camera rays with no preprocessing (TD_BENCH_COLD_LIST). */
+static void cam_write_cold(FILE *f, const bench_ctx *b)
+{
+    fprintf(f, "### Without preprocessing: silhouette partitioning against the walk (issue 13)\n\n"
+               "The same views' camera rays on the grid alone (no max-mipmap, no planes: a cold dataset), "
+               "bilinear surface, depth32f, one thread, medians of the rounds' primary stage: the walk from each "
+               "ray's start (camera devices off), the walk with the horizon and beam devices (their bounds "
+               "from samples and tiles' zmax: method `incremental`), and method `silhouette` (its partition "
+               "built in the stage, its entries counted as steps). Silhouette depths against the walk's are "
+               "compared bit for bit.\n\n"
+               "| dataset | view | walk M rays/s | walk + devices | silhouette | silhouette / walk + devices | "
+               "steps a ray: walk | walk + devices | silhouette | partition entries | depths differing |\n"
+               "|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for (int k = 0; k < b->nds; k++) {
+        for (int q = 0; q < TD_BENCH_CAM_COUNT; q++) {
+            const bench_cam_view *v = &b->ds[k].cam[q];
+            char a[3][32], r[16], st[3][16];
+            if (!v->done)
+                continue;
+            fprintf(f, "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %llu | %llu |\n", b->ds[k].name,
+                    td_bench_cam_name(q), mrate(a[0], 32, v->cold_rps[TD_BENCH_COLD_WALK]),
+                    mrate(a[1], 32, v->cold_rps[TD_BENCH_COLD_HORIZON]),
+                    mrate(a[2], 32, v->cold_rps[TD_BENCH_COLD_SILH]),
+                    fixed(r, 16, quot(v->cold_rps[TD_BENCH_COLD_SILH], v->cold_rps[TD_BENCH_COLD_HORIZON]), 2),
+                    fixed(st[0], 16, v->cold_steps[TD_BENCH_COLD_WALK], 2),
+                    fixed(st[1], 16, v->cold_steps[TD_BENCH_COLD_HORIZON], 2),
+                    fixed(st[2], 16, v->cold_steps[TD_BENCH_COLD_SILH], 2), (unsigned long long)v->silh_entries,
+                    (unsigned long long)v->silh_differ);
+        }
+    }
+    fprintf(f, "\n");
+}
+
+/* Milliseconds a frame of n camera rays at r rays a second, plus build_s seconds spread
+ * over `frames` frames; NaN without a rate. */
+static double frame_ms(size_t n, double r, double build_s, int frames)
+{
+    return r > 0 && isfinite(r) ? 1e3 * ((double)n / r + build_s / frames) : NAN;
+}
+
+/* Issue 13: what no preprocessing saves. A frame's camera rays with silhouette (nothing
+ * built) against `auto` (bilinear, every device on) with its structures' build time
+ * (whole grid, one thread, section 1's medians) spread over 1, 10 and 100 frames. */
+static void cam_write_amortised(FILE *f, const bench_ctx *b)
+{
+    static const int frames[3] = {1, 10, 100};
+    fprintf(f, "### What no preprocessing saves: a frame's camera rays, builds amortised (issue 13)\n\n"
+               "Milliseconds of the primary stage a frame (%d x %d rays, bilinear, one thread, the medians "
+               "above): silhouette on the grid alone (its partition built every frame) against `auto` with "
+               "its structures (the horizon device, hierarchical steps), their build time (the whole grid, "
+               "one thread, section 1's medians) spread over 1, 10 and 100 frames: max-mipmaps alone (what "
+               "`auto`'s camera rays use), and max-mipmaps and parameter planes (what `auto` builds). "
+               "Parametric alone is not timed on camera views.\n\n"
+               "| dataset | view | silhouette ms a frame | auto + max-mipmap build, over 1 | 10 | 100 frames "
+               "| auto + both builds, over 1 | 10 | 100 frames |\n|---|---|---|---|---|---|---|---|---|\n",
+            b->cam_w, b->cam_h);
+    for (int k = 0; k < b->nds; k++) {
+        const bench_ds *d = &b->ds[k];
+        for (int q = 0; q < TD_BENCH_CAM_COUNT; q++) {
+            const bench_cam_view *v = &d->cam[q];
+            const size_t n = (size_t)b->cam_w * (size_t)b->cam_h;
+            const double ra = v->s[TD_SURFACE_BILINEAR].prim_rps[TD_BENCH_CONF_ON];
+            char c[7][16];
+            if (!v->done)
+                continue;
+            fprintf(f, "| %s | %s | %s |", d->name, td_bench_cam_name(q),
+                    fixed(c[0], 16, frame_ms(n, v->cold_rps[TD_BENCH_COLD_SILH], 0.0, 1), 2));
+            for (int both = 0; both < 2; both++)
+                for (int fr = 0; fr < 3; fr++)
+                    fprintf(f, " %s |", fixed(c[1 + both * 3 + fr], 16,
+                                              frame_ms(n, ra, d->maxmip_s + (both ? d->planes_s : 0.0), frames[fr]),
+                                              2));
+            fprintf(f, "\n");
+        }
+    }
+    fprintf(f, "\n");
+}
+
 void td_bench_camera_write(FILE *f, const bench_ctx *b)
 {
     if (b->cam_w > 0) {
@@ -633,6 +778,8 @@ void td_bench_camera_write(FILE *f, const bench_ctx *b)
         cam_write_views(f, b);
         cam_write_table(f, b);
         cam_write_exact(f, b);
+        cam_write_cold(f, b);
+        cam_write_amortised(f, b);
     }
 }
 

@@ -95,6 +95,28 @@ typedef enum td_bench_conf {
     TD_BENCH_CONF_COUNT
 } td_bench_conf;
 
+/* Sections 1-6 time the methods on given rays (td_trace, as `terrad trace`): every method
+ * but silhouette, whose partition is built per camera view (on other rays it is the
+ * incremental walk); section 7 times it on its camera views (TD_BENCH_COLD_LIST). */
+static inline int td_bench_traced(int m) { return m != TD_METHOD_SILHOUETTE; }
+
+/* Camera rays with no preprocessing (issue 13), timed per camera view on the bilinear
+ * surface over the grid alone (no max-mipmap, no planes): the walk from each ray's start
+ * (camera devices off), the walk with the horizon and beam devices (what `incremental`
+ * does, and `auto` did on a cold dataset), and silhouette partitioning (its per-render
+ * build counted). Enum, name, method, devices turned off. */
+#define TD_BENCH_COLD_LIST(X)                                                  \
+    X(TD_BENCH_COLD_WALK, "walk", TD_METHOD_INCREMENTAL, TD_RENDER_OFF_CAMERA) \
+    X(TD_BENCH_COLD_HORIZON, "walk + devices", TD_METHOD_INCREMENTAL, 0u)      \
+    X(TD_BENCH_COLD_SILH, "silhouette", TD_METHOD_SILHOUETTE, 0u)
+
+typedef enum td_bench_cold {
+#define TD_X_ENUM(e, name, m, off) e,
+    TD_BENCH_COLD_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_BENCH_COLD_COUNT
+} td_bench_cold;
+
 /* One surface of one camera view, per configuration; medians over the runs. */
 typedef struct bench_cam_surf {
     uint64_t prim_rays, shadow_rays;  /* rays[PRIMARY], rays[SHADOW] of the render */
@@ -118,6 +140,10 @@ typedef struct bench_cam_view {
     uint64_t shadow_differ;           /* td_occluded (with the render's sun bound) vs
                                          rtcOccluded16, same shadow rays */
     uint64_t emb_self_differ;         /* rtcOccluded16 vs rtcIntersect16 (a hit) on them */
+    /* no preprocessing (TD_BENCH_COLD_LIST): primary stage rays/s and steps a ray */
+    double cold_rps[TD_BENCH_COLD_COUNT], cold_steps[TD_BENCH_COLD_COUNT];
+    uint64_t silh_entries;            /* the partition's bounds built (silhouette.h) */
+    uint64_t silh_differ;             /* silhouette depths that differ from the walk's (bits) */
 } bench_cam_view;
 
 typedef struct bench_ds {

@@ -339,7 +339,7 @@ static void write_speed(FILE *f, const bench_ctx *b)
         for (int m = 0; m < TD_METHOD_COUNT; m++) {
             double bs = (m == TD_METHOD_HIERARCHICAL || m == TD_METHOD_AUTO ? d->maxmip_s : 0) +
                         (m == TD_METHOD_PARAMETRIC || m == TD_METHOD_AUTO ? d->planes_s : 0);
-            for (int s = 0; s < TD_SURFACE_COUNT; s++) {
+            for (int s = 0; s < TD_SURFACE_COUNT && td_bench_traced(m); s++) {
                 const bench_trace *t = &d->tr[m][s];
                 fprintf(f, "| %s | %s | %s | %.2f | %.2f | %.0f | %.3f | %.2f | %.1f%% | %s |\n",
                         td_method_name((td_method)m), td_surface_name((td_surface)s), rate(r1, sizeof r1, t->rps),
@@ -483,7 +483,8 @@ static void write_qu(FILE *f, const bench_ctx *b)
         fprintf(f, "| %s | %.1f |", td_surface_name((td_surface)s), qu_ratio[s]);
         for (int m = 0; m < TD_METHOD_COUNT; m++) {
             const bench_trace *t = &d->tr[m][s], *p = &d->tr[m][TD_SURFACE_PLANE];
-            fprintf(f, " %.2f |", t->rps > 0 ? p->rps / t->rps : 0);
+            if (td_bench_traced(m))
+                fprintf(f, " %.2f |", t->rps > 0 ? p->rps / t->rps : 0);
         }
         fprintf(f, " %s | %.3f%% |\n", sci(a, sizeof a, d->err[s].zmean), 100 * d->err[s].moved);
     }
@@ -544,10 +545,10 @@ static td_status write_charts(const bench_ctx *b, const char *dir, td_err *err)
     if (d->speed_done) {
         td_bench_svg_chart c = {0};
         for (int m = 0; m < TD_METHOD_COUNT; m++)
-            for (int s = 0; s < TD_SURFACE_COUNT; s++) {
+            for (int s = 0; s < TD_SURFACE_COUNT && td_bench_traced(m); s++) {
                 pts[n].x = 1e9 / d->tr[m][s].rps;
                 pts[n].y = d->err[s].zmean;
-                pts[n].series = m;
+                pts[n].series = m - (m > TD_METHOD_SILHOUETTE); /* series_t has no silhouette */
                 snprintf(pts[n].label, sizeof pts[n].label, "%s", short_s[s]);
                 n++;
             }
@@ -653,6 +654,8 @@ static td_status write_summary(const bench_ctx *b, const char *path, td_err *err
         fprintf(f, "| method (bilinear) | rays/s | x Embree best | mean steps | bytes/cell |\n|---|---|---|---|---|\n");
         for (int q = 0; q < TD_METHOD_COUNT; q++) {
             const bench_trace *t = &d->tr[q][TD_SURFACE_BILINEAR];
+            if (!td_bench_traced(q))
+                continue;
             fprintf(f, "| %s | %s | %.2f | %.2f | %.2f |\n", td_method_name((td_method)q), rate(r1, sizeof r1, t->rps),
                     eb > 0 ? t->rps / eb : 0, t->mean_steps, (double)td_bench_method_bytes(d, (td_method)q) / d->cells);
         }

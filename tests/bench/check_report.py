@@ -235,6 +235,28 @@ for r in rows:
           f"camera exactness {r[0]} {r[1]}: counts parse and stay within the rays")
     # Embree against itself: rtcOccluded16 (td_embree_occluded16) and rtcIntersect16 on the same rays
     check(int(r[8]) == 0, f"camera exactness {r[0]} {r[1]}: Embree's occluded and intersect agree ({r[8]})")
+# issue 13: the camera rays with no preprocessing; silhouette's depths are the walk's, bit for bit
+t = tables_after(report, "### Without preprocessing")
+rows = t[0][1:] if t else []
+check(len(rows) == 12 and all(len(r) == 11 for r in rows), "no-preprocessing table: 12 views, 11 columns")
+for r in rows:
+    what = f"no preprocessing {r[0]} {r[1]}"
+    rates = [num(x) for x in r[2:5]]
+    check(all(x > 0 for x in rates), what + ": rates parse and are > 0")
+    if all(x > 0 for x in rates):
+        check(close(num(r[5]), rates[2], rates[1]), what + ": silhouette / walk + horizon = quotient")
+    check(all(num(x) >= 0 for x in r[6:9]) and num(r[6]) > 0, what + ": steps per ray parse")
+    check(int(r[9]) > 0, what + ": the partition has entries")
+    check(int(r[10]) == 0, what + f": silhouette depths equal the walk's ({r[10]} differ)")
+t = tables_after(report, "### What no preprocessing saves")
+rows = t[0][1:] if t else []
+check(len(rows) == 12 and all(len(r) == 9 for r in rows), "amortised table: 12 views, 9 columns")
+for r in rows:
+    ms = [num(x) for x in r[2:9]]
+    check(all(x > 0 for x in ms), f"amortised {r[0]} {r[1]}: times parse and are > 0")
+    # a build spread over more frames costs less a frame; both structures at least the max-mipmap
+    check(ms[1] >= ms[2] >= ms[3] and ms[4] >= ms[5] >= ms[6] and ms[4] >= ms[1],
+          f"amortised {r[0]} {r[1]}: ordered")
 check("camera rays >= 3x Embree's rtcIntersect16" in report and "shadow rays >= 3x Embree's rtcOccluded16" in report,
       "targets table has the camera rows")
 srows = [r for r in summary.split("\n") if r.startswith("| ") and any(r.startswith("| " + d + " |") for d in cam_ds)]

@@ -37,7 +37,7 @@ terrains=(
     "high-1e4|steps w=61 h=33 base=9990 relief=10|1"
     "all-void|procedural w=20 h=20 voids=all|16"
 )
-methods="incremental hierarchical parametric auto"
+methods="incremental hierarchical parametric silhouette auto"
 surfaces="plane linear triangle bilinear"
 fail=0
 runs=0

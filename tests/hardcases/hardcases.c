@@ -1,6 +1,6 @@
 /* hardcases.c: the hard-cases suite of issue 4: places where floating point breaks
  * terrain tracers, each a named case run for every method (incremental, hierarchical,
- * parametric, auto) over every surface (plane, linear, triangle, bilinear) against the
+ * parametric, silhouette, auto) over every surface (plane, linear, triangle, bilinear) against the
  * double-precision references (tests/oracle/reference.c), with Embree's answers on the
  * triangle surface reported beside them (hc.c has the judge and the rules).
  *

@@ -10,7 +10,7 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 "$oracle" --dem "$dem" --write-rays "$tmp/rays.bin" --rays "$rays" --seed "$seed" >/dev/null
 for s in triangle bilinear plane linear; do
-  for m in incremental hierarchical parametric auto; do
+  for m in incremental hierarchical parametric silhouette auto; do
     "$terrad" trace --dem "$dem" --method "$m" --surface "$s" --threads 2 \
       --stats "$tmp/stats.json" < "$tmp/rays.bin" > "$tmp/hits.bin"
     grep -q "\"rays\": $rays" "$tmp/stats.json"

@@ -99,6 +99,10 @@ static void test_defaults_and_variants(void **state)
     assert_float_equal(scene.effects.curvature_k, 0.13, 0);
     assert_float_equal(scene.effects.haze_visibility_km, 80, 0);
     assert_int_equal(scene.effects.ambient_occlusion, 6);
+    /* the silhouette method (issue 13) parses through the method table */
+    assert_int_equal(parse("{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3}},"
+                           "\"quality\":{\"method\":\"silhouette\"}}", &e), TD_OK);
+    assert_int_equal(scene.quality.method, TD_METHOD_SILHOUETTE);
     /* photogrammetric camera */
     assert_int_equal(parse("{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3},"
                            "\"tilt\":60,\"swing\":180,\"azimuth\":30,\"focal_mm\":150,\"pixel_mm\":0.02}}", &e), TD_OK);
