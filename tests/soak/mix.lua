@@ -1,8 +1,8 @@
 -- mix.lua: the request mix of the soak (scripts/soak), for wrk: renders (GET and POST),
--- map tiles, picks, preloads and evictions through the admin API, in a fixed rotation
--- offset per connection. Each thread counts answers by status, 503s without Retry-After,
--- and anything outside the allowed set; done() prints one JSON line for scripts/soak.
--- Heights edits are not in the mix yet (the edit endpoint is not there yet).
+-- map tiles, picks, preloads, evictions and heights edits through the admin API, in a
+-- fixed rotation offset per connection. Each thread counts answers by status, 503s
+-- without Retry-After, and anything outside the allowed set; done() prints one JSON line
+-- for scripts/soak.
 local token = os.getenv("TERRAD_ADMIN_TOKEN") or ""
 local json = {["Content-Type"] = "application/json"}
 local admin = {["Content-Type"] = "application/json", ["Authorization"] = "Bearer " .. token}
@@ -25,6 +25,12 @@ end
 add("POST", "/v1/admin/preload", admin, '{"dataset":"volcano","build":["maxmip","planes"],"rebuild":true}')
 add("DELETE", "/v1/admin/datasets/volcano/tiles", admin)
 add("POST", "/v1/admin/preload", admin, '{"dataset":"trinidad","build":["planes"]}')
+-- a 4 x 4 patch of volcano raised to 1000 m, then to 1010 m (little-endian float32; wrk's
+-- LuaJIT has no string.pack): each edit is a new version and a rebuild job
+local octets = {["Content-Type"] = "application/octet-stream", ["Authorization"] = "Bearer " .. token}
+for _, f in ipairs({string.char(0, 0, 0x7A, 0x44), string.char(0, 0x80, 0x7C, 0x44)}) do
+  add("PUT", "/v1/admin/datasets/volcano/heights?x=10&y=10&w=4&h=4", octets, string.rep(f, 16))
+end
 
 local threads = {}
 function setup(thread)
