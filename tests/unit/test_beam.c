@@ -77,20 +77,27 @@ static void check_beam(const td_view *v, const double o[3], const double d[4][3]
     }
 }
 
-static void test_beam_bounds(void **state)
+/* Procedural terrain of w x h samples, spacing s, tiles of 2^tl cells. */
+static td_grid *terrain(int32_t w, int32_t h, double s, int tl)
 {
     td_terrain_params p;
     td_grid *g = NULL;
+    td_terrain_params_default(&p);
+    p.width = w;
+    p.height = h;
+    p.spacing = s;
+    assert_int_equal(td_terrain_generate(&p, tl, &g, NULL), TD_OK);
+    return g;
+}
+
+static void test_beam_bounds(void **state)
+{
+    td_grid *g = terrain(300, 220, 30.0, 6);
     td_accel *a = NULL;
     td_accel_opts o;
     uint64_t seed = 777;
     int bounded = 0;
     (void)state;
-    td_terrain_params_default(&p);
-    p.width = 300;
-    p.height = 220;
-    p.spacing = 30.0;
-    assert_int_equal(td_terrain_generate(&p, 6, &g, NULL), TD_OK);
     g->sy = 45.0;
     for (int k = 0; k < 1200; k++) /* voids */
         g->z[(size_t)(rnd(&seed) * (double)g->w * (double)g->h)] = NAN;
@@ -115,16 +122,10 @@ static void test_beam_bounds(void **state)
  * lowest sample; an eye under every sample: its own height. */
 static void test_beam_none(void **state)
 {
-    td_terrain_params p;
-    td_grid *g = NULL;
+    td_grid *g = terrain(40, 40, 10.0, 4);
     uint32_t steps = 0;
     double d[4][3];
     (void)state;
-    td_terrain_params_default(&p);
-    p.width = 40;
-    p.height = 40;
-    p.spacing = 10.0;
-    assert_int_equal(td_terrain_generate(&p, 4, &g, NULL), TD_OK);
     td_view v = {g, NULL};
     double eye[3] = {200.0, 200.0, g->zmax + 100.0};
     corners(0.3, -0.5, 0.05, d);
