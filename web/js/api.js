@@ -155,6 +155,16 @@ export async function render(scene, signal) {
   return { blob, info: renderInfo(resp.headers), ms: performance.now() - t0 };
 }
 
+// POST /v1/viewshed (format png) -> {blob, visible, visibleArea, ms}; throws ApiError.
+export async function viewshed(body, signal) {
+  const t0 = performance.now();
+  const resp = await postJson('/v1/viewshed', body, signal);
+  if (!resp.ok) throw await apiError(resp);
+  const blob = await resp.blob();
+  const num = (n) => { const v = resp.headers.get(n); return v == null || v === '' ? null : Number(v); };
+  return { blob, visible: num('X-Terrad-Visible'), visibleArea: num('X-Terrad-Visible-Area'), ms: performance.now() - t0 };
+}
+
 // POST /v1/pick -> the first picked pixel, normalised (see firstPick).
 export async function pick(scene, signal) {
   const resp = await postJson('/v1/pick', scene, signal);

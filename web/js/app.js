@@ -20,6 +20,7 @@ import {
 import { drawTimingChart, totalOf, fmtMs } from './chart.js';
 import { diffImages } from './diff.js';
 import { discRegion, raiseDisc, encodeHeights, decodeHeights } from './disc.js';
+import { ViewshedControl } from './viewshed.js';
 
 const $ = (id) => document.getElementById(id);
 const DEBOUNCE_MS = 150, MAX_WAIT_MS = 500;
@@ -50,6 +51,7 @@ const state = {
   shown: null,      // {a: {scene, info}, b: {scene, info} | null}
   urls: new Map(),  // img element -> object URL shown
   adminJob: null,
+  viewshed: null,   // ViewshedControl (viewshed.js)
 };
 window.terrad = state;
 
@@ -190,6 +192,7 @@ function buildMap() {
   const picks = L.layerGroup().addTo(map);
   state.map = map;
   state.layers = { camera, handle, wedgeLayer, headingLine, picks, tiles };
+  state.viewshed.attach(map, ds);
 
   // While dragging, previews (half size, no comparison); the full view when dropped.
   camera.on('drag', () => {
@@ -207,6 +210,10 @@ function buildMap() {
     const [x, y] = clampToDataset(ds, e.latlng.lng, e.latlng.lat);
     if ($('edit-mode').checked) {
       editTerrainAt(x, y);
+      return;
+    }
+    if ($('vs-on').checked) {
+      state.viewshed.placeAt(x, y);
       return;
     }
     setCamera({ x, y });
@@ -705,6 +712,21 @@ async function editTerrainAt(x, y) {
   }
 }
 
+// --- viewshed -------------------------------------------------------------------------
+
+// The control itself is viewshed.js; here its fields, and one click mode at a time.
+function wireViewshed() {
+  const num = (id) => ($(id).value.trim() === '' ? null : Number($(id).value));
+  state.viewshed = new ViewshedControl(api, {
+    result: $('vs-result'),
+    onError: (text) => setStatus(text, true),
+    readOptions: () => ({ height: num('vs-height'), maxDistance: num('vs-max'), surface: $('q-surface').value }),
+  });
+  $('vs-on').addEventListener('change', () => { if ($('vs-on').checked) $('edit-mode').checked = false; });
+  $('edit-mode').addEventListener('change', () => { if ($('edit-mode').checked) $('vs-on').checked = false; });
+  $('vs-clear').addEventListener('click', () => state.viewshed.clear());
+}
+
 // --- start ----------------------------------------------------------------------------
 
 async function main() {
@@ -716,6 +738,7 @@ async function main() {
   wireSettings();
   wirePicking();
   wireAdmin();
+  wireViewshed();
   try {
     await loadDatasets();
   } catch (e) {

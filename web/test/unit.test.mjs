@@ -1,6 +1,7 @@
 // unit.test.mjs: the page's pure modules under node's test runner (no browser, no
 // server): Server-Timing parsing, the scene JSON, the pick answer, job progress, the
-// frame <-> map transformation, camera geometry and the pixel difference.
+// frame <-> map transformation, camera geometry, the pixel difference and the viewshed
+// overlay.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { parseServerTiming, buildScene, pickScene, firstPick, jobProgress, renderInfo, parseHeightError } from '../js/api.js';
@@ -10,6 +11,9 @@ import {
 } from '../js/frame.js';
 import { diffRGBA, imageStats } from '../js/diff.js';
 import { discRegion, raiseDisc, encodeHeights, decodeHeights } from '../js/disc.js';
+import {
+  recolourViewshed, overlayBounds, sampleAt, viewshedBody, VISIBLE_RGBA, HIDDEN_RGBA, OUTSIDE_RGBA,
+} from '../js/viewshed.js';
 
 const near = (a, b, eps = 1e-9) => Math.abs(a - b) <= eps;
 
@@ -232,4 +236,38 @@ test('terrain disc: the region in file order, the bump, the body both ways', () 
   assert.equal(back[0], 1.5);
   assert.equal(back[1], -0.25);
   assert.ok(Number.isNaN(back[2]));
+});
+
+test('viewshed overlay: seen green, hidden dark, outside and void transparent', () => {
+  // four gray pixels as a canvas reads the server's PNG back: 255, 0, 128, 255
+  const gray = new Uint8ClampedArray([255, 255, 255, 255, 0, 0, 0, 255, 128, 128, 128, 255, 255, 255, 255, 255]);
+  const r = recolourViewshed(gray);
+  assert.deepEqual([...r.out], [...VISIBLE_RGBA, ...HIDDEN_RGBA, ...OUTSIDE_RGBA, ...VISIBLE_RGBA]);
+  assert.deepEqual([r.visible, r.hidden, r.outside], [2, 1, 1]);
+  assert.equal(OUTSIDE_RGBA[3], 0, 'outside is fully transparent');
+  assert.ok(VISIBLE_RGBA[3] > 0 && VISIBLE_RGBA[3] < 255 && HIDDEN_RGBA[3] > 0 && HIDDEN_RGBA[3] < 255, 'translucent');
+  assert.ok(VISIBLE_RGBA[1] > VISIBLE_RGBA[0] && VISIBLE_RGBA[1] > VISIBLE_RGBA[2], 'seen is green');
+  // in place, as the page does it on the canvas's own pixels
+  const same = recolourViewshed(gray, gray);
+  assert.equal(same.out, gray);
+  assert.deepEqual([...gray.slice(0, 4)], VISIBLE_RGBA);
+});
+
+test('viewshed overlay: bounds half a sample beyond the grid, the observer\'s pixel, the body', () => {
+  const ds = normaliseDataset(TRINIDAD);
+  const [[s, w], [n, e]] = overlayBounds(ds);
+  assert.ok(near(w, -ds.sx / 2) && near(s, -ds.sy / 2));
+  assert.ok(near(e, 599 * ds.sx + ds.sx / 2, 1e-3) && near(n, 499 * ds.sy + ds.sy / 2, 1e-3));
+  // each of the 600 x 500 pixels is one spacing wide: pixel i centred on sample i
+  assert.ok(near((e - w) / 600, ds.sx, 1e-6) && near((n - s) / 500, ds.sy, 1e-6));
+  assert.deepEqual(sampleAt(ds, 0, 0), [0, 499], 'south-west sample: last row');
+  assert.deepEqual(sampleAt(ds, ds.xmax, ds.ymax), [599, 0], 'north-east sample: first row');
+  assert.deepEqual(sampleAt(ds, 10.4 * ds.sx, 3.6 * ds.sy), [10, 495]);
+  assert.deepEqual(sampleAt(ds, -5, 1e9), [0, 0], 'clamped to the grid');
+  assert.deepEqual(viewshedBody('trinidad', 1234.56789, 42, { height: null, maxDistance: null, surface: 'bilinear' }),
+    { dataset: 'trinidad', observer: { x: 1234.568, y: 42 }, height: 2, format: 'png', surface: 'bilinear' });
+  const b = viewshedBody('volcano', 1, 2, { height: 10, maxDistance: 5000 });
+  assert.equal(b.height, 10);
+  assert.equal(b.max_distance, 5000);
+  assert.equal(viewshedBody('v', 1, 2, { maxDistance: 0 }).max_distance, 0, 'terrad judges 0, not the page');
 });
