@@ -7,8 +7,9 @@
 // its timing chart is drawn, clicking the map places the camera there and renders a new
 // view, keyboard keys move the camera, a burst of changes sends one request, a click in
 // the view marks the picked terrain point on the map with plausible coordinates, compare
-// mode shows two renders and their pixel difference, and the admin panel's preload
-// reaches 100 %. Screenshots go to the output directory (and to
+// mode shows two renders and their pixel difference, the admin panel's preload
+// reaches 100 %, and the viewshed control lays the viewshed of a clicked observer over
+// the map, pixel for pixel the server's answer recoloured, and shows a refusal. Screenshots go to the output directory (and to
 // docs/web-screenshot.png when TERRAD_WEB_DOCS_SCREENSHOT=1).
 //
 // Environment: TERRAD_BIN (the terrad binary; default build/terrad), TERRAD_SOURCE_DIR
@@ -51,7 +52,7 @@ for (const [what, p] of [['terrad', BIN], ['chromium', CHROMIUM]]) {
 
 let server = null, serverExit = null, port = 0, base = '';
 let context = null, page = null, profile = null;
-const foreign = [], pageErrors = [], renderRequests = [], failed = [];
+const foreign = [], pageErrors = [], renderRequests = [], failed = [], viewshedRequests = [];
 
 function freePort() {
   return new Promise((resolve, reject) => {
@@ -143,7 +144,10 @@ before(async () => {
   page = context.pages()[0] || await context.newPage();
   page.on('pageerror', (e) => pageErrors.push(`pageerror: ${e.message}`));
   page.on('console', (m) => { if (m.type() === 'error') pageErrors.push(`console: ${m.text()}`); });
-  page.on('request', (r) => { if (r.url().endsWith('/v1/render')) renderRequests.push(r.postDataJSON()); });
+  page.on('request', (r) => {
+    if (r.url().endsWith('/v1/render')) renderRequests.push(r.postDataJSON());
+    if (r.url().endsWith('/v1/viewshed')) viewshedRequests.push(r.postDataJSON());
+  });
   page.on('response', (r) => {
     if (r.status() < 400) return;
     const q = r.request();
@@ -362,6 +366,125 @@ test('level of detail: the view is rendered with it and still ticked', async () 
   await waitRenders(n + 2);
 });
 
+test('the viewshed control: a click places an observer and lays its viewshed over the map', async () => {
+  await page.check('#vs-on');
+  assert.equal(await page.inputValue('#vs-height'), '2', 'an eye 2 m up by default');
+  await page.locator('#map').scrollIntoViewIfNeeded();
+  const box = await page.locator('#map').boundingBox();
+  const cam = { x: await camField('cam-x'), y: await camField('cam-y') };
+  const n = await renders();
+  // a point on the map with nothing (no marker) over it
+  const at = await page.evaluate(([bx, by, bw, bh]) => {
+    for (const [fx, fy] of [[0.4, 0.6], [0.6, 0.4], [0.3, 0.3], [0.7, 0.7], [0.5, 0.5]]) {
+      const x = Math.round(bx + bw * fx), y = Math.round(by + bh * fy);
+      const e = document.elementFromPoint(x, y);
+      if (e && (e.id === 'map' || e.classList.contains('leaflet-tile') || e.classList.contains('leaflet-container'))) return { x, y };
+    }
+    return null;
+  }, [box.x, box.y, box.width, box.height]);
+  assert.ok(at, 'a free point on the map');
+  const want = await page.evaluate(([x, y]) => {
+    const ll = window.terrad.map.mouseEventToLatLng({ clientX: x, clientY: y });
+    return { x: ll.lng, y: ll.lat };
+  }, [at.x, at.y]);
+  await page.mouse.click(at.x, at.y);
+  await page.waitForFunction(() => Number(document.body.dataset.viewsheds || 0) >= 1).catch(async (e) => {
+    throw new Error(`${e.message}; vs-result: ${await page.textContent('#vs-result')}; status: ${await page.textContent('#status')}`);
+  });
+  const body = viewshedRequests.at(-1);
+  assert.equal(body.dataset, 'trinidad');
+  assert.equal(body.height, 2);
+  assert.equal(body.format, 'png');
+  assert.ok(!('max_distance' in body), 'no max_distance when the field is empty');
+  assert.ok(Math.abs(body.observer.x - want.x) < 1 && Math.abs(body.observer.y - want.y) < 1,
+    `observer at (${body.observer.x}, ${body.observer.y}), clicked (${want.x}, ${want.y})`);
+  const r = await page.evaluate(async (b) => {
+    const vs = await import('/js/viewshed.js');
+    const t = window.terrad, ds = t.ds;
+    const img = document.querySelector('img.viewshed-overlay');
+    const read = (src) => {
+      const c = document.createElement('canvas');
+      c.width = src.naturalWidth || src.width; // an <img>'s width is its size on screen
+      c.height = src.naturalHeight || src.height;
+      const ctx = c.getContext('2d');
+      ctx.drawImage(src, 0, 0);
+      return ctx.getImageData(0, 0, c.width, c.height).data;
+    };
+    const shown = read(img);
+    // the server's own answer for the same body, recoloured here
+    const resp = await fetch('/v1/viewshed', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(b) });
+    const want = vs.recolourViewshed(read(await createImageBitmap(await resp.blob())));
+    let worst = 0, first = null, nd = 0;
+    for (let k = 0; k < shown.length; k++) {
+      const d = Math.abs(shown[k] - want.out[k]);
+      if (d > worst) worst = d;
+      if (d > 2 && k % 4 === 3) nd++;
+      if (d > 2 && !first) first = { k, shown: [...shown.slice(k - k % 4, k - k % 4 + 4)], want: [...want.out.slice(k - k % 4, k - k % 4 + 4)] };
+    }
+    const [i, j] = vs.sampleAt(ds, b.observer.x, b.observer.y);
+    const k = 4 * (j * img.naturalWidth + i);
+    const close = (p, c) => p.every((v, q) => Math.abs(v - c[q]) <= 2);
+    let hidden = 0;
+    for (let q = 0; q < shown.length; q += 4) if (close([...shown.slice(q, q + 4)], vs.HIDDEN_RGBA)) hidden++;
+    const layer = t.viewshed.layer.getLayers().find((l) => l instanceof L.ImageOverlay);
+    const bb = layer.getBounds();
+    const marker = document.querySelector('.viewshed-marker').getBoundingClientRect();
+    const mp = t.map.latLngToContainerPoint(L.latLng(b.observer.y, b.observer.x));
+    // container points count from inside the map's border
+    const mc = t.map.getContainer(), mb = mc.getBoundingClientRect();
+    const mr = { x: mb.x + mc.clientLeft, y: mb.y + mc.clientTop };
+    // on screen: the south-west pixel's centre on sample (0, 0), the north-east one's on
+    // the last sample, so each pixel sits on its sample (Leaflet places the image on
+    // whole screen pixels: within 1 px)
+    const ir = img.getBoundingClientRect(), pw = ir.width / img.naturalWidth, ph = ir.height / img.naturalHeight;
+    const sw = t.map.latLngToContainerPoint(L.latLng(ds.ymin, ds.xmin));
+    const ne = t.map.latLngToContainerPoint(L.latLng(ds.ymax, ds.xmax));
+    const place = Math.max(
+      Math.abs(ir.left + pw / 2 - mr.x - sw.x), Math.abs(ir.bottom - ph / 2 - mr.y - sw.y),
+      Math.abs(ir.right - pw / 2 - mr.x - ne.x), Math.abs(ir.top + ph / 2 - mr.y - ne.y));
+    return {
+      place,
+      w: img.naturalWidth, h: img.naturalHeight, dsw: ds.width, dsh: ds.height, worst, first, nd, 
+      counts: { visible: want.visible, hidden: want.hidden, outside: want.outside },
+      under: [...shown.slice(k, k + 4)], underOk: close([...shown.slice(k, k + 4)], vs.VISIBLE_RGBA), hidden,
+      bounds: [bb.getSouth(), bb.getWest(), bb.getNorth(), bb.getEast()], wantBounds: vs.overlayBounds(ds).flat(),
+      markerOff: Math.hypot(marker.x + marker.width / 2 - mr.x - mp.x, marker.y + marker.height / 2 - mr.y - mp.y),
+    };
+  }, body);
+  assert.deepEqual([r.w, r.h], [r.dsw, r.dsh], 'one overlay pixel a sample of the grid');
+  assert.ok(r.worst <= 2, `the overlay is the server's answer recoloured (largest channel difference ${r.worst}: ${JSON.stringify(r.first)}, ${r.nd} pixels differ)`);
+  assert.ok(r.underOk, `the sample under the observer is seen (${r.under})`);
+  assert.ok(r.hidden > 0 && r.counts.hidden === r.hidden, `some samples are hidden (${r.hidden})`);
+  assert.ok(r.counts.visible > 0 && r.counts.outside === 0, JSON.stringify(r.counts));
+  r.bounds.forEach((v, q) => assert.ok(Math.abs(v - r.wantBounds[q]) < 1e-6, `bounds ${r.bounds} vs ${r.wantBounds}`));
+  assert.ok(r.place < 1, `pixels centred on their samples on screen (${r.place} px off)`);
+  assert.ok(r.markerOff < 1, `the observer's marker is where the click was (${r.markerOff} px off)`);
+  assert.match(await page.textContent('#vs-result'), /Viewshed from .* eye 2 m up: [\d.]+ km² seen \([\d.]+% of the samples in range\)/);
+  // the camera stayed where it was: no new view
+  await sleep(300);
+  assert.equal(await renders(), n);
+  assert.deepEqual([await camField('cam-x'), await camField('cam-y')], [cam.x, cam.y]);
+
+  // A refusal from terrad (max_distance must be > 0) shows in the page's status, with its field.
+  const shownBefore = await page.evaluate(() => Number(document.body.dataset.viewsheds));
+  await page.fill('#vs-max', '0');
+  await page.mouse.click(at.x, at.y);
+  await page.waitForFunction(() => /refused/.test(document.getElementById('vs-result').textContent));
+  assert.match(await page.textContent('#status'), /Viewshed failed: HTTP 400: max_distance/);
+  assert.ok(await page.evaluate(() => document.getElementById('status').classList.contains('error')));
+  assert.equal(await page.locator('img.viewshed-overlay').count(), 0, 'no stale overlay after a refusal');
+  // With a distance, samples beyond it are left clear.
+  await page.fill('#vs-max', '5000');
+  await page.mouse.click(at.x, at.y);
+  await page.waitForFunction((k) => Number(document.body.dataset.viewsheds) > k, shownBefore);
+  assert.equal(viewshedRequests.at(-1).max_distance, 5000);
+  assert.match(await page.textContent('#vs-result'), /within 5000 m/);
+  await page.click('#vs-clear');
+  assert.equal(await page.locator('img.viewshed-overlay').count(), 0, 'cleared');
+  await page.fill('#vs-max', '');
+  await page.uncheck('#vs-on');
+});
+
 test('the admin panel preloads the visible area with a progress bar', async () => {
   await page.click('#admin summary');
   await page.fill('#admin-token', TOKEN);
@@ -454,9 +577,9 @@ test('screenshots, and nothing went wrong on the way', async () => {
   }
   assert.deepEqual(foreign, [], 'no request left the loopback server');
   // The only failed requests are the ones the tests caused: the wrong admin token (401)
-  // and level of detail if this terrad refuses it (400). The browser logs a console
+  // level of detail if this terrad refuses it (400), and the viewshed's max_distance 0 (400). The browser logs a console
   // error for each; any other console error or failed request is a defect.
-  const expected = (f) => f === '401 POST /v1/admin/preload' || f === '400 POST /v1/render lod';
+  const expected = (f) => f === '401 POST /v1/admin/preload' || f === '400 POST /v1/render lod' || f === '400 POST /v1/viewshed';
   assert.deepEqual(failed.filter((f) => !expected(f)), [], 'no unexpected failed request');
   const unexpected = pageErrors.filter((e) => !/Failed to load resource: .* (401|400) /.test(e));
   assert.deepEqual(unexpected, [], 'no page errors');
