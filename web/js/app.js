@@ -220,14 +220,19 @@ function buildMap() {
     setStatus(`Camera placed at ${fmtM(x)} E, ${fmtM(y)} N.`);
   });
   map.on('mousemove', (e) => showCursor(e.latlng.lng, e.latlng.lat));
-  // Keyboard: Enter on the focused map places the camera at the map's centre; arrows on
-  // the camera move and turn it, on the handle turn it (and never pan the map).
+  // Keyboard: Enter on the focused map places the camera (or the viewshed's observer)
+  // at the map's centre; arrows on the camera move and turn it, on the handle turn it
+  // (and never pan the map).
   L.DomEvent.on(map.getContainer(), 'keydown', (e) => {
     if (e.key === 'Enter' && e.target === map.getContainer()) {
       const c = map.getCenter();
       const [x, y] = clampToDataset(ds, c.lng, c.lat);
-      setCamera({ x, y });
-      setStatus(`Camera placed at the map's centre, ${fmtM(x)} E, ${fmtM(y)} N.`);
+      if ($('vs-on').checked) {
+        state.viewshed.placeAt(x, y);
+      } else {
+        setCamera({ x, y });
+        setStatus(`Camera placed at the map's centre, ${fmtM(x)} E, ${fmtM(y)} N.`);
+      }
       L.DomEvent.preventDefault(e);
     }
   });

@@ -90,6 +90,7 @@ export class ViewshedControl {
     this.layer = L.layerGroup().addTo(map);
     this.last = null;
     this.revoke();
+    this.ui.result.textContent = '';
   }
 
   cancel() {
