@@ -120,7 +120,8 @@ export class ViewshedControl {
     const body = viewshedBody(ds.id, x, y, this.ui.readOptions());
     this.layer.clearLayers();
     const icon = L.divIcon({ className: '', html: '<div class="viewshed-icon"></div>', iconSize: [16, 16], iconAnchor: [8, 8] });
-    const where = `${Math.round(x)} m E, ${Math.round(y)} m N`;
+    const m = (v) => `${Math.round(v).toLocaleString('en-US')} m`;
+    const where = `${m(x)} E, ${m(y)} N`;
     const marker = L.marker(L.latLng(y, x), { icon, keyboard: false, interactive: false, alt: `Viewshed observer at ${where}` })
       .addTo(this.layer);
     marker.getElement().classList.add('viewshed-marker');
@@ -154,7 +155,7 @@ export class ViewshedControl {
       const pct = inside ? ` (${((100 * counts.visible) / inside).toFixed(1)}% of the samples in range)` : '';
       const area = r.visibleArea != null ? `${(r.visibleArea / 1e6).toFixed(2)} km²` : `${counts.visible} samples`;
       out.textContent = `Viewshed from ${where}, eye ${body.height} m up` +
-        (body.max_distance != null ? `, within ${body.max_distance} m` : '') +
+        (body.max_distance != null ? `, within ${m(body.max_distance)}` : '') +
         `: ${area} seen${pct}; ${Math.round(r.ms)} ms.`;
     } catch (e) {
       if (e.name === 'AbortError') return;

@@ -465,6 +465,7 @@ test('the viewshed control: a click places an observer and lays its viewshed ove
   assert.equal(await renders(), n);
   assert.deepEqual([await camField('cam-x'), await camField('cam-y')], [cam.x, cam.y]);
 
+  await page.locator('#map-panel').screenshot({ path: path.join(OUT, 'web-viewshed.png') });
   // A refusal from terrad (max_distance must be > 0) shows in the page's status, with its field.
   const shownBefore = await page.evaluate(() => Number(document.body.dataset.viewsheds));
   await page.fill('#vs-max', '0');
@@ -478,7 +479,7 @@ test('the viewshed control: a click places an observer and lays its viewshed ove
   await page.mouse.click(at.x, at.y);
   await page.waitForFunction((k) => Number(document.body.dataset.viewsheds) > k, shownBefore);
   assert.equal(viewshedRequests.at(-1).max_distance, 5000);
-  assert.match(await page.textContent('#vs-result'), /within 5000 m/);
+  assert.match(await page.textContent('#vs-result'), /within 5,000 m/);
   await page.click('#vs-clear');
   assert.equal(await page.locator('img.viewshed-overlay').count(), 0, 'cleared');
   await page.fill('#vs-max', '');
