@@ -9,8 +9,9 @@
 // the view marks the picked terrain point on the map with plausible coordinates, compare
 // mode shows two renders and their pixel difference, the admin panel's preload
 // reaches 100 %, and the viewshed control lays the viewshed of a clicked observer over
-// the map, pixel for pixel the server's answer recoloured, and shows a refusal. Screenshots go to the output directory (and to
-// docs/web-screenshot.png when TERRAD_WEB_DOCS_SCREENSHOT=1).
+// the map, pixel for pixel the server's answer recoloured, and shows a refusal.
+// Screenshots (the page, the view, the map with a viewshed) go to the output directory
+// (and the page to docs/web-screenshot.png when TERRAD_WEB_DOCS_SCREENSHOT=1).
 //
 // Environment: TERRAD_BIN (the terrad binary; default build/terrad), TERRAD_SOURCE_DIR
 // (the repository; default two levels up), TERRAD_WEB_OUT (screenshots and the server
