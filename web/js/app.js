@@ -3,6 +3,8 @@
 // the view's wedge and picked points; the panel beside it shows the view from the camera
 // rendered by POST /v1/render, its Server-Timing as a bar chart, and in compare mode a
 // second render with other settings and the pixel difference of the two.
+// With the viewshed control on, a map click places an observer instead of the camera
+// and viewshed.js lays what it sees over the map.
 //
 // Requests: every change of camera or settings schedules a render, debounced (a burst
 // of changes sends one request) but with a longest wait so a long drag still shows
@@ -11,7 +13,8 @@
 // camera as it is now, so the marker is the point under the pixel that was clicked.
 //
 // State the browser test reads: body[data-renders] counts views shown,
-// body[data-picks] picked points; window.terrad exposes the state.
+// body[data-picks] picked points, body[data-viewsheds] viewshed overlays shown;
+// window.terrad exposes the state.
 import * as api from './api.js';
 import {
   normaliseDataset, transformation, maxNativeZoom, defaultCamera, wedge, along, headingTo,
