@@ -121,17 +121,31 @@ TD_ROW_CLONES void td_edt_columns(const float *h, double z, int32_t nx, int32_t 
 TD_ROW_CLONES void td_edt_row(const uint32_t *colrow, int32_t nx, double wx, double wy, double *out,
                 td_edt_scratch *s)
 {
-    /* the finite samples, listed without a branch (every column is written, only those
-     * with a feature are counted), then their costs */
+    /* the finite samples and their costs: counted first (a reduction, it vectorises); a
+     * row without a column of "none" (the common case below the top slices) takes every
+     * column as it is, the others are listed without a branch (every column is written,
+     * only those with a feature are counted) */
     int32_t m = 0, zeros = 0;
     for (int32_t x = 0; x < nx; x++) {
-        s->qs[m] = x;
         m += colrow[x] < TD_EDT_NONE;
         zeros += colrow[x] == 0u;
     }
-    for (int32_t i = 0; i < m; i++) {
-        double c = (double)colrow[s->qs[i]];
-        s->f[i] = wy * c * c;
+    if (m == nx) {
+        for (int32_t x = 0; x < nx; x++) {
+            double c = (double)colrow[x];
+            s->qs[x] = x;
+            s->f[x] = wy * c * c;
+        }
+    } else {
+        m = 0;
+        for (int32_t x = 0; x < nx; x++) {
+            s->qs[m] = x;
+            m += colrow[x] < TD_EDT_NONE;
+        }
+        for (int32_t i = 0; i < m; i++) {
+            double c = (double)colrow[s->qs[i]];
+            s->f[i] = wy * c * c;
+        }
     }
     if (zeros == nx) { /* a row of features only is its own transform */
         for (int32_t x = 0; x < nx; x++)
