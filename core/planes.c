@@ -63,7 +63,8 @@
  * changes (cone_row): 5.03 -> 4.28 G instructions (-15%), the same planes bit for bit;
  * those loops also built for AVX2 where the processor has it (TD_ROW_CLONES, edt.h): 3.26 G
  * (-35%), the same planes bit for bit again; rows without a column of "none" taken whole
- * by the EDT, not listed: 3.02 G. Skipping the cone pass's clear marks eight at a time
+ * by the EDT, not listed: 3.02 G; the tile's height range by comparisons, not fminf/fmaxf
+ * calls: 2.97 G. Skipping the cone pass's clear marks eight at a time
  * (a word) saved nothing (more mispredicted branches): not kept. Skipping cells whose
  * slope already reaches the top (later slices cannot widen it) saved as many instructions
  * as its test cost: not kept.
@@ -326,6 +327,20 @@ static void sweep_slices(td_planes *p, planes_work *w, const td_grid *g, float z
     }
 }
 
+/* The range of the cells' highest corners, holes (-inf; never NaN) left out of the low
+ * end: comparisons, not fminf/fmaxf calls, so the loop vectorises. */
+TD_ROW_CLONES static void cell_range(const float *cell, size_t n, float *lo, float *hi)
+{
+    float zlo = INFINITY, zhi = -INFINITY;
+    for (size_t c = 0; c < n; c++) {
+        float v = cell[c], l = v == -INFINITY ? INFINITY : v;
+        zlo = l < zlo ? l : zlo;
+        zhi = v > zhi ? v : zhi;
+    }
+    *lo = zlo;
+    *hi = zhi;
+}
+
 /* Slope encoding: the tile's scale (a power of two that puts its steepest finite slope
  * under the top code), then each cell's code, rounded up. */
 static void encode_slopes(td_planes *p, const float *sp)
@@ -363,12 +378,7 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
     if (rc)
         goto out;
     td_grid_cell_max(g, t, w.cell);
-    for (size_t c = 0; c < n; c++) {
-        if (w.cell[c] != -INFINITY) {
-            zlo = fminf(zlo, w.cell[c]);
-            zhi = fmaxf(zhi, w.cell[c]);
-        }
-    }
+    cell_range(w.cell, n, &zlo, &zhi);
     if (zhi == -INFINITY) { /* all holes: nothing to hit anywhere in the tile */
         for (int s = 0; s <= k; s++)
             p->apex[s] = -INFINITY;
