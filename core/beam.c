@@ -7,14 +7,6 @@
 
 #include <math.h>
 
-/* The cell column (or row) of coordinate x with spacing s, saturated to [-1, 2^31 - 2]
- * (the box may reach far off the grid; NaN gives -1). */
-static int32_t beam_cell(double x, double s)
-{
-    double c = floor(x / s);
-    return !(c >= 0.0) ? -1 : (int32_t)fmin(c, 2147483646.0);
-}
-
 /* The highest cell corner under the box of the beam's points between heights zlo and zhi,
  * or -inf if no cell with terrain lies under it. */
 static double beam_box_max(const td_view *v, const double o[3], const double (*d)[3], int nd, double zlo,
@@ -30,8 +22,9 @@ static double beam_box_max(const td_view *v, const double o[3], const double (*d
         }
     }
     double pad = 1e-9 * fmax(fmax(fabs(x0), fabs(x1)), fmax(fabs(y0), fabs(y1))) + 1e-6;
-    return td_view_max(v, beam_cell(x0 - pad, g->sx), beam_cell(x1 + pad, g->sx), beam_cell(y0 - pad, g->sy),
-                       beam_cell(y1 + pad, g->sy));
+    const double isx = 1.0 / g->sx, isy = 1.0 / g->sy;
+    return td_view_max(v, td_view_cell(x0 - pad, isx), td_view_cell(x1 + pad, isx), td_view_cell(y0 - pad, isy),
+                       td_view_cell(y1 + pad, isy));
 }
 
 double td_beam_floor(const td_view *v, const double o[3], const double (*d)[3], int nd, uint32_t *steps)

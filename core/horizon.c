@@ -27,14 +27,6 @@
 static inline double dmin(double a, double b) { return a < b ? a : b; }
 static inline double dmax(double a, double b) { return a > b ? a : b; }
 
-/* Cell index of a coordinate (times 1/spacing), saturated to int32 (the box may reach
- * far off the grid). */
-static int32_t cell_of(double x, double inv)
-{
-    double c = x * inv;
-    return !(c >= 0.0) ? -1 : (c > 2147483646.0 ? 2147483646 : (int32_t)c); /* NaN: -1 */
-}
-
 /* The elevation bound of the wedge's bin [d0, d1] (see horizon.h). */
 static double bin_bound(const td_horizon *h, double d0, double d1)
 {
@@ -53,8 +45,8 @@ static double bin_bound(const td_horizon *h, double d0, double d1)
         }
     }
     pad = 1e-9 * d1 + 1e-6;
-    m = td_view_max(h->v, cell_of(x0 - pad, h->isx), cell_of(x1 + pad, h->isx), cell_of(y0 - pad, h->isy),
-                cell_of(y1 + pad, h->isy));
+    m = td_view_max(h->v, td_view_cell(x0 - pad, h->isx), td_view_cell(x1 + pad, h->isx), td_view_cell(y0 - pad, h->isy),
+                td_view_cell(y1 + pad, h->isy));
     if (m == -INFINITY) {
         e = -INFINITY;
     } else {

@@ -123,6 +123,15 @@ int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r,
  * is small enough). */
 double td_view_max(const td_view *v, int32_t i0, int32_t i1, int32_t j0, int32_t j1);
 
+/* The cell column (or row) of coordinate x, given inv = 1 / spacing, saturated to
+ * [-1, 2^31 - 2] (NaN gives -1): td_view_max's arguments from a box that may reach far off
+ * the grid (horizon bins, beams). */
+static inline int32_t td_view_cell(double x, double inv)
+{
+    double c = x * inv;
+    return !(c >= 0.0) ? -1 : (c > 2147483646.0 ? 2147483646 : (int32_t)c);
+}
+
 /* Surface height at (x, y) in the dataset frame inside cell (ci, cj), NaN on a hole
  * (the `linear` surface has no height of its own: it is evaluated as bilinear here). */
 double td_surface_height(const td_grid *g, td_surface s, int32_t ci, int32_t cj, double x, double y);
