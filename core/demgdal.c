@@ -12,6 +12,7 @@
  * scale and offset, when set, are applied. */
 #include "demgdal.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 #include "demutil.h"
@@ -40,6 +41,27 @@ td_status td_demgdal_load(const char *path, const td_dem_opts *o, td_grid **out,
                       "libgdal (install libgdal-dev and rebuild)",
                       path);
 }
+
+td_status td_demgdal_stream_open(const char *path, const td_dem_opts *o, td_demgdal_stream **out,
+                                 td_grid *shape, td_err *err)
+{
+    td_grid *g = NULL;
+    (void)shape;
+    *out = NULL;
+    return td_demgdal_load(path, o, &g, err);
+}
+
+td_status td_demgdal_stream_rows(td_demgdal_stream *s, int32_t r0, int32_t n, float *dst,
+                                 td_err *err)
+{
+    (void)s;
+    (void)r0;
+    (void)n;
+    (void)dst;
+    return td_err_set(err, TD_EUNSUPPORTED, "built without libgdal");
+}
+
+void td_demgdal_stream_close(td_demgdal_stream *s) { (void)s; }
 
 #else
 
@@ -183,6 +205,81 @@ td_status td_demgdal_load(const char *path, const td_dem_opts *o, td_grid **out,
         GDALClose(ds);
     CPLPopErrorHandler();
     return td_demutil_deliver(path, rc, g, out, err);
+}
+
+/* --- streaming ------------------------------------------------------------------- */
+
+struct td_demgdal_stream {
+    char path[TD_DEMUTIL_PATH_MAX];
+    GDALDatasetH ds;
+    GDALRasterBandH band;
+    td_demutil_f32 p;
+    int32_t w, h;
+    int south_up;
+};
+
+td_status td_demgdal_stream_open(const char *path, const td_dem_opts *o, td_demgdal_stream **out,
+                                 td_grid *shape, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_demgdal_stream *s = calloc(1, sizeof *s);
+
+    *out = NULL;
+    memset(shape, 0, sizeof *shape);
+    if (!s) {
+        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory", path);
+        goto out;
+    }
+    snprintf(s->path, sizeof s->path, "%s", path);
+    pthread_once(&td_gdal_once, gdal_init);
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    CPLErrorReset();
+    rc = gdal_open(path, o, &s->ds, &s->w, &s->h, err);
+    if (rc == TD_OK)
+        rc = gdal_georef(path, o, s->ds, s->w, s->h, &shape->geo, &shape->sx, &shape->sy,
+                         &s->south_up, err);
+    CPLPopErrorHandler();
+    if (rc == TD_OK) {
+        s->band = gdal_band(s->ds, &s->p);
+        shape->w = s->w;
+        shape->h = s->h;
+        shape->tile_log2 = o->tile_log2 ? o->tile_log2 : TD_TILE_LOG2_DEFAULT;
+        *out = s;
+        s = NULL;
+    }
+out:
+    td_demgdal_stream_close(s);
+    return rc;
+}
+
+td_status td_demgdal_stream_rows(td_demgdal_stream *s, int32_t r0, int32_t n, float *dst,
+                                 td_err *err)
+{
+    td_status rc = TD_OK;
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    CPLErrorReset();
+    if (!s->south_up &&
+        GDALRasterIO(s->band, GF_Read, 0, r0, s->w, n, dst, s->w, n, GDT_Float32, 0, 0) != CE_None)
+        rc = td_err_set(err, TD_EIO, "%s: read failed at rows %ld..%ld (%s)", s->path, (long)r0,
+                        (long)(r0 + n - 1), gdal_msg());
+    for (int32_t k = 0; k < n && rc == TD_OK && s->south_up; k++)
+        if (GDALRasterIO(s->band, GF_Read, 0, s->h - 1 - (r0 + k), s->w, 1, dst + (size_t)k * (size_t)s->w,
+                         s->w, 1, GDT_Float32, 0, 0) != CE_None)
+            rc = td_err_set(err, TD_EIO, "%s: read failed at row %ld (%s)", s->path,
+                            (long)(r0 + k), gdal_msg());
+    CPLPopErrorHandler();
+    for (int32_t k = 0; k < n && rc == TD_OK; k++)
+        rc = td_demutil_f32_row(s->path, &s->p, dst + (size_t)k * (size_t)s->w, s->w, r0 + k, err);
+    return rc;
+}
+
+void td_demgdal_stream_close(td_demgdal_stream *s)
+{
+    if (s) {
+        if (s->ds)
+            GDALClose(s->ds);
+        free(s);
+    }
 }
 
 #endif

@@ -6,6 +6,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 
 void td_grid_limits_default(td_grid_limits *lim)
 {
@@ -160,7 +161,10 @@ out:
 void td_grid_free(td_grid *g)
 {
     if (g) {
-        free(g->z);
+        if (g->map)
+            munmap(g->map, g->map_bytes);
+        else
+            free(g->z);
         free(g->tiles);
         free(g);
     }

@@ -60,6 +60,9 @@ typedef struct td_grid {
     float zmin, zmax;  /* over valid samples; NaN if all are void */
     int64_t voids;     /* void samples */
     td_georef geo;
+    void *map;         /* when z is a read-only file mapping (prepared.h): its base, which
+                          td_grid_free unmaps instead of freeing z; NULL otherwise */
+    size_t map_bytes;
 } td_grid;
 
 void td_grid_limits_default(td_grid_limits *lim);

@@ -19,7 +19,8 @@
     X(TD_EINVAL, "invalid argument", "invalid")                                \
     X(TD_EUNSUPPORTED, "unsupported", "unsupported")                           \
     X(TD_ENOTFOUND, "not found", "not_found")                                  \
-    X(TD_ECANCELED, "cancelled", "cancelled")
+    X(TD_ECANCELED, "cancelled", "cancelled")                                 \
+    X(TD_EAGAIN, "not ready yet", "not_ready") /* e.g. a prepared dataset being verified */
 
 typedef enum td_status {
 #define TD_X_ENUM(code, text, json) code,

@@ -10,6 +10,7 @@ int td_cli_render(int argc, char **argv);
 int td_cli_trace(int argc, char **argv);
 int td_cli_info(int argc, char **argv);
 int td_cli_viewshed(int argc, char **argv);
+int td_cli_prepare(int argc, char **argv);
 /* Runs terrad-bench, the benchmark's own program (tests/bench), from terrad's folder. */
 int td_cli_bench(int argc, char **argv);
 

@@ -220,6 +220,10 @@ int td_cli_serve(int argc, char **argv)
     }
     if (start_http(&cfg, &app) || load_datasets(&cfg, &app))
         goto out;
+    if (td_store_background_start(app.store, &e)) { /* checks prepared datasets' chunks */
+        td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg));
+        goto out;
+    }
     atomic_store(&app.loaded, 1);
     atomic_store(&app.ready, 1);
     td_log(TD_LOG_INFO, "ready", "datasets=%zu", td_store_count(app.store));

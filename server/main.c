@@ -9,6 +9,7 @@
     X("render", td_cli_render, "render a scene JSON to an image")                  \
     X("trace", td_cli_trace, "trace binary rays from stdin, write hit distances")   \
     X("info", td_cli_info, "describe a DEM file")                                  \
+    X("prepare", td_cli_prepare, "write a DEM as a prepared dataset (larger than memory)") \
     X("viewshed", td_cli_viewshed, "what can be seen from points of a DEM (PNG)")  \
     X("bench", td_cli_bench, "measure methods and surfaces against Embree")
 

@@ -1048,8 +1048,11 @@ static void render_defer(td_app *app, td_http_req *q, td_http_resp *r, td_rjob *
     int deferred = 0;
 
     rc = td_store_acquire(app->store, j->scene.dataset, &j->snap, &e);
+    if (rc == TD_EAGAIN) /* a prepared dataset still being checked */
+        td_http_resp_header(r, "Retry-After", "1");
     if (rc) {
-        api_error(r, rc == TD_ENOTFOUND ? TD_AE_UNKNOWN_DATASET : TD_AE_INTERNAL, "dataset", "%s", e.msg);
+        api_error(r, rc == TD_ENOTFOUND ? TD_AE_UNKNOWN_DATASET : rc == TD_EAGAIN ? TD_AE_LOADING : TD_AE_INTERNAL,
+                  "dataset", "%s", e.msg);
         goto out;
     }
     if (j->scene.effects.drape[0]) {

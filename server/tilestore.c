@@ -48,6 +48,7 @@
 #include "log.h"
 #include "maxmip.h"
 #include "planes.h"
+#include "prepared.h"
 
 /* The most pixels of a drape: td_render's own limit when it loads one itself
  * (td_render_opts.drape_max_pixels 0). */
@@ -109,7 +110,15 @@ typedef struct td_ds {
     size_t resident_tiles, pinned_tiles, part_tiles[TD_PART_COUNT];
     uint64_t accel_bytes, drape_bytes;
     td_drape *drapes;
+    /* a prepared dataset (prepared.h): its index, and the background check of its chunks
+       (state and progress under `mu`); NULL for a dataset whose heights were loaded */
+    td_prepared *prep;
+    int vstate;      /* TD_VERIFY_* */
+    int32_t vdone;   /* chunks checked */
+    char vwhy[512];  /* why it was refused */
 } td_ds;
+
+enum { TD_VERIFY_PENDING = 0, TD_VERIFY_OK, TD_VERIFY_REFUSED };
 
 struct td_store {
     td_store_opts o;
@@ -124,6 +133,11 @@ struct td_store {
     td_ds *ds;
     size_t nds;
     int lod_iso; /* td_store_set_lod_iso */
+    /* the background thread of prepared datasets (td_store_background_start) */
+    pthread_t bg;
+    int bg_on, bg_stop;     /* bg_stop under `mu` */
+    pthread_cond_t bg_wake;
+    uint64_t heights_trims;
 };
 
 struct td_snapshot {
@@ -572,6 +586,7 @@ td_status td_store_create(const td_store_opts *o, td_store **out, td_err *err)
     pthread_mutex_init(&s->mu, NULL);
     pthread_mutex_init(&s->preload, NULL);
     pthread_mutex_init(&s->edit, NULL);
+    pthread_cond_init(&s->bg_wake, NULL);
     *out = s;
     s = NULL;
 out:
@@ -588,8 +603,16 @@ void td_store_free(td_store *s)
 {
     if (!s)
         return;
+    if (s->bg_on) {
+        pthread_mutex_lock(&s->mu);
+        s->bg_stop = 1;
+        pthread_cond_signal(&s->bg_wake);
+        pthread_mutex_unlock(&s->mu);
+        pthread_join(s->bg, NULL);
+    }
     for (size_t d = 0; d < s->nds; d++) {
         td_ds *ds = &s->ds[d];
+        td_prepared_free(ds->prep);
         for (size_t t = 0; t < ds->ntiles; t++)
             for (int k = 0; k < TD_PART_COUNT; k++)
                 part_unref(ds->slots[t].part[k]);
@@ -606,6 +629,7 @@ void td_store_free(td_store *s)
     pthread_mutex_destroy(&s->mu);
     pthread_mutex_destroy(&s->preload);
     pthread_mutex_destroy(&s->edit);
+    pthread_cond_destroy(&s->bg_wake);
     free(s);
 }
 
@@ -661,27 +685,15 @@ static td_status lod_build(const td_store *s, const td_grid *g, td_lod **lod, td
     return rc;
 }
 
-td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_grid *g,
-                            td_err *err)
+/* Appends dataset `id` with heights g and levels lod (both taken, also on failure),
+ * counting `bytes` against the budget. */
+static td_status ds_append(td_store *s, const char *id, const char *origin, td_grid *g,
+                           td_lod *lod, uint64_t fingerprint, uint64_t bytes, td_err *err)
 {
     td_status rc = TD_OK;
     td_ds *nds = NULL, *d;
-    td_lod *lod = NULL;
     td_hver *hv = NULL;
-    uint64_t bytes;
 
-    if (!td_store_id_valid(id)) {
-        rc = td_err_set(err, TD_EINVAL, "dataset id '%s' is not [A-Za-z0-9_.-]{1,64}", id);
-        goto out;
-    }
-    if (td_store_find(s, id) >= 0) {
-        rc = td_err_set(err, TD_EINVAL, "dataset id '%s' is already taken", id);
-        goto out;
-    }
-    rc = lod_build(s, g, &lod, err);
-    if (rc)
-        goto out;
-    bytes = td_grid_bytes(g->w, g->h, g->tile_log2) + lod->bytes;
     if (s->resident_bytes + bytes > s->o.budget_bytes) {
         rc = td_err_set(err, TD_ETOOBIG,
                         "dataset '%s' needs %llu bytes of heights, over what is left of the "
@@ -708,10 +720,11 @@ td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_
         d->slots[t].hver = 1;
     snprintf(d->id, sizeof d->id, "%s", id);
     d->origin = origin ? origin : "api";
-    d->fingerprint = s->cache_dir ? grid_fingerprint(g) : 0;
+    d->fingerprint = fingerprint;
     d->shape = *g;
     d->shape.z = NULL;
     d->shape.tiles = NULL;
+    d->shape.map = NULL;
     rc = hver_new(g, lod, 1, 0, &hv, err);
     g = NULL;
     lod = NULL;
@@ -727,7 +740,179 @@ out:
     td_lod_free(lod);
     td_grid_free(g);
     return rc;
+}
 
+static td_status id_check(const td_store *s, const char *id, td_err *err)
+{
+    td_status rc = TD_OK;
+    if (!td_store_id_valid(id))
+        rc = td_err_set(err, TD_EINVAL, "dataset id '%s' is not [A-Za-z0-9_.-]{1,64}", id);
+    else if (td_store_find(s, id) >= 0)
+        rc = td_err_set(err, TD_EINVAL, "dataset id '%s' is already taken", id);
+    return rc;
+}
+
+td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_grid *g,
+                            td_err *err)
+{
+    td_status rc;
+    td_lod *lod = NULL;
+
+    rc = id_check(s, id, err);
+    if (!rc)
+        rc = lod_build(s, g, &lod, err);
+    if (!rc) {
+        uint64_t bytes = td_grid_bytes(g->w, g->h, g->tile_log2) + lod->bytes;
+        rc = ds_append(s, id, origin, g, lod, s->cache_dir ? grid_fingerprint(g) : 0, bytes, err);
+        g = NULL;
+        lod = NULL;
+    }
+    td_lod_free(lod);
+    td_grid_free(g);
+    return rc;
+}
+
+/* --- prepared datasets (prepared.h) ---------------------------------------------- */
+
+td_status td_store_add_prepared(td_store *s, const char *id, const char *origin, const char *dir,
+                                td_err *err)
+{
+    td_status rc;
+    td_prepared *p = NULL;
+    td_lod *lod = NULL;
+    td_grid *g;
+
+    rc = id_check(s, id, err);
+    if (!rc)
+        rc = td_prepared_open(dir, &p, err);
+    if (rc)
+        goto out;
+    /* no coarse levels: they would be built from every height at start (quality.lod and
+       map tiles trace the full grid instead) */
+    lod = calloc(1, sizeof *lod);
+    if (!lod) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory");
+        goto out;
+    }
+    g = td_prepared_take_grid(p);
+    rc = ds_append(s, id, origin, g, lod,
+                   td_prepared_fingerprint(p), sizeof *g + (uint64_t)g->tiles_x * (uint64_t)g->tiles_y * sizeof(td_tile),
+                   err);
+    lod = NULL;
+    if (rc)
+        goto out;
+    {
+        td_ds *d = &s->ds[s->nds - 1];
+        d->prep = p;
+        p = NULL;
+        snprintf(d->dir, sizeof d->dir, "%s", dir);
+        snprintf(d->file, sizeof d->file, "%s", TD_PREPARED_INDEX);
+    }
+out:
+    td_lod_free(lod);
+    td_prepared_free(p);
+    return rc;
+}
+
+/* Checks the next pending chunk of one prepared dataset; 0 when none is left. */
+static int verify_step(td_store *s)
+{
+    td_ds *d = NULL;
+    int32_t c = 0;
+    td_err e = {0};
+    td_status rc;
+    char q[600];
+
+    pthread_mutex_lock(&s->mu);
+    for (size_t k = 0; k < s->nds && !d; k++)
+        if (s->ds[k].prep && s->ds[k].vstate == TD_VERIFY_PENDING) {
+            d = &s->ds[k];
+            c = d->vdone;
+        }
+    pthread_mutex_unlock(&s->mu);
+    if (!d)
+        return 0;
+    rc = td_prepared_verify_chunk(d->prep, c, &e);
+    pthread_mutex_lock(&s->mu);
+    if (rc) {
+        d->vstate = TD_VERIFY_REFUSED;
+        snprintf(d->vwhy, sizeof d->vwhy, "%s", e.msg);
+    } else if (++d->vdone == td_prepared_chunks(d->prep)) {
+        d->vstate = TD_VERIFY_OK;
+    }
+    pthread_mutex_unlock(&s->mu);
+    if (rc)
+        td_log(TD_LOG_ERROR, "dataset_refused", "id=%s status=%s msg=%s", d->id, td_status_json(rc),
+               td_log_quote(q, sizeof q, e.msg));
+    else if (d->vstate == TD_VERIFY_OK)
+        td_log(TD_LOG_INFO, "dataset_verified", "id=%s chunks=%ld", d->id, (long)d->vdone);
+    return 1;
+}
+
+/* Heights of prepared datasets resident in the process, and their mapped size. */
+static uint64_t mapped_resident(const td_store *s, uint64_t *mapped)
+{
+    uint64_t res = 0;
+    *mapped = 0;
+    for (size_t k = 0; k < s->nds; k++)
+        if (s->ds[k].prep) {
+            res += td_prepared_resident(s->ds[k].cur->grid);
+            *mapped += s->ds[k].cur->grid->map_bytes;
+        }
+    return res;
+}
+
+/* Over the budget with the mapped heights counted: drop the process's pages of them
+ * (the page cache keeps them while memory allows). */
+static void trim_mapped(td_store *s)
+{
+    uint64_t mapped, res = mapped_resident(s, &mapped), other;
+    pthread_mutex_lock(&s->mu);
+    other = s->resident_bytes;
+    pthread_mutex_unlock(&s->mu);
+    if (res && other + res > s->o.budget_bytes) {
+        for (size_t k = 0; k < s->nds; k++)
+            if (s->ds[k].prep)
+                td_prepared_trim(s->ds[k].cur->grid);
+        pthread_mutex_lock(&s->mu);
+        s->heights_trims++;
+        pthread_mutex_unlock(&s->mu);
+    }
+}
+
+/* The background thread: every pending chunk, then the budget of mapped heights once a
+ * second, until td_store_free. */
+static void *background(void *arg)
+{
+    td_store *s = arg;
+    int stop = 0;
+    while (!stop) {
+        int busy = verify_step(s);
+        if (!busy)
+            trim_mapped(s);
+        pthread_mutex_lock(&s->mu);
+        if (!busy && !s->bg_stop) {
+            struct timespec ts;
+            clock_gettime(CLOCK_REALTIME, &ts);
+            ts.tv_sec += 1;
+            pthread_cond_timedwait(&s->bg_wake, &s->mu, &ts);
+        }
+        stop = s->bg_stop;
+        pthread_mutex_unlock(&s->mu);
+    }
+    return NULL;
+}
+
+td_status td_store_background_start(td_store *s, td_err *err)
+{
+    td_status rc = TD_OK;
+    if (!s->bg_on) {
+        if (pthread_create(&s->bg, NULL, background, s))
+            rc = td_err_set(err, TD_ENOMEM, "cannot start the tile store's background thread");
+        else
+            s->bg_on = 1;
+    }
+    return rc;
 }
 
 static void set_file(td_store *s, const char *id, const char *path, const char *file)
@@ -792,6 +977,31 @@ out:
     return ok;
 }
 
+/* A prepared dataset's folder as dataset `id`; failures are logged and skipped. */
+static int load_prepared(td_store *s, const char *path, const char *id, const char *origin)
+{
+    td_err e = {0};
+    td_status rc;
+    char qp[600], qm[600];
+    if (td_prepared_unfinished(path))
+        rc = td_err_set(&e, TD_EFORMAT, "%s: an unfinished prepare (%s without %s): run terrad prepare again",
+                        path, TD_PREPARED_STATE, TD_PREPARED_INDEX);
+    else
+        rc = td_store_add_prepared(s, id, origin, path, &e);
+    if (rc) {
+        td_log(TD_LOG_WARN, "dataset_skipped", "id=%s path=%s status=%s msg=%s", id,
+               td_log_quote(qp, sizeof qp, path), td_status_json(rc), td_log_quote(qm, sizeof qm, e.msg));
+    } else {
+        const td_grid *g = s->ds[s->nds - 1].cur->grid;
+        td_log(TD_LOG_INFO, "dataset_loaded",
+               "id=%s origin=%s path=%s prepared=1 width=%d height=%d spacing=%gx%g zmin=%g zmax=%g tiles=%dx%d chunks=%ld",
+               id, origin, td_log_quote(qp, sizeof qp, path), (int)g->w, (int)g->h, g->sx, g->sy,
+               (double)g->zmin, (double)g->zmax, (int)g->tiles_x, (int)g->tiles_y,
+               (long)td_prepared_chunks(s->ds[s->nds - 1].prep));
+    }
+    return rc == TD_OK;
+}
+
 /* Non-zero if `path` (after resolving links) lies inside the directory `root`. */
 static int inside(const char *root, const char *path)
 {
@@ -833,6 +1043,8 @@ td_status td_store_add_dir(td_store *s, const char *dir, const char *origin, int
         if (S_ISREG(st.st_mode) && td_dem_recognised(path)) {
             stem_of(names[i]->d_name, id, sizeof id);
             *loaded += load_one(s, path, names[i]->d_name, id, origin);
+        } else if (S_ISDIR(st.st_mode) && (td_prepared_is(path) || td_prepared_unfinished(path))) {
+            *loaded += load_prepared(s, path, names[i]->d_name, origin);
         } else if (S_ISDIR(st.st_mode)) {
             struct dirent **sub = NULL;
             int m = scandir(path, &sub, skip_name, alphasort), count = 0;
@@ -892,7 +1104,12 @@ void td_store_info(td_store *s, size_t idx, td_dataset_info *out)
     out->pinned_tiles = d->pinned_tiles;
     out->accel_bytes = d->accel_bytes;
     out->drape_bytes = d->drape_bytes;
+    out->prepared = d->prep != NULL;
+    out->chunks = d->prep ? td_prepared_chunks(d->prep) : 0;
+    out->chunks_checked = d->vdone;
+    out->refused = d->vstate == TD_VERIFY_REFUSED;
     pthread_mutex_unlock(&s->mu);
+    out->heights_resident = d->prep ? td_prepared_resident(d->cur->grid) : 0;
 }
 
 void td_store_stats_get(td_store *s, td_store_stats *st)
@@ -910,7 +1127,10 @@ void td_store_stats_get(td_store *s, td_store_stats *st)
     st->tiles_evicted = s->tiles_evicted;
     st->cache_hits = s->cache_hits;
     st->cache_misses = s->cache_misses;
+    st->heights_trims = s->heights_trims;
     pthread_mutex_unlock(&s->mu);
+    st->heights_mapped_resident = mapped_resident(s, &st->heights_mapped);
+    st->resident_bytes += st->heights_mapped_resident;
 }
 
 /* --- snapshots -------------------------------------------------------------------- */
@@ -942,6 +1162,14 @@ td_status td_store_acquire(td_store *s, const char *id, td_snapshot **out, td_er
     snap->ds = (size_t)idx;
     snap->view.accel = snap->accel;
     pthread_mutex_lock(&s->mu);
+    if (d->prep && d->vstate != TD_VERIFY_OK) {
+        rc = d->vstate == TD_VERIFY_PENDING
+                 ? td_err_set(err, TD_EAGAIN, "dataset '%s' is being checked (%ld of %ld chunks of its heights)",
+                              d->id, (long)d->vdone, (long)td_prepared_chunks(d->prep))
+                 : td_err_set(err, TD_ENOTFOUND, "dataset '%s' was refused: %s", d->id, d->vwhy);
+        pthread_mutex_unlock(&s->mu);
+        goto out;
+    }
     /* the heights and the parts in one critical section: an edit swaps both in one */
     snap->hv = d->cur;
     atomic_fetch_add_explicit(&snap->hv->refs, 1, memory_order_relaxed);
@@ -1584,7 +1812,11 @@ td_status td_store_edit(td_store *s, size_t idx, const td_grid_region *r, const 
     res->rebuild.dataset = idx;
     pthread_mutex_lock(&s->edit); /* d->cur changes only under this lock: read it freely */
     old = d->cur;
-    rc = td_grid_edit_apply(old->grid, r, z, &g, err);
+    if (d->prep)
+        rc = td_err_set(err, TD_EUNSUPPORTED, "dataset '%s' is prepared (read-only, memory-mapped): "
+                        "edit its source and prepare it again", d->id);
+    else
+        rc = td_grid_edit_apply(old->grid, r, z, &g, err);
     if (!rc)
         rc = td_grid_edit_tiles(g, r, &tiles, &n, err);
     if (rc)

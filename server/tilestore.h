@@ -104,12 +104,19 @@ typedef struct td_dataset_info {
     size_t pinned_tiles;
     uint64_t grid_bytes, accel_bytes;
     uint64_t drape_bytes;   /* decoded drapes kept with the dataset */
+    int prepared;           /* served from a prepared folder (td_store_add_prepared) */
+    int32_t chunks, chunks_checked; /* its chunks, and how many the background check passed */
+    int refused;            /* a chunk failed its check: never served */
+    uint64_t heights_resident; /* bytes of its mapped heights resident in the process */
 } td_dataset_info;
 
 typedef struct td_store_stats {
     size_t datasets;
     uint64_t total_tiles, resident_tiles, resident_bytes, budget_bytes;
     uint64_t tiles_built, tiles_evicted, cache_hits, cache_misses;
+    /* prepared datasets: bytes of heights mapped, resident in the process (counted in
+       resident_bytes too), and how often they were trimmed back to the budget */
+    uint64_t heights_mapped, heights_mapped_resident, heights_trims;
 } td_store_stats;
 
 td_status td_store_create(const td_store_opts *o, td_store **out, td_err *err);
@@ -126,7 +133,8 @@ int td_store_id_valid(const char *id);
 
 /* Makes a dataset of every file td_dem_recognised accepts in `dir` (id: its name without
  * extension) and of every folder holding such files (id: the folder's name; with several
- * files, folder-file). Nothing outside `dir` can be named: symbolic links that resolve
+ * files, folder-file), and of every prepared folder (prepared.h, td_store_add_prepared;
+ * id: the folder's name). Nothing outside `dir` can be named: symbolic links that resolve
  * outside it are skipped. A file that fails to load is logged and skipped. Not
  * thread-safe: call before serving. *loaded counts the datasets added. */
 td_status td_store_add_dir(td_store *s, const char *dir, const char *origin, int *loaded,
@@ -134,6 +142,20 @@ td_status td_store_add_dir(td_store *s, const char *dir, const char *origin, int
 /* Adds a finished grid under `id` (the store takes it, also on failure). */
 td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_grid *g,
                             td_err *err);
+
+/* Adds the prepared dataset in folder `dir` (prepared.h) under `id`: its index is read and
+ * its heights mapped, in time independent of their size. It is served once the background
+ * thread (td_store_background_start) has checked every chunk of its heights; until then
+ * td_store_acquire answers TD_EAGAIN, and for ever TD_ENOTFOUND (naming the file, chunk and
+ * reason, also logged as dataset_refused) if a chunk fails. It has no coarse levels of
+ * detail (quality.lod traces the full grid) and refuses edits. Its heights count against the
+ * budget as far as they are resident in the process: the background thread drops them
+ * (td_prepared_trim) when the budget is exceeded. Not thread-safe: call before serving. */
+td_status td_store_add_prepared(td_store *s, const char *id, const char *origin, const char *dir,
+                                td_err *err);
+/* Starts the thread that checks prepared datasets and trims their mapped heights; call
+ * once every dataset is added (td_store_free stops it). */
+td_status td_store_background_start(td_store *s, td_err *err);
 
 size_t td_store_count(const td_store *s);
 /* Index of a dataset, or -1. */

@@ -451,7 +451,8 @@ static void vs_handle(td_app *app, td_http_req *hq, td_http_resp *r, int los)
     }
     rc = td_store_acquire(app->store, j->q.dataset, &j->snap, &e);
     if (rc) {
-        td_routes_error(r, rc == TD_ENOTFOUND ? "unknown_dataset" : "internal", "dataset", e.msg);
+        td_routes_error(r, rc == TD_ENOTFOUND ? "unknown_dataset" : rc == TD_EAGAIN ? "loading" : "internal",
+                        "dataset", e.msg);
         goto out;
     }
     j->app = app;

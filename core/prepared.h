@@ -1,0 +1,106 @@
+/* prepared.h: terrad's prepared on-disk form of a dataset, for grids larger than memory
+ * (issue 16). `terrad prepare DEM OUT_DIR` writes it (td_prepare: streaming, resumable);
+ * `terrad serve --data` opens it in constant time (td_prepared_open) and serves it from a
+ * read-only memory mapping, checking its heights chunk by chunk in the background
+ * (td_prepared_verify_chunk) before the first render.
+ *
+ * A prepared dataset is a directory:
+ *
+ *   terrad.json   the index (written last, by rename: a directory without it is an
+ *                 unfinished prepare): format "terrad-prepared", version, width, height,
+ *                 spacing, tile_log2, zmin/zmax/voids, georeference, the source's name,
+ *                 size and mtime, chunk_rows and one FNV-1a checksum per chunk of
+ *                 heights.f32, and the checksum of tiles.bin
+ *   heights.f32   w*h little-endian float32, SOUTH-based rows, row-major: exactly the
+ *                 layout of td_grid.z (grid.h), so the tracers read the mapping as they
+ *                 read an in-memory grid, with no change in any hot loop
+ *   tiles.bin     the td_tile records (grid.h), tiles_x*tiles_y of them, as
+ *                 td_grid_finish computes them (so opening never scans the heights)
+ *   prepare.state only while a prepare is unfinished: how many chunks are written, their
+ *                 checksums and the running tile statistics (a re-run continues there)
+ *
+ * Chunk c holds the file's rows [c*R, c*R + R) (row 0 north, R = chunk_rows), which are
+ * one contiguous byte range of heights.f32 (south rows h-c*R-n .. h-1-c*R).
+ *
+ * Why one mapped array and not tiles of heights (the issue's alternative): every tracer,
+ * the edit code and the accelerations index td_grid.z as one row-major array; per-tile
+ * height blocks would change every hot loop and the oracle-checked paths for a layout
+ * gain that the kernel's page cache gives anyway at page granularity (a 256-cell tile of
+ * a 16384-wide grid touches 257 runs of 1 KiB, i.e. 257 pages of 4 KiB: 4x the bytes of
+ * a tiled layout for rays that stay in one tile, the same for rays that cross rows of
+ * tiles). Resident heights are what rays touched: measured with mincore
+ * (td_prepared_resident) and dropped from the process (madvise, td_prepared_trim) when
+ * over the budget; the page cache keeps them for the next touch while memory allows. */
+#ifndef TD_PREPARED_H
+#define TD_PREPARED_H
+
+#include <stdint.h>
+
+#include "dem.h"
+
+#define TD_PREPARED_VERSION 1
+#define TD_PREPARED_INDEX "terrad.json"
+#define TD_PREPARED_HEIGHTS "heights.f32"
+#define TD_PREPARED_TILES "tiles.bin"
+#define TD_PREPARED_STATE "prepare.state"
+
+/* Called after each chunk: rows of the file done of total, and the samples a row; non-zero
+ * cancels (the state written so far stays, so a later run continues). */
+typedef int (*td_prepare_progress)(void *cls, int64_t rows_done, int64_t rows_total, int32_t w);
+
+typedef struct td_prepare_opts {
+    td_dem_opts dem;     /* loader options (spacing, encoding...); tile_log2 from here */
+    int32_t chunk_rows;  /* 0: the tile size */
+    td_prepare_progress progress;
+    void *cls;
+} td_prepare_opts;
+
+typedef struct td_prepare_result {
+    int32_t w, h;
+    int64_t resumed_rows; /* rows already written by an earlier run (0: from the start) */
+    int already;          /* the index was there and matches the source: nothing done */
+    int streamed;         /* 1: read row by row; 0: the format's loader read it whole */
+    uint64_t bytes;       /* of heights.f32 */
+} td_prepare_result;
+
+/* Writes (or continues writing) the prepared form of DEM `src` into directory `dir`
+ * (created if missing). .f32 and GDAL rasters (GeoTIFF...) are read a chunk of rows at a
+ * time and never held whole; the other formats' loaders (.asc, .hgt, .png) read the whole
+ * file, within opts->dem.limits. */
+td_status td_prepare(const char *src, const char *dir, const td_prepare_opts *o,
+                     td_prepare_result *res, td_err *err);
+
+/* Non-zero when `dir` holds a prepared index; td_prepared_unfinished: a prepare state
+ * without an index. */
+int td_prepared_is(const char *dir);
+int td_prepared_unfinished(const char *dir);
+
+typedef struct td_prepared td_prepared;
+
+/* Reads the index and tiles.bin, checks the heights file's size, maps it read-only. In
+ * time and memory independent of the heights (their size is only stat'ed): a truncated
+ * heights.f32, an index of another version or shape, a tiles.bin that fails its checksum
+ * or whose records do not fit the grid are refused with the file and the reason. */
+td_status td_prepared_open(const char *dir, td_prepared **out, td_err *err);
+/* The mapped grid: the caller owns it from now on (td_grid_free unmaps it). Once. */
+td_grid *td_prepared_take_grid(td_prepared *p);
+/* A hash of the index's checksums, shape and version (the disk cache's fingerprint). */
+uint64_t td_prepared_fingerprint(const td_prepared *p);
+int32_t td_prepared_chunks(const td_prepared *p);
+/* Reads chunk c from the file (not through the mapping, and dropping it from the page
+ * cache after) and compares its checksum: TD_EFORMAT naming the file, the chunk, its rows
+ * and both checksums when it differs; TD_EIO when it cannot be read. */
+td_status td_prepared_verify_chunk(const td_prepared *p, int32_t c, td_err *err);
+void td_prepared_free(td_prepared *p);
+
+/* Bytes of a mapped grid's heights resident in this process now (its mapping's Rss in
+ * /proc/self/smaps: what the tile store's budget counts); 0 for a grid that is not mapped.
+ * td_prepared_cached: bytes of it in the page cache (mincore), whichever process (a
+ * replica on the same machine) brought them in. */
+uint64_t td_prepared_resident(const td_grid *g);
+uint64_t td_prepared_cached(const td_grid *g);
+/* Drops this process's pages of a mapped grid (MADV_DONTNEED: the page cache keeps them
+ * while memory allows, so the next touch is a minor fault, not a read). */
+void td_prepared_trim(const td_grid *g);
+
+#endif
