@@ -415,6 +415,7 @@ static td_status run_init(td_prep_run *r, const td_src_rows *src, const td_prepa
     want.h = src->shape.h;
     want.tile_log2 = src->shape.tile_log2;
     want.chunk_rows = o->chunk_rows > 0 ? o->chunk_rows : T;
+    want.chunk_rows = want.chunk_rows < want.h ? want.chunk_rows : want.h;
     want.nchunks = (want.h + want.chunk_rows - 1) / want.chunk_rows;
     want.tiles_x = (want.w - 1 + T - 1) / T;
     want.tiles_y = (want.h - 1 + T - 1) / T;

@@ -193,6 +193,15 @@ static void put_totals(td_buf *b, td_metrics *m, const td_metrics_ext *e)
     put(b, "# HELP terrad_resident_bytes Bytes of heights and acceleration resident.\n"
             "# TYPE terrad_resident_bytes gauge\nterrad_resident_bytes %llu\n",
         (unsigned long long)e->resident_bytes);
+    put(b, "# HELP terrad_heights_mapped_bytes Heights of prepared datasets, memory-mapped.\n"
+            "# TYPE terrad_heights_mapped_bytes gauge\nterrad_heights_mapped_bytes %llu\n"
+            "# HELP terrad_heights_resident_bytes Of them, resident in this process (also in "
+            "terrad_resident_bytes).\n"
+            "# TYPE terrad_heights_resident_bytes gauge\nterrad_heights_resident_bytes %llu\n"
+            "# HELP terrad_heights_trims_total Times the mapped heights were dropped back to the budget.\n"
+            "# TYPE terrad_heights_trims_total counter\nterrad_heights_trims_total %llu\n",
+        (unsigned long long)e->heights_mapped, (unsigned long long)e->heights_resident,
+        (unsigned long long)e->heights_trims);
     put(b, "# HELP terrad_memory_budget_bytes The memory budget (--memory-mb).\n"
             "# TYPE terrad_memory_budget_bytes gauge\nterrad_memory_budget_bytes %llu\n",
         (unsigned long long)e->budget_bytes);

@@ -249,7 +249,7 @@ static json_t *dataset_json(td_app *app, size_t idx)
     }
     return json_pack(
         "{s:s,s:s,s:s,s:I,s:{s:i,s:i},s:[f,f],s:{s:[f,f],s:[f,f],s:[f,f]},s:I,s:o,"
-        "s:{s:i,s:i,s:i,s:I},s:{s:I,s:I,s:I,s:I,s:I,s:I},s:o}",
+        "s:{s:i,s:i,s:i,s:I},s:{s:I,s:I,s:I,s:I,s:I,s:I},s:o,s:o}",
         "id", di.id, "file", di.file, "origin", di.origin, "version", (json_int_t)di.version,
         "size", "width", (int)g->w, "height", (int)g->h,
         "spacing", g->sx, g->sy,
@@ -262,7 +262,12 @@ static json_t *dataset_json(td_app *app, size_t idx)
         "residency", "tiles", (json_int_t)di.resident_tiles, "maxmip", (json_int_t)di.maxmip_tiles,
         "planes", (json_int_t)di.planes_tiles, "pinned", (json_int_t)di.pinned_tiles,
         "grid_bytes", (json_int_t)di.grid_bytes, "accel_bytes", (json_int_t)di.accel_bytes,
-        "drapes", drapes_json(&di));
+        "drapes", drapes_json(&di),
+        "prepared", !di.prepared ? json_null()
+                    : json_pack("{s:s,s:i,s:i,s:I}", "state",
+                                di.refused ? "refused" : di.chunks_checked < di.chunks ? "checking" : "ok",
+                                "chunks", (int)di.chunks, "checked", (int)di.chunks_checked,
+                                "heights_resident_bytes", (json_int_t)di.heights_resident));
 }
 
 static void h_datasets(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
@@ -319,6 +324,9 @@ static void h_metrics(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     e.tiles_evicted = st.tiles_evicted;
     e.cache_hits = st.cache_hits;
     e.cache_misses = st.cache_misses;
+    e.heights_mapped = st.heights_mapped;
+    e.heights_resident = st.heights_mapped_resident;
+    e.heights_trims = st.heights_trims;
     e.jobs_queued = jc[TD_JOB_QUEUED];
     e.jobs_running = jc[TD_JOB_RUNNING];
     e.jobs_done = jc[TD_JOB_DONE];

@@ -1,0 +1,411 @@
+/* test_prepared.c: the prepared form (core/prepared.h). A prepared dataset must open as
+ * exactly the grid td_dem_load makes of its source (heights bit for bit, statistics and
+ * tile records the same), whichever the tile size, chunking, voids or format (.f32
+ * streamed, GeoTIFF streamed through GDAL, .asc through its loader); a prepare stopped after
+ * some chunks must continue and end with the same files; and a truncated heights file, an
+ * index of another version, a corrupted tiles.bin or a corrupted chunk must be refused with
+ * the file and the reason. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+
+#include "dem.h"
+#include "prepared.h"
+
+#ifdef TERRAD_HAVE_GDAL
+#include <gdal.h>
+#endif
+
+static char tmp_root[256];
+
+static int setup(void **state)
+{
+    (void)state;
+    snprintf(tmp_root, sizeof tmp_root, "/tmp/td-prepared-XXXXXX");
+    return mkdtemp(tmp_root) ? 0 : -1;
+}
+
+static int teardown(void **state)
+{
+    char cmd[300];
+    (void)state;
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp_root);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+static void tmp_path(const char *name, char *out, size_t n)
+{
+    snprintf(out, n, "%s/%s", tmp_root, name);
+}
+
+static void data_path(const char *name, char *out, size_t n)
+{
+    snprintf(out, n, "%s/%s", TERRAD_TEST_DATA, name);
+}
+
+static void opts(td_prepare_opts *o, int tile_log2, int32_t chunk_rows)
+{
+    memset(o, 0, sizeof *o);
+    td_dem_opts_default(&o->dem);
+    o->dem.tile_log2 = tile_log2;
+    o->chunk_rows = chunk_rows;
+}
+
+/* The prepared grid in dir equals the loader's grid of src, bit for bit. */
+static void assert_same_as_loaded(const char *src, const char *dir, int tile_log2)
+{
+    td_dem_opts lo;
+    td_grid *ref = NULL, *g;
+    td_prepared *p = NULL;
+    td_err e = {0};
+    size_t nt;
+
+    td_dem_opts_default(&lo);
+    lo.tile_log2 = tile_log2;
+    assert_int_equal(td_dem_load(src, &lo, &ref, &e), TD_OK);
+    assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK);
+    g = td_prepared_take_grid(p);
+    assert_non_null(g->map);
+    assert_int_equal(g->w, ref->w);
+    assert_int_equal(g->h, ref->h);
+    assert_true(g->sx == ref->sx && g->sy == ref->sy);
+    assert_int_equal(g->tile_log2, ref->tile_log2);
+    assert_int_equal(g->tiles_x, ref->tiles_x);
+    assert_int_equal(g->tiles_y, ref->tiles_y);
+    assert_true(g->zmin == ref->zmin && g->zmax == ref->zmax);
+    assert_int_equal(g->voids, ref->voids);
+    assert_int_equal(g->geo.kind, ref->geo.kind);
+    assert_true(g->geo.x0 == ref->geo.x0 && g->geo.y0 == ref->geo.y0);
+    assert_true(g->geo.dx == ref->geo.dx && g->geo.dy == ref->geo.dy);
+    assert_memory_equal(g->z, ref->z, (size_t)g->w * (size_t)g->h * sizeof(float));
+    nt = (size_t)g->tiles_x * (size_t)g->tiles_y;
+    assert_memory_equal(g->tiles, ref->tiles, nt * sizeof(td_tile));
+    td_grid_free(g);
+    td_grid_free(ref);
+    td_prepared_free(p);
+}
+
+static void prepare_ok(const char *src, const char *dir, int tile_log2, int32_t chunk_rows,
+                       td_prepare_result *res)
+{
+    td_prepare_opts o;
+    td_err e = {0};
+    opts(&o, tile_log2, chunk_rows);
+    if (td_prepare(src, dir, &o, res, &e) != TD_OK)
+        fail_msg("%s", e.msg);
+}
+
+static void test_f32_same_as_loader(void **state)
+{
+    char src[512], dir[512];
+    td_prepare_result res;
+    (void)state;
+    data_path("trinidad-crop.f32", src, sizeof src);
+    /* tiles of 32 (7 x 5, shared edges), chunks that are not a multiple of the tile size
+       and a last chunk shorter than the others */
+    tmp_path("f32-t5", dir, sizeof dir);
+    prepare_ok(src, dir, 5, 23, &res);
+    assert_int_equal(res.streamed, 1);
+    assert_int_equal(res.resumed_rows, 0);
+    assert_int_equal(res.w, 200);
+    assert_int_equal(res.h, 150);
+    assert_same_as_loaded(src, dir, 5);
+    tmp_path("f32-t8", dir, sizeof dir);
+    prepare_ok(src, dir, 8, 0, &res);
+    assert_same_as_loaded(src, dir, 8);
+}
+
+/* A .f32 with NaN voids (and a tile of voids only): voids, tile ranges of +-inf. */
+static void test_voids(void **state)
+{
+    char src[512], side[512], dir[512];
+    const int32_t w = 40, h = 33;
+    float *z = malloc((size_t)w * h * sizeof *z);
+    FILE *f;
+    td_prepare_result res;
+    (void)state;
+    assert_non_null(z);
+    for (int32_t r = 0; r < h; r++)
+        for (int32_t i = 0; i < w; i++)
+            z[r * w + i] = (i < 17 && r < 17) ? NAN : (float)(100.0 + 3.0 * sin(i * 0.3) + r * 0.25);
+    tmp_path("voids.f32", src, sizeof src);
+    tmp_path("voids.json", side, sizeof side);
+    f = fopen(src, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(z, sizeof *z, (size_t)w * h, f), (size_t)w * h);
+    fclose(f);
+    f = fopen(side, "w");
+    assert_non_null(f);
+    fprintf(f, "{\"width\": %d, \"height\": %d, \"spacing_m\": 10, \"nodata\": \"nan\"}", (int)w, (int)h);
+    fclose(f);
+    tmp_path("voids-p", dir, sizeof dir);
+    prepare_ok(src, dir, 4, 5, &res);
+    assert_same_as_loaded(src, dir, 4);
+    free(z);
+}
+
+/* .asc goes through its loader (not streamed) and ends the same. */
+static void test_asc_whole(void **state)
+{
+    char src[512], dir[512];
+    td_prepare_result res;
+    (void)state;
+    data_path("volcano.asc", src, sizeof src);
+    tmp_path("volcano-p", dir, sizeof dir);
+    prepare_ok(src, dir, 4, 7, &res);
+    assert_int_equal(res.streamed, 0);
+    assert_same_as_loaded(src, dir, 4);
+}
+
+static void test_geotiff_streamed(void **state)
+{
+    (void)state;
+#ifdef TERRAD_HAVE_GDAL
+    char src[512], tif[512], dir[512];
+    td_grid *ref = NULL;
+    td_dem_opts lo;
+    td_err e = {0};
+    td_prepare_result res;
+    GDALDatasetH ds;
+    double gt[6] = {500000.0, 30.0, 0.0, 4100000.0, 0.0, -30.0};
+    char *copt[] = {"TILED=YES", "BLOCKXSIZE=64", "BLOCKYSIZE=64", NULL};
+
+    data_path("trinidad-crop.f32", src, sizeof src);
+    td_dem_opts_default(&lo);
+    assert_int_equal(td_dem_load(src, &lo, &ref, &e), TD_OK);
+    GDALAllRegister();
+    tmp_path("crop.tif", tif, sizeof tif);
+    ds = GDALCreate(GDALGetDriverByName("GTiff"), tif, ref->w, ref->h, 1, GDT_Float32, copt);
+    assert_non_null(ds);
+    assert_int_equal(GDALSetGeoTransform(ds, gt), CE_None);
+    for (int32_t r = 0; r < ref->h; r++)
+        assert_int_equal(GDALRasterIO(GDALGetRasterBand(ds, 1), GF_Write, 0, r, ref->w, 1,
+                                      ref->z + (size_t)(ref->h - 1 - r) * (size_t)ref->w, ref->w, 1,
+                                      GDT_Float32, 0, 0),
+                         CE_None);
+    GDALClose(ds);
+    td_grid_free(ref);
+    tmp_path("tif-p", dir, sizeof dir);
+    prepare_ok(tif, dir, 6, 50, &res);
+    assert_int_equal(res.streamed, 1);
+    assert_same_as_loaded(tif, dir, 6);
+#endif
+}
+
+static int stop_after_3(void *cls, int64_t done, int64_t total, int32_t w)
+{
+    int *calls = cls;
+    (void)done;
+    (void)total;
+    (void)w;
+    return ++*calls >= 3;
+}
+
+static void file_bytes(const char *dir, const char *name, unsigned char **buf, size_t *n)
+{
+    char p[600];
+    FILE *f;
+    struct stat st;
+    snprintf(p, sizeof p, "%s/%s", dir, name);
+    assert_int_equal(stat(p, &st), 0);
+    *n = (size_t)st.st_size;
+    *buf = malloc(*n + 1);
+    f = fopen(p, "rb");
+    assert_non_null(f);
+    assert_int_equal(fread(*buf, 1, *n, f), *n);
+    fclose(f);
+}
+
+static void assert_same_file(const char *a, const char *b, const char *name)
+{
+    unsigned char *x, *y;
+    size_t nx, ny;
+    file_bytes(a, name, &x, &nx);
+    file_bytes(b, name, &y, &ny);
+    assert_int_equal(nx, ny);
+    assert_memory_equal(x, y, nx);
+    free(x);
+    free(y);
+}
+
+static void test_resume(void **state)
+{
+    char src[512], dir[512], ref[512];
+    td_prepare_opts o;
+    td_prepare_result res;
+    td_err e = {0};
+    int calls = 0;
+    (void)state;
+    data_path("trinidad-crop.f32", src, sizeof src);
+    tmp_path("resume", dir, sizeof dir);
+    opts(&o, 5, 16);
+    o.progress = stop_after_3;
+    o.cls = &calls;
+    assert_int_equal(td_prepare(src, dir, &o, &res, &e), TD_ECANCELED);
+    assert_non_null(strstr(e.msg, "after 3 of 10 chunks"));
+    assert_false(td_prepared_is(dir));
+    assert_true(td_prepared_unfinished(dir));
+    /* the second run continues after the three chunks written */
+    prepare_ok(src, dir, 5, 16, &res);
+    assert_int_equal(res.resumed_rows, 48);
+    assert_false(td_prepared_unfinished(dir));
+    tmp_path("resume-ref", ref, sizeof ref);
+    prepare_ok(src, ref, 5, 16, &res);
+    assert_same_file(dir, ref, TD_PREPARED_HEIGHTS);
+    assert_same_file(dir, ref, TD_PREPARED_TILES);
+    assert_same_file(dir, ref, TD_PREPARED_INDEX);
+    /* a third run finds it done */
+    prepare_ok(src, dir, 5, 16, &res);
+    assert_int_equal(res.already, 1);
+    assert_same_as_loaded(src, dir, 5);
+}
+
+/* A fresh prepared copy named `name` of the crop, 10 chunks of 16 rows. */
+static void fresh(const char *name, char *dir, size_t n)
+{
+    char src[512];
+    td_prepare_result res;
+    data_path("trinidad-crop.f32", src, sizeof src);
+    tmp_path(name, dir, n);
+    prepare_ok(src, dir, 5, 16, &res);
+}
+
+static void flip_byte(const char *dir, const char *name, long at)
+{
+    char p[600];
+    FILE *f;
+    int c;
+    snprintf(p, sizeof p, "%s/%s", dir, name);
+    f = fopen(p, "r+b");
+    assert_non_null(f);
+    assert_int_equal(fseek(f, at, SEEK_SET), 0);
+    c = fgetc(f);
+    assert_int_equal(fseek(f, at, SEEK_SET), 0);
+    fputc(c ^ 0x10, f);
+    fclose(f);
+}
+
+static void assert_refused(const char *dir, td_status want, const char *n1, const char *n2)
+{
+    td_prepared *p = NULL;
+    td_err e = {0};
+    assert_int_equal(td_prepared_open(dir, &p, &e), want);
+    assert_null(p);
+    if (!strstr(e.msg, n1) || !strstr(e.msg, n2))
+        fail_msg("'%s' does not name '%s' and '%s'", e.msg, n1, n2);
+}
+
+static void test_truncated(void **state)
+{
+    char dir[512], p[600];
+    (void)state;
+    fresh("trunc", dir, sizeof dir);
+    snprintf(p, sizeof p, "%s/%s", dir, TD_PREPARED_HEIGHTS);
+    assert_int_equal(truncate(p, 200 * 150 * 4 - 4), 0);
+    assert_refused(dir, TD_EFORMAT, "heights.f32", "truncated");
+    snprintf(p, sizeof p, "%s/%s", dir, TD_PREPARED_TILES);
+    fresh("trunc-tiles", dir, sizeof dir);
+    snprintf(p, sizeof p, "%s/%s", dir, TD_PREPARED_TILES);
+    assert_int_equal(truncate(p, 10), 0);
+    assert_refused(dir, TD_EFORMAT, "tiles.bin", "truncated");
+}
+
+static void test_other_version(void **state)
+{
+    char dir[512], p[600];
+    unsigned char *buf;
+    size_t n;
+    char *v;
+    FILE *f;
+    (void)state;
+    fresh("version", dir, sizeof dir);
+    file_bytes(dir, TD_PREPARED_INDEX, &buf, &n);
+    buf[n] = '\0';
+    v = strstr((char *)buf, "\"version\":1");
+    assert_non_null(v);
+    v[strlen("\"version\":")] = '7';
+    snprintf(p, sizeof p, "%s/%s", dir, TD_PREPARED_INDEX);
+    f = fopen(p, "wb");
+    assert_non_null(f);
+    fwrite(buf, 1, n, f);
+    fclose(f);
+    free(buf);
+    assert_refused(dir, TD_EUNSUPPORTED, "terrad.json", "version 7");
+}
+
+static void test_corrupt_tiles(void **state)
+{
+    char dir[512];
+    (void)state;
+    fresh("tiles", dir, sizeof dir);
+    flip_byte(dir, TD_PREPARED_TILES, 24 * 3 + 17); /* a zmin byte of tile 3 */
+    assert_refused(dir, TD_EFORMAT, "tiles.bin", "checksum");
+}
+
+static void test_corrupt_chunk(void **state)
+{
+    char dir[512];
+    td_prepared *p = NULL;
+    td_err e = {0};
+    (void)state;
+    fresh("chunk", dir, sizeof dir);
+    /* file rows 48..63 are chunk 3: south rows 86..101 */
+    flip_byte(dir, TD_PREPARED_HEIGHTS, (long)(90 * 200 + 7) * 4 + 2);
+    assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK); /* open reads no heights */
+    assert_int_equal(td_prepared_chunks(p), 10);
+    for (int32_t c = 0; c < 10; c++) {
+        td_status rc = td_prepared_verify_chunk(p, c, &e);
+        if (c == 3) {
+            assert_int_equal(rc, TD_EFORMAT);
+            assert_non_null(strstr(e.msg, "heights.f32: chunk 3 (file rows 48..63)"));
+            assert_non_null(strstr(e.msg, "corrupted"));
+        } else {
+            assert_int_equal(rc, TD_OK);
+        }
+    }
+    assert_int_equal(td_prepared_verify_chunk(p, 10, &e), TD_EINVAL);
+    td_prepared_free(p);
+}
+
+/* Residency: a mapped grid's pages count once touched, and none after a trim. */
+static void test_resident(void **state)
+{
+    char dir[512];
+    td_prepared *p = NULL;
+    td_err e = {0};
+    td_grid *g;
+    volatile float sum = 0;
+    (void)state;
+    fresh("resident", dir, sizeof dir);
+    assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK);
+    g = td_prepared_take_grid(p);
+    for (size_t k = 0; k < (size_t)g->w * (size_t)g->h; k += 256)
+        sum += g->z[k];
+    assert_true(td_prepared_resident(g) >= 200 * 150 * 4 - 4096);
+    assert_true(td_prepared_cached(g) >= 200 * 150 * 4 - 4096);
+    td_prepared_trim(g);
+    assert_int_equal(td_prepared_resident(g), 0);
+    td_grid_free(g);
+    td_prepared_free(p);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_f32_same_as_loader), cmocka_unit_test(test_voids),
+        cmocka_unit_test(test_asc_whole),          cmocka_unit_test(test_geotiff_streamed),
+        cmocka_unit_test(test_resume),             cmocka_unit_test(test_truncated),
+        cmocka_unit_test(test_other_version),      cmocka_unit_test(test_corrupt_tiles),
+        cmocka_unit_test(test_corrupt_chunk),      cmocka_unit_test(test_resident),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
