@@ -1813,7 +1813,7 @@ td_status td_store_edit(td_store *s, size_t idx, const td_grid_region *r, const 
     pthread_mutex_lock(&s->edit); /* d->cur changes only under this lock: read it freely */
     old = d->cur;
     if (d->prep)
-        rc = td_err_set(err, TD_EUNSUPPORTED, "dataset '%s' is prepared (read-only, memory-mapped): "
+        rc = td_err_field(err, TD_EUNSUPPORTED, "dataset", "'%s' is prepared (read-only, memory-mapped): "
                         "edit its source and prepare it again", d->id);
     else
         rc = td_grid_edit_apply(old->grid, r, z, &g, err);

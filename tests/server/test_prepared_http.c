@@ -1,0 +1,218 @@
+/* test_prepared_http.c: prepared datasets served by a live terrad (`terrad prepare`, then
+ * `terrad serve --data`). A prepared dataset answers the same picture, byte for byte, as its
+ * source file served beside it; it is listed with its check state and its mapped heights are
+ * in /metrics; edits are refused; a corrupted chunk, a truncated heights file and an
+ * unfinished prepare are never served, and the log names the file and the reason. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+#include <jansson.h>
+
+#include "harness.h"
+
+#define TOKEN "prep-token-0123456789"
+#define SCENE                                                                                    \
+    "{\"dataset\":\"%s\",\"camera\":{\"position\":{\"x\":7000,\"y\":-2000,\"z\":2600},"          \
+    "\"heading\":0,\"pitch\":-10,\"fov\":60},\"image\":{\"width\":160,\"height\":100},"           \
+    "\"quality\":{\"method\":\"%s\",\"surface\":\"%s\"}}"
+
+static char root[256], data[300];
+static th_server srv;
+
+static int sh(const char *fmt, ...)
+{
+    char cmd[2048];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(cmd, sizeof cmd, fmt, ap);
+    va_end(ap);
+    return system(cmd);
+}
+
+/* Flips one byte of dir/name at `at`. */
+static void flip(const char *dir, const char *name, long at)
+{
+    char p[600];
+    FILE *f;
+    int c;
+    snprintf(p, sizeof p, "%s/%s/%s", data, dir, name);
+    f = fopen(p, "r+b");
+    assert_non_null(f);
+    fseek(f, at, SEEK_SET);
+    c = fgetc(f);
+    fseek(f, at, SEEK_SET);
+    fputc(c ^ 0x40, f);
+    fclose(f);
+}
+
+static int setup(void **state)
+{
+    const char *src = TERRAD_TEST_DATA "/trinidad-crop";
+    const char *args[] = {"--demo-dir", "", "--data", data, "--preload", "none", NULL};
+    const char *env[] = {"TERRAD_ADMIN_TOKEN=" TOKEN, NULL};
+    (void)state;
+    snprintf(root, sizeof root, "/tmp/td-prep-http-XXXXXX");
+    if (!mkdtemp(root))
+        return -1;
+    snprintf(data, sizeof data, "%s/data", root);
+    if (sh("mkdir -p '%s' && cp '%s.f32' '%s/crop.f32' && cp '%s.json' '%s/crop.json'", data, src, data, src,
+           data))
+        return -1;
+    /* good, bad (a chunk corrupted), short (truncated), half (an unfinished prepare) */
+    if (sh("for d in good bad short; do '%s' prepare '%s/crop.f32' '%s/'\"$d\" --chunk-rows 16 --tile-size 64 "
+           "--quiet >/dev/null || exit 1; done", TERRAD_BIN, data, data))
+        return -1;
+    if (sh("'%s' prepare '%s/crop.f32' '%s/half' --chunk-rows 16 --stop-after 2 --quiet >/dev/null 2>&1; "
+           "test -f '%s/half/prepare.state'", TERRAD_BIN, data, data, data))
+        return -1;
+    flip("bad", "heights.f32", (long)(120 * 200 + 3) * 4 + 1); /* south row 120: file row 29, chunk 1 */
+    if (sh("truncate -s 119000 '%s/short/heights.f32'", data))
+        return -1;
+    return th_start(&srv, TERRAD_BIN, args, env);
+}
+
+static int teardown(void **state)
+{
+    (void)state;
+    th_stop(&srv);
+    sh("rm -rf '%s'", root);
+    return 0;
+}
+
+static json_t *get_json(const char *path, long want)
+{
+    th_resp r;
+    json_t *j;
+    assert_int_equal(th_request(&srv, "GET", path, NULL, NULL, 0, &r), 0);
+    assert_int_equal(r.status, want);
+    j = json_loadb(r.body, r.len, 0, NULL);
+    assert_non_null(j);
+    th_resp_free(&r);
+    return j;
+}
+
+/* Waits (at most 30 s) until the dataset's chunks are checked; returns its state. */
+static const char *wait_checked(const char *id, char *state, size_t n)
+{
+    char path[128];
+    struct timespec nap = {0, 50 * 1000 * 1000};
+    snprintf(path, sizeof path, "/v1/datasets/%s", id);
+    for (int k = 0; k < 600; k++) {
+        json_t *j = get_json(path, 200);
+        const char *st = json_string_value(json_object_get(json_object_get(j, "prepared"), "state"));
+        snprintf(state, n, "%s", st ? st : "(none)");
+        json_decref(j);
+        if (strcmp(state, "checking"))
+            break;
+        nanosleep(&nap, NULL);
+    }
+    return state;
+}
+
+static void render(const char *id, const char *method, const char *surface, th_resp *r)
+{
+    char body[512];
+    const char *h[] = {"Content-Type: application/json", NULL};
+    snprintf(body, sizeof body, SCENE, id, method, surface);
+    assert_int_equal(th_request(&srv, "POST", "/v1/render", h, body, strlen(body), r), 0);
+}
+
+static void test_same_picture(void **state)
+{
+    static const char *const methods[] = {"incremental", "hierarchical", "parametric", "auto"};
+    static const char *const surfaces[] = {"plane", "linear", "triangle", "bilinear"};
+    char st[32];
+    (void)state;
+    assert_string_equal(wait_checked("good", st, sizeof st), "ok");
+    for (int m = 0; m < 4; m++)
+        for (int s = 0; s < 4; s++) {
+            th_resp a, b;
+            render("crop", methods[m], surfaces[s], &a);
+            render("good", methods[m], surfaces[s], &b);
+            assert_int_equal(a.status, 200);
+            assert_int_equal(b.status, 200);
+            assert_int_equal(a.len, b.len);
+            assert_memory_equal(a.body, b.body, a.len);
+            th_resp_free(&a);
+            th_resp_free(&b);
+        }
+}
+
+static void test_listed_and_metrics(void **state)
+{
+    json_t *j;
+    th_resp r;
+    char st[32];
+    (void)state;
+    assert_string_equal(wait_checked("good", st, sizeof st), "ok");
+    j = get_json("/v1/datasets/good", 200);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "size"), "width")), 200);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "chunks")), 10);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "checked")), 10);
+    json_decref(j);
+    j = get_json("/v1/datasets/crop", 200);
+    assert_true(json_is_null(json_object_get(j, "prepared")));
+    json_decref(j);
+    assert_int_equal(th_request(&srv, "GET", "/metrics", NULL, NULL, 0, &r), 0);
+    assert_int_equal(r.status, 200);
+    /* good and bad are mapped (short and half are not served at all): 2 x 200 x 150 x 4 */
+    assert_non_null(strstr(r.body, "\nterrad_heights_mapped_bytes 240000\n"));
+    assert_non_null(strstr(r.body, "\nterrad_heights_resident_bytes "));
+    th_resp_free(&r);
+}
+
+static void test_bad_never_served(void **state)
+{
+    th_resp r;
+    char st[32];
+    (void)state;
+    assert_string_equal(wait_checked("bad", st, sizeof st), "refused");
+    render("bad", "auto", "bilinear", &r);
+    assert_int_equal(r.status, 404);
+    assert_non_null(strstr(r.body, "heights.f32: chunk 1 (file rows 16..31)"));
+    th_resp_free(&r);
+    assert_true(th_log_has(&srv, "event=dataset_refused id=bad"));
+    /* truncated: not even listed; the log names the file and the reason */
+    render("short", "auto", "bilinear", &r);
+    assert_int_equal(r.status, 404);
+    th_resp_free(&r);
+    assert_true(th_log_has(&srv, "short/heights.f32: 119000 bytes"));
+    assert_true(th_log_has(&srv, "truncated"));
+    render("half", "auto", "bilinear", &r);
+    assert_int_equal(r.status, 404);
+    th_resp_free(&r);
+    assert_true(th_log_has(&srv, "an unfinished prepare"));
+}
+
+static void test_edit_refused(void **state)
+{
+    th_resp r;
+    float z[4] = {1, 2, 3, 4};
+    const char *h[] = {"Authorization: Bearer " TOKEN, "Content-Type: application/octet-stream", NULL};
+    (void)state;
+    assert_int_equal(th_request(&srv, "PUT", "/v1/admin/datasets/good/heights?x=0&y=0&w=2&h=2", h,
+                                (const char *)z, sizeof z, &r),
+                     0);
+    assert_true(r.status >= 400 && r.status < 500);
+    assert_non_null(strstr(r.body, "prepared"));
+    th_resp_free(&r);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_same_picture),
+        cmocka_unit_test(test_listed_and_metrics),
+        cmocka_unit_test(test_bad_never_served),
+        cmocka_unit_test(test_edit_refused),
+    };
+    return cmocka_run_group_tests(tests, setup, teardown);
+}
