@@ -37,10 +37,8 @@ static void swap32(float *v, size_t n)
     }
 }
 
-/* Sidecar, limits, and a file whose size is exactly what the sidecar says: all before any
- * allocation. */
-static td_status raw_open(const char *path, const td_dem_opts *o, td_demside *sc, FILE **f,
-                          td_err *err)
+td_status td_demraw_open(const char *path, const td_dem_opts *o, td_demside *sc, FILE **f,
+                         td_err *err)
 {
     td_status rc;
     struct stat st;
@@ -67,29 +65,39 @@ out:
     return rc;
 }
 
+void td_demraw_rules(const td_demside *sc, td_demutil_f32 *p)
+{
+    *p = (td_demutil_f32){.nan_void = sc->nodata_kind == TD_NODATA_NAN,
+                          .inf_refused = 1,
+                          .has_nodata = sc->nodata_kind == TD_NODATA_VALUE,
+                          .nodata = (float)sc->nodata,
+                          .scale = 1.0,
+                          .offset = -0.0, /* with scale 1: every sample as it is */
+                          .max_abs = FLT_MAX};
+    snprintf(p->nan_why, sizeof p->nan_why, " (if NaN marks voids, say \"nodata\": \"nan\" in %s)",
+             sc->path);
+}
+
+td_status td_demraw_row(const char *path, const td_demutil_f32 *p, FILE *f, float *row, int32_t w,
+                        int32_t r, td_err *err)
+{
+    td_status rc = td_demutil_read_row(path, f, row, 4, (size_t)w, r, err);
+    if (rc == TD_OK && !host_is_little())
+        swap32(row, (size_t)w);
+    if (rc == TD_OK)
+        rc = td_demutil_f32_row(path, p, row, w, r, err);
+    return rc;
+}
+
 /* The samples, one row at a time straight into its south-based place. */
 static td_status raw_read(const char *path, const td_demside *sc, FILE *f, td_grid *g,
                           td_err *err)
 {
     td_status rc = TD_OK;
-    const int little = host_is_little();
-    td_demutil_f32 p = {.nan_void = sc->nodata_kind == TD_NODATA_NAN,
-                        .inf_refused = 1,
-                        .has_nodata = sc->nodata_kind == TD_NODATA_VALUE,
-                        .nodata = (float)sc->nodata,
-                        .scale = 1.0,
-                        .offset = -0.0, /* with scale 1: every sample as it is */
-                        .max_abs = FLT_MAX};
-    snprintf(p.nan_why, sizeof p.nan_why, " (if NaN marks voids, say \"nodata\": \"nan\" in %s)",
-             sc->path);
-    for (int32_t r = 0; r < g->h && rc == TD_OK; r++) {
-        float *row = td_demutil_file_row(g, r);
-        rc = td_demutil_read_row(path, f, row, 4, (size_t)g->w, r, err);
-        if (rc == TD_OK && !little)
-            swap32(row, (size_t)g->w);
-        if (rc == TD_OK)
-            rc = td_demutil_f32_row(path, &p, row, g->w, r, err);
-    }
+    td_demutil_f32 p;
+    td_demraw_rules(sc, &p);
+    for (int32_t r = 0; r < g->h && rc == TD_OK; r++)
+        rc = td_demraw_row(path, &p, f, td_demutil_file_row(g, r), g->w, r, err);
     return rc;
 }
 
@@ -101,7 +109,7 @@ td_status td_demraw_load(const char *path, const td_dem_opts *o, td_grid **out, 
     FILE *f = NULL;
     double sx = 0, sy = 0;
 
-    rc = raw_open(path, o, &sc, &f, err);
+    rc = td_demraw_open(path, o, &sc, &f, err);
     if (rc == TD_OK)
         rc = td_demutil_side_georef(path, o, &sc, sc.width, sc.height, &sx, &sy, err);
     if (rc == TD_OK)

@@ -36,6 +36,7 @@
 #include <unistd.h>
 
 #include "demgdal.h"
+#include "demraw.h"
 #include "demutil.h"
 #include "hash.h"
 
@@ -71,34 +72,16 @@ static td_status src_open_f32(td_src_rows *s, const td_dem_opts *o, td_err *err)
 {
     td_status rc;
     td_demside sc;
-    struct stat st;
-    uint64_t want;
 
-    rc = td_demutil_sidecar_read(s->path, 1, 1, &sc, err);
+    rc = td_demraw_open(s->path, o, &sc, &s->f32, err);
     if (rc == TD_OK)
-        rc = td_demutil_check_limits(s->path, o, sc.width, sc.height, err);
-    if (rc == TD_OK)
-        rc = td_demutil_open(s->path, &s->f32, &st, err);
-    if (rc != TD_OK)
-        goto out;
-    want = (uint64_t)sc.width * (uint64_t)sc.height * 4u;
-    if ((uint64_t)st.st_size != want) {
-        rc = td_err_set(err, TD_EFORMAT, "%s: %lld bytes, but its sidecar %s says %ld x %ld float32 = %llu bytes (%s)",
-                        s->path, (long long)st.st_size, sc.path, (long)sc.width, (long)sc.height,
-                        (unsigned long long)want, (uint64_t)st.st_size < want ? "truncated" : "too long");
-        goto out;
+        rc = td_demutil_side_georef(s->path, o, &sc, sc.width, sc.height, &s->shape.sx, &s->shape.sy, err);
+    if (rc == TD_OK) {
+        s->shape.w = sc.width;
+        s->shape.h = sc.height;
+        s->shape.geo = sc.geo;
+        td_demraw_rules(&sc, &s->p);
     }
-    rc = td_demutil_side_georef(s->path, o, &sc, sc.width, sc.height, &s->shape.sx, &s->shape.sy, err);
-    s->shape.w = sc.width;
-    s->shape.h = sc.height;
-    s->shape.geo = sc.geo;
-    s->p = (td_demutil_f32){.nan_void = sc.nodata_kind == TD_NODATA_NAN, .inf_refused = 1,
-                            .has_nodata = sc.nodata_kind == TD_NODATA_VALUE,
-                            .nodata = (float)sc.nodata, .scale = 1.0, .offset = -0.0,
-                            .max_abs = 3.4028234e38};
-    snprintf(s->p.nan_why, sizeof s->p.nan_why, " (if NaN marks voids, say \"nodata\": \"nan\" in %s)",
-             sc.path);
-out:
     return rc;
 }
 
@@ -150,12 +133,8 @@ static td_status src_rows(td_src_rows *s, int32_t r0, int32_t n, float *dst, td_
     } else {
         if (fseeko(s->f32, (off_t)r0 * (off_t)w * 4, SEEK_SET))
             rc = td_err_set(err, TD_EIO, "%s: seek to row %ld failed (%s)", s->path, (long)r0, strerror(errno));
-        for (int32_t k = 0; k < n && rc == TD_OK; k++) {
-            float *row = dst + (size_t)k * w;
-            rc = td_demutil_read_row(s->path, s->f32, row, 4, w, r0 + k, err);
-            if (rc == TD_OK)
-                rc = td_demutil_f32_row(s->path, &s->p, row, s->shape.w, r0 + k, err);
-        }
+        for (int32_t k = 0; k < n && rc == TD_OK; k++)
+            rc = td_demraw_row(s->path, &s->p, s->f32, dst + (size_t)k * w, s->shape.w, r0 + k, err);
     }
     return rc;
 }

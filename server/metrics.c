@@ -202,6 +202,10 @@ static void put_totals(td_buf *b, td_metrics *m, const td_metrics_ext *e)
             "# TYPE terrad_heights_trims_total counter\nterrad_heights_trims_total %llu\n",
         (unsigned long long)e->heights_mapped, (unsigned long long)e->heights_resident,
         (unsigned long long)e->heights_trims);
+    put(b, "# HELP terrad_major_page_faults_total Pages read from disk on touch (mapped heights not "
+            "in memory): each one a ray's wait.\n"
+            "# TYPE terrad_major_page_faults_total counter\nterrad_major_page_faults_total %llu\n",
+        (unsigned long long)e->major_faults);
     put(b, "# HELP terrad_memory_budget_bytes The memory budget (--memory-mb).\n"
             "# TYPE terrad_memory_budget_bytes gauge\nterrad_memory_budget_bytes %llu\n",
         (unsigned long long)e->budget_bytes);

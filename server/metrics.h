@@ -27,6 +27,7 @@ typedef struct td_metrics_ext {
     uint64_t jobs_queued, jobs_running, jobs_done, jobs_failed;
     /* prepared datasets' mapped heights: mapped, resident in the process, trims */
     uint64_t heights_mapped, heights_resident, heights_trims;
+    uint64_t major_faults; /* pages the process waited on the disk for (getrusage) */
 } td_metrics_ext;
 
 /* route_names[nroutes] must outlive the metrics. NULL when out of memory. */

@@ -32,6 +32,7 @@
 #include <string.h>
 #include <stddef.h>
 #include <sys/stat.h>
+#include <sys/resource.h>
 
 #include "dem.h"
 #include "hash.h"
@@ -327,6 +328,10 @@ static void h_metrics(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     e.heights_mapped = st.heights_mapped;
     e.heights_resident = st.heights_mapped_resident;
     e.heights_trims = st.heights_trims;
+    {
+        struct rusage ru;
+        e.major_faults = getrusage(RUSAGE_SELF, &ru) == 0 ? (uint64_t)ru.ru_majflt : 0;
+    }
     e.jobs_queued = jc[TD_JOB_QUEUED];
     e.jobs_running = jc[TD_JOB_RUNNING];
     e.jobs_done = jc[TD_JOB_DONE];
