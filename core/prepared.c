@@ -671,7 +671,9 @@ static td_status heights_map(const char *path, td_grid *g, td_err *err)
         rc = td_err_set(err, TD_EIO, "%s: cannot map %llu bytes (%s)", path, (unsigned long long)want,
                         strerror(errno));
     } else {
-        madvise(m, (size_t)want, MADV_RANDOM); /* rays jump between rows: no read-ahead */
+        /* the kernel's read-ahead stays on: MADV_RANDOM (one 4 KiB read a fault) made the
+           first render of a cold 1 GiB dataset 12.7 s instead of 1.6 s (README) */
+        madvise(m, (size_t)want, MADV_NORMAL);
         g->map = m;
         g->map_bytes = (size_t)want;
         g->z = m;
