@@ -31,6 +31,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -451,6 +452,7 @@ td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opt
     td_prep_run r;
     char path[PATH_MAX];
     off_t total;
+    int lock = -1;
 
     memset(res, 0, sizeof *res);
     memset(&r, 0, sizeof r);
@@ -466,6 +468,13 @@ td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opt
     res->bytes = (uint64_t)total;
     if (mkdir(dir, 0755) && errno != EEXIST) {
         rc = td_err_set(err, TD_EIO, "%s: cannot create (%s)", dir, strerror(errno));
+        goto out;
+    }
+    /* one prepare at a time into a folder (the lock goes with the process, killed or not) */
+    if (!path_in(path, sizeof path, dir, "prepare.lock") ||
+        (lock = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644)) < 0 || flock(lock, LOCK_EX | LOCK_NB)) {
+        rc = td_err_set(err, TD_EIO, "%s: cannot lock (%s)", path,
+                        errno == EWOULDBLOCK ? "another terrad prepare is writing this folder" : strerror(errno));
         goto out;
     }
     if (already_done(dir, &src)) {
@@ -502,6 +511,8 @@ td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opt
 out:
     if (r.fd >= 0)
         close(r.fd);
+    if (lock >= 0)
+        close(lock);
     free(r.sums);
     free(r.lo);
     free(r.hi);

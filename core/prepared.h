@@ -18,6 +18,7 @@
  *                 td_grid_finish computes them (so opening never scans the heights)
  *   prepare.state only while a prepare is unfinished: how many chunks are written, their
  *                 checksums and the running tile statistics (a re-run continues there)
+ *   prepare.lock  held (flock) by the prepare writing the folder: a second one is refused
  *
  * Chunk c holds the file's rows [c*R, c*R + R) (row 0 north, R = chunk_rows), which are
  * one contiguous byte range of heights.f32 (south rows h-c*R-n .. h-1-c*R).
