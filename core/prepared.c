@@ -831,6 +831,13 @@ uint64_t td_prepared_cached(const td_grid *g)
 
 void td_prepared_trim(const td_grid *g)
 {
-    if (g->map)
+    if (g->map) {
+#ifdef MADV_PAGEOUT
+        /* out of the page cache too (where no other process maps them): dropping only our
+           page-table entries let renders map them back from the cache at memory speed, and
+           the RSS of a 4 GiB flight peaked at 3 GB with a 1 GiB budget */
+        madvise(g->map, g->map_bytes, MADV_PAGEOUT);
+#endif
         madvise(g->map, g->map_bytes, MADV_DONTNEED);
+    }
 }
