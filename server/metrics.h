@@ -19,6 +19,13 @@ typedef struct td_metrics td_metrics;
 #define TD_METRICS_BUCKETS(X) X(0.005) X(0.01) X(0.025) X(0.05) X(0.1) X(0.25) X(0.5) \
     X(1.0) X(2.5) X(5.0) X(10.0) X(30.0)
 
+/* One dataset's series (labels dataset="id"): what a replica keeps hot and serves, so a
+ * load balancer's routing by dataset can be seen per replica. */
+typedef struct td_metrics_dataset {
+    const char *id; /* td_store_id_valid: no character that needs escaping in a label */
+    uint64_t resident_tiles, resident_bytes, requests;
+} td_metrics_dataset;
+
 typedef struct td_metrics_ext {
     int queue_depth, queue_capacity;
     int datasets;
@@ -28,6 +35,8 @@ typedef struct td_metrics_ext {
     /* prepared datasets' mapped heights: mapped, resident in the process, trims */
     uint64_t heights_mapped, heights_resident, heights_trims;
     uint64_t major_faults; /* pages the process waited on the disk for (getrusage) */
+    const td_metrics_dataset *ds; /* ndatasets of them (may be 0) */
+    size_t ndatasets;
 } td_metrics_ext;
 
 /* route_names[nroutes] must outlive the metrics. NULL when out of memory. */

@@ -109,6 +109,7 @@ typedef struct td_ds {
     /* kept with the slots (store lock) */
     size_t resident_tiles, pinned_tiles, part_tiles[TD_PART_COUNT];
     uint64_t accel_bytes, drape_bytes;
+    uint64_t snapshots;   /* requests that traced it (td_store_acquire) */
     td_drape *drapes;
     /* a prepared dataset (prepared.h): its index, and the background check of its chunks
        (state and progress under `mu`); NULL for a dataset whose heights were loaded */
@@ -1110,6 +1111,7 @@ void td_store_info(td_store *s, size_t idx, td_dataset_info *out)
     out->chunks = d->prep ? td_prepared_chunks(d->prep) : 0;
     out->chunks_checked = d->vdone;
     out->refused = d->vstate == TD_VERIFY_REFUSED;
+    out->snapshots = d->snapshots;
     pthread_mutex_unlock(&s->mu);
     out->heights_resident = d->prep ? td_prepared_resident(d->cur->grid) : 0;
 }
@@ -1177,6 +1179,7 @@ td_status td_store_acquire(td_store *s, const char *id, td_snapshot **out, td_er
     atomic_fetch_add_explicit(&snap->hv->refs, 1, memory_order_relaxed);
     snap->view.grid = snap->hv->grid;
     stamp = ++s->clock;
+    d->snapshots++;
     for (size_t t = 0; t < d->ntiles; t++) {
         td_slot *sl = &d->slots[t];
         for (int k = 0; k < TD_PART_COUNT; k++) {

@@ -108,6 +108,8 @@ typedef struct td_dataset_info {
     int32_t chunks, chunks_checked; /* its chunks, and how many the background check passed */
     int refused;            /* a chunk failed its check: never served */
     uint64_t heights_resident; /* bytes of its mapped heights resident in the process */
+    uint64_t snapshots;     /* requests that traced it since start (renders, tiles, picks,
+                               viewsheds: one td_store_acquire each) */
 } td_dataset_info;
 
 typedef struct td_store_stats {
