@@ -100,9 +100,9 @@ void td_prepared_free(td_prepared *p);
  * replica on the same machine) brought them in. */
 uint64_t td_prepared_resident(const td_grid *g);
 uint64_t td_prepared_cached(const td_grid *g);
-/* Drops this process's pages of a mapped grid: reclaimed from the page cache where no
- * other process maps them (MADV_PAGEOUT), else unmapped (MADV_DONTNEED). The next touch
- * reads them again. */
+/* Drops this process's pages of a mapped grid (MADV_DONTNEED): the page cache keeps them
+ * while memory allows (clean pages the kernel reclaims under pressure), so the next touch
+ * is a minor fault, not a read. */
 void td_prepared_trim(const td_grid *g);
 
 #endif
