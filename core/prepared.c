@@ -682,9 +682,6 @@ static td_status heights_map(const char *path, td_grid *g, td_err *err)
         rc = td_err_set(err, TD_EIO, "%s: cannot map %llu bytes (%s)", path, (unsigned long long)want,
                         strerror(errno));
     } else {
-        /* the kernel's read-ahead stays on: MADV_RANDOM (one 4 KiB read a fault) made the
-           first render of a cold 1 GiB dataset 12.7 s instead of 1.6 s (README) */
-        madvise(m, (size_t)want, MADV_NORMAL);
         g->map = m;
         g->map_bytes = (size_t)want;
         g->z = m;
@@ -827,6 +824,12 @@ uint64_t td_prepared_cached(const td_grid *g)
             bytes += (vec[k] & 1u) ? (uint64_t)page : 0;
     free(vec);
     return bytes;
+}
+
+void td_prepared_advise(const td_grid *g, int random)
+{
+    if (g->map)
+        madvise(g->map, g->map_bytes, random ? MADV_RANDOM : MADV_NORMAL);
 }
 
 void td_prepared_trim(const td_grid *g)

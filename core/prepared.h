@@ -100,6 +100,11 @@ void td_prepared_free(td_prepared *p);
  * replica on the same machine) brought them in. */
 uint64_t td_prepared_resident(const td_grid *g);
 uint64_t td_prepared_cached(const td_grid *g);
+/* How a fault on the mapping reads: random (one page a fault, MADV_RANDOM) or with the
+ * kernel's read-around (MADV_NORMAL: read_ahead_kb around the fault, 8 MiB on the
+ * development machine). The tile store picks random when the heights exceed its budget
+ * (README "Datasets larger than memory" has the measurements). */
+void td_prepared_advise(const td_grid *g, int random);
 /* Drops this process's pages of a mapped grid (MADV_DONTNEED): the page cache keeps them
  * while memory allows (clean pages the kernel reclaims under pressure), so the next touch
  * is a minor fault, not a read. */
