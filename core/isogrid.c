@@ -51,7 +51,10 @@ double td_iso_x(const td_iso *l, int32_t r, int32_t c)
     return x;
 }
 
-td_status td_iso_create(int32_t nx, int32_t ny, double a, double b, td_iso **out, td_err *err)
+/* A lattice's record and block pyramid, with float samples (NaN) if `floats`; a packed
+ * lattice (td_iso_pack_lattice) has none. */
+static td_status iso_alloc(int32_t nx, int32_t ny, double a, double b, int floats, td_iso **out,
+                           td_err *err)
 {
     td_status rc = TD_OK;
     td_iso *l = NULL;
@@ -84,12 +87,12 @@ td_status td_iso_create(int32_t nx, int32_t ny, double a, double b, td_iso **out
             bw = (bw + 1) / 2;
             bh = (bh + 1) / 2;
         }
-        l->z = malloc(n);
+        l->z = floats ? malloc(n) : NULL;
         l->bmax[0] = malloc(nb * sizeof(float));
         for (int k = 1; l->bmax[0] && k < l->blevels; k++)
             l->bmax[k] = l->bmax[k - 1] + (size_t)l->bw[k - 1] * (size_t)l->bh[k - 1];
     }
-    if (!l || !l->z || !l->bmax[0]) {
+    if (!l || (floats && !l->z) || !l->bmax[0]) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for a %d x %d isometric lattice", (int)nx,
                         (int)ny);
         goto out;
@@ -98,7 +101,7 @@ td_status td_iso_create(int32_t nx, int32_t ny, double a, double b, td_iso **out
     l->ny = ny;
     l->a = a;
     l->b = b;
-    for (size_t i = 0; i < n / sizeof(float); i++)
+    for (size_t i = 0; floats && i < n / sizeof(float); i++)
         l->z[i] = NAN;
     l->zmin = l->zmax = NAN;
 out:
@@ -108,6 +111,11 @@ out:
     }
     *out = l;
     return rc;
+}
+
+td_status td_iso_create(int32_t nx, int32_t ny, double a, double b, td_iso **out, td_err *err)
+{
+    return iso_alloc(nx, ny, a, b, 1, out, err);
 }
 
 void td_iso_sample(td_iso *l, td_iso_fn f, void *ctx)
@@ -232,6 +240,7 @@ void td_iso_free(td_iso *l)
     if (l) {
         free(l->bmax[0]);
         free(l->z);
+        td_iso_packed_free(l->packed);
         free(l);
     }
 }
@@ -549,16 +558,6 @@ out:
 
 /* --- two-byte vertices ------------------------------------------------------------- */
 
-/* The tile that stores sample (r, c). */
-static size_t owner(const td_iso_packed *p, int32_t r, int32_t c)
-{
-    int32_t tx = c >> p->tile_log2, ty = r >> p->tile_log2;
-    tx = tx < p->tiles_x ? tx : p->tiles_x - 1;
-    return (size_t)ty * (size_t)p->tiles_x + (size_t)tx;
-}
-
-static double decode(double offset, double step, uint16_t k) { return (float)(offset + k * step); }
-
 /* Whether every valid sample of tile `ti` is offset + k * step exactly (k <= 65534). */
 static int tile_exact(const td_iso *l, const td_iso_packed *p, size_t ti, double offset,
                       double step)
@@ -571,7 +570,7 @@ static int tile_exact(const td_iso *l, const td_iso_packed *p, size_t ti, double
         for (int32_t c = tx * T; ok && c < cend; c++) {
             float z = td_iso_at(l, r, c);
             double k = nearbyint(((double)z - offset) / step);
-            ok = isnan(z) || (k >= 0.0 && k <= 65534.0 && decode(offset, step, (uint16_t)k) == (double)z);
+            ok = isnan(z) || (k >= 0.0 && k <= 65534.0 && (float)(offset + k * step) == z);
         }
     }
     return ok;
@@ -643,7 +642,7 @@ td_status td_iso_pack(const td_iso *l, int tile_log2, td_iso_packed **out, td_er
     for (int32_t r = 0; r < l->ny; r++) {
         for (int32_t c = 0; c < td_iso_row_len(l, r); c++) {
             double z = td_iso_at(l, r, c);
-            size_t ti = owner(p, r, c);
+            size_t ti = td_iso_packed_tile(p, r, c);
             lo[ti] = z < lo[ti] ? z : lo[ti]; /* NaN compares false */
             hi[ti] = z > hi[ti] ? z : hi[ti];
         }
@@ -653,12 +652,12 @@ td_status td_iso_pack(const td_iso *l, int tile_log2, td_iso_packed **out, td_er
     for (int32_t r = 0; r < l->ny; r++) {
         for (int32_t c = 0; c < td_iso_row_len(l, r); c++) {
             float z = td_iso_at(l, r, c);
-            size_t ti = owner(p, r, c), i = td_iso_row_offset(l->nx, r) + (size_t)c;
+            size_t ti = td_iso_packed_tile(p, r, c), i = td_iso_row_offset(l->nx, r) + (size_t)c;
             double k = isnan(z) ? 65535.0 : nearbyint(((double)z - p->offset[ti]) / p->step[ti]);
             k = k < 0.0 ? 0.0 : (k > 65534.0 && !isnan(z) ? 65534.0 : k);
             p->k[i] = (uint16_t)k;
             if (!isnan(z)) {
-                double e = fabs(decode(p->offset[ti], p->step[ti], p->k[i]) - (double)z);
+                double e = fabs((double)td_iso_packed_at(p, r, c, i) - (double)z);
                 p->max_err = e > p->max_err ? e : p->max_err;
             }
         }
@@ -686,13 +685,39 @@ td_status td_iso_unpack(const td_iso_packed *p, td_iso **out, td_err *err)
         goto out;
     for (int32_t r = 0; r < p->ny; r++) {
         for (int32_t c = 0; c < p->nx + (r & 1); c++) {
-            size_t ti = owner(p, r, c), i = td_iso_row_offset(p->nx, r) + (size_t)c;
-            (*out)->z[i] = p->k[i] == 0xFFFF ? NAN : (float)decode(p->offset[ti], p->step[ti], p->k[i]);
+            size_t i = td_iso_row_offset(p->nx, r) + (size_t)c;
+            (*out)->z[i] = td_iso_packed_at(p, r, c, i);
         }
     }
     td_iso_finish(*out);
 out:
     return rc;
+}
+
+td_status td_iso_pack_lattice(const td_iso *l, int tile_log2, td_iso **out, td_err *err)
+{
+    td_iso_packed *p = NULL;
+    td_status rc = td_iso_pack(l, tile_log2, &p, err);
+    if (rc)
+        goto out;
+    rc = iso_alloc(l->nx, l->ny, l->a, l->b, 0, out, err);
+    if (rc)
+        goto out;
+    (*out)->packed = p; /* the lattice owns it from here */
+    p = NULL;
+    td_iso_finish(*out);
+out:
+    td_iso_packed_free(p);
+    return rc;
+}
+
+uint64_t td_iso_bytes(const td_iso *l)
+{
+    uint64_t n = 0;
+    for (int k = 0; k < l->blevels; k++)
+        n += (uint64_t)l->bw[k] * (uint64_t)l->bh[k] * sizeof(float);
+    return n + (l->packed ? l->packed->bytes
+                          : (uint64_t)td_iso_row_offset(l->nx, l->ny) * sizeof(float));
 }
 
 void td_iso_packed_free(td_iso_packed *p)
