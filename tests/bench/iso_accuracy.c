@@ -24,7 +24,8 @@
  *
  * Usage: iso-accuracy DATA_DIR OUT_DIR  (writes OUT_DIR/isometric-tables.md and
  * OUT_DIR/bench/iso-*.svg; run by hand, see docs/isometric.md; about 3 minutes), or
- * iso-accuracy DATA_DIR --timing (the trace-cost table only, to stdout). */
+ * iso-accuracy DATA_DIR --timing (the trace-cost table only, to stdout), or iso-accuracy
+ * DATA_DIR --lod [DEM] (the levels of detail's packed twins only, to stdout). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -35,6 +36,7 @@
 #include "bench_svg.h"
 #include "dem.h"
 #include "isogrid.h"
+#include "lod.h"
 #include "trace.h"
 
 #define NREC 4
@@ -493,6 +495,18 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
+/* Camera-like rays over grid g's extent: from above its highest point toward random
+ * ground points (trace_cost's and lod_twins' rays). */
+static void camera_rays(const td_grid *g, uint64_t seed, td_ray *rays, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        double X = (g->w - 1) * g->sx, Y = (g->h - 1) * g->sy, dz = g->zmax - g->zmin;
+        double o[3] = {X * rnd(&seed), Y * rnd(&seed), g->zmax + 0.2 * dz};
+        double p[3] = {X * rnd(&seed), Y * rnd(&seed), g->zmin + 0.5 * dz};
+        rays[i] = (td_ray){{o[0], o[1], o[2]}, {p[0] - o[0], p[1] - o[1], p[2] - o[2]}, 0.0, INFINITY};
+    }
+}
+
 /* Rays per second of the square grid's triangle surface (incremental without acceleration,
  * and auto with max-mipmaps and planes) and of the lattices' walk, on the same rays over the
  * same samples: camera-like rays from above the highest point toward random ground points
@@ -520,12 +534,8 @@ static td_status trace_cost(FILE *f, const char *data, td_err *err)
             rc = td_iso_from_grid(g, 1, (td_iso_rows)k, &iso[k], err);
         if (!rc)
             rc = td_accel_build(g, &ao, &ac, &ast, err);
-        for (size_t i = 0; i < NR && !rc; i++) {
-            double X = (g->w - 1) * g->sx, Y = (g->h - 1) * g->sy, dz = g->zmax - g->zmin;
-            double o[3] = {X * rnd(&seed), Y * rnd(&seed), g->zmax + 0.2 * dz};
-            double p[3] = {X * rnd(&seed), Y * rnd(&seed), g->zmin + 0.5 * dz};
-            rays[i] = (td_ray){{o[0], o[1], o[2]}, {p[0] - o[0], p[1] - o[1], p[2] - o[2]}, 0.0, INFINITY};
-        }
+        if (!rc)
+            camera_rays(g, seed, rays, NR);
         for (int c = 0; c < 4 && !rc; c++) {
             static const char *const names[4] = {"square, incremental (triangle)",
                                                   "square, auto with max-mipmaps and planes (triangle)",
@@ -580,6 +590,70 @@ static td_status packing(FILE *f, const char *data, td_err *err)
     return rc;
 }
 
+/* The levels of detail's isometric twins as core/lod.c keeps them (two-byte vertices,
+ * tiles of 64 x 64): per level, the packing's error and bytes per sample against the
+ * floats they decode to, and the walk's rays per second on the packed vertices against
+ * the same walk on the decoded floats (same rays, same steps). `extra` (may be NULL): one
+ * more DEM, e.g. the full trinidad. */
+static td_status lod_twins(FILE *f, const char *data, const char *extra, td_err *err)
+{
+    static const char *const files[] = {"trinidad-crop.f32", "picos-dtm.asc", "volcano.asc"};
+    enum { NR = 20000, NRUN = 5 };
+    td_status rc = TD_OK;
+    td_ray *rays = malloc(NR * sizeof *rays);
+    fprintf(f, "\nThe levels of detail's isometric twins as `td_lod_add_iso` keeps them (two-byte "
+               "vertices, tiles of 64 x 64; bytes per sample include the tiles' offsets and steps and "
+               "the block maxima); rays/s of the walk on the packed vertices and on the floats they "
+               "decode to (median of %d runs of %d camera-like rays, one thread, shared machine: "
+               "indicative; same steps, same hits bit for bit).\n\n| DEM | level | samples | tiles "
+               "lossless | largest error (m) | bytes/sample packed | floats | rays/s packed | floats | "
+               "steps/ray |\n|---|---|---|---|---|---|---|---|---|---|\n", NRUN, NR);
+    for (int d = 0; d < 4 && !rc && rays; d++) {
+        char path[1024];
+        td_grid *g = NULL;
+        td_lod *lod = NULL;
+        td_accel_opts ao = {0, 0, 1, 1};
+        if (d == 3 && !extra)
+            break;
+        if (d < 3)
+            snprintf(path, sizeof path, "%s/%s", data, files[d]);
+        else
+            snprintf(path, sizeof path, "%s", extra);
+        rc = td_dem_load(path, NULL, &g, err);
+        if (!rc)
+            rc = td_lod_build(g, 4, &ao, &lod, err);
+        if (!rc)
+            rc = td_lod_add_iso(lod, g, err);
+        for (int k = 1; !rc && k <= lod->levels; k++) {
+            const td_iso *l = lod->iso[k];
+            td_iso *fl = NULL;
+            double tp[NRUN], tf[NRUN], steps = 0, sf = 0, hits = 0, hf = 0;
+            size_t n = td_iso_row_offset(l->nx, l->ny);
+            rc = td_iso_unpack(l->packed, &fl, err);
+            if (rc)
+                break;
+            camera_rays(lod->grid[k], 77 + (uint64_t)k, rays, NR);
+            for (int r = 0; r < NRUN; r++) {
+                tp[r] = time_rays(1, NULL, TD_METHOD_AUTO, l, rays, NR, &steps, &hits);
+                tf[r] = time_rays(1, NULL, TD_METHOD_AUTO, fl, rays, NR, &sf, &hf);
+            }
+            qsort(tp, NRUN, sizeof tp[0], cmp_double);
+            qsort(tf, NRUN, sizeof tf[0], cmp_double);
+            fprintf(f, "| %s | %d | %zu | %d / %d | %.3g | %.3f | %.3f | %.3g | %.3g | %.1f%s |\n",
+                    strrchr(path, '/') ? strrchr(path, '/') + 1 : path, k, n, l->packed->lossless,
+                    l->packed->tiles_x * l->packed->tiles_y, l->packed->max_err,
+                    (double)td_iso_bytes(l) / (double)n, (double)td_iso_bytes(fl) / (double)n,
+                    NR / tp[NRUN / 2], NR / tf[NRUN / 2], steps,
+                    steps == sf && hits == hf ? "" : " (differ!)");
+            td_iso_free(fl);
+        }
+        td_lod_free(lod);
+        td_grid_free(g);
+    }
+    free(rays);
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
     static wave_res waves, sums;
@@ -591,8 +665,11 @@ int main(int argc, char **argv)
 
     if (argc == 3 && !strcmp(argv[2], "--timing")) /* the trace-cost table only, to stdout */
         return trace_cost(stdout, argv[1], &err) ? 1 : 0;
+    if (argc >= 3 && !strcmp(argv[2], "--lod")) /* the LOD twins' table only, to stdout */
+        return lod_twins(stdout, argv[1], argc > 3 ? argv[3] : NULL, &err) ? 1 : 0;
     if (argc != 3) {
-        fprintf(stderr, "usage: %s DATA_DIR OUT_DIR (e.g. tests/data docs) | DATA_DIR --timing\n",
+        fprintf(stderr, "usage: %s DATA_DIR OUT_DIR (e.g. tests/data docs) | DATA_DIR --timing | "
+                        "DATA_DIR --lod [DEM]\n",
                 argv[0]);
         return 2;
     }
@@ -621,6 +698,8 @@ int main(int argc, char **argv)
         rc = dems(f, argv[1], &err);
     if (!rc)
         rc = packing(f, argv[1], &err);
+    if (!rc)
+        rc = lod_twins(f, argv[1], NULL, &err);
     if (!rc && !getenv("ISO_NO_TIMING"))
         rc = trace_cost(f, argv[1], &err);
     if (!rc)
