@@ -25,7 +25,9 @@
  * Usage: iso-accuracy DATA_DIR OUT_DIR  (writes OUT_DIR/isometric-tables.md and
  * OUT_DIR/bench/iso-*.svg; run by hand, see docs/isometric.md; about 3 minutes), or
  * iso-accuracy DATA_DIR --timing (the trace-cost table only, to stdout), or iso-accuracy
- * DATA_DIR --lod [DEM] (the levels of detail's packed twins only, to stdout). */
+ * DATA_DIR --lod [DEM] (the levels of detail's packed twins only, to stdout), or
+ * iso-accuracy DATA_DIR --cones [DEM] (steps per ray of the square levels' methods and of
+ * the lattice walk with and without its pyramid: docs/isometric.md, "Parametric"). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -654,6 +656,71 @@ static td_status lod_twins(FILE *f, const char *data, const char *extra, td_err 
     return rc;
 }
 
+/* Mean steps per ray of the square level's methods (triangle surface) and of the lattice
+ * walk on its twin, without its block pyramid (every block maximum +inf: no block is ever
+ * cleared) and with it, on the same camera-like rays: what the block pyramid saves, and
+ * what Paglieroni-Petersen cones (`parametric`) save over a max pyramid (`hierarchical`)
+ * on the square level, i.e. what cones on the lattice could hope to save over its pyramid. */
+static td_status cones(FILE *f, const char *data, const char *extra, td_err *err)
+{
+    static const char *const files[] = {"trinidad-crop.f32", "picos-dtm.asc", "volcano.asc"};
+    static const td_method meth[4] = {TD_METHOD_INCREMENTAL, TD_METHOD_HIERARCHICAL,
+                                      TD_METHOD_PARAMETRIC, TD_METHOD_AUTO};
+    enum { NR = 20000 };
+    td_status rc = TD_OK;
+    td_ray *rays = malloc(NR * sizeof *rays);
+    fprintf(f, "\nSteps per ray on the levels of detail (%d camera-like rays a level): the square "
+               "level's methods (triangle surface; max-mipmaps and planes built) and the lattice walk "
+               "on its isometric twin without and with its block pyramid; ms for the %d rays, one "
+               "thread, shared machine: indicative.\n\n| DEM | level | square incremental | "
+               "hierarchical | parametric | auto | lattice, no pyramid | lattice, pyramid | "
+               "parametric / hierarchical | lattice pyramid / square parametric |\n"
+               "|---|---|---|---|---|---|---|---|---|---|\n", NR, NR);
+    for (int d = 0; d < 4 && !rc && rays; d++) {
+        char path[1024];
+        td_grid *g = NULL;
+        td_lod *lod = NULL;
+        td_accel_opts ao;
+        td_accel_opts_default(&ao);
+        ao.threads = 1;
+        if (d == 3 && !extra)
+            break;
+        snprintf(path, sizeof path, "%s%s%s", d < 3 ? data : extra, d < 3 ? "/" : "",
+                 d < 3 ? files[d] : "");
+        rc = td_dem_load(path, NULL, &g, err);
+        if (!rc)
+            rc = td_lod_build(g, 4, &ao, &lod, err);
+        if (!rc)
+            rc = td_lod_add_iso(lod, g, err);
+        for (int k = 1; !rc && k <= lod->levels; k++) {
+            td_iso *flat = NULL; /* the twin with its pyramid disabled */
+            double st[6], hits, ms[6];
+            size_t nb = 0;
+            rc = td_iso_unpack(lod->iso[k]->packed, &flat, err);
+            if (rc)
+                break;
+            for (int b = 0; b < flat->blevels; b++)
+                nb += (size_t)flat->bw[b] * (size_t)flat->bh[b];
+            for (size_t i = 0; i < nb; i++)
+                flat->bmax[0][i] = INFINITY;
+            camera_rays(lod->grid[k], 177 + (uint64_t)k, rays, NR);
+            for (int m = 0; m < 4; m++)
+                ms[m] = 1e3 * time_rays(0, &lod->view[k], meth[m], NULL, rays, NR, &st[m], &hits);
+            ms[4] = 1e3 * time_rays(1, NULL, TD_METHOD_AUTO, flat, rays, NR, &st[4], &hits);
+            ms[5] = 1e3 * time_rays(1, NULL, TD_METHOD_AUTO, lod->iso[k], rays, NR, &st[5], &hits);
+            fprintf(f, "| %s | %d |", strrchr(path, '/') ? strrchr(path, '/') + 1 : path, k);
+            for (int m = 0; m < 6; m++)
+                fprintf(f, " %.1f (%.0f ms) |", st[m], ms[m]);
+            fprintf(f, " %.2f | %.2f |\n", st[2] / st[1], st[5] / st[2]);
+            td_iso_free(flat);
+        }
+        td_lod_free(lod);
+        td_grid_free(g);
+    }
+    free(rays);
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
     static wave_res waves, sums;
@@ -665,11 +732,13 @@ int main(int argc, char **argv)
 
     if (argc == 3 && !strcmp(argv[2], "--timing")) /* the trace-cost table only, to stdout */
         return trace_cost(stdout, argv[1], &err) ? 1 : 0;
+    if (argc >= 3 && !strcmp(argv[2], "--cones")) /* the steps table only, to stdout */
+        return cones(stdout, argv[1], argc > 3 ? argv[3] : NULL, &err) ? 1 : 0;
     if (argc >= 3 && !strcmp(argv[2], "--lod")) /* the LOD twins' table only, to stdout */
         return lod_twins(stdout, argv[1], argc > 3 ? argv[3] : NULL, &err) ? 1 : 0;
     if (argc != 3) {
         fprintf(stderr, "usage: %s DATA_DIR OUT_DIR (e.g. tests/data docs) | DATA_DIR --timing | "
-                        "DATA_DIR --lod [DEM]\n",
+                        "DATA_DIR --lod [DEM] | DATA_DIR --cones [DEM]\n",
                 argv[0]);
         return 2;
     }
@@ -700,6 +769,8 @@ int main(int argc, char **argv)
         rc = packing(f, argv[1], &err);
     if (!rc)
         rc = lod_twins(f, argv[1], NULL, &err);
+    if (!rc)
+        rc = cones(f, argv[1], NULL, &err);
     if (!rc && !getenv("ISO_NO_TIMING"))
         rc = trace_cost(f, argv[1], &err);
     if (!rc)
