@@ -27,7 +27,8 @@
  * iso-accuracy DATA_DIR --timing (the trace-cost table only, to stdout), or iso-accuracy
  * DATA_DIR --lod [DEM] (the levels of detail's packed twins only, to stdout), or
  * iso-accuracy DATA_DIR --cones [DEM] (steps per ray of the square levels' methods and of
- * the lattice walk with and without its pyramid: docs/isometric.md, "Parametric"). */
+ * the lattice walk with and without its pyramid: docs/isometric.md, "Parametric"), or
+ * iso-accuracy DATA_DIR --tiles DEM (map tiles on both lattices against the full grid). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -39,6 +40,7 @@
 #include "dem.h"
 #include "isogrid.h"
 #include "lod.h"
+#include "render.h"
 #include "trace.h"
 
 #define NREC 4
@@ -721,6 +723,112 @@ static td_status cones(FILE *f, const char *data, const char *extra, td_err *err
     return rc;
 }
 
+/* Squared RGB differences of a and b over the pixels opaque in both; *n counts them. */
+static double rgb_sse(const td_render_result *a, const td_render_result *b, uint64_t *n)
+{
+    double sse = 0.0;
+    for (size_t i = 0; i < (size_t)a->width * (size_t)a->height; i++) {
+        const uint8_t *p = a->rgba + 4 * i, *q = b->rgba + 4 * i;
+        if (!p[3] || !q[3])
+            continue;
+        for (int c = 0; c < 3; c++)
+            sse += ((double)p[c] - q[c]) * ((double)p[c] - q[c]);
+        *n += 3;
+    }
+    return sse;
+}
+
+/* Map tiles as GET /v1/tiles makes them (256 x 256, orthographic, top down, quality.lod on,
+ * the scene's defaults) on the square levels and on their isometric twins, against the
+ * same tile traced on the full grid with 4 x 4 rays a pixel (the picture the level
+ * stands for): PSNR of the colours, the render's height error, the primary stage's time.
+ * Zooms 0-3, up to 4 tiles a zoom (the north-west ones). */
+static td_status tiles(FILE *f, const char *dem, td_err *err)
+{
+    td_status rc;
+    td_grid *g = NULL;
+    td_accel *ac = NULL;
+    td_lod *lod = NULL;
+    td_accel_opts ao;
+    td_accel_stats ast;
+    td_dem_opts dopt;
+    td_dem_opts_default(&dopt);
+    td_accel_opts_default(&ao);
+    ao.threads = 1;
+    rc = td_dem_load(dem, &dopt, &g, err);
+    if (!rc)
+        rc = td_accel_build(g, &ao, &ac, &ast, err);
+    ao.planes = 0; /* as the server builds its levels (server/tilestore.c) */
+    if (!rc)
+        rc = td_lod_build(g, TD_LOD_MAX, &ao, &lod, err);
+    if (!rc)
+        rc = td_lod_add_iso(lod, g, err);
+    if (!rc)
+        fprintf(f, "\nMap tiles of %s (%d x %d samples) as `GET /v1/tiles` makes them, on the square "
+                   "levels and on their isometric twins, against the same tiles traced on the full grid "
+                   "with 4 x 4 rays a pixel; one thread, shared machine (times indicative).\n\n"
+                   "| zoom | tiles | level | PSNR square (dB) | PSNR isometric | height error mean / max, "
+                   "square (m) | isometric | primary ms square | isometric |\n"
+                   "|---|---|---|---|---|---|---|---|---|\n",
+                strrchr(dem, '/') ? strrchr(dem, '/') + 1 : dem, (int)g->w, (int)g->h);
+    for (int z = 0; z <= 3 && !rc; z++) {
+        double wm = g->sx * (g->w - 1), hm = g->sy * (g->h - 1), side = wm > hm ? wm : hm;
+        double t = side / (double)(1L << z), sse[2] = {0, 0}, hs[2] = {0, 0}, hx[2] = {0, 0};
+        double ms[2] = {0, 0};
+        uint64_t n[2] = {0, 0}, hh[2] = {0, 0};
+        int ntiles = 0, level = 0;
+        td_view v = {g, ac->tiles};
+        for (long y = 0; y < (1L << z) && y * t < hm && ntiles < 4 && !rc; y++) {
+            for (long x = 0; x < (1L << z) && x * t < wm && ntiles < 4 && !rc; x++) {
+                td_scene sc;
+                td_render_opts o;
+                td_render_result truth = {0}, res[2] = {{0}, {0}};
+                td_scene_defaults(&sc);
+                sc.camera.projection = TD_PROJ_ORTHOGRAPHIC;
+                sc.camera.extent[0] = (double)x * t;
+                sc.camera.extent[2] = (double)(x + 1) * t;
+                sc.camera.extent[3] = hm - (double)y * t;
+                sc.camera.extent[1] = hm - (double)(y + 1) * t;
+                sc.image.width = sc.image.height = 256;
+                sc.image.format = TD_FORMAT_PNG;
+                td_render_opts_default(&o);
+                o.threads = 1;
+                sc.quality.samples = 4;
+                rc = td_render(&v, &sc, &o, &truth, err);
+                sc.quality.samples = 1;
+                sc.quality.lod = 1;
+                o.lod = lod;
+                for (int k = 0; k < 2 && !rc; k++) {
+                    sc.quality.lod_grid = k ? TD_LOD_GRID_ISOMETRIC : TD_LOD_GRID_SQUARE;
+                    rc = td_render(&v, &sc, &o, &res[k], err);
+                    if (rc)
+                        break;
+                    sse[k] += rgb_sse(&truth, &res[k], &n[k]);
+                    hs[k] += res[k].stats.height_err_sum_m;
+                    hh[k] += res[k].stats.height_err_hits;
+                    hx[k] = fmax(hx[k], res[k].stats.height_err_max_m);
+                    ms[k] += res[k].stats.stage_ms[TD_STAGE_PRIMARY];
+                    for (int l = 0; l <= TD_LOD_MAX; l++)
+                        level = res[k].stats.lod_rays[l] ? l : level;
+                }
+                td_render_result_free(&truth);
+                td_render_result_free(&res[0]);
+                td_render_result_free(&res[1]);
+                ntiles++;
+            }
+        }
+        if (!rc)
+            fprintf(f, "| %d | %d | %d | %.2f | %.2f | %.2f / %.1f | %.2f / %.1f | %.0f | %.0f |\n", z,
+                    ntiles, level, 10.0 * log10(255.0 * 255.0 * (double)n[0] / sse[0]),
+                    10.0 * log10(255.0 * 255.0 * (double)n[1] / sse[1]), hs[0] / (double)hh[0], hx[0],
+                    hs[1] / (double)hh[1], hx[1], ms[0], ms[1]);
+    }
+    td_lod_free(lod);
+    td_accel_free(ac);
+    td_grid_free(g);
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
     static wave_res waves, sums;
@@ -732,13 +840,15 @@ int main(int argc, char **argv)
 
     if (argc == 3 && !strcmp(argv[2], "--timing")) /* the trace-cost table only, to stdout */
         return trace_cost(stdout, argv[1], &err) ? 1 : 0;
+    if (argc == 4 && !strcmp(argv[2], "--tiles")) /* map tiles of one DEM, to stdout */
+        return tiles(stdout, argv[3], &err) ? 1 : 0;
     if (argc >= 3 && !strcmp(argv[2], "--cones")) /* the steps table only, to stdout */
         return cones(stdout, argv[1], argc > 3 ? argv[3] : NULL, &err) ? 1 : 0;
     if (argc >= 3 && !strcmp(argv[2], "--lod")) /* the LOD twins' table only, to stdout */
         return lod_twins(stdout, argv[1], argc > 3 ? argv[3] : NULL, &err) ? 1 : 0;
     if (argc != 3) {
         fprintf(stderr, "usage: %s DATA_DIR OUT_DIR (e.g. tests/data docs) | DATA_DIR --timing | "
-                        "DATA_DIR --lod [DEM] | DATA_DIR --cones [DEM]\n",
+                        "DATA_DIR --lod [DEM] | DATA_DIR --cones [DEM] | DATA_DIR --tiles DEM\n",
                 argv[0]);
         return 2;
     }
