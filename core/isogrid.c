@@ -395,6 +395,22 @@ static int clip_axis(const td_ray *ray, int k, double lo, double hi, double *t0,
     return ok && *t0 <= *t1;
 }
 
+/* The cell [i, i+1) of the integer lines holding v, ties broken toward the direction of
+ * travel: floor(v), or ceil(v) - 1 going down. By truncation (floor and ceil are library
+ * calls without SSE4.1, and this runs at every step and block test): v is a lattice
+ * coordinate, far inside int32 (clamped, so a cast is never undefined). */
+static int32_t cell_toward(double v, int down)
+{
+    int32_t i;
+    v = v >= -1e9 ? (v <= 1e9 ? v : 1e9) : -1e9;
+    i = (int32_t)v;
+    if (down)
+        i += ((double)i < v) - 1;
+    else
+        i -= (double)i > v;
+    return i;
+}
+
 /* One family of lines v(t) = v0 + t dv, v = integer: the floor of v along the ray (ties
  * broken toward the direction of travel) and the t of its next change. */
 typedef struct iso_family {
@@ -408,7 +424,7 @@ static void family_init(iso_family *f, double v0, double dv, double t)
     f->v0 = v0;
     f->dv = dv;
     f->dir = dv > 0.0 ? 1 : (dv < 0.0 ? -1 : 0);
-    f->idx = (int32_t)(f->dir < 0 ? ceil(v) - 1.0 : floor(v));
+    f->idx = cell_toward(v, f->dir < 0);
     f->tnext = f->dir > 0 ? (f->idx + 1 - v0) / dv : (f->dir < 0 ? (f->idx - v0) / dv : INFINITY);
 }
 
@@ -447,7 +463,7 @@ static int block_clear(const td_iso *l, int k, const td_ray *ray, const iso_inv 
     *te = t1;
     for (int a = 0; a < 2; a++) {
         double v = (ray->o[a] + tc * ray->d[a]) * (inv->s[a] * iS);
-        bi[a] = clamp32((int32_t)(ray->d[a] < 0.0 ? ceil(v) - 1.0 : floor(v)), 0, n[a] - 1);
+        bi[a] = clamp32(cell_toward(v, ray->d[a] < 0.0), 0, n[a] - 1);
         if (ray->d[a] != 0.0) {
             double ta = ((ray->d[a] > 0.0 ? bi[a] + 1 : bi[a]) * w[a] - ray->o[a]) * inv->d[a];
             *te = ta < *te ? ta : *te;
