@@ -594,6 +594,29 @@ static td_status packing(FILE *f, const char *data, td_err *err)
     return rc;
 }
 
+/* DEM d of the LOD tables (the three fixtures in data, then `extra` if not NULL) with 4
+ * levels of detail (acceleration as `ao` asks) and their isometric twins; *name gets the
+ * file's name. Past the last one, *g is NULL. */
+static td_status lod_dem(const char *data, const char *extra, int d, const td_accel_opts *ao,
+                         td_grid **g, td_lod **lod, const char **name, td_err *err)
+{
+    static const char *const files[] = {"trinidad-crop.f32", "picos-dtm.asc", "volcano.asc"};
+    static char path[1024];
+    td_status rc = TD_OK;
+    *g = NULL;
+    *lod = NULL;
+    if (d < 3 || (d == 3 && extra)) {
+        snprintf(path, sizeof path, "%s%s%s", d < 3 ? data : extra, d < 3 ? "/" : "", d < 3 ? files[d] : "");
+        *name = strrchr(path, '/') ? strrchr(path, '/') + 1 : path;
+        rc = td_dem_load(path, NULL, g, err);
+        if (!rc)
+            rc = td_lod_build(*g, 4, ao, lod, err);
+        if (!rc)
+            rc = td_lod_add_iso(*lod, *g, err);
+    }
+    return rc;
+}
+
 /* The levels of detail's isometric twins as core/lod.c keeps them (two-byte vertices,
  * tiles of 64 x 64): per level, the packing's error and bytes per sample against the
  * floats they decode to, and the walk's rays per second on the packed vertices against
@@ -601,7 +624,6 @@ static td_status packing(FILE *f, const char *data, td_err *err)
  * more DEM, e.g. the full trinidad. */
 static td_status lod_twins(FILE *f, const char *data, const char *extra, td_err *err)
 {
-    static const char *const files[] = {"trinidad-crop.f32", "picos-dtm.asc", "volcano.asc"};
     enum { NR = 20000, NRUN = 5 };
     td_status rc = TD_OK;
     td_ray *rays = malloc(NR * sizeof *rays);
@@ -612,22 +634,14 @@ static td_status lod_twins(FILE *f, const char *data, const char *extra, td_err 
                "indicative; same steps, same hits bit for bit).\n\n| DEM | level | samples | tiles "
                "lossless | largest error (m) | bytes/sample packed | floats | rays/s packed | floats | "
                "steps/ray |\n|---|---|---|---|---|---|---|---|---|---|\n", NRUN, NR);
-    for (int d = 0; d < 4 && !rc && rays; d++) {
-        char path[1024];
+    for (int d = 0; !rc && rays; d++) {
+        const char *name = "";
         td_grid *g = NULL;
         td_lod *lod = NULL;
         td_accel_opts ao = {0, 0, 1, 1};
-        if (d == 3 && !extra)
+        rc = lod_dem(data, extra, d, &ao, &g, &lod, &name, err);
+        if (!rc && !g)
             break;
-        if (d < 3)
-            snprintf(path, sizeof path, "%s/%s", data, files[d]);
-        else
-            snprintf(path, sizeof path, "%s", extra);
-        rc = td_dem_load(path, NULL, &g, err);
-        if (!rc)
-            rc = td_lod_build(g, 4, &ao, &lod, err);
-        if (!rc)
-            rc = td_lod_add_iso(lod, g, err);
         for (int k = 1; !rc && k <= lod->levels; k++) {
             const td_iso *l = lod->iso[k];
             td_iso *fl = NULL;
@@ -644,7 +658,7 @@ static td_status lod_twins(FILE *f, const char *data, const char *extra, td_err 
             qsort(tp, NRUN, sizeof tp[0], cmp_double);
             qsort(tf, NRUN, sizeof tf[0], cmp_double);
             fprintf(f, "| %s | %d | %zu | %d / %d | %.3g | %.3f | %.3f | %.3g | %.3g | %.1f%s |\n",
-                    strrchr(path, '/') ? strrchr(path, '/') + 1 : path, k, n, l->packed->lossless,
+                    name, k, n, l->packed->lossless,
                     l->packed->tiles_x * l->packed->tiles_y, l->packed->max_err,
                     (double)td_iso_bytes(l) / (double)n, (double)td_iso_bytes(fl) / (double)n,
                     NR / tp[NRUN / 2], NR / tf[NRUN / 2], steps,
@@ -665,7 +679,6 @@ static td_status lod_twins(FILE *f, const char *data, const char *extra, td_err 
  * on the square level, i.e. what cones on the lattice could hope to save over its pyramid. */
 static td_status cones(FILE *f, const char *data, const char *extra, td_err *err)
 {
-    static const char *const files[] = {"trinidad-crop.f32", "picos-dtm.asc", "volcano.asc"};
     static const td_method meth[4] = {TD_METHOD_INCREMENTAL, TD_METHOD_HIERARCHICAL,
                                       TD_METHOD_PARAMETRIC, TD_METHOD_AUTO};
     enum { NR = 20000 };
@@ -678,22 +691,16 @@ static td_status cones(FILE *f, const char *data, const char *extra, td_err *err
                "hierarchical | parametric | auto | lattice, no pyramid | lattice, pyramid | "
                "parametric / hierarchical | lattice pyramid / square parametric |\n"
                "|---|---|---|---|---|---|---|---|---|---|\n", NR, NR);
-    for (int d = 0; d < 4 && !rc && rays; d++) {
-        char path[1024];
+    for (int d = 0; !rc && rays; d++) {
+        const char *name = "";
         td_grid *g = NULL;
         td_lod *lod = NULL;
         td_accel_opts ao;
         td_accel_opts_default(&ao);
         ao.threads = 1;
-        if (d == 3 && !extra)
+        rc = lod_dem(data, extra, d, &ao, &g, &lod, &name, err);
+        if (!rc && !g)
             break;
-        snprintf(path, sizeof path, "%s%s%s", d < 3 ? data : extra, d < 3 ? "/" : "",
-                 d < 3 ? files[d] : "");
-        rc = td_dem_load(path, NULL, &g, err);
-        if (!rc)
-            rc = td_lod_build(g, 4, &ao, &lod, err);
-        if (!rc)
-            rc = td_lod_add_iso(lod, g, err);
         for (int k = 1; !rc && k <= lod->levels; k++) {
             td_iso *flat = NULL; /* the twin with its pyramid disabled */
             double st[6], hits, ms[6];
@@ -710,7 +717,7 @@ static td_status cones(FILE *f, const char *data, const char *extra, td_err *err
                 ms[m] = 1e3 * time_rays(0, &lod->view[k], meth[m], NULL, rays, NR, &st[m], &hits);
             ms[4] = 1e3 * time_rays(1, NULL, TD_METHOD_AUTO, flat, rays, NR, &st[4], &hits);
             ms[5] = 1e3 * time_rays(1, NULL, TD_METHOD_AUTO, lod->iso[k], rays, NR, &st[5], &hits);
-            fprintf(f, "| %s | %d |", strrchr(path, '/') ? strrchr(path, '/') + 1 : path, k);
+            fprintf(f, "| %s | %d |", name, k);
             for (int m = 0; m < 6; m++)
                 fprintf(f, " %.1f (%.0f ms) |", st[m], ms[m]);
             fprintf(f, " %.2f | %.2f |\n", st[2] / st[1], st[5] / st[2]);

@@ -26,6 +26,7 @@
 #include <string.h>
 
 #include "accel.h"
+#include "cam_view.h"
 #include "dem.h"
 #include "iso_reference.h"
 #include "lod.h"
@@ -39,21 +40,15 @@
 #define MAX_PRINT 8
 #define LOD_PIXELS 8.0
 
-typedef struct lod_view {
-    const char *name;
-    double fx, fy, agl, heading, pitch, roll, fov;
-} lod_view;
-
-/* Placed in the grid's frame as oracle.c's views (fx, fy: fraction of its extent; agl over
- * the highest sample; negative: below the crests, at the lowest sample plus a quarter of
- * the relief), looking across the grid so that most rays go far. */
-static const lod_view views[] = {
-    {"level across", 0.05, 0.05, 150, 45, -2, 0, 70},
-    {"grazing", 0.02, 0.5, 30, 90, -1, 0, 60},
-    {"looking down", 0.1, 0.9, 600, 135, -25, 0, 70},
-    {"rolled 35", 0.95, 0.9, 300, 220, -8, 35, 70},
-    {"fov 170", 0.5, 0.02, 100, 0, -4, 0, 170},
-    {"below the crests", 0.9, 0.1, -1, 300, 3, 0, 80},
+/* Placed in the grid's frame as oracle.c's views (cam_view.h), looking across the grid so
+ * that most rays go far (the sun does not matter to a depth image). */
+static const cam_view views[] = {
+    {"level across", 0.05, 0.05, 150, 45, -2, 0, 70, 0, 30},
+    {"grazing", 0.02, 0.5, 30, 90, -1, 0, 60, 0, 30},
+    {"looking down", 0.1, 0.9, 600, 135, -25, 0, 70, 0, 30},
+    {"rolled 35", 0.95, 0.9, 300, 220, -8, 35, 70, 0, 30},
+    {"fov 170", 0.5, 0.02, 100, 0, -4, 0, 170, 0, 30},
+    {"below the crests", 0.9, 0.1, -1, 300, 3, 0, 80, 0, 30},
 };
 
 typedef struct run {
@@ -154,42 +149,30 @@ static double lod_ray(run *u, const td_camera *cam, int iso, td_method m, td_sur
 
 /* One view, lod_grid, surface and method: depths with the devices on and off are the
  * same bit for bit and equal auto's; for auto every pixel is the rule's, judged. */
-static uint64_t check(run *u, const lod_view *lv, int iso, td_method m, td_surface sf, float *auto_depth)
+static uint64_t check(run *u, const cam_view *lv, int iso, td_method m, td_surface sf, float *auto_depth)
 {
     enum { W = 96, H = 72 };
     const td_grid *g = u->g;
     td_scene sc;
-    td_render_opts o, plain;
-    td_render_result on, off;
+    td_render_opts o;
+    td_render_result on = {0}, off = {0};
     td_err err = {0};
     td_camera cam;
     uint64_t errors = 0;
-    td_scene_defaults(&sc);
-    sc.camera.x = lv->fx * (g->w - 1) * g->sx;
-    sc.camera.y = lv->fy * (g->h - 1) * g->sy;
-    sc.camera.z = lv->agl < 0.0 ? g->zmin + 0.25 * (g->zmax - g->zmin) : g->zmax + lv->agl;
-    sc.camera.heading = lv->heading, sc.camera.pitch = lv->pitch, sc.camera.roll = lv->roll;
-    sc.camera.fov = lv->fov;
-    sc.image.width = W, sc.image.height = H, sc.image.format = TD_FORMAT_DEPTH32F;
-    sc.quality.method = m, sc.quality.surface = sf;
+    cam_view_scene(lv, g, W, H, m, sf, &sc);
     sc.quality.lod = 1;
     sc.quality.lod_pixels = LOD_PIXELS;
     sc.quality.lod_grid = iso ? TD_LOD_GRID_ISOMETRIC : TD_LOD_GRID_SQUARE;
     td_render_opts_default(&o);
     o.threads = 1;
     o.lod = u->lod;
-    plain = o;
-    plain.off = TD_RENDER_OFF_CAMERA;
-    memset(&on, 0, sizeof on), memset(&off, 0, sizeof off);
-    if (td_render(&u->view, &sc, &o, &on, &err) || td_render(&u->view, &sc, &plain, &off, &err) ||
-        td_camera_setup(&sc.camera, W, H, g, &cam, &err)) {
+    if (cam_view_render(&u->view, &sc, &o, &on, &off, &cam, &err)) {
         printf("ERROR %s: %s\n", lv->name, err.msg);
         errors++;
         goto out;
     }
     for (int k = 0; k < W * H; k++) {
-        if (memcmp(&on.depth[k], &off.depth[k], sizeof(float)) ||
-            (m != TD_METHOD_AUTO && memcmp(&on.depth[k], &auto_depth[k], sizeof(float)))) {
+        if (!cam_view_same(&on, &off, auto_depth, m, k)) {
             if (errors++ < MAX_PRINT)
                 printf("ERROR %s %s %s/%s pixel %d: devices on %.9g off %.9g auto %.9g\n", lv->name,
                        iso ? "isometric" : "square", td_method_name(m), td_surface_name(sf), k,
