@@ -348,7 +348,11 @@ static double above(const td_ray *ray, const iso_plane *p, double t)
  * ray's height above the surface where the previous triangle's segment ended (NaN after a
  * hole or at the start): a sign change between it and this triangle's entry is a crossing
  * on their shared edge, which the two planes' roundings could otherwise both miss. On
- * return *fprev is the height at t1. */
+ * return *fprev is the height at t1. A hole forgets the sign (the ray may pass under its
+ * edge), unless the ray only passes its corner: a segment shorter than 1e-9 cells on the
+ * ground, which is how a ray through a vertex between two valid triangles and a hole
+ * looks after rounding (the three families' lines cross there at t's a few ulps apart);
+ * a sign change across that vertex is a crossing at it. */
 static double segment_hit(const td_iso *l, const td_ray *ray, int32_t r, int32_t q, double t0,
                           double t1, iso_plane *p, double *fprev)
 {
@@ -361,8 +365,9 @@ static double segment_hit(const td_iso *l, const td_ray *ray, int32_t r, int32_t
     m = td_iso_at(l, rr[2], cc[2]) > m ? td_iso_at(l, rr[2], cc[2]) : m;
     if (zr0 > m && zr1 > m) { /* above the highest corner at both ends: nothing to solve */
         *fprev = 1.0;
-    } else if (!plane_of(l, r, q, p)) { /* a hole */
-        *fprev = NAN;
+    } else if (!plane_of(l, r, q, p)) { /* a hole: see above */
+        double run = (t1 - t0) * hypot(ray->d[0], ray->d[1]);
+        *fprev = run > 1e-9 * (l->a < l->b ? l->a : l->b) ? NAN : *fprev;
     } else {
         double f0 = above(ray, p, t0), f1 = t1 > t0 ? above(ray, p, t1) : f0;
         if (f0 == 0.0 || (*fprev > 0.0 && f0 < 0.0) || (*fprev < 0.0 && f0 > 0.0)) {

@@ -442,6 +442,42 @@ static void test_iso_hardcases(void **state)
     assert_int_equal(t.wrong, 0);
 }
 
+/* Rays through a vertex on a hole's border, level at the vertex's height, crossing the
+ * surface there from below to above or back, at 72 headings (the walk passes the hole's
+ * corner in segments a few ulps long: the crossing at the vertex must not be forgotten),
+ * and along the three line families next to the hole. */
+static void test_iso_hole_corners(void **state)
+{
+    (void)state;
+    tally t = {0, 0, 0};
+    td_iso *l = NULL;
+    assert_int_equal(td_iso_create(30, 30, 1.0, 1.0, &l, NULL), TD_OK);
+    td_iso_sample(l, bumpy_fn, NULL);
+    for (int32_t r = 4; r < 26; r += 5) /* single voids, each making a hole of six triangles */
+        for (int32_t c = 4; c < 26; c += 5)
+            l->z[td_iso_row_offset(l->nx, r) + (size_t)c] = NAN;
+    td_iso_finish(l);
+    for (int32_t r = 4; r < 26; r += 5) {
+        for (int32_t c = 4; c < 26; c += 5) {
+            static const int32_t nb[6][2] = {{0, -1}, {0, 1}, {-1, 0}, {-1, 1}, {1, 0}, {1, 1}};
+            for (int k = 0; k < 6; k++) { /* the void's neighbours (either row parity) */
+                int32_t vr = r + nb[k][0], vc = c + nb[k][1] - (nb[k][0] != 0 && !(r & 1));
+                double vx = td_iso_x(l, vr, vc), vy = vr * l->b, vz = td_iso_at(l, vr, vc);
+                for (int h = 0; h < 72; h++) {
+                    double ang = h * (M_PI / 36.0) + 0.01;
+                    td_ray ray = {{vx - 3.0 * cos(ang), vy - 3.0 * sin(ang), vz}, {cos(ang), sin(ang), 0.0},
+                                  0.0, 6.0};
+                    judge(l, &ray, &t);
+                }
+            }
+        }
+    }
+    td_iso_free(l);
+    print_message("hole corners: %d agree, %d ties, %d wrong\n", t.agree, t.tie, t.wrong);
+    assert_int_equal(t.wrong, 0);
+    assert_true(t.agree > t.tie);
+}
+
 /* The pyramid's sizes, and every block maximum at every level bounds the surface over its
  * box (checked at random points, vertices included). */
 static void test_iso_blocks(void **state)
@@ -645,6 +681,7 @@ int main(void)
         cmocka_unit_test(test_iso_rays_reference),
         cmocka_unit_test(test_iso_hardcases),
         cmocka_unit_test(test_iso_packed_trace),
+        cmocka_unit_test(test_iso_hole_corners),
         cmocka_unit_test(test_iso_blocks),
         cmocka_unit_test(test_iso_lod_twin),
     };
