@@ -1,0 +1,600 @@
+/* vsweep.c: the horizon sweep of vsweep.h (what it proves, and when it casts instead).
+ *
+ * Cone coordinates. Each cone is swept as if it were the east one: a sample (U, V) of
+ * the cone is grid sample i = ui U + vi V, j = uj U + vj V (west: U = -i; north: U = j,
+ * V = i; south: U = -j), the eye is (eu, ev), u = U - eu > 0 is the distance along the
+ * sweep and m = (V - ev) / u, |m| <= 1, the ray's direction. Cells are the grid's; a
+ * triangle cell's diagonal (a + b = 1 in the grid's frame) is the anti-diagonal
+ * (U+1, V)-(U, V+1) in the east and north cones and the main one in the other two.
+ *
+ * The envelope F(m) is a list of pieces, each a part of one projected edge: value
+ * qr + s (m - mr) from its start m to the next piece's start, and a slack: the piece is
+ * an upper bound of the surface on the rays it covers, and value - slack is reached by a
+ * real surface point (slack 0 for real edges, |twist| / 4 / u for a bilinear cell's
+ * upper diagonal, |qa - qb| for an edge too narrow in m to keep its slope, which is then
+ * kept flat at its top). After the targets of column U are decided against F, the edges
+ * of column U and of the strip between columns U-1 and U (rows, diagonals) are added:
+ * each is first tested against F (most far terrain is under the horizon and is dropped
+ * there), the others are gathered in G (in m order, so each insertion touches G's tail)
+ * and G is merged into F in one pass. Holes: an edge counts when a cell it bounds has no
+ * void corner (the tracer skips hole cells).
+ *
+ * A target T = (U, V) is decided by
+ *   hi = max(F(m_T), NB, last-cell diagonal, with a target height its own ground),
+ *   lo = max(F(m_T) - slack, last-cell diagonal - slack),
+ * visible if q_T > hi + eps, hidden if q_T < lo - eps, else cast. The edges that end at T
+ * are not in F yet (F holds the strips up to column U-1), and the only edge the segment
+ * crosses in its last strip is the diagonal of the cell it arrives through when that
+ * diagonal does not end at T. NB bounds the part of every segment between the eye and
+ * the first column U0 at least a quarter cell away: per cell, by its highest corner over
+ * its nearest distance, or for the cells around the eye by the slope bound
+ * z <= ground + G u, so q <= G - height / u (the linear surface, whose height under the
+ * eye depends on the ray, gets no such bound). Targets in columns up to U0 + 1 are cast.
+ *
+ * Rounding: the envelope is computed in double from float heights; a crossing put off
+ * by rounding moves a value by the slope times 1e-16, kept below 1e-8 by flattening
+ * edges narrower than 1e-5 in m. eps (1e-6 m per cell of u, plus 1e-9 relative) is the
+ * height 1e-6 m at a cell's distance, a thousand times what either side's rounding
+ * reaches; a segment that close to the surface is cast.
+ *
+ * Alternatives measured (docs/viewshed.md "Speed"): per-wedge horizon bins
+ * (horizon.h) to start each cast late; see the doc for why the envelope replaced them. */
+#include "vsweep.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "viewshed.h"
+
+#define VS_EPS_ABS 1e-6
+#define VS_EPS_REL 1e-9
+#define VS_NARROW 1e-5   /* edges narrower than this in m are kept flat */
+#define VS_NEAR 0.25     /* the envelope starts at the first column this far from the eye */
+
+typedef struct piece {
+    double m;      /* start; the piece ends where the next one starts */
+    double mr, qr; /* value qr + s (m - mr); qr = -inf: no surface here */
+    double s, slack;
+} piece;
+
+typedef struct pvec {
+    piece *p; /* n pieces and p[n], the sentinel whose m is the end (1) */
+    int n, cap;
+} pvec;
+
+typedef struct cone {
+    const td_grid *g;
+    int ui, uj, vi, vj;
+    int strict; /* north and south: |V - ev| < u (the diagonals belong to east and west) */
+    int anti;   /* the triangle surface's diagonal is (U+1, V)-(U, V+1) */
+    double eu, ev;
+    int32_t ulo, uhi, vlo, vhi; /* U, V ranges of the grid */
+} cone;
+
+typedef struct sweep {
+    const td_vsweep_job *job;
+    cone c;
+    int tri, bil, lin;
+    pvec F, G, T;
+    int hint_q, hint_s;
+    int oom;
+    uint8_t *vis;
+    uint64_t swept, rays, steps;
+} sweep;
+
+static const piece empty_piece = {0.0, 0.0, -INFINITY, 0.0, 0.0};
+
+static inline double pval(const piece *p, double m) { return p->qr + p->s * (m - p->mr); }
+
+static inline int same_line(const piece *a, const piece *b)
+{
+    return a->qr == b->qr && a->s == b->s && a->mr == b->mr && a->slack == b->slack;
+}
+
+static int pv_reserve(sweep *sw, pvec *v, int need)
+{
+    if (need + 1 > v->cap) {
+        int cap = v->cap ? v->cap : 256;
+        piece *p;
+        while (cap < need + 1)
+            cap *= 2;
+        p = realloc(v->p, (size_t)cap * sizeof *p);
+        if (!p) {
+            sw->oom = 1;
+            return 0;
+        }
+        v->p = p;
+        v->cap = cap;
+    }
+    return 1;
+}
+
+/* v = no surface over [-1, 1]. */
+static void pv_clear(pvec *v)
+{
+    v->p[0] = empty_piece;
+    v->p[0].m = -1.0;
+    v->p[1] = empty_piece;
+    v->p[1].m = 1.0;
+    v->n = 1;
+}
+
+/* Appends src's line from m (a piece of zero width is replaced; equal lines join). */
+static void emit(pvec *o, double m, const piece *src)
+{
+    if (o->n > 0 && same_line(&o->p[o->n - 1], src))
+        return;
+    if (o->n > 0 && o->p[o->n - 1].m >= m) {
+        o->n--;
+        if (o->n > 0 && same_line(&o->p[o->n - 1], src))
+            return;
+    }
+    o->p[o->n] = *src;
+    o->p[o->n].m = m;
+    o->n++;
+}
+
+/* out = max(a, b), both covering [a[0].m, end] with a[na].m = b[nb].m = end; out needs
+ * room for 2 (na + nb) + 1 pieces. Ties go to a (the older). */
+static void merge(const piece *a, int na, const piece *b, int nb, pvec *out)
+{
+    int ia = 0, ib = 0;
+    double cur = a[0].m, end = a[na].m;
+    out->n = 0;
+    while (cur < end && ia < na && ib < nb) {
+        double ea = a[ia + 1].m, eb = b[ib + 1].m, nx = ea < eb ? ea : eb;
+        const piece *pa = &a[ia], *pb = &b[ib];
+        if (nx > end)
+            nx = end;
+        if (nx > cur) {
+            if (pb->qr == -INFINITY) {
+                emit(out, cur, pa);
+            } else if (pa->qr == -INFINITY) {
+                emit(out, cur, pb);
+            } else {
+                double d0 = pval(pa, cur) - pval(pb, cur), d1 = pval(pa, nx) - pval(pb, nx);
+                if (d0 >= 0.0 && d1 >= 0.0) {
+                    emit(out, cur, pa);
+                } else if (d0 <= 0.0 && d1 <= 0.0) {
+                    emit(out, cur, pb);
+                } else {
+                    double c = cur + (nx - cur) * (d0 / (d0 - d1));
+                    emit(out, cur, d0 > 0.0 ? pa : pb);
+                    emit(out, c > cur ? (c < nx ? c : nx) : cur, d0 > 0.0 ? pb : pa);
+                }
+            }
+            cur = nx;
+        }
+        if (ea <= cur)
+            ia++;
+        if (eb <= cur)
+            ib++;
+    }
+    out->p[out->n] = empty_piece;
+    out->p[out->n].m = end;
+}
+
+/* The piece of v containing m (p[k].m <= m < p[k+1].m; the last one for m = end),
+ * searched from *hint. */
+static int find(const pvec *v, double m, int *hint)
+{
+    int k = *hint;
+    if (k >= v->n)
+        k = v->n - 1;
+    while (k > 0 && v->p[k].m > m)
+        k--;
+    while (k + 1 < v->n && v->p[k + 1].m <= m)
+        k++;
+    *hint = k;
+    return k;
+}
+
+/* ---- cone coordinates ------------------------------------------------------------ */
+
+static inline double cz(const cone *c, int32_t U, int32_t V)
+{
+    int32_t i = c->ui * U + c->vi * V, j = c->uj * U + c->vj * V;
+    return (double)c->g->z[(size_t)j * (size_t)c->g->w + (size_t)i];
+}
+
+static inline size_t cidx(const cone *c, int32_t U, int32_t V)
+{
+    int32_t i = c->ui * U + c->vi * V, j = c->uj * U + c->vj * V;
+    return (size_t)j * (size_t)c->g->w + (size_t)i;
+}
+
+/* Corners z00, z10, z01, z11 of cone cell (U, V) (U..U+1, V..V+1); 0 if it is off the
+ * grid or a hole. */
+static int cell(const cone *c, int32_t U, int32_t V, double z[4])
+{
+    int ok = U >= c->ulo && U + 1 <= c->uhi && V >= c->vlo && V + 1 <= c->vhi;
+    if (ok) {
+        z[0] = cz(c, U, V);
+        z[1] = cz(c, U + 1, V);
+        z[2] = cz(c, U, V + 1);
+        z[3] = cz(c, U + 1, V + 1);
+        ok = !isnan(z[0]) && !isnan(z[1]) && !isnan(z[2]) && !isnan(z[3]);
+    }
+    return ok;
+}
+
+static void cone_init(cone *c, const td_grid *g, int k, double eu, double ev)
+{
+    static const int t[4][5] = {
+        /* ui uj vi vj anti */
+        {1, 0, 0, 1, 1},  /* east: U = i, V = j */
+        {-1, 0, 0, 1, 0}, /* west: U = -i */
+        {0, 1, 1, 0, 1},  /* north: U = j, V = i */
+        {0, -1, 1, 0, 0}, /* south: U = -j */
+    };
+    int32_t nu = k < 2 ? g->w : g->h, nv = k < 2 ? g->h : g->w;
+    c->g = g;
+    c->ui = t[k][0];
+    c->uj = t[k][1];
+    c->vi = t[k][2];
+    c->vj = t[k][3];
+    c->anti = t[k][4];
+    c->strict = k >= 2;
+    c->eu = k < 2 ? (k == 0 ? eu : -eu) : (k == 2 ? ev : -ev);
+    c->ev = k < 2 ? ev : eu;
+    c->ulo = (k & 1) ? -(nu - 1) : 0;
+    c->uhi = (k & 1) ? 0 : nu - 1;
+    c->vlo = 0;
+    c->vhi = nv - 1;
+}
+
+/* ---- the envelope's updates ------------------------------------------------------ */
+
+/* Whether piece p over [m0, m1] stays at or under F. */
+static int under_f(sweep *sw, const piece *p, double m0, double m1)
+{
+    const pvec *F = &sw->F;
+    int k = find(F, m0, &sw->hint_s);
+    double x = m0;
+    for (;;) {
+        double xe = F->p[k + 1].m < m1 ? F->p[k + 1].m : m1;
+        if (pval(p, x) > pval(&F->p[k], x) || pval(p, xe) > pval(&F->p[k], xe))
+            return 0;
+        if (xe >= m1 || k + 1 >= F->n)
+            break;
+        x = xe;
+        k++;
+    }
+    return 1;
+}
+
+/* p over [m0, m1] into G (whose pieces after the one holding m0 are few: edges come in
+ * about increasing m). */
+static void g_insert(sweep *sw, const piece *p, double m0, double m1)
+{
+    pvec *G = &sw->G, *T = &sw->T;
+    piece b[4];
+    int k = G->n - 1;
+    while (k > 0 && G->p[k].m > m0)
+        k--;
+    b[0] = empty_piece;
+    b[0].m = G->p[k].m;
+    b[1] = *p;
+    b[1].m = m0;
+    b[2] = empty_piece;
+    b[2].m = m1;
+    b[3] = empty_piece;
+    b[3].m = 1.0;
+    if (!pv_reserve(sw, T, 2 * (G->n - k + 3) + 1) || !pv_reserve(sw, G, k + 2 * (G->n - k + 3) + 1))
+        return;
+    merge(&G->p[k], G->n - k, b, 3, T);
+    memcpy(&G->p[k], T->p, (size_t)(T->n + 1) * sizeof *T->p);
+    G->n = k + T->n;
+}
+
+/* The edge (Ua, Va, za)-(Ub, Vb, zb) projected, into G unless F already covers it. */
+static void add_edge(sweep *sw, int32_t Ua, int32_t Va, double za, int32_t Ub, int32_t Vb,
+                     double zb, double slack)
+{
+    const cone *c = &sw->c;
+    double ez = sw->job->ez, ua = Ua - c->eu, ub = Ub - c->eu;
+    double ma = (Va - c->ev) / ua, qa = (za - ez) / ua, mb = (Vb - c->ev) / ub, qb = (zb - ez) / ub;
+    double m0, m1;
+    piece p;
+    if (ma > mb) {
+        double t = ma;
+        ma = mb;
+        mb = t;
+        t = qa;
+        qa = qb;
+        qb = t;
+    }
+    if (!(mb > ma) || mb < -1.0 || ma > 1.0) /* a point in m: its ends are column samples */
+        return;
+    p.mr = ma;
+    if (mb - ma < VS_NARROW) {
+        p.qr = qa > qb ? qa : qb;
+        p.s = 0.0;
+        p.slack = slack + fabs(qa - qb);
+    } else {
+        p.qr = qa;
+        p.s = (qb - qa) / (mb - ma);
+        p.slack = slack;
+    }
+    m0 = ma < -1.0 ? -1.0 : ma;
+    m1 = mb > 1.0 ? 1.0 : mb;
+    if (m1 > m0 && !under_f(sw, &p, m0, m1))
+        g_insert(sw, &p, m0, m1);
+}
+
+/* The bilinear cell's upper diagonal (main when its twist k >= 0) and its slack at
+ * distance u0 (nearest point of the cell); the triangle's is fixed per cone. */
+static int upper_main(const sweep *sw, const double z[4], double u0, double *slack)
+{
+    double k = z[0] - z[1] - z[2] + z[3];
+    *slack = sw->bil ? fabs(k) / (4.0 * u0) : 0.0;
+    return sw->bil ? k >= 0.0 : !sw->c.anti;
+}
+
+/* Column U's edges, and with `strip` those between columns U-1 and U, into F. */
+static void add_column(sweep *sw, int32_t U, int strip)
+{
+    const cone *c = &sw->c;
+    double u = U - c->eu, z[4], zl[4], slack;
+    int32_t V0 = (int32_t)fmax(floor(c->ev - u) - 1.0, (double)c->vlo);
+    int32_t V1 = (int32_t)fmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
+    pv_clear(&sw->G);
+    for (int32_t V = V0; V <= V1; V++) {
+        double zb[4];
+        int here = cell(c, U, V, z), left = cell(c, U - 1, V, zl);
+        if (here || left)
+            add_edge(sw, U, V, cz(c, U, V), U, V + 1, cz(c, U, V + 1), 0.0);
+        if (!strip)
+            continue;
+        if (left || cell(c, U - 1, V - 1, zb))
+            add_edge(sw, U - 1, V, cz(c, U - 1, V), U, V, cz(c, U, V), 0.0);
+        if (left && !sw->lin) {
+            if (upper_main(sw, zl, u - 1.0, &slack))
+                add_edge(sw, U - 1, V, zl[0], U, V + 1, zl[3], slack);
+            else
+                add_edge(sw, U, V, zl[1], U - 1, V + 1, zl[2], slack);
+        }
+        if (sw->oom)
+            return;
+    }
+    if (sw->G.n > 1 || sw->G.p[0].qr != -INFINITY) {
+        if (!pv_reserve(sw, &sw->T, 2 * (sw->F.n + sw->G.n) + 1))
+            return;
+        merge(sw->F.p, sw->F.n, sw->G.p, sw->G.n, &sw->T);
+        pvec t = sw->F;
+        sw->F = sw->T;
+        sw->T = t;
+        sw->hint_q = sw->hint_s = 0;
+    }
+}
+
+/* NB: an upper bound of q over the segments' part at u in (0, un]. */
+static double near_bound(const sweep *sw, double un)
+{
+    const cone *c = &sw->c;
+    const td_vsweep_job *j = sw->job;
+    double nb = -INFINITY, z[4];
+    for (int32_t Uc = (int32_t)floor(c->eu); Uc - c->eu < un; Uc++) {
+        double ul = fmax(Uc - c->eu, 0.0), uh = fmin(Uc + 1 - c->eu, un);
+        for (int32_t Vc = (int32_t)floor(c->ev - un) - 1; Vc <= (int32_t)floor(c->ev + un) + 1; Vc++) {
+            double dv = fmax(0.0, fmax(Vc - c->ev, c->ev - (Vc + 1))), umin = fmax(ul, dv), zmax, b;
+            if (uh <= 0.0 || dv > uh || !cell(c, Uc, Vc, z))
+                continue;
+            zmax = fmax(fmax(z[0], z[1]), fmax(z[2], z[3]));
+            if (umin > 0.0 || zmax <= j->ez) {
+                b = (zmax - j->ez) / (zmax > j->ez ? umin : uh);
+            } else if (sw->lin) {
+                b = INFINITY;
+            } else {
+                double G = fmax(fabs(z[1] - z[0]), fabs(z[3] - z[2])) + fmax(fabs(z[2] - z[0]), fabs(z[3] - z[1]));
+                b = G - (j->ez - j->ground) / uh;
+            }
+            nb = fmax(nb, b);
+        }
+    }
+    return nb;
+}
+
+/* ---- the targets ------------------------------------------------------------------ */
+
+/* The segment to (U, V) cast, as td_viewshed does without the sweep. */
+static void cast(sweep *sw, int32_t U, int32_t V)
+{
+    const td_vsweep_job *j = sw->job;
+    const cone *c = &sw->c;
+    int32_t i = c->ui * U + c->vi * V, jj = c->uj * U + c->vj * V;
+    uint32_t steps = 0;
+    int r = td_viewshed_cast(j->v, j->surface, j->method, j->ex, j->ey, j->ez, i, jj, j->target_height, &steps);
+    sw->rays += r == 0 || r == 1;
+    sw->steps += steps;
+    sw->vis[cidx(c, U, V)] = r > 0;
+}
+
+/* The diagonal the segment to (U, V) crosses in its last strip, if it does not end at
+ * (U, V): raises *hi and *lo. */
+static void last_cell(const sweep *sw, int32_t U, int32_t V, double u, double m, double *hi, double *lo)
+{
+    const cone *c = &sw->c;
+    double z[4], slack, a = fabs(m), s = a / (1.0 + a), h, q;
+    if (m > 0.0 && cell(c, U - 1, V - 1, z) && !sw->lin && !upper_main(sw, z, u - 1.0, &slack)) {
+        /* arriving from the south-west: the anti-diagonal (U, V-1)-(U-1, V) */
+        h = z[1] + (z[2] - z[1]) * (1.0 - a + a * s);
+    } else if (m < 0.0 && cell(c, U - 1, V, z) && !sw->lin && upper_main(sw, z, u - 1.0, &slack)) {
+        /* from the north-west: the main diagonal (U-1, V)-(U, V+1) */
+        h = z[0] + (z[3] - z[0]) * s;
+    } else {
+        return;
+    }
+    q = (h - sw->job->ez) / (u - 1.0 + s);
+    *hi = fmax(*hi, q);
+    *lo = fmax(*lo, q - slack);
+}
+
+/* Decides target (U, V) of column U against F, or casts it. */
+static void target(sweep *sw, int32_t U, int32_t V, double nb, int near)
+{
+    const td_vsweep_job *j = sw->job;
+    const cone *c = &sw->c;
+    const pvec *F = &sw->F;
+    double u = U - c->eu, m = (V - c->ev) / u, zt = cz(c, U, V), q, hi, lo, eps;
+    int k;
+    if (isnan(zt))
+        return;
+    if (near) {
+        cast(sw, U, V);
+        return;
+    }
+    q = (zt + j->target_height - j->ez) / u;
+    k = find(F, m, &sw->hint_q);
+    hi = pval(&F->p[k], m);
+    lo = hi - F->p[k].slack;
+    if (k > 0 && F->p[k].m == m) { /* on a break: the piece ending here holds m too */
+        double v = pval(&F->p[k - 1], m);
+        hi = fmax(hi, v);
+        lo = fmax(lo, v - F->p[k - 1].slack);
+    }
+    hi = fmax(hi, nb);
+    if (j->target_height > 0.0)
+        hi = fmax(hi, (zt - j->ez) / u);
+    last_cell(sw, U, V, u, m, &hi, &lo);
+    eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
+    if (q > hi + eps) {
+        sw->vis[cidx(c, U, V)] = 1;
+        sw->swept++;
+    } else if (q < lo - eps) {
+        sw->vis[cidx(c, U, V)] = 0;
+        sw->swept++;
+    } else {
+        cast(sw, U, V);
+    }
+}
+
+/* Whether sample (U, V) belongs to this cone and is within max_distance. */
+static int owned(const sweep *sw, int32_t U, int32_t V, double u)
+{
+    const cone *c = &sw->c;
+    const td_grid *g = c->g;
+    double dv = fabs(V - c->ev);
+    int32_t i = c->ui * U + c->vi * V, j = c->uj * U + c->vj * V;
+    double dx = i * g->sx - sw->job->ex, dy = j * g->sy - sw->job->ey;
+    return (c->strict ? dv < u : dv <= u) && dx * dx + dy * dy <= sw->job->maxd2;
+}
+
+static void sweep_cone(sweep *sw)
+{
+    const cone *c = &sw->c;
+    int32_t U0 = (int32_t)ceil(c->eu + VS_NEAR);
+    double nb;
+    if (U0 - c->eu < VS_NEAR) /* rounding */
+        U0++;
+    /* columns between the eye and U0 (at most one): cast */
+    for (int32_t U = (int32_t)floor(c->eu) + 1; U < U0 && U <= c->uhi; U++) {
+        double u = U - c->eu;
+        if (U < c->ulo || !(u > 0.0))
+            continue;
+        for (int32_t V = c->vlo; V <= c->vhi; V++)
+            if (owned(sw, U, V, u) && !isnan(cz(c, U, V)))
+                cast(sw, U, V);
+    }
+    if (U0 > c->uhi)
+        return;
+    nb = near_bound(sw, U0 - c->eu);
+    pv_clear(&sw->F);
+    for (int32_t U = U0; U <= c->uhi && !sw->oom; U++) {
+        double u = U - c->eu;
+        int32_t V0 = (int32_t)fmax(floor(c->ev - u) - 1.0, (double)c->vlo);
+        int32_t V1 = (int32_t)fmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
+        if (sw->job->cancel && atomic_load_explicit(sw->job->cancel, memory_order_relaxed))
+            break;
+        sw->hint_q = 0;
+        for (int32_t V = V0; V <= V1; V++)
+            if (owned(sw, U, V, u))
+                target(sw, U, V, nb, U <= U0 + 1);
+        add_column(sw, U, U > U0);
+    }
+}
+
+/* ---- the four cones across threads ---------------------------------------------------- */
+
+typedef struct cone_task {
+    const td_vsweep_job *job;
+    uint8_t *vis;
+    atomic_int next;
+    sweep sw[4];
+} cone_task;
+
+static void *cone_worker(void *arg)
+{
+    cone_task *t = arg;
+    for (;;) {
+        int k = atomic_fetch_add_explicit(&t->next, 1, memory_order_relaxed);
+        sweep *sw;
+        if (k >= 4)
+            break;
+        sw = &t->sw[k];
+        if (pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16))
+            sweep_cone(sw);
+    }
+    return NULL;
+}
+
+td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st, td_err *err)
+{
+    const td_grid *g = job->v->grid;
+    cone_task *t = calloc(1, sizeof *t);
+    pthread_t th[3];
+    int n = job->threads < 1 ? 1 : (job->threads > 4 ? 4 : job->threads), started = 0, oom = 0;
+    double eu = job->ex / g->sx, ev = job->ey / g->sy;
+    td_status rc = TD_OK;
+    memset(st, 0, sizeof *st);
+    if (!t) {
+        rc = td_err_set(err, TD_ENOMEM, "viewshed: out of memory");
+        goto out;
+    }
+    t->job = job;
+    t->vis = vis;
+    atomic_init(&t->next, 0);
+    for (int k = 0; k < 4; k++) {
+        sweep *sw = &t->sw[k];
+        sw->job = job;
+        sw->vis = vis;
+        sw->tri = job->surface == TD_SURFACE_TRIANGLE;
+        sw->bil = job->surface == TD_SURFACE_BILINEAR;
+        sw->lin = job->surface == TD_SURFACE_LINEAR;
+        cone_init(&sw->c, g, k, eu, ev);
+    }
+    /* the sample under the eye, if there is one, belongs to no cone */
+    for (int32_t j = (int32_t)floor(ev); j <= (int32_t)ceil(ev) && j < g->h; j++)
+        for (int32_t i = (int32_t)floor(eu); i <= (int32_t)ceil(eu) && i < g->w; i++)
+            if ((double)i - eu == 0.0 && (double)j - ev == 0.0) {
+                uint32_t steps = 0;
+                int r = td_viewshed_cast(job->v, job->surface, job->method, job->ex, job->ey, job->ez, i, j,
+                                         job->target_height, &steps);
+                vis[(size_t)j * (size_t)g->w + (size_t)i] = r > 0;
+            }
+    for (started = 0; started < n - 1; started++)
+        if (pthread_create(&th[started], NULL, cone_worker, t) != 0)
+            break;
+    cone_worker(t);
+    for (int k = 0; k < started; k++)
+        pthread_join(th[k], NULL);
+    for (int k = 0; k < 4; k++) {
+        sweep *sw = &t->sw[k];
+        st->swept += sw->swept;
+        st->rays += sw->rays;
+        st->steps += sw->steps;
+        oom |= sw->oom;
+        free(sw->F.p);
+        free(sw->G.p);
+        free(sw->T.p);
+    }
+    if (oom)
+        rc = td_err_set(err, TD_ENOMEM, "viewshed: out of memory for the horizon");
+    else if (job->cancel && atomic_load_explicit(job->cancel, memory_order_relaxed))
+        rc = td_err_set(err, TD_ECANCELED, "viewshed: cancelled");
+out:
+    free(t);
+    return rc;
+}
