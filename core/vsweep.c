@@ -42,6 +42,7 @@
 #include "vsweep.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
@@ -51,7 +52,6 @@
 #define VS_EPS_ABS 1e-6
 #define VS_EPS_REL 1e-9
 #define VS_NARROW 1e-5   /* edges narrower than this in m are kept flat */
-#define VS_NEAR 0.25     /* the envelope starts at the first column this far from the eye */
 
 typedef struct piece {
     double m;      /* start; the piece ends where the next one starts */
@@ -77,11 +77,15 @@ typedef struct sweep {
     const td_vsweep_job *job;
     cone c;
     int tri, bil, lin;
+    int hidden_ok;  /* the segments start above the surface (see near_strip) */
+    int visible_ok; /* the eye's strip is bounded (see near_strip) */
     pvec F, G, T;
     int hint_q, hint_s;
     int oom;
     uint8_t *vis;
+    double *zcol[3]; /* columns U-1, U, U+1 (rows vlo.., NaN where not loaded) */
     uint64_t swept, rays, steps;
+    uint64_t st_fsum, st_cols, st_ins, st_merges, st_edges;
 } sweep;
 
 static const piece empty_piece = {0.0, 0.0, -INFINITY, 0.0, 0.0};
@@ -245,6 +249,36 @@ static void cone_init(cone *c, const td_grid *g, int k, double eu, double ev)
     c->vhi = nv - 1;
 }
 
+/* Loads column U+1 into the buffers (U-1, U, U+1 then), rows |V - ev| <= u + 4: what
+ * the targets and edges of column U need. */
+static void load_next(sweep *sw, int32_t U)
+{
+    const cone *c = &sw->c;
+    double *t = sw->zcol[0], un = U + 1 - c->eu;
+    int32_t V0 = (int32_t)fmax(floor(c->ev - un) - 3.0, (double)c->vlo);
+    int32_t V1 = (int32_t)fmin(ceil(c->ev + un) + 3.0, (double)c->vhi);
+    sw->zcol[0] = sw->zcol[1];
+    sw->zcol[1] = sw->zcol[2];
+    sw->zcol[2] = t;
+    if (U + 1 <= c->uhi)
+        for (int32_t V = V0; V <= V1; V++)
+            t[V - c->vlo] = cz(c, U + 1, V);
+}
+
+/* Cell between buffered columns a (west) and b at rows V..V+1: corners z00, z10, z01,
+ * z11; 0 off the grid or a hole. */
+static inline int cellz(const sweep *sw, const double *a, const double *b, int32_t V, double z[4])
+{
+    int32_t k = V - sw->c.vlo;
+    if (V < sw->c.vlo || V + 1 > sw->c.vhi)
+        return 0;
+    z[0] = a[k];
+    z[1] = b[k];
+    z[2] = a[k + 1];
+    z[3] = b[k + 1];
+    return !isnan(z[0] + z[1] + z[2] + z[3]);
+}
+
 /* ---- the envelope's updates ------------------------------------------------------ */
 
 /* Whether piece p over [m0, m1] stays at or under F. */
@@ -272,6 +306,20 @@ static void g_insert(sweep *sw, const piece *p, double m0, double m1)
     pvec *G = &sw->G, *T = &sw->T;
     piece b[4];
     int k = G->n - 1;
+    if (G->p[k].qr == -INFINITY && G->p[k].m <= m0) { /* past everything so far: append */
+        if (!pv_reserve(sw, G, G->n + 3))
+            return;
+        if (G->p[k].m < m0)
+            k++;
+        G->p[k] = *p;
+        G->p[k].m = m0;
+        G->p[k + 1] = empty_piece;
+        G->p[k + 1].m = m1;
+        G->n = k + (m1 < 1.0 ? 2 : 1);
+        G->p[G->n] = empty_piece;
+        G->p[G->n].m = 1.0;
+        return;
+    }
     while (k > 0 && G->p[k].m > m0)
         k--;
     b[0] = empty_piece;
@@ -289,13 +337,13 @@ static void g_insert(sweep *sw, const piece *p, double m0, double m1)
     G->n = k + T->n;
 }
 
-/* The edge (Ua, Va, za)-(Ub, Vb, zb) projected, into G unless F already covers it. */
-static void add_edge(sweep *sw, int32_t Ua, int32_t Va, double za, int32_t Ub, int32_t Vb,
-                     double zb, double slack)
+/* The edge from (ua, va, za) to (ub, vb, zb) (u, v from the eye, u > 0) projected, into
+ * G unless F already covers it. */
+static void add_edge_uv(sweep *sw, double ua, double va, double za, double ub, double vb, double zb,
+                        double slack)
 {
-    const cone *c = &sw->c;
-    double ez = sw->job->ez, ua = Ua - c->eu, ub = Ub - c->eu;
-    double ma = (Va - c->ev) / ua, qa = (za - ez) / ua, mb = (Vb - c->ev) / ub, qb = (zb - ez) / ub;
+    double ez = sw->job->ez;
+    double ma = va / ua, qa = (za - ez) / ua, mb = vb / ub, qb = (zb - ez) / ub;
     double m0, m1;
     piece p;
     if (ma > mb) {
@@ -320,8 +368,35 @@ static void add_edge(sweep *sw, int32_t Ua, int32_t Va, double za, int32_t Ub, i
     }
     m0 = ma < -1.0 ? -1.0 : ma;
     m1 = mb > 1.0 ? 1.0 : mb;
-    if (m1 > m0 && !under_f(sw, &p, m0, m1))
+    sw->st_edges++;
+    if (m1 > m0 && !under_f(sw, &p, m0, m1)) {
+        sw->st_ins++;
         g_insert(sw, &p, m0, m1);
+    }
+}
+
+/* The edge between cone samples (Ua, Va) and (Ub, Vb), heights za, zb. */
+static inline void add_edge(sweep *sw, int32_t Ua, int32_t Va, double za, int32_t Ub, int32_t Vb,
+                            double zb, double slack)
+{
+    const cone *c = &sw->c;
+    add_edge_uv(sw, Ua - c->eu, Va - c->ev, za, Ub - c->eu, Vb - c->ev, zb, slack);
+}
+
+/* F = max(F, G). */
+static void merge_g(sweep *sw)
+{
+    if (sw->G.n > 1 || sw->G.p[0].qr != -INFINITY) {
+        pvec t;
+        if (!pv_reserve(sw, &sw->T, 2 * (sw->F.n + sw->G.n) + 1))
+            return;
+        merge(sw->F.p, sw->F.n, sw->G.p, sw->G.n, &sw->T);
+        sw->st_merges++;
+        t = sw->F;
+        sw->F = sw->T;
+        sw->T = t;
+        sw->hint_q = sw->hint_s = 0;
+    }
 }
 
 /* The bilinear cell's upper diagonal (main when its twist k >= 0) and its slack at
@@ -337,64 +412,118 @@ static int upper_main(const sweep *sw, const double z[4], double u0, double *sla
 static void add_column(sweep *sw, int32_t U, int strip)
 {
     const cone *c = &sw->c;
-    double u = U - c->eu, z[4], zl[4], slack;
+    const double *zp = sw->zcol[0], *zc = sw->zcol[1], *zn = sw->zcol[2];
+    double u = U - c->eu, z[4], zl[4], zb[4], slack;
     int32_t V0 = (int32_t)fmax(floor(c->ev - u) - 1.0, (double)c->vlo);
     int32_t V1 = (int32_t)fmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
+    /* the column first (in m order, so G is appended to): the strip's rows and
+     * diagonals are then tested against F with it, and where the terrain faces the eye
+     * they are under it */
     pv_clear(&sw->G);
-    for (int32_t V = V0; V <= V1; V++) {
-        double zb[4];
-        int here = cell(c, U, V, z), left = cell(c, U - 1, V, zl);
-        if (here || left)
-            add_edge(sw, U, V, cz(c, U, V), U, V + 1, cz(c, U, V + 1), 0.0);
-        if (!strip)
-            continue;
-        if (left || cell(c, U - 1, V - 1, zb))
-            add_edge(sw, U - 1, V, cz(c, U - 1, V), U, V, cz(c, U, V), 0.0);
+    for (int32_t V = V0; V < V1 && !sw->oom; V++)
+        if ((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl))
+            add_edge(sw, U, V, zc[V - c->vlo], U, V + 1, zc[V + 1 - c->vlo], 0.0);
+    merge_g(sw);
+    if (!strip)
+        return;
+    pv_clear(&sw->G);
+    for (int32_t V = V0; V <= V1 && !sw->oom; V++) {
+        int left = cellz(sw, zp, zc, V, zl);
+        if (left || cellz(sw, zp, zc, V - 1, zb))
+            add_edge(sw, U - 1, V, zp[V - c->vlo], U, V, zc[V - c->vlo], 0.0);
         if (left && !sw->lin) {
             if (upper_main(sw, zl, u - 1.0, &slack))
                 add_edge(sw, U - 1, V, zl[0], U, V + 1, zl[3], slack);
             else
                 add_edge(sw, U, V, zl[1], U - 1, V + 1, zl[2], slack);
         }
-        if (sw->oom)
-            return;
     }
-    if (sw->G.n > 1 || sw->G.p[0].qr != -INFINITY) {
-        if (!pv_reserve(sw, &sw->T, 2 * (sw->F.n + sw->G.n) + 1))
+    merge_g(sw);
+}
+
+/* Adds the edge from (ua, va, za) to (ub, vb, zb) (u, v from the eye), clipped to the
+ * cone u >= |v|, to G unless F covers it: the edges of the eye's strip, which may pass
+ * by or through the eye (one through the eye is a single m: its far end is a column
+ * sample, or a point of an edge added here). */
+static void add_clipped(sweep *sw, double ua, double va, double za, double ub, double vb, double zb,
+                        double slack)
+{
+    double t0 = 0.0, t1 = 1.0, du = ub - ua, dv = vb - va;
+    /* u - v >= 0, u + v >= 0 on [t0, t1] */
+    double f0[2] = {ua - va, ua + va}, df[2] = {du - dv, du + dv};
+    for (int k = 0; k < 2; k++) {
+        if (df[k] == 0.0) {
+            if (f0[k] < 0.0)
+                return;
+        } else if (df[k] > 0.0) {
+            t0 = fmax(t0, -f0[k] / df[k]);
+        } else {
+            t1 = fmin(t1, -f0[k] / df[k]);
+        }
+    }
+    if (!(t1 > t0))
+        return;
+    {
+        double u0 = ua + t0 * du, u1 = ua + t1 * du;
+        if (!(u0 > 0.0) || !(u1 > 0.0)) /* through the eye */
             return;
-        merge(sw->F.p, sw->F.n, sw->G.p, sw->G.n, &sw->T);
-        pvec t = sw->F;
-        sw->F = sw->T;
-        sw->T = t;
-        sw->hint_q = sw->hint_s = 0;
+        /* as cone coordinates for add_edge's projection: U = u + eu, V = v + ev */
+        add_edge_uv(sw, u0, va + t0 * dv, za + t0 * (zb - za), u1, va + t1 * dv, za + t1 * (zb - za), slack);
     }
 }
 
-/* NB: an upper bound of q over the segments' part at u in (0, un]. */
-static double near_bound(const sweep *sw, double un)
+/* The eye's strip: cells U0-1 .. U0 (u from 0, or from the eye, to u0 = U0 - eu <= 1).
+ * Its rows and diagonals, clipped; the pieces of cells that hold the eye reach their
+ * maximum q where a ray leaves them (q = -height / u + slope, increasing), except the
+ * bilinear patch, whose height along a ray from the eye is ground + s(m) u + k m u^2:
+ * where k m < 0, q = -height / u + s(m) + k m u may peak inside, below s(m), a line in m
+ * (slack infinite: no real point). Sets hidden_ok and visible_ok. */
+static void near_strip(sweep *sw, int32_t U0)
 {
     const cone *c = &sw->c;
     const td_vsweep_job *j = sw->job;
-    double nb = -INFINITY, z[4];
-    for (int32_t Uc = (int32_t)floor(c->eu); Uc - c->eu < un; Uc++) {
-        double ul = fmax(Uc - c->eu, 0.0), uh = fmin(Uc + 1 - c->eu, un);
-        for (int32_t Vc = (int32_t)floor(c->ev - un) - 1; Vc <= (int32_t)floor(c->ev + un) + 1; Vc++) {
-            double dv = fmax(0.0, fmax(Vc - c->ev, c->ev - (Vc + 1))), umin = fmax(ul, dv), zmax, b;
-            if (uh <= 0.0 || dv > uh || !cell(c, Uc, Vc, z))
-                continue;
-            zmax = fmax(fmax(z[0], z[1]), fmax(z[2], z[3]));
-            if (umin > 0.0 || zmax <= j->ez) {
-                b = (zmax - j->ez) / (zmax > j->ez ? umin : uh);
-            } else if (sw->lin) {
-                b = INFINITY;
-            } else {
-                double G = fmax(fabs(z[1] - z[0]), fabs(z[3] - z[2])) + fmax(fabs(z[2] - z[0]), fabs(z[3] - z[1]));
-                b = G - (j->ez - j->ground) / uh;
+    int32_t Uc = U0 - 1;
+    double u0 = U0 - c->eu, uc = Uc - c->eu, z[4], twist = 0.0, h = j->ez - j->ground;
+    pv_clear(&sw->G);
+    for (int32_t V = (int32_t)floor(c->ev - u0) - 1; V <= (int32_t)ceil(c->ev + u0) + 1; V++) {
+        int here = cell(c, Uc, V, z);
+        double zb[4];
+        if (V < c->vlo || V > c->vhi)
+            continue;
+        if (here || cell(c, Uc, V - 1, zb))
+            add_clipped(sw, uc, V - c->ev, cz(c, Uc, V), u0, V - c->ev, cz(c, U0, V), 0.0);
+        if (!here)
+            continue;
+        if (c->eu <= Uc + 1 && c->eu >= Uc && c->ev >= V && c->ev <= V + 1) { /* holds the eye */
+            double k = z[0] - z[1] - z[2] + z[3], ae = c->eu - Uc, be = c->ev - V;
+            twist = fmax(twist, fabs(k));
+            if (sw->bil && k != 0.0) {
+                double ga = (z[1] - z[0]) + k * be, gb = (z[2] - z[0]) + k * ae;
+                /* rays that enter the cell from the eye, and k m < 0 */
+                double lo = be <= 0.0 ? 0.0 : -1.0, hi = be >= 1.0 ? 0.0 : 1.0;
+                if (k > 0.0)
+                    hi = fmin(hi, 0.0);
+                else
+                    lo = fmax(lo, 0.0);
+                if (hi > lo) {
+                    piece p = {0.0, 0.0, ga, gb, INFINITY};
+                    if (!under_f(sw, &p, lo, hi))
+                        g_insert(sw, &p, lo, hi);
+                }
             }
-            nb = fmax(nb, b);
+        }
+        if (!sw->lin) {
+            double slack;
+            if (upper_main(sw, z, 1.0, &slack))
+                add_clipped(sw, uc, V - c->ev, z[0], u0, V + 1 - c->ev, z[3], sw->bil ? INFINITY : 0.0);
+            else
+                add_clipped(sw, u0, V - c->ev, z[1], uc, V + 1 - c->ev, z[2], sw->bil ? INFINITY : 0.0);
         }
     }
-    return nb;
+    sw->hidden_ok = h > 1e-9 * (1.0 + fabs(j->ez)) + (sw->lin ? twist / 4.0 : 0.0);
+    /* the linear surface's chord under the eye may be above it: then nothing is proved */
+    sw->visible_ok = !sw->lin || sw->hidden_ok;
+    merge_g(sw);
 }
 
 /* ---- the targets ------------------------------------------------------------------ */
@@ -413,15 +542,14 @@ static void cast(sweep *sw, int32_t U, int32_t V)
 }
 
 /* The diagonal the segment to (U, V) crosses in its last strip, if it does not end at
- * (U, V): raises *hi and *lo. */
-static void last_cell(const sweep *sw, int32_t U, int32_t V, double u, double m, double *hi, double *lo)
+ * (U, V) (column U buffered): raises *hi and *lo. */
+static void last_cell(const sweep *sw, int32_t V, double u, double m, double *hi, double *lo)
 {
-    const cone *c = &sw->c;
     double z[4], slack, a = fabs(m), s = a / (1.0 + a), h, q;
-    if (m > 0.0 && cell(c, U - 1, V - 1, z) && !sw->lin && !upper_main(sw, z, u - 1.0, &slack)) {
+    if (m > 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V - 1, z) && !upper_main(sw, z, u - 1.0, &slack)) {
         /* arriving from the south-west: the anti-diagonal (U, V-1)-(U-1, V) */
         h = z[1] + (z[2] - z[1]) * (1.0 - a + a * s);
-    } else if (m < 0.0 && cell(c, U - 1, V, z) && !sw->lin && upper_main(sw, z, u - 1.0, &slack)) {
+    } else if (m < 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V, z) && upper_main(sw, z, u - 1.0, &slack)) {
         /* from the north-west: the main diagonal (U-1, V)-(U, V+1) */
         h = z[0] + (z[3] - z[0]) * s;
     } else {
@@ -433,12 +561,12 @@ static void last_cell(const sweep *sw, int32_t U, int32_t V, double u, double m,
 }
 
 /* Decides target (U, V) of column U against F, or casts it. */
-static void target(sweep *sw, int32_t U, int32_t V, double nb, int near)
+static void target(sweep *sw, int32_t U, int32_t V, int near)
 {
     const td_vsweep_job *j = sw->job;
     const cone *c = &sw->c;
     const pvec *F = &sw->F;
-    double u = U - c->eu, m = (V - c->ev) / u, zt = cz(c, U, V), q, hi, lo, eps;
+    double u = U - c->eu, m = (V - c->ev) / u, zt = sw->zcol[1][V - c->vlo], q, hi, lo, eps;
     int k;
     if (isnan(zt))
         return;
@@ -455,15 +583,24 @@ static void target(sweep *sw, int32_t U, int32_t V, double nb, int near)
         hi = fmax(hi, v);
         lo = fmax(lo, v - F->p[k - 1].slack);
     }
-    hi = fmax(hi, nb);
     if (j->target_height > 0.0)
         hi = fmax(hi, (zt - j->ez) / u);
-    last_cell(sw, U, V, u, m, &hi, &lo);
+    last_cell(sw, V, u, m, &hi, &lo);
     eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
-    if (q > hi + eps) {
+#ifdef TD_VSWEEP_DEBUG /* every proof checked against the cast */
+    if (((q > hi + eps && sw->visible_ok) || (q < lo - eps && sw->hidden_ok))) {
+        uint32_t st = 0;
+        int32_t i = c->ui * U + c->vi * V, jj = c->uj * U + c->vj * V;
+        int r = td_viewshed_cast(j->v, j->surface, j->method, j->ex, j->ey, j->ez, i, jj, j->target_height, &st);
+        if ((r > 0) != (q > hi + eps && sw->visible_ok))
+            fprintf(stderr, "MISMATCH U %d V %d (i %d j %d) u %g m %g q %.9g hi %.9g lo %.9g cast %d F piece %d/%d\n",
+                    U, V, i, jj, u, m, q, hi, lo, r, k, F->n);
+    }
+#endif
+    if (q > hi + eps && sw->visible_ok) {
         sw->vis[cidx(c, U, V)] = 1;
         sw->swept++;
-    } else if (q < lo - eps) {
+    } else if (q < lo - eps && sw->hidden_ok) {
         sw->vis[cidx(c, U, V)] = 0;
         sw->swept++;
     } else {
@@ -485,35 +622,31 @@ static int owned(const sweep *sw, int32_t U, int32_t V, double u)
 static void sweep_cone(sweep *sw)
 {
     const cone *c = &sw->c;
-    int32_t U0 = (int32_t)ceil(c->eu + VS_NEAR);
-    double nb;
-    if (U0 - c->eu < VS_NEAR) /* rounding */
-        U0++;
-    /* columns between the eye and U0 (at most one): cast */
-    for (int32_t U = (int32_t)floor(c->eu) + 1; U < U0 && U <= c->uhi; U++) {
-        double u = U - c->eu;
-        if (U < c->ulo || !(u > 0.0))
-            continue;
-        for (int32_t V = c->vlo; V <= c->vhi; V++)
-            if (owned(sw, U, V, u) && !isnan(cz(c, U, V)))
-                cast(sw, U, V);
-    }
+    int32_t U0 = (int32_t)floor(c->eu) + 1; /* the first column east of the eye */
     if (U0 > c->uhi)
         return;
-    nb = near_bound(sw, U0 - c->eu);
     pv_clear(&sw->F);
+    near_strip(sw, U0);
+    load_next(sw, U0 - 2);
+    load_next(sw, U0 - 1);
     for (int32_t U = U0; U <= c->uhi && !sw->oom; U++) {
         double u = U - c->eu;
         int32_t V0 = (int32_t)fmax(floor(c->ev - u) - 1.0, (double)c->vlo);
         int32_t V1 = (int32_t)fmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
         if (sw->job->cancel && atomic_load_explicit(sw->job->cancel, memory_order_relaxed))
             break;
+        load_next(sw, U);
         sw->hint_q = 0;
         for (int32_t V = V0; V <= V1; V++)
             if (owned(sw, U, V, u))
-                target(sw, U, V, nb, U <= U0 + 1);
+                target(sw, U, V, U <= U0 + 1);
         add_column(sw, U, U > U0);
+        sw->st_fsum += sw->F.n;
+        sw->st_cols++;
     }
+#ifdef TD_VSWEEP_DEBUG
+    fprintf(stderr, "cone: cols %lu mean F %.1f edges %lu inserted %lu merges %lu swept %lu rays %lu\n", (unsigned long)sw->st_cols, (double)sw->st_fsum / (double)(sw->st_cols + !sw->st_cols), (unsigned long)sw->st_edges, (unsigned long)sw->st_ins, (unsigned long)sw->st_merges, (unsigned long)sw->swept, (unsigned long)sw->rays);
+#endif
 }
 
 /* ---- the four cones across threads ---------------------------------------------------- */
@@ -534,8 +667,18 @@ static void *cone_worker(void *arg)
         if (k >= 4)
             break;
         sw = &t->sw[k];
-        if (pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16))
+        size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
+        double *zb = malloc(3 * nv * sizeof *zb);
+        if (zb && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16)) {
+            for (size_t q = 0; q < 3 * nv; q++)
+                zb[q] = NAN;
+            for (int b = 0; b < 3; b++)
+                sw->zcol[b] = zb + (size_t)b * nv;
             sweep_cone(sw);
+        } else {
+            sw->oom = 1;
+        }
+        free(zb);
     }
     return NULL;
 }
