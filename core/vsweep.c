@@ -84,6 +84,7 @@ typedef struct sweep {
     int oom;
     uint8_t *vis;
     double *zcol[3]; /* columns U-1, U, U+1 (rows vlo.., NaN where not loaded) */
+    double *mcol[3], *qcol[3]; /* their samples projected (columns east of the eye) */
     uint64_t swept, rays, steps;
     uint64_t st_fsum, st_cols, st_ins, st_merges, st_edges;
 } sweep;
@@ -254,15 +255,26 @@ static void cone_init(cone *c, const td_grid *g, int k, double eu, double ev)
 static void load_next(sweep *sw, int32_t U)
 {
     const cone *c = &sw->c;
-    double *t = sw->zcol[0], un = U + 1 - c->eu;
+    double un = U + 1 - c->eu, iu = 1.0 / un, ez = sw->job->ez;
     int32_t V0 = (int32_t)fmax(floor(c->ev - un) - 3.0, (double)c->vlo);
     int32_t V1 = (int32_t)fmin(ceil(c->ev + un) + 3.0, (double)c->vhi);
-    sw->zcol[0] = sw->zcol[1];
-    sw->zcol[1] = sw->zcol[2];
-    sw->zcol[2] = t;
-    if (U + 1 <= c->uhi)
-        for (int32_t V = V0; V <= V1; V++)
-            t[V - c->vlo] = cz(c, U + 1, V);
+    double *t[3] = {sw->zcol[0], sw->mcol[0], sw->qcol[0]};
+    for (int b = 0; b < 2; b++) {
+        sw->zcol[b] = sw->zcol[b + 1];
+        sw->mcol[b] = sw->mcol[b + 1];
+        sw->qcol[b] = sw->qcol[b + 1];
+    }
+    sw->zcol[2] = t[0];
+    sw->mcol[2] = t[1];
+    sw->qcol[2] = t[2];
+    if (U + 1 > c->uhi)
+        return;
+    for (int32_t V = V0; V <= V1; V++) {
+        double z = cz(c, U + 1, V);
+        t[0][V - c->vlo] = z;
+        t[1][V - c->vlo] = (V - c->ev) * iu;
+        t[2][V - c->vlo] = (z - ez) * iu;
+    }
 }
 
 /* Cell between buffered columns a (west) and b at rows V..V+1: corners z00, z10, z01,
@@ -337,13 +349,10 @@ static void g_insert(sweep *sw, const piece *p, double m0, double m1)
     G->n = k + T->n;
 }
 
-/* The edge from (ua, va, za) to (ub, vb, zb) (u, v from the eye, u > 0) projected, into
- * G unless F already covers it. */
-static void add_edge_uv(sweep *sw, double ua, double va, double za, double ub, double vb, double zb,
-                        double slack)
+/* The projected edge from (ma, qa) to (mb, qb) into G; with `prune`, unless F already
+ * covers it. */
+static void add_seg(sweep *sw, double ma, double qa, double mb, double qb, double slack, int prune)
 {
-    double ez = sw->job->ez;
-    double ma = va / ua, qa = (za - ez) / ua, mb = vb / ub, qb = (zb - ez) / ub;
     double m0, m1;
     piece p;
     if (ma > mb) {
@@ -368,19 +377,17 @@ static void add_edge_uv(sweep *sw, double ua, double va, double za, double ub, d
     }
     m0 = ma < -1.0 ? -1.0 : ma;
     m1 = mb > 1.0 ? 1.0 : mb;
-    sw->st_edges++;
-    if (m1 > m0 && !under_f(sw, &p, m0, m1)) {
-        sw->st_ins++;
+    if (m1 > m0 && !(prune && under_f(sw, &p, m0, m1)))
         g_insert(sw, &p, m0, m1);
-    }
 }
 
-/* The edge between cone samples (Ua, Va) and (Ub, Vb), heights za, zb. */
-static inline void add_edge(sweep *sw, int32_t Ua, int32_t Va, double za, int32_t Ub, int32_t Vb,
-                            double zb, double slack)
+/* The edge from (ua, va, za) to (ub, vb, zb) (u, v from the eye, u > 0) projected, into
+ * G unless F already covers it. */
+static void add_edge_uv(sweep *sw, double ua, double va, double za, double ub, double vb, double zb,
+                        double slack)
 {
-    const cone *c = &sw->c;
-    add_edge_uv(sw, Ua - c->eu, Va - c->ev, za, Ub - c->eu, Vb - c->ev, zb, slack);
+    double ez = sw->job->ez;
+    add_seg(sw, va / ua, (za - ez) / ua, vb / ub, (zb - ez) / ub, slack, 1);
 }
 
 /* F = max(F, G). */
@@ -413,16 +420,18 @@ static void add_column(sweep *sw, int32_t U, int strip)
 {
     const cone *c = &sw->c;
     const double *zp = sw->zcol[0], *zc = sw->zcol[1], *zn = sw->zcol[2];
+    const double *mp = sw->mcol[0] - c->vlo, *qp = sw->qcol[0] - c->vlo;
+    const double *mc = sw->mcol[1] - c->vlo, *qc = sw->qcol[1] - c->vlo;
     double u = U - c->eu, z[4], zl[4], zb[4], slack;
     int32_t V0 = (int32_t)fmax(floor(c->ev - u) - 1.0, (double)c->vlo);
     int32_t V1 = (int32_t)fmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
-    /* the column first (in m order, so G is appended to): the strip's rows and
-     * diagonals are then tested against F with it, and where the terrain faces the eye
-     * they are under it */
+    /* the column first, merged whole (in m order, so G is appended to): the strip's rows
+     * and diagonals are then tested against F with it, and where the terrain faces the
+     * eye they are under it */
     pv_clear(&sw->G);
     for (int32_t V = V0; V < V1 && !sw->oom; V++)
         if ((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl))
-            add_edge(sw, U, V, zc[V - c->vlo], U, V + 1, zc[V + 1 - c->vlo], 0.0);
+            add_seg(sw, mc[V], qc[V], mc[V + 1], qc[V + 1], 0.0, 0);
     merge_g(sw);
     if (!strip)
         return;
@@ -430,12 +439,12 @@ static void add_column(sweep *sw, int32_t U, int strip)
     for (int32_t V = V0; V <= V1 && !sw->oom; V++) {
         int left = cellz(sw, zp, zc, V, zl);
         if (left || cellz(sw, zp, zc, V - 1, zb))
-            add_edge(sw, U - 1, V, zp[V - c->vlo], U, V, zc[V - c->vlo], 0.0);
+            add_seg(sw, mp[V], qp[V], mc[V], qc[V], 0.0, 1);
         if (left && !sw->lin) {
             if (upper_main(sw, zl, u - 1.0, &slack))
-                add_edge(sw, U - 1, V, zl[0], U, V + 1, zl[3], slack);
+                add_seg(sw, mp[V], qp[V], mc[V + 1], qc[V + 1], slack, 1);
             else
-                add_edge(sw, U, V, zl[1], U - 1, V + 1, zl[2], slack);
+                add_seg(sw, mc[V], qc[V], mp[V + 1], qp[V + 1], slack, 1);
         }
     }
     merge_g(sw);
@@ -566,7 +575,7 @@ static void target(sweep *sw, int32_t U, int32_t V, int near)
     const td_vsweep_job *j = sw->job;
     const cone *c = &sw->c;
     const pvec *F = &sw->F;
-    double u = U - c->eu, m = (V - c->ev) / u, zt = sw->zcol[1][V - c->vlo], q, hi, lo, eps;
+    double u = U - c->eu, m = sw->mcol[1][V - c->vlo], zt = sw->zcol[1][V - c->vlo], q, hi, lo, eps;
     int k;
     if (isnan(zt))
         return;
@@ -574,7 +583,7 @@ static void target(sweep *sw, int32_t U, int32_t V, int near)
         cast(sw, U, V);
         return;
     }
-    q = (zt + j->target_height - j->ez) / u;
+    q = j->target_height > 0.0 ? (zt + j->target_height - j->ez) / u : sw->qcol[1][V - c->vlo];
     k = find(F, m, &sw->hint_q);
     hi = pval(&F->p[k], m);
     lo = hi - F->p[k].slack;
@@ -613,10 +622,15 @@ static int owned(const sweep *sw, int32_t U, int32_t V, double u)
 {
     const cone *c = &sw->c;
     const td_grid *g = c->g;
-    double dv = fabs(V - c->ev);
+    double dv = fabs(V - c->ev), dx, dy;
     int32_t i = c->ui * U + c->vi * V, j = c->uj * U + c->vj * V;
-    double dx = i * g->sx - sw->job->ex, dy = j * g->sy - sw->job->ey;
-    return (c->strict ? dv < u : dv <= u) && dx * dx + dy * dy <= sw->job->maxd2;
+    if (!(c->strict ? dv < u : dv <= u))
+        return 0;
+    if (sw->job->maxd2 == INFINITY)
+        return 1;
+    dx = i * g->sx - sw->job->ex;
+    dy = j * g->sy - sw->job->ey;
+    return dx * dx + dy * dy <= sw->job->maxd2;
 }
 
 static void sweep_cone(sweep *sw)
@@ -668,12 +682,15 @@ static void *cone_worker(void *arg)
             break;
         sw = &t->sw[k];
         size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
-        double *zb = malloc(3 * nv * sizeof *zb);
+        double *zb = malloc(9 * nv * sizeof *zb);
         if (zb && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16)) {
-            for (size_t q = 0; q < 3 * nv; q++)
+            for (size_t q = 0; q < 9 * nv; q++)
                 zb[q] = NAN;
-            for (int b = 0; b < 3; b++)
+            for (int b = 0; b < 3; b++) {
                 sw->zcol[b] = zb + (size_t)b * nv;
+                sw->mcol[b] = zb + (size_t)(3 + b) * nv;
+                sw->qcol[b] = zb + (size_t)(6 + b) * nv;
+            }
             sweep_cone(sw);
         } else {
             sw->oom = 1;
