@@ -481,6 +481,26 @@ static void add_clipped(sweep *sw, double ua, double va, double za, double ub, d
     }
 }
 
+/* The bilinear eye cell's bound over m in [lo, hi] (one sign): the maximum over u of
+ * -h / u + ga + gb m - |k m| u is g(m) = ga + gb m - 2 sqrt(h |k| |m|) (kh = |k| h) at
+ * u = sqrt(h / |k m|); where that is past u0 >= the ray's exit from the cell, q rises
+ * all the way and peaks at the exit, an edge. g is convex in m on each side of 0, so
+ * under its chords: 16 of them, closer near the start where the root is steep. */
+static void eye_cell_bound(sweep *sw, double ga, double gb, double kh, double k, double u0, double lo,
+                           double hi)
+{
+    /* lo or hi is 0; below |m| = a the peak u = sqrt(h / |k m|) is past u0 */
+    double a = kh / (k * k * u0 * u0), b = fmax(fabs(lo), fabs(hi)), sg = hi > 0.0 ? 1.0 : -1.0;
+    if (!(a < b))
+        return;
+    for (int i = 0; i < 16; i++) {
+        double f0 = (double)i / 16.0, f1 = (double)(i + 1) / 16.0;
+        double m0 = sg * (a + (b - a) * f0 * f0), m1 = sg * (a + (b - a) * f1 * f1);
+        double g0 = ga + gb * m0 - 2.0 * sqrt(kh * fabs(m0)), g1 = ga + gb * m1 - 2.0 * sqrt(kh * fabs(m1));
+        add_seg(sw, m0, g0 + 1e-9 * fabs(g0), m1, g1 + 1e-9 * fabs(g1), INFINITY, 1);
+    }
+}
+
 /* The eye's strip: cells U0-1 .. U0 (u from 0, or from the eye, to u0 = U0 - eu <= 1).
  * Its rows and diagonals, clipped; the pieces of cells that hold the eye reach their
  * maximum q where a ray leaves them (q = -height / u + slope, increasing), except the
@@ -514,11 +534,8 @@ static void near_strip(sweep *sw, int32_t U0)
                     hi = fmin(hi, 0.0);
                 else
                     lo = fmax(lo, 0.0);
-                if (hi > lo) {
-                    piece p = {0.0, 0.0, ga, gb, INFINITY};
-                    if (!under_f(sw, &p, lo, hi))
-                        g_insert(sw, &p, lo, hi);
-                }
+                if (hi > lo)
+                    eye_cell_bound(sw, ga, gb, fabs(k) * h, k, u0, lo, hi);
             }
         }
         if (!sw->lin) {
@@ -613,6 +630,16 @@ static void target(sweep *sw, int32_t U, int32_t V, int near)
         sw->vis[cidx(c, U, V)] = 0;
         sw->swept++;
     } else {
+#ifdef TD_VSWEEP_DEBUG
+        {
+            static long n[4];
+            double fh = pval(&F->p[k], m);
+            int why = F->p[k].slack == INFINITY ? 0 : (q < hi - eps && q > lo + eps ? 1 : (fabs(q - hi) <= eps ? 2 : 3));
+            n[why]++;
+            if ((n[0] + n[1] + n[2] + n[3]) % 2000 == 0)
+                fprintf(stderr, "casts: eye-piece %ld slack %ld tie %ld other %ld (fh %g)\n", n[0], n[1], n[2], n[3], fh);
+        }
+#endif
         cast(sw, U, V);
     }
 }
