@@ -52,11 +52,13 @@
 #define VS_EPS_ABS 1e-6
 #define VS_EPS_REL 1e-9
 #define VS_NARROW 1e-5   /* edges narrower than this in m are kept flat */
+#define VS_BINS 4096     /* bins of m for the holes' nearest distance */
 
 typedef struct piece {
     double m;      /* start; the piece ends where the next one starts */
     double mr, qr; /* value qr + s (m - mr); qr = -inf: no surface here */
     double s, slack;
+    double umax; /* the farthest u of its edge: where a ray meets it, at most */
 } piece;
 
 typedef struct pvec {
@@ -81,6 +83,8 @@ typedef struct sweep {
     int visible_ok; /* the eye's strip is bounded (see near_strip) */
     pvec F, G, T;
     int hint_q, hint_s;
+    double umax;              /* of the edges being added */
+    double hole_u[VS_BINS];   /* per bin of m, the nearest u of a hole cell a ray there may cross */
     int oom;
     uint8_t *vis;
     double *zcol[3]; /* columns U-1, U, U+1 (rows vlo.., NaN where not loaded) */
@@ -89,13 +93,13 @@ typedef struct sweep {
     uint64_t st_fsum, st_cols, st_ins, st_merges, st_edges;
 } sweep;
 
-static const piece empty_piece = {0.0, 0.0, -INFINITY, 0.0, 0.0};
+static const piece empty_piece = {0.0, 0.0, -INFINITY, 0.0, 0.0, 0.0};
 
 static inline double pval(const piece *p, double m) { return p->qr + p->s * (m - p->mr); }
 
 static inline int same_line(const piece *a, const piece *b)
 {
-    return a->qr == b->qr && a->s == b->s && a->mr == b->mr && a->slack == b->slack;
+    return a->qr == b->qr && a->s == b->s && a->mr == b->mr && a->slack == b->slack && a->umax == b->umax;
 }
 
 static int pv_reserve(sweep *sw, pvec *v, int need)
@@ -366,6 +370,7 @@ static void add_seg(sweep *sw, double ma, double qa, double mb, double qb, doubl
     if (!(mb > ma) || mb < -1.0 || ma > 1.0) /* a point in m: its ends are column samples */
         return;
     p.mr = ma;
+    p.umax = sw->umax;
     if (mb - ma < VS_NARROW) {
         p.qr = qa > qb ? qa : qb;
         p.s = 0.0;
@@ -415,6 +420,35 @@ static int upper_main(const sweep *sw, const double z[4], double u0, double *sla
     return sw->bil ? k >= 0.0 : !sw->c.anti;
 }
 
+static inline int bin_of(double m)
+{
+    double b = floor((m + 1.0) * (VS_BINS / 2.0));
+    return b < 0.0 ? 0 : (b >= VS_BINS ? VS_BINS - 1 : (int)b);
+}
+
+/* Holes. The tracer sees a surface only where the segment crosses it inside a cell that
+ * has one (a hole cell is passed as if nothing were there), so a segment may enter a
+ * cell from a hole already under its surface and leave it into a hole: no crossing.
+ * A surface point above the segment proves it hidden only when no hole lies between
+ * the eye and that point: hole_u[bin of m] is the nearest u of the hole cells the rays
+ * of that bin may cross, and a piece proves only while its umax is nearer. Marks the
+ * hole cell at u in [ua, ub], v in [va, vb] (from the eye). */
+static void mark_hole(sweep *sw, double ua, double ub, double va, double vb)
+{
+    double mlo, mhi;
+    if (ua > 0.0) {
+        mlo = fmin(va / ua, va / ub);
+        mhi = fmax(vb / ua, vb / ub);
+    } else { /* the cell reaches back to the eye's column: m = v / u with u in (0, ub] */
+        mlo = va >= 0.0 ? va / ub : -1.0;
+        mhi = vb <= 0.0 ? vb / ub : 1.0;
+    }
+    if (mhi < -1.0 || mlo > 1.0)
+        return;
+    for (int b = bin_of(mlo), e = bin_of(mhi); b <= e; b++)
+        sw->hole_u[b] = fmin(sw->hole_u[b], fmax(ua, 0.0));
+}
+
 /* Column U's edges, and with `strip` those between columns U-1 and U, into F. */
 static void add_column(sweep *sw, int32_t U, int strip)
 {
@@ -425,6 +459,7 @@ static void add_column(sweep *sw, int32_t U, int strip)
     double u = U - c->eu, z[4], zl[4], zb[4], slack;
     int32_t V0 = (int32_t)fmax(floor(c->ev - u) - 1.0, (double)c->vlo);
     int32_t V1 = (int32_t)fmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
+    sw->umax = u;
     /* the column first, merged whole (in m order, so G is appended to): the strip's rows
      * and diagonals are then tested against F with it, and where the terrain faces the
      * eye they are under it */
@@ -438,6 +473,8 @@ static void add_column(sweep *sw, int32_t U, int strip)
     pv_clear(&sw->G);
     for (int32_t V = V0; V <= V1 && !sw->oom; V++) {
         int left = cellz(sw, zp, zc, V, zl);
+        if (!left && V >= c->vlo && V + 1 <= c->vhi)
+            mark_hole(sw, u - 1.0, u, V - c->ev, V + 1 - c->ev);
         if (left || cellz(sw, zp, zc, V - 1, zb))
             add_seg(sw, mp[V], qp[V], mc[V], qc[V], 0.0, 1);
         if (left && !sw->lin) {
@@ -514,11 +551,14 @@ static void near_strip(sweep *sw, int32_t U0)
     int32_t Uc = U0 - 1;
     double u0 = U0 - c->eu, uc = Uc - c->eu, z[4], twist = 0.0, h = j->ez - j->ground;
     pv_clear(&sw->G);
+    sw->umax = u0;
     for (int32_t V = (int32_t)floor(c->ev - u0) - 1; V <= (int32_t)ceil(c->ev + u0) + 1; V++) {
         int here = cell(c, Uc, V, z);
         double zb[4];
         if (V < c->vlo || V > c->vhi)
             continue;
+        if (!here && V + 1 <= c->vhi)
+            mark_hole(sw, uc, u0, V - c->ev, V + 1 - c->ev);
         if (here || cell(c, Uc, V - 1, zb))
             add_clipped(sw, uc, V - c->ev, cz(c, Uc, V), u0, V - c->ev, cz(c, U0, V), 0.0);
         if (!here)
@@ -569,7 +609,7 @@ static void cast(sweep *sw, int32_t U, int32_t V)
 
 /* The diagonal the segment to (U, V) crosses in its last strip, if it does not end at
  * (U, V) (column U buffered): raises *hi and *lo. */
-static void last_cell(const sweep *sw, int32_t V, double u, double m, double *hi, double *lo)
+static void last_cell(const sweep *sw, int32_t V, double u, double m, double hu, double *hi, double *lo)
 {
     double z[4], slack, a = fabs(m), s = a / (1.0 + a), h, q;
     if (m > 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V - 1, z) && !upper_main(sw, z, u - 1.0, &slack)) {
@@ -583,7 +623,8 @@ static void last_cell(const sweep *sw, int32_t V, double u, double m, double *hi
     }
     q = (h - sw->job->ez) / (u - 1.0 + s);
     *hi = fmax(*hi, q);
-    *lo = fmax(*lo, q - slack);
+    if (u - 1.0 + s < hu)
+        *lo = fmax(*lo, q - slack);
 }
 
 /* Decides target (U, V) of column U against F, or casts it. */
@@ -592,7 +633,7 @@ static void target(sweep *sw, int32_t U, int32_t V, int near)
     const td_vsweep_job *j = sw->job;
     const cone *c = &sw->c;
     const pvec *F = &sw->F;
-    double u = U - c->eu, m = sw->mcol[1][V - c->vlo], zt = sw->zcol[1][V - c->vlo], q, hi, lo, eps;
+    double u = U - c->eu, m = sw->mcol[1][V - c->vlo], zt = sw->zcol[1][V - c->vlo], q, hi, lo, eps, hu;
     int k;
     if (isnan(zt))
         return;
@@ -602,16 +643,18 @@ static void target(sweep *sw, int32_t U, int32_t V, int near)
     }
     q = j->target_height > 0.0 ? (zt + j->target_height - j->ez) / u : sw->qcol[1][V - c->vlo];
     k = find(F, m, &sw->hint_q);
+    hu = sw->hole_u[bin_of(m)];
     hi = pval(&F->p[k], m);
-    lo = hi - F->p[k].slack;
+    lo = F->p[k].umax < hu ? hi - F->p[k].slack : -INFINITY;
     if (k > 0 && F->p[k].m == m) { /* on a break: the piece ending here holds m too */
         double v = pval(&F->p[k - 1], m);
         hi = fmax(hi, v);
-        lo = fmax(lo, v - F->p[k - 1].slack);
+        if (F->p[k - 1].umax < hu)
+            lo = fmax(lo, v - F->p[k - 1].slack);
     }
     if (j->target_height > 0.0)
         hi = fmax(hi, (zt - j->ez) / u);
-    last_cell(sw, V, u, m, &hi, &lo);
+    last_cell(sw, V, u, m, hu, &hi, &lo);
     eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
 #ifdef TD_VSWEEP_DEBUG /* every proof checked against the cast */
     if (((q > hi + eps && sw->visible_ok) || (q < lo - eps && sw->hidden_ok))) {
@@ -667,6 +710,8 @@ static void sweep_cone(sweep *sw)
     if (U0 > c->uhi)
         return;
     pv_clear(&sw->F);
+    for (int b = 0; b < VS_BINS; b++)
+        sw->hole_u[b] = INFINITY;
     near_strip(sw, U0);
     load_next(sw, U0 - 2);
     load_next(sw, U0 - 1);

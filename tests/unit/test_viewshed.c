@@ -47,6 +47,8 @@ static void unmake(fixture *fx)
 }
 
 /* Runs a viewshed; out in file order. */
+static td_vs_algo run_algo = TD_VS_ALGO_SWEEP; /* what run() asks for */
+
 static td_status run(const fixture *fx, const td_vs_point *obs, int n, double h, double th,
                      td_surface s, td_method m, uint8_t *out, td_viewshed_stats *st, td_err *e)
 {
@@ -58,6 +60,7 @@ static td_status run(const fixture *fx, const td_vs_point *obs, int n, double h,
     o.target_height = th;
     o.surface = s;
     o.method = m;
+    o.algo = run_algo;
     o.threads = 2;
     return td_viewshed(&fx->v, &o, out, st, e);
 }
@@ -70,8 +73,9 @@ static uint8_t at(const fixture *fx, const uint8_t *out, int32_t i, int32_t j)
 
 static double flat(int32_t i, int32_t j) { (void)i; (void)j; return 100.0; }
 
-/* A 5 x 5 case seen from p (on a sample), eye h up, on the surfaces from s0 and every
- * method: the samples seen are those where seen(i, j) (south-based j) is non-zero. */
+/* A 5 x 5 case seen from p (on a sample), eye h up, on the surfaces from s0, every
+ * method and both algorithms (the sweep and one cast a sample): the samples seen are
+ * those where seen(i, j) (south-based j) is non-zero. */
 typedef struct vs_case {
     double (*height)(int32_t i, int32_t j);
     td_vs_point p;
@@ -86,9 +90,13 @@ static void check_case(const vs_case *c)
     uint8_t out[25];
     td_viewshed_stats st;
     make(&fx, 5, 5, c->height);
-    for (int s = c->s0; s < TD_SURFACE_COUNT; s++)
-        for (int m = 0; m < TD_METHOD_COUNT; m++) {
-            uint64_t n = 0;
+    for (int a = 0; a < TD_VS_ALGO_COUNT * TD_SURFACE_COUNT * TD_METHOD_COUNT; a++) {
+        int s = a / TD_METHOD_COUNT % TD_SURFACE_COUNT, m = a % TD_METHOD_COUNT;
+        uint64_t n = 0;
+        run_algo = (td_vs_algo)(a / (TD_METHOD_COUNT * TD_SURFACE_COUNT));
+        if (s < (int)c->s0)
+            continue;
+        {
             assert_int_equal(run(&fx, &c->p, 1, c->h, 0.0, (td_surface)s, (td_method)m, out, &st, NULL), TD_OK);
             for (int32_t j = 0; j < 5; j++)
                 for (int32_t i = 0; i < 5; i++) {
@@ -97,9 +105,14 @@ static void check_case(const vs_case *c)
                 }
             assert_int_equal(st.visible, n);
             assert_int_equal(st.inside, 25);
-            assert_int_equal(st.rays, 24); /* the sample under the observer is not traced */
+            /* the sample under the observer is not traced; the sweep casts what it cannot
+             * prove (here, within two cells, about all) */
+            assert_int_equal(st.rays + st.swept, 24);
+            assert_true(run_algo == TD_VS_ALGO_SWEEP || st.swept == 0);
             assert_true(fabs(st.visible_area_m2 - 100.0 * (double)n) < 1e-9);
         }
+    }
+    run_algo = TD_VS_ALGO_SWEEP;
     unmake(&fx);
 }
 
