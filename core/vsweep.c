@@ -52,7 +52,11 @@
 #define VS_EPS_ABS 1e-6
 #define VS_EPS_REL 1e-9
 #define VS_NARROW 1e-5   /* edges narrower than this in m are kept flat */
-#define VS_BINS 4096     /* bins of m for the holes' nearest distance */
+#define VS_BINS 4096     /* bins of m in [-1, 1] for the holes' nearest distance */
+/* The envelope covers m in [-VS_MDOM, VS_MDOM], past the cone's [-1, 1], so that a sample
+ * at m = 1 whose only edge lies outside the cone is kept (an edge of zero width would
+ * not be). */
+#define VS_MDOM 1.5
 
 typedef struct piece {
     double m;      /* start; the piece ends where the next one starts */
@@ -120,13 +124,13 @@ static int pv_reserve(sweep *sw, pvec *v, int need)
     return 1;
 }
 
-/* v = no surface over [-1, 1]. */
+/* v = no surface over the domain. */
 static void pv_clear(pvec *v)
 {
     v->p[0] = empty_piece;
-    v->p[0].m = -1.0;
+    v->p[0].m = -VS_MDOM;
     v->p[1] = empty_piece;
-    v->p[1].m = 1.0;
+    v->p[1].m = VS_MDOM;
     v->n = 1;
 }
 
@@ -331,9 +335,9 @@ static void g_insert(sweep *sw, const piece *p, double m0, double m1)
         G->p[k].m = m0;
         G->p[k + 1] = empty_piece;
         G->p[k + 1].m = m1;
-        G->n = k + (m1 < 1.0 ? 2 : 1);
+        G->n = k + (m1 < VS_MDOM ? 2 : 1);
         G->p[G->n] = empty_piece;
-        G->p[G->n].m = 1.0;
+        G->p[G->n].m = VS_MDOM;
         return;
     }
     while (k > 0 && G->p[k].m > m0)
@@ -345,7 +349,7 @@ static void g_insert(sweep *sw, const piece *p, double m0, double m1)
     b[2] = empty_piece;
     b[2].m = m1;
     b[3] = empty_piece;
-    b[3].m = 1.0;
+    b[3].m = VS_MDOM;
     if (!pv_reserve(sw, T, 2 * (G->n - k + 3) + 1) || !pv_reserve(sw, G, k + 2 * (G->n - k + 3) + 1))
         return;
     merge(&G->p[k], G->n - k, b, 3, T);
@@ -367,7 +371,7 @@ static void add_seg(sweep *sw, double ma, double qa, double mb, double qb, doubl
         qa = qb;
         qb = t;
     }
-    if (!(mb > ma) || mb < -1.0 || ma > 1.0) /* a point in m: its ends are column samples */
+    if (!(mb > ma) || mb < -VS_MDOM || ma > VS_MDOM) /* a point in m: its ends are column samples */
         return;
     p.mr = ma;
     p.umax = sw->umax;
@@ -380,8 +384,8 @@ static void add_seg(sweep *sw, double ma, double qa, double mb, double qb, doubl
         p.s = (qb - qa) / (mb - ma);
         p.slack = slack;
     }
-    m0 = ma < -1.0 ? -1.0 : ma;
-    m1 = mb > 1.0 ? 1.0 : mb;
+    m0 = ma < -VS_MDOM ? -VS_MDOM : ma;
+    m1 = mb > VS_MDOM ? VS_MDOM : mb;
     if (m1 > m0 && !(prune && under_f(sw, &p, m0, m1)))
         g_insert(sw, &p, m0, m1);
 }
