@@ -163,7 +163,21 @@ static void merge(const piece *a, int na, const piece *b, int nb, pvec *out)
             nx = end;
         if (nx > cur) {
             if (pb->qr == -INFINITY) {
+                /* b empty up to eb: a's pieces that start before it, copied whole */
+                int k = ia + 1;
                 emit(out, cur, pa);
+                while (k < na && a[k].m < eb)
+                    k++;
+                if (k > ia + 1) {
+                    emit(out, a[ia + 1].m, &a[ia + 1]);
+                    memcpy(&out->p[out->n], &a[ia + 2], (size_t)(k - ia - 2) * sizeof *a);
+                    out->n += k - ia - 2;
+                    ia = k - 1;
+                    ea = a[ia + 1].m;
+                    nx = ea < eb ? ea : eb;
+                    if (nx > end)
+                        nx = end;
+                }
             } else if (pa->qr == -INFINITY) {
                 emit(out, cur, pb);
             } else {
@@ -464,13 +478,21 @@ static void add_column(sweep *sw, int32_t U, int strip)
     int32_t V0 = (int32_t)fmax(floor(c->ev - u) - 1.0, (double)c->vlo);
     int32_t V1 = (int32_t)fmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
     sw->umax = u;
-    /* the column first, merged whole (in m order, so G is appended to): the strip's rows
-     * and diagonals are then tested against F with it, and where the terrain faces the
-     * eye they are under it */
+    /* the column first (in m order, so G is appended to): the strip's rows and diagonals
+     * are then tested against F with it, and where the terrain faces the eye they are
+     * under it. An edge whose two ends are under one piece of F is under F. */
     pv_clear(&sw->G);
-    for (int32_t V = V0; V < V1 && !sw->oom; V++)
-        if ((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl))
-            add_seg(sw, mc[V], qc[V], mc[V + 1], qc[V + 1], 0.0, 0);
+    {
+        int hint = sw->hint_s, k0 = find(&sw->F, mc[V0], &hint), k1;
+        int under0 = qc[V0] <= pval(&sw->F.p[k0], mc[V0]), under1;
+        for (int32_t V = V0; V < V1 && !sw->oom; V++, k0 = k1, under0 = under1) {
+            k1 = find(&sw->F, mc[V + 1], &hint);
+            under1 = qc[V + 1] <= pval(&sw->F.p[k1], mc[V + 1]);
+            if ((k0 != k1 || !under0 || !under1) &&
+                ((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl)))
+                add_seg(sw, mc[V], qc[V], mc[V + 1], qc[V + 1], 0.0, 0);
+        }
+    }
     merge_g(sw);
     if (!strip)
         return;
