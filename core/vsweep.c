@@ -86,7 +86,8 @@ typedef struct sweep {
     int hidden_ok;  /* the segments start above the surface (see near_strip) */
     int visible_ok; /* the eye's strip is bounded (see near_strip) */
     pvec F, G, T;
-    int hint_q, hint_s;
+    pvec N; /* bounds of the eye's strip with no real point (slack infinite): hi only */
+    int hint_q, hint_s, hint_n;
     double umax;              /* of the edges being added */
     double hole_u[VS_BINS];   /* per bin of m, the nearest u of a hole cell a ray there may cross */
     int oom;
@@ -564,6 +565,14 @@ static void eye_cell_bound(sweep *sw, double ga, double gb, double kh, double k,
     }
 }
 
+/* G and N exchanged: what is added goes to N, the eye's strip's bounds. */
+static void swap_gn(sweep *sw)
+{
+    pvec t = sw->G;
+    sw->G = sw->N;
+    sw->N = t;
+}
+
 /* The eye's strip: cells U0-1 .. U0 (u from 0, or from the eye, to u0 = U0 - eu <= 1).
  * Its rows and diagonals, clipped; the pieces of cells that hold the eye reach their
  * maximum q where a ray leaves them (q = -height / u + slope, increasing), except the
@@ -577,6 +586,7 @@ static void near_strip(sweep *sw, int32_t U0)
     int32_t Uc = U0 - 1;
     double u0 = U0 - c->eu, uc = Uc - c->eu, z[4], twist = 0.0, h = j->ez - j->ground;
     pv_clear(&sw->G);
+    pv_clear(&sw->N);
     sw->umax = u0;
     for (int32_t V = (int32_t)floor(c->ev - u0) - 1; V <= (int32_t)ceil(c->ev + u0) + 1; V++) {
         int here = cell(c, Uc, V, z);
@@ -600,16 +610,23 @@ static void near_strip(sweep *sw, int32_t U0)
                     hi = fmin(hi, 0.0);
                 else
                     lo = fmax(lo, 0.0);
-                if (hi > lo)
+                if (hi > lo) {
+                    swap_gn(sw);
                     eye_cell_bound(sw, ga, gb, fabs(k) * h, k, u0, lo, hi);
+                    swap_gn(sw);
+                }
             }
         }
         if (!sw->lin) {
             double slack;
+            if (sw->bil) /* the upper diagonal of a bilinear cell: a bound only */
+                swap_gn(sw);
             if (upper_main(sw, z, 1.0, &slack))
                 add_clipped(sw, uc, V - c->ev, z[0], u0, V + 1 - c->ev, z[3], sw->bil ? INFINITY : 0.0);
             else
                 add_clipped(sw, u0, V - c->ev, z[1], uc, V + 1 - c->ev, z[2], sw->bil ? INFINITY : 0.0);
+            if (sw->bil)
+                swap_gn(sw);
         }
     }
     sw->hidden_ok = h > 1e-9 * (1.0 + fabs(j->ez)) + (sw->lin ? twist / 4.0 : 0.0);
@@ -678,6 +695,7 @@ static void target(sweep *sw, int32_t U, int32_t V, int near)
         if (F->p[k - 1].umax < hu)
             lo = fmax(lo, v - F->p[k - 1].slack);
     }
+    hi = fmax(hi, pval(&sw->N.p[find(&sw->N, m, &sw->hint_n)], m));
     if (j->target_height > 0.0)
         hi = fmax(hi, (zt - j->ez) / u);
     last_cell(sw, V, u, m, hu, &hi, &lo);
@@ -748,7 +766,7 @@ static void sweep_cone(sweep *sw)
         if (sw->job->cancel && atomic_load_explicit(sw->job->cancel, memory_order_relaxed))
             break;
         load_next(sw, U);
-        sw->hint_q = 0;
+        sw->hint_q = sw->hint_n = 0;
         for (int32_t V = V0; V <= V1; V++)
             if (owned(sw, U, V, u))
                 target(sw, U, V, U <= U0 + 1);
@@ -781,7 +799,8 @@ static void *cone_worker(void *arg)
         sw = &t->sw[k];
         size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
         double *zb = malloc(9 * nv * sizeof *zb);
-        if (zb && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16)) {
+        if (zb && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
+            pv_reserve(sw, &sw->N, 16)) {
             for (size_t q = 0; q < 9 * nv; q++)
                 zb[q] = NAN;
             for (int b = 0; b < 3; b++) {
@@ -847,6 +866,7 @@ td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st,
         free(sw->F.p);
         free(sw->G.p);
         free(sw->T.p);
+        free(sw->N.p);
     }
     if (oom)
         rc = td_err_set(err, TD_ENOMEM, "viewshed: out of memory for the horizon");
