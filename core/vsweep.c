@@ -695,7 +695,12 @@ static void target(sweep *sw, int32_t U, int32_t V, int near)
         if (F->p[k - 1].umax < hu)
             lo = fmax(lo, v - F->p[k - 1].slack);
     }
-    hi = fmax(hi, pval(&sw->N.p[find(&sw->N, m, &sw->hint_n)], m));
+    {
+        int kn = find(&sw->N, m, &sw->hint_n);
+        hi = fmax(hi, pval(&sw->N.p[kn], m));
+        if (kn > 0 && sw->N.p[kn].m == m) /* on a break: the piece ending here too */
+            hi = fmax(hi, pval(&sw->N.p[kn - 1], m));
+    }
     if (j->target_height > 0.0)
         hi = fmax(hi, (zt - j->ez) / u);
     last_cell(sw, V, u, m, hu, &hi, &lo);
