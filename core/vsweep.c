@@ -83,6 +83,7 @@ typedef struct sweep {
     const td_vsweep_job *job;
     cone c;
     int tri, bil, lin;
+    int holes; /* the grid has void samples */
     int hidden_ok;  /* the segments start above the surface (see near_strip) */
     int visible_ok; /* the eye's strip is bounded (see near_strip) */
     pvec F, G, T;
@@ -498,12 +499,13 @@ static void add_column(sweep *sw, int32_t U, int strip)
     if (!strip)
         return;
     pv_clear(&sw->G);
-    for (int32_t V = V0; V <= V1 && !sw->oom; V++) {
+    for (int32_t V = V0, below = cellz(sw, zp, zc, V0 - 1, zb); V <= V1 && !sw->oom; V++) {
         int left = cellz(sw, zp, zc, V, zl);
-        if (!left && V >= c->vlo && V + 1 <= c->vhi)
+        if (!left && sw->holes && V >= c->vlo && V + 1 <= c->vhi)
             mark_hole(sw, u - 1.0, u, V - c->ev, V + 1 - c->ev);
-        if (left || cellz(sw, zp, zc, V - 1, zb))
+        if (left || below)
             add_seg(sw, mp[V], qp[V], mc[V], qc[V], 0.0, 1);
+        below = left;
         if (left && !sw->lin) {
             if (upper_main(sw, zl, u - 1.0, &slack))
                 add_seg(sw, mp[V], qp[V], mc[V + 1], qc[V + 1], slack, 1);
@@ -686,7 +688,7 @@ static void target(sweep *sw, int32_t U, int32_t V, int near)
     }
     q = j->target_height > 0.0 ? (zt + j->target_height - j->ez) / u : sw->qcol[1][V - c->vlo];
     k = find(F, m, &sw->hint_q);
-    hu = sw->hole_u[bin_of(m)];
+    hu = sw->holes ? sw->hole_u[bin_of(m)] : INFINITY;
     hi = pval(&F->p[k], m);
     lo = F->p[k].umax < hu ? hi - F->p[k].slack : -INFINITY;
     if (k > 0 && F->p[k].m == m) { /* on a break: the piece ending here holds m too */
@@ -845,6 +847,7 @@ td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st,
         sw->tri = job->surface == TD_SURFACE_TRIANGLE;
         sw->bil = job->surface == TD_SURFACE_BILINEAR;
         sw->lin = job->surface == TD_SURFACE_LINEAR;
+        sw->holes = g->voids > 0;
         cone_init(&sw->c, g, k, eu, ev);
     }
     /* the sample under the eye, if there is one, belongs to no cone */
