@@ -14,36 +14,17 @@
 
 #include "accel.h"
 #include "viewshed.h"
-
-typedef struct fixture {
-    td_grid *g;
-    td_accel *a;
-    td_view v;
-} fixture;
+#include "vs_fixture.h"
 
 /* A w x h grid, spacing 10 m, heights from f(i, j) (south-based j), with max-mipmaps and
  * planes (tiles of 4 cells, so the methods cross seams). */
 static void make(fixture *fx, int32_t w, int32_t h, double (*f)(int32_t i, int32_t j))
 {
-    td_accel_opts o;
     assert_int_equal(td_grid_create(w, h, 10.0, 10.0, 2, NULL, &fx->g, NULL), TD_OK);
     for (int32_t j = 0; j < h; j++)
         for (int32_t i = 0; i < w; i++)
             fx->g->z[(size_t)j * w + i] = (float)f(i, j);
-    assert_int_equal(td_grid_finish(fx->g, NULL), TD_OK);
-    td_accel_opts_default(&o);
-    o.maxmip = 1;
-    o.planes = 1;
-    o.threads = 1;
-    assert_int_equal(td_accel_build(fx->g, &o, &fx->a, NULL, NULL), TD_OK);
-    fx->v.grid = fx->g;
-    fx->v.accel = fx->a->tiles;
-}
-
-static void unmake(fixture *fx)
-{
-    td_accel_free(fx->a);
-    td_grid_free(fx->g);
+    fixture_finish(fx);
 }
 
 /* Runs a viewshed; out in file order. */

@@ -17,15 +17,10 @@
 
 #include "accel.h"
 #include "viewshed.h"
+#include "vs_fixture.h"
 
 #define W 47
 #define H 39
-
-typedef struct fixture {
-    td_grid *g;
-    td_accel *a;
-    td_view v;
-} fixture;
 
 /* A pseudo-random value in [0, 1) for (i, j, seed). */
 static double noise(int32_t i, int32_t j, uint32_t seed)
@@ -54,25 +49,11 @@ static double terrain(int kind, int32_t i, int32_t j)
 
 static void make(fixture *fx, int kind, double sx, double sy)
 {
-    td_accel_opts o;
     assert_int_equal(td_grid_create(W, H, sx, sy, 3, NULL, &fx->g, NULL), TD_OK);
     for (int32_t j = 0; j < H; j++)
         for (int32_t i = 0; i < W; i++)
             fx->g->z[(size_t)j * W + i] = (float)terrain(kind, i, j);
-    assert_int_equal(td_grid_finish(fx->g, NULL), TD_OK);
-    td_accel_opts_default(&o);
-    o.maxmip = 1;
-    o.planes = 1;
-    o.threads = 1;
-    assert_int_equal(td_accel_build(fx->g, &o, &fx->a, NULL, NULL), TD_OK);
-    fx->v.grid = fx->g;
-    fx->v.accel = fx->a->tiles;
-}
-
-static void unmake(fixture *fx)
-{
-    td_accel_free(fx->a);
-    td_grid_free(fx->g);
+    fixture_finish(fx);
 }
 
 /* The sweep's and the cast's viewsheds of opts o (surface s) are the same bytes; returns
