@@ -1,22 +1,22 @@
 /* viewshed.c: viewsheds and lines of sight by ray casts (the rule, the curvature model and
  * the output are in viewshed.h).
  *
- * One segment a target sample and observer, searched with td_occluded (any hit, no hit
- * point), so each answer is exactly what the tracers say of that segment: there is no
- * sweep, no reference plane and no interpolation of horizons to disagree with them. The
- * oracle tests (tests/oracle/viewshed_oracle.c) trace the same segments (td_viewshed_ray)
- * with the double-precision reference.
+ * Each answer is what td_occluded (any hit, no hit point) says of the segment from the
+ * eye to the target: there is no reference plane and no interpolation of horizons to
+ * disagree with the tracers. Two ways to get it (td_vs_algo): `cast`, one segment a
+ * target sample and observer; `sweep` (the default), vsweep.c's exact horizon sweep,
+ * which proves most answers from an upper envelope of the projected edges and casts the
+ * segments it cannot prove with the same td_viewshed_cast. The oracle tests
+ * (tests/oracle/viewshed_oracle.c) trace the same segments (td_viewshed_ray) with the
+ * double-precision reference and hold the sweep to the cast byte for byte.
  *
  * Layout: per observer an `eye` (its view: the dataset's, or with curvature a lowered
- * copy of the grid skipped through the dataset's max-mipmaps, built in setup_eyes);
- * workers take rows of samples from an atomic counter and, per sample, ask every eye of
- * the pass in range (one pass for all observers, or one an observer with curvature).
- *
- * Alternative rejected for now: a sweep (Van Kreveld, or GDAL's reference planes) visits
- * each sample once, but decides on flattened cells or interpolated horizons; making one
- * agree with the exact surfaces is the open part of issue 18. The ray casts cost
- * O(samples x steps per ray); docs/viewshed.md has the measured figures against
- * gdal_viewshed. */
+ * copy of the grid skipped through the dataset's max-mipmaps, built in setup_eyes).
+ * Cast: workers take rows of samples from an atomic counter and, per sample, ask every
+ * eye of the pass in range (one pass for all observers, or one an observer with
+ * curvature). Sweep: one observer at a time, its four cones over up to four threads,
+ * its answers added to the counts (vs_sweep_run). The plane surface is always cast
+ * (vsweep.h). docs/viewshed.md has the measured figures against gdal_viewshed. */
 #include "viewshed.h"
 
 #include <math.h>

@@ -37,8 +37,10 @@
  * number of observers that see the sample (0 .. nobs), or TD_VS_OUTSIDE. td_viewshed_gray
  * turns a single observer's counts into the 255 / 0 / 128 picture.
  *
- * Threads: rows of samples go to workers through an atomic counter (as render.c's
- * blocks); every worker traces on the same immutable view. */
+ * How: opts.algo, the exact horizon sweep of vsweep.h (default) or one cast a sample;
+ * the same bytes. Threads: with the cast, rows of samples go to workers through an atomic
+ * counter (as render.c's blocks); with the sweep, the four cones of an observer; every
+ * worker traces on the same immutable view. */
 #ifndef TD_VIEWSHED_H
 #define TD_VIEWSHED_H
 
