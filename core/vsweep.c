@@ -96,7 +96,6 @@ typedef struct sweep {
     double *zcol[3]; /* columns U-1, U, U+1 (rows vlo.., NaN where not loaded) */
     double *mcol[3], *qcol[3]; /* their samples projected (columns east of the eye) */
     uint64_t swept, rays, steps;
-    uint64_t st_fsum, st_cols, st_ins, st_merges, st_edges;
 } sweep;
 
 static const piece empty_piece = {0.0, 0.0, -INFINITY, 0.0, 0.0, 0.0};
@@ -139,16 +138,16 @@ static void pv_clear(pvec *v)
 /* Appends src's line from m (a piece of zero width is replaced; equal lines join). */
 static void emit(pvec *o, double m, const piece *src)
 {
-    if (o->n > 0 && same_line(&o->p[o->n - 1], src))
-        return;
-    if (o->n > 0 && o->p[o->n - 1].m >= m) {
+    int join = o->n > 0 && same_line(&o->p[o->n - 1], src);
+    if (!join && o->n > 0 && o->p[o->n - 1].m >= m) {
         o->n--;
-        if (o->n > 0 && same_line(&o->p[o->n - 1], src))
-            return;
+        join = o->n > 0 && same_line(&o->p[o->n - 1], src);
     }
-    o->p[o->n] = *src;
-    o->p[o->n].m = m;
-    o->n++;
+    if (!join) {
+        o->p[o->n] = *src;
+        o->p[o->n].m = m;
+        o->n++;
+    }
 }
 
 /* out = max(a, b), both covering [a[0].m, end] with a[na].m = b[nb].m = end; out needs
@@ -291,9 +290,7 @@ static void load_next(sweep *sw, int32_t U)
     sw->zcol[2] = t[0];
     sw->mcol[2] = t[1];
     sw->qcol[2] = t[2];
-    if (U + 1 > c->uhi)
-        return;
-    for (int32_t V = V0; V <= V1; V++) {
+    for (int32_t V = V0; V <= V1 && U + 1 <= c->uhi; V++) {
         double z = cz(c, U + 1, V);
         t[0][V - c->vlo] = z;
         t[1][V - c->vlo] = (V - c->ev) * iu;
@@ -323,16 +320,17 @@ static int under_f(sweep *sw, const piece *p, double m0, double m1)
     const pvec *F = &sw->F;
     int k = find(F, m0, &sw->hint_s);
     double x = m0;
+    int under = 1;
     for (;;) {
         double xe = F->p[k + 1].m < m1 ? F->p[k + 1].m : m1;
         if (pval(p, x) > pval(&F->p[k], x) || pval(p, xe) > pval(&F->p[k], xe))
-            return 0;
-        if (xe >= m1 || k + 1 >= F->n)
+            under = 0;
+        if (!under || xe >= m1 || k + 1 >= F->n)
             break;
         x = xe;
         k++;
     }
-    return 1;
+    return under;
 }
 
 /* p over [m0, m1] into G (whose pieces after the one holding m0 are few: edges come in
@@ -343,34 +341,33 @@ static void g_insert(sweep *sw, const piece *p, double m0, double m1)
     piece b[4];
     int k = G->n - 1;
     if (G->p[k].qr == -INFINITY && G->p[k].m <= m0) { /* past everything so far: append */
-        if (!pv_reserve(sw, G, G->n + 3))
-            return;
-        if (G->p[k].m < m0)
-            k++;
-        G->p[k] = *p;
-        G->p[k].m = m0;
-        G->p[k + 1] = empty_piece;
-        G->p[k + 1].m = m1;
-        G->n = k + (m1 < VS_MDOM ? 2 : 1);
-        G->p[G->n] = empty_piece;
-        G->p[G->n].m = VS_MDOM;
-        return;
+        if (pv_reserve(sw, G, G->n + 3)) {
+            k += G->p[k].m < m0;
+            G->p[k] = *p;
+            G->p[k].m = m0;
+            G->p[k + 1] = empty_piece;
+            G->p[k + 1].m = m1;
+            G->n = k + (m1 < VS_MDOM ? 2 : 1);
+            G->p[G->n] = empty_piece;
+            G->p[G->n].m = VS_MDOM;
+        }
+    } else {
+        while (k > 0 && G->p[k].m > m0)
+            k--;
+        b[0] = empty_piece;
+        b[0].m = G->p[k].m;
+        b[1] = *p;
+        b[1].m = m0;
+        b[2] = empty_piece;
+        b[2].m = m1;
+        b[3] = empty_piece;
+        b[3].m = VS_MDOM;
+        if (pv_reserve(sw, T, 2 * (G->n - k + 3) + 1) && pv_reserve(sw, G, k + 2 * (G->n - k + 3) + 1)) {
+            merge(&G->p[k], G->n - k, b, 3, T);
+            memcpy(&G->p[k], T->p, (size_t)(T->n + 1) * sizeof *T->p);
+            G->n = k + T->n;
+        }
     }
-    while (k > 0 && G->p[k].m > m0)
-        k--;
-    b[0] = empty_piece;
-    b[0].m = G->p[k].m;
-    b[1] = *p;
-    b[1].m = m0;
-    b[2] = empty_piece;
-    b[2].m = m1;
-    b[3] = empty_piece;
-    b[3].m = VS_MDOM;
-    if (!pv_reserve(sw, T, 2 * (G->n - k + 3) + 1) || !pv_reserve(sw, G, k + 2 * (G->n - k + 3) + 1))
-        return;
-    merge(&G->p[k], G->n - k, b, 3, T);
-    memcpy(&G->p[k], T->p, (size_t)(T->n + 1) * sizeof *T->p);
-    G->n = k + T->n;
 }
 
 /* The projected edge from (ma, qa) to (mb, qb) into G; with `prune`, unless F already
@@ -387,23 +384,24 @@ static void add_seg(sweep *sw, double ma, double qa, double mb, double qb, doubl
         qa = qb;
         qb = t;
     }
-    if (!(mb > ma) || mb < -VS_MDOM || ma > VS_MDOM) /* a point in m: its ends are column samples */
-        return;
-    p.mr = ma;
-    p.umax = sw->umax;
-    if (mb - ma < VS_NARROW) {
-        p.qr = qa > qb ? qa : qb;
-        p.s = 0.0;
-        p.slack = slack + fabs(qa - qb);
-    } else {
-        p.qr = qa;
-        p.s = (qb - qa) / (mb - ma);
-        p.slack = slack;
+    /* a point in m (its ends are column samples) or off the domain: nothing */
+    if (mb > ma && mb >= -VS_MDOM && ma <= VS_MDOM) {
+        p.mr = ma;
+        p.umax = sw->umax;
+        if (mb - ma < VS_NARROW) {
+            p.qr = qa > qb ? qa : qb;
+            p.s = 0.0;
+            p.slack = slack + fabs(qa - qb);
+        } else {
+            p.qr = qa;
+            p.s = (qb - qa) / (mb - ma);
+            p.slack = slack;
+        }
+        m0 = ma < -VS_MDOM ? -VS_MDOM : ma;
+        m1 = mb > VS_MDOM ? VS_MDOM : mb;
+        if (m1 > m0 && !(prune && under_f(sw, &p, m0, m1)))
+            g_insert(sw, &p, m0, m1);
     }
-    m0 = ma < -VS_MDOM ? -VS_MDOM : ma;
-    m1 = mb > VS_MDOM ? VS_MDOM : mb;
-    if (m1 > m0 && !(prune && under_f(sw, &p, m0, m1)))
-        g_insert(sw, &p, m0, m1);
 }
 
 /* The edge from (ua, va, za) to (ub, vb, zb) (u, v from the eye, u > 0) projected, into
@@ -418,12 +416,9 @@ static void add_edge_uv(sweep *sw, double ua, double va, double za, double ub, d
 /* F = max(F, G). */
 static void merge_g(sweep *sw)
 {
-    if (sw->G.n > 1 || sw->G.p[0].qr != -INFINITY) {
+    if ((sw->G.n > 1 || sw->G.p[0].qr != -INFINITY) && pv_reserve(sw, &sw->T, 2 * (sw->F.n + sw->G.n) + 1)) {
         pvec t;
-        if (!pv_reserve(sw, &sw->T, 2 * (sw->F.n + sw->G.n) + 1))
-            return;
         merge(sw->F.p, sw->F.n, sw->G.p, sw->G.n, &sw->T);
-        sw->st_merges++;
         t = sw->F;
         sw->F = sw->T;
         sw->T = t;
@@ -463,9 +458,7 @@ static void mark_hole(sweep *sw, double ua, double ub, double va, double vb)
         mlo = va >= 0.0 ? va / ub : -1.0;
         mhi = vb <= 0.0 ? vb / ub : 1.0;
     }
-    if (mhi < -1.0 || mlo > 1.0)
-        return;
-    for (int b = bin_of(mlo), e = bin_of(mhi); b <= e; b++)
+    for (int b = bin_of(mlo), e = bin_of(mhi); b <= e && mhi >= -1.0 && mlo <= 1.0; b++)
         sw->hole_u[b] = fmin(sw->hole_u[b], fmax(ua, 0.0));
 }
 
@@ -496,10 +489,8 @@ static void add_column(sweep *sw, int32_t U, int strip)
         }
     }
     merge_g(sw);
-    if (!strip)
-        return;
     pv_clear(&sw->G);
-    for (int32_t V = V0, below = cellz(sw, zp, zc, V0 - 1, zb); V <= V1 && !sw->oom; V++) {
+    for (int32_t V = V0, below = cellz(sw, zp, zc, V0 - 1, zb); strip && V <= V1 && !sw->oom; V++) {
         int left = cellz(sw, zp, zc, V, zl);
         if (!left && sw->holes && V >= c->vlo && V + 1 <= c->vhi)
             mark_hole(sw, u - 1.0, u, V - c->ev, V + 1 - c->ev);
@@ -525,26 +516,19 @@ static void add_clipped(sweep *sw, double ua, double va, double za, double ub, d
 {
     double t0 = 0.0, t1 = 1.0, du = ub - ua, dv = vb - va;
     /* u - v >= 0, u + v >= 0 on [t0, t1] */
-    double f0[2] = {ua - va, ua + va}, df[2] = {du - dv, du + dv};
+    double f0[2] = {ua - va, ua + va}, df[2] = {du - dv, du + dv}, u0, u1;
     for (int k = 0; k < 2; k++) {
-        if (df[k] == 0.0) {
-            if (f0[k] < 0.0)
-                return;
-        } else if (df[k] > 0.0) {
+        if (df[k] == 0.0)
+            t1 = f0[k] < 0.0 ? -1.0 : t1; /* parallel to the side, outside: nothing */
+        else if (df[k] > 0.0)
             t0 = fmax(t0, -f0[k] / df[k]);
-        } else {
+        else
             t1 = fmin(t1, -f0[k] / df[k]);
-        }
     }
-    if (!(t1 > t0))
-        return;
-    {
-        double u0 = ua + t0 * du, u1 = ua + t1 * du;
-        if (!(u0 > 0.0) || !(u1 > 0.0)) /* through the eye */
-            return;
-        /* as cone coordinates for add_edge's projection: U = u + eu, V = v + ev */
+    u0 = ua + t0 * du;
+    u1 = ua + t1 * du;
+    if (t1 > t0 && u0 > 0.0 && u1 > 0.0) /* else outside the cone, or through the eye */
         add_edge_uv(sw, u0, va + t0 * dv, za + t0 * (zb - za), u1, va + t1 * dv, za + t1 * (zb - za), slack);
-    }
 }
 
 /* The bilinear eye cell's bound over m in [lo, hi] (one sign): the maximum over u of
@@ -557,9 +541,7 @@ static void eye_cell_bound(sweep *sw, double ga, double gb, double kh, double k,
 {
     /* lo or hi is 0; below |m| = a the peak u = sqrt(h / |k m|) is past u0 */
     double a = kh / (k * k * u0 * u0), b = fmax(fabs(lo), fabs(hi)), sg = hi > 0.0 ? 1.0 : -1.0;
-    if (!(a < b))
-        return;
-    for (int i = 0; i < 16; i++) {
+    for (int i = 0; i < 16 && a < b; i++) {
         double f0 = (double)i / 16.0, f1 = (double)(i + 1) / 16.0;
         double m0 = sg * (a + (b - a) * f0 * f0), m1 = sg * (a + (b - a) * f1 * f1);
         double g0 = ga + gb * m0 - 2.0 * sqrt(kh * fabs(m0)), g1 = ga + gb * m1 - 2.0 * sqrt(kh * fabs(m1));
@@ -656,36 +638,27 @@ static void cast(sweep *sw, int32_t U, int32_t V)
  * (U, V) (column U buffered): raises *hi and *lo. */
 static void last_cell(const sweep *sw, int32_t V, double u, double m, double hu, double *hi, double *lo)
 {
-    double z[4], slack, a = fabs(m), s = a / (1.0 + a), h, q;
-    if (m > 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V - 1, z) && !upper_main(sw, z, u - 1.0, &slack)) {
-        /* arriving from the south-west: the anti-diagonal (U, V-1)-(U-1, V) */
-        h = z[1] + (z[2] - z[1]) * (1.0 - a + a * s);
-    } else if (m < 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V, z) && upper_main(sw, z, u - 1.0, &slack)) {
-        /* from the north-west: the main diagonal (U-1, V)-(U, V+1) */
-        h = z[0] + (z[3] - z[0]) * s;
-    } else {
-        return;
+    double z[4], slack, a = fabs(m), s = a / (1.0 + a), h = NAN, q;
+    if (m > 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V - 1, z) && !upper_main(sw, z, u - 1.0, &slack))
+        h = z[1] + (z[2] - z[1]) * (1.0 - a + a * s); /* from the south-west: (U, V-1)-(U-1, V) */
+    else if (m < 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V, z) && upper_main(sw, z, u - 1.0, &slack))
+        h = z[0] + (z[3] - z[0]) * s; /* from the north-west: the main diagonal (U-1, V)-(U, V+1) */
+    if (!isnan(h)) {
+        q = (h - sw->job->ez) / (u - 1.0 + s);
+        *hi = fmax(*hi, q);
+        if (u - 1.0 + s < hu)
+            *lo = fmax(*lo, q - slack);
     }
-    q = (h - sw->job->ez) / (u - 1.0 + s);
-    *hi = fmax(*hi, q);
-    if (u - 1.0 + s < hu)
-        *lo = fmax(*lo, q - slack);
 }
 
-/* Decides target (U, V) of column U against F, or casts it. */
-static void target(sweep *sw, int32_t U, int32_t V, int near)
+/* Decides target (U, V) of column U (not a void) against F, or casts it. */
+static void target(sweep *sw, int32_t U, int32_t V)
 {
     const td_vsweep_job *j = sw->job;
     const cone *c = &sw->c;
     const pvec *F = &sw->F;
     double u = U - c->eu, m = sw->mcol[1][V - c->vlo], zt = sw->zcol[1][V - c->vlo], q, hi, lo, eps, hu;
     int k;
-    if (isnan(zt))
-        return;
-    if (near) {
-        cast(sw, U, V);
-        return;
-    }
     q = j->target_height > 0.0 ? (zt + j->target_height - j->ez) / u : sw->qcol[1][V - c->vlo];
     k = find(F, m, &sw->hint_q);
     hu = sw->holes ? sw->hole_u[bin_of(m)] : INFINITY;
@@ -724,16 +697,6 @@ static void target(sweep *sw, int32_t U, int32_t V, int near)
         sw->vis[cidx(c, U, V)] = 0;
         sw->swept++;
     } else {
-#ifdef TD_VSWEEP_DEBUG
-        {
-            static long n[4];
-            double fh = pval(&F->p[k], m);
-            int why = F->p[k].slack == INFINITY ? 0 : (q < hi - eps && q > lo + eps ? 1 : (fabs(q - hi) <= eps ? 2 : 3));
-            n[why]++;
-            if ((n[0] + n[1] + n[2] + n[3]) % 2000 == 0)
-                fprintf(stderr, "casts: eye-piece %ld slack %ld tie %ld other %ld (fh %g)\n", n[0], n[1], n[2], n[3], fh);
-        }
-#endif
         cast(sw, U, V);
     }
 }
@@ -758,14 +721,14 @@ static void sweep_cone(sweep *sw)
 {
     const cone *c = &sw->c;
     int32_t U0 = (int32_t)floor(c->eu) + 1; /* the first column east of the eye */
-    if (U0 > c->uhi)
-        return;
     pv_clear(&sw->F);
     for (int b = 0; b < VS_BINS; b++)
         sw->hole_u[b] = INFINITY;
-    near_strip(sw, U0);
-    load_next(sw, U0 - 2);
-    load_next(sw, U0 - 1);
+    if (U0 <= c->uhi) {
+        near_strip(sw, U0);
+        load_next(sw, U0 - 2);
+        load_next(sw, U0 - 1);
+    }
     for (int32_t U = U0; U <= c->uhi && !sw->oom; U++) {
         double u = U - c->eu;
         int32_t V0 = (int32_t)fmax(floor(c->ev - u) - 1.0, (double)c->vlo);
@@ -774,16 +737,16 @@ static void sweep_cone(sweep *sw)
             break;
         load_next(sw, U);
         sw->hint_q = sw->hint_n = 0;
-        for (int32_t V = V0; V <= V1; V++)
-            if (owned(sw, U, V, u))
-                target(sw, U, V, U <= U0 + 1);
+        for (int32_t V = V0; V <= V1; V++) {
+            if (!owned(sw, U, V, u) || isnan(sw->zcol[1][V - c->vlo]))
+                continue;
+            if (U <= U0 + 1) /* the first two columns: cast */
+                cast(sw, U, V);
+            else
+                target(sw, U, V);
+        }
         add_column(sw, U, U > U0);
-        sw->st_fsum += sw->F.n;
-        sw->st_cols++;
     }
-#ifdef TD_VSWEEP_DEBUG
-    fprintf(stderr, "cone: cols %lu mean F %.1f edges %lu inserted %lu merges %lu swept %lu rays %lu\n", (unsigned long)sw->st_cols, (double)sw->st_fsum / (double)(sw->st_cols + !sw->st_cols), (unsigned long)sw->st_edges, (unsigned long)sw->st_ins, (unsigned long)sw->st_merges, (unsigned long)sw->swept, (unsigned long)sw->rays);
-#endif
 }
 
 /* ---- the four cones across threads ---------------------------------------------------- */
