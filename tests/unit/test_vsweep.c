@@ -163,18 +163,23 @@ static void test_integer_touches(void **state)
     unmake(&fx);
 }
 
+/* Every surface from each of n observers over terrain `kind` (10 m cells). */
+static void from_each(int kind, const td_vs_point *p, size_t n)
+{
+    fixture fx;
+    make(&fx, kind, 10.0, 10.0);
+    for (size_t k = 0; k < n; k++)
+        all_surfaces(&fx, p[k]);
+    unmake(&fx);
+}
+
 /* A 110 m cliff at i = 20: observers on its edge (targets below and beyond), at its
  * foot (targets on the edge above), and across. */
 static void test_cliff(void **state)
 {
-    fixture fx;
+    static const td_vs_point p[] = {{200.0, 190.0}, {190.0, 190.0}, {50.0, 100.0}, {400.0, 333.3}};
     (void)state;
-    make(&fx, T_CLIFF, 10.0, 10.0);
-    all_surfaces(&fx, (td_vs_point){200.0, 190.0});
-    all_surfaces(&fx, (td_vs_point){190.0, 190.0});
-    all_surfaces(&fx, (td_vs_point){50.0, 100.0});
-    all_surfaces(&fx, (td_vs_point){400.0, 333.3});
-    unmake(&fx);
+    from_each(T_CLIFF, p, sizeof p / sizeof *p);
 }
 
 /* Holes (a 5 x 5 void, a single void sample, a void run on the south edge): observers on
@@ -182,16 +187,10 @@ static void test_cliff(void **state)
  * so they stand east and north of it), beside it, across it, at the edge run's end. */
 static void test_voids(void **state)
 {
-    fixture fx;
+    static const td_vs_point p[] = {{200.0, 120.0}, {170.0, 150.0}, {200.0, 100.0},
+                                    {310.0, 250.0}, {60.0, 0.0},    {450.0, 370.0}};
     (void)state;
-    make(&fx, T_VOIDS, 10.0, 10.0);
-    all_surfaces(&fx, (td_vs_point){200.0, 120.0});
-    all_surfaces(&fx, (td_vs_point){170.0, 150.0});
-    all_surfaces(&fx, (td_vs_point){200.0, 100.0});
-    all_surfaces(&fx, (td_vs_point){310.0, 250.0});
-    all_surfaces(&fx, (td_vs_point){60.0, 0.0});
-    all_surfaces(&fx, (td_vs_point){450.0, 370.0});
-    unmake(&fx);
+    from_each(T_VOIDS, p, sizeof p / sizeof *p);
 }
 
 /* Random observers on every terrain, half of them on samples; those on the plane
@@ -212,36 +211,38 @@ static void test_random(void **state)
     }
 }
 
-/* Curvature (1 km cells, so the drop matters), max_distance, several observers. */
-static void test_options(void **state)
+/* Options o on every surface over rough terrain with cells of `cell` metres. */
+static void every_surface(td_viewshed_opts o, double cell)
 {
     fixture fx;
-    td_vs_point obs[3] = {{1234.5, 777.7}, {40.0, 300.0}, {460.0, 20.0}};
-    td_viewshed_opts o;
-    (void)state;
-    make(&fx, T_ROUGH, 1000.0, 1000.0);
-    td_viewshed_opts_default(&o);
-    o.obs = obs;
-    o.nobs = 1;
-    o.height = 30.0;
-    o.curvature = 1;
+    make(&fx, T_ROUGH, cell, cell);
     for (int s = 0; s < TD_SURFACE_COUNT; s++)
         same(&fx, o, (td_surface)s);
     unmake(&fx);
-    make(&fx, T_ROUGH, 10.0, 10.0);
-    obs[0] = (td_vs_point){123.4, 77.7};
+}
+
+/* Curvature (1 km cells, so the drop matters), max_distance, several observers, a
+ * target height with them. */
+static void test_options(void **state)
+{
+    td_vs_point far = {1234.5, 777.7}, obs[3] = {{123.4, 77.7}, {40.0, 300.0}, {460.0, 20.0}};
+    td_viewshed_opts o;
+    (void)state;
+    td_viewshed_opts_default(&o);
+    o.obs = &far;
+    o.nobs = 1;
+    o.height = 30.0;
+    o.curvature = 1;
+    every_surface(o, 1000.0);
     td_viewshed_opts_default(&o);
     o.obs = obs;
     o.nobs = 3;
     o.height = 2.0;
     o.max_distance = 250.0;
-    for (int s = 0; s < TD_SURFACE_COUNT; s++)
-        same(&fx, o, (td_surface)s);
+    every_surface(o, 10.0);
     o.max_distance = INFINITY;
     o.target_height = 1.0;
-    for (int s = 0; s < TD_SURFACE_COUNT; s++)
-        same(&fx, o, (td_surface)s);
-    unmake(&fx);
+    every_surface(o, 10.0);
 }
 
 int main(void)
