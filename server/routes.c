@@ -39,6 +39,8 @@
 #include "render.h"
 #include "request.h"
 #include "static.h"
+#include "cors.h"
+#include "maps.h"
 #include "viewshed_api.h"
 
 const char *const td_route_names[TD_ROUTE_COUNT] = {
@@ -1324,6 +1326,10 @@ static const td_route_row td_routes[] = {
     {TD_ROUTE_LOS, "/v1/los", NULL, 0, 0, "POST", td_los_route, NULL},
     {TD_ROUTE_TILES, "/v1/tiles/", "*/*/*/*", 4, 0, "GET, HEAD", h_tile, NULL},
     {TD_ROUTE_TILES, "/v1/tiles/", "", 0, 0, NULL, NULL, "tile paths are /v1/tiles/{dataset}/{z}/{x}/{y}.png"},
+    {TD_ROUTE_MAPS, "/v1/maps/", "*/*/*/*/*", 5, 0, "GET, HEAD", td_maps_tile_route, NULL},
+    {TD_ROUTE_TILEJSON, "/v1/maps/", "*/*", 2, 0, "GET, HEAD", td_maps_tilejson_route, NULL},
+    {TD_ROUTE_MAPS, "/v1/maps/", "", 0, 0, NULL, NULL,
+     "map paths are /v1/maps/{dataset}/{style}/{z}/{x}/{y}.png and /v1/maps/{dataset}/{style}.json"},
     {TD_ROUTE_DATASETS, "/v1/datasets", NULL, 0, 0, "GET, HEAD", h_datasets, NULL},
     {TD_ROUTE_DATASETS, "/v1/datasets/", NULL, 0, 0, "GET, HEAD", h_datasets, NULL},
     {TD_ROUTE_DATASET, "/v1/datasets/", "*", 1, 0, "GET, HEAD", h_dataset, NULL},
@@ -1395,6 +1401,8 @@ static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
         api_error(r, TD_AE_LOADING, NULL, "the datasets are loading; retry shortly");
     } else if (w->admin && admin_check(app, q, r)) {
         /* answered: 404 admin_disabled or 401 */
+    } else if (!w->admin && w->route != TD_ROUTE_WEB && td_cors_apply(app->cfg->cors_origins, q, r, w->allow)) {
+        /* answered: a CORS preflight (cors.h); admin routes never get CORS */
     } else if (w->allow && !method_allowed(w->allow, m)) {
         method_not_allowed(r, w->allow, m);
     } else if (!w->fn) {

@@ -33,6 +33,8 @@
     X(TD_ROUTE_WEB, "web")                                                     \
     X(TD_ROUTE_VIEWSHED, "viewshed")                                           \
     X(TD_ROUTE_LOS, "los")                                                     \
+    X(TD_ROUTE_MAPS, "maps")                                                   \
+    X(TD_ROUTE_TILEJSON, "tilejson")                                           \
     X(TD_ROUTE_UNKNOWN, "unknown")
 
 typedef enum td_route {
@@ -56,6 +58,7 @@ typedef struct td_app {
                           /readyz answer (503), and nothing reads the store */
     char web_dir[PATH_MAX];     /* realpath, or "" when absent */
     char leaflet_dir[PATH_MAX]; /* realpath of web/node_modules/leaflet/dist, or "" */
+    struct td_maps *maps;       /* map tiles' per-dataset CRS cache (maps.h) */
 } td_app;
 
 /* td_http_handler and td_http_done_fn for td_http_start (cls: the td_app). */
