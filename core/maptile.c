@@ -84,12 +84,16 @@ double td_maptile_decode(td_mapstyle style, const uint8_t px[4])
 
 /* One shaded pixel at (x, y) on view lv (level `level`). */
 static void shade(const td_view *lv, int level, const td_sunlit *lit, const td_maptile_spec *s, double x,
-                  double y, uint8_t *o, td_maptile_stats *st)
+                  double y, uint8_t *o, td_ray *rays, td_maptile_stats *st)
 {
     const td_grid *g = lv->grid;
     td_ray r = {{x, y, (double)g->zmax + 1.0}, {0.0, 0.0, -1.0}, 0.0, (double)g->zmax - (double)g->zmin + 2.0};
     td_hit h;
     double ns, l = 1.0, v;
+    if (rays) {
+        rays[0] = r;
+        rays[1].tmax = -1.0;
+    }
     td_trace(lv, s->method, s->surface, &r, &h);
     st->primary_rays++;
     st->steps += h.steps;
@@ -106,6 +110,8 @@ static void shade(const td_view *lv, int level, const td_sunlit *lit, const td_m
         td_ray sr = {{h.p[0] + eps * h.n[0], h.p[1] + eps * h.n[1], h.p[2] + eps * h.n[2]},
                      {s->sun[0], s->sun[1], s->sun[2]}, 0.0, INFINITY};
         l = td_occluded(lv, s->method, s->surface, &sr, level == 0 ? lit : NULL, &steps) ? 0.0 : 1.0;
+        if (rays)
+            rays[1] = sr;
         st->shadow_rays++;
         st->steps += steps;
     }
@@ -118,7 +124,7 @@ static void shade(const td_view *lv, int level, const td_sunlit *lit, const td_m
 
 td_status td_maptile_render(const td_view *v, const td_lod *lod, const td_sunlit *lit,
                             const td_maptile_spec *s, const double *xy, int px, double foot_m,
-                            uint8_t *rgba, td_maptile_stats *st, td_err *err)
+                            uint8_t *rgba, td_ray *rays, td_maptile_stats *st, td_err *err)
 {
     const td_grid *base = v->grid;
     const double W = (double)(base->w - 1) * base->sx, H = (double)(base->h - 1) * base->sy;
@@ -136,8 +142,10 @@ td_status td_maptile_render(const td_view *v, const td_lod *lod, const td_sunlit
         uint8_t *o = &rgba[4 * k];
         int inside = x >= 0.0 && x <= W && y >= 0.0 && y <= H; /* false for NaN */
         if (s->style == TD_MAPSTYLE_SHADED) {
+            if (rays)
+                rays[2 * k].tmax = rays[2 * k + 1].tmax = -1.0;
             if (inside)
-                shade(lv, level, lit, s, x, y, o, st);
+                shade(lv, level, lit, s, x, y, o, rays ? &rays[2 * k] : NULL, st);
             else
                 memset(o, 0, 4);
         } else {

@@ -70,10 +70,12 @@ int td_maptile_level(const td_grid *base, const td_lod *lod, double foot_m, doub
 
 /* Fills rgba (px * px * 4, rows from the north) from xy (td_merc_positions). v is the
  * full grid's view, lod its levels (may be NULL), lit the full grid's sun bound for
- * s->sun (may be NULL). */
+ * s->sun (may be NULL). rays (NULL, or 2 * px * px slots) receives each shaded pixel's
+ * vertical ray [2k] and shadow ray [2k + 1] (tmax -1 where there is none), for tracing the
+ * same rays with a reference (the oracle test). */
 td_status td_maptile_render(const td_view *v, const td_lod *lod, const td_sunlit *lit,
                             const td_maptile_spec *s, const double *xy, int px, double foot_m,
-                            uint8_t *rgba, td_maptile_stats *st, td_err *err);
+                            uint8_t *rgba, td_ray *rays, td_maptile_stats *st, td_err *err);
 
 /* The heights the encodings decode to (for tests): NaN where alpha is 0. */
 double td_maptile_decode(td_mapstyle style, const uint8_t px[4]);

@@ -326,7 +326,7 @@ static int tile_png(map_job *j, td_merc_proj *proj, td_http_resp *r, td_buf *png
         td_routes_error(r, "internal", NULL, e.msg);
         goto out;
     }
-    if (td_maptile_render(v, lod, lit, &j->mq.spec, xy, j->px, foot, rgba, st, &e)) {
+    if (td_maptile_render(v, lod, lit, &j->mq.spec, xy, j->px, foot, rgba, NULL, st, &e)) {
         td_routes_error(r, "bad_request", NULL, e.msg);
         goto out;
     }
