@@ -13,6 +13,7 @@
 #include "maps.h"
 
 #include <ctype.h>
+#include <limits.h>
 #include <errno.h>
 #include <math.h>
 #include <pthread.h>
@@ -28,6 +29,7 @@
 #include "scene.h"
 #include "shade.h"
 #include "solar.h"
+#include "static.h"
 #include "sunlit.h"
 
 /* One dataset's map: its transformations (cloned per tile) or why it has none. */
@@ -614,4 +616,18 @@ void td_maps_tilejson_route(td_app *app, td_http_req *q, td_http_resp *r, char *
     }
     td_http_resp_header(r, "Cache-Control", "public, max-age=300");
     td_routes_json(r, 200, j);
+}
+
+/* --- MapLibre GL JS for the web map page ------------------------------------------------ */
+
+void td_maps_vendor_route(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
+{
+    char dist[PATH_MAX + 64], root[PATH_MAX];
+    td_err e = {0};
+    (void)seg;
+    snprintf(dist, sizeof dist, "%s/node_modules/maplibre-gl/dist", app->web_dir);
+    if (!app->web_dir[0] || !realpath(dist, root))
+        root[0] = '\0';
+    if (td_static_serve(root, td_http_req_path(q) + strlen(TD_MAPS_VENDOR_PREFIX), 1, r, &e))
+        td_routes_error(r, "not_found", NULL, e.msg);
 }

@@ -21,8 +21,13 @@ typedef struct td_maps td_maps;
 td_maps *td_maps_create(void);
 void td_maps_free(td_maps *m);
 
+/* URL prefix of MapLibre GL JS's files (web/node_modules/maplibre-gl/dist). */
+#define TD_MAPS_VENDOR_PREFIX "/vendor/maplibre-gl/"
+
 /* The handlers (rows of routes.c's table). */
 void td_maps_tile_route(td_app *app, td_http_req *q, td_http_resp *r, char **seg);
 void td_maps_tilejson_route(td_app *app, td_http_req *q, td_http_resp *r, char **seg);
+/* GET /vendor/maplibre-gl/...: the web map page's MapLibre (static.h's rules). */
+void td_maps_vendor_route(td_app *app, td_http_req *q, td_http_resp *r, char **seg);
 
 #endif

@@ -1341,6 +1341,7 @@ static const td_route_row td_routes[] = {
     {TD_ROUTE_HEIGHTS, "/v1/admin/", "datasets/*/heights", 4, 1, "GET, HEAD, PUT", h_heights, NULL},
     {TD_ROUTE_EVICT, "/v1/admin/", "", 0, 1, NULL, NULL, "no such admin route"},
     {TD_ROUTE_WEB, TD_STATIC_VENDOR_PREFIX, "", 0, 0, "GET, HEAD", h_vendor, NULL},
+    {TD_ROUTE_WEB, TD_MAPS_VENDOR_PREFIX, "", 0, 0, "GET, HEAD", td_maps_vendor_route, NULL},
     {TD_ROUTE_UNKNOWN, "/v1", NULL, 0, 0, NULL, h_no_route, NULL},
     {TD_ROUTE_UNKNOWN, "/v1/", "", 0, 0, NULL, h_no_route, NULL},
     {TD_ROUTE_WEB, "/", "", 0, 0, "GET, HEAD", h_page, NULL},

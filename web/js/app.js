@@ -345,6 +345,8 @@ function saveHash() {
   const c = state.cam;
   const h = `#${encodeURIComponent(state.ds.id)}/${[c.x, c.y, c.agl, c.heading, c.pitch, c.fov].map((v) => +v.toFixed(2)).join('/')}`;
   history.replaceState(null, '', h);
+  const wm = document.getElementById('webmap-link');
+  if (wm) wm.href = `map.html${h}`; // the web map shows this camera
 }
 
 function readHash() {
