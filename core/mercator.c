@@ -289,6 +289,7 @@ td_status td_merc_proj_create(const char *path, const td_grid *g, td_merc_proj *
         rc = td_err_set(err, TD_EUNSUPPORTED, "the dataset has no georeference (lon/lat or a projected CRS)");
         goto out;
     }
+    CPLPushErrorHandler(CPLQuietErrorHandler); /* failures come back as td_err, not logs */
     s = srs_resolve(path, g);
     p = calloc(1, sizeof *p);
     if (!s) {
@@ -311,6 +312,8 @@ td_status td_merc_proj_create(const char *path, const td_grid *g, td_merc_proj *
     if (rc == TD_OK)
         rc = proj_bounds(p, err);
 out:
+    if (g->geo.kind != TD_GEO_NONE)
+        CPLPopErrorHandler();
     if (s)
         OSRDestroySpatialReference(s);
     if (rc) {
@@ -340,7 +343,9 @@ td_status td_merc_proj_clone(const td_merc_proj *src, td_merc_proj **out, td_err
     memcpy(p->bounds_merc, src->bounds_merc, sizeof p->bounds_merc);
     memcpy(p->centre, src->centre, sizeof p->centre);
     p->grid_north = src->grid_north;
+    CPLPushErrorHandler(CPLQuietErrorHandler);
     rc = proj_open(p, err);
+    CPLPopErrorHandler();
     if (rc) {
         td_merc_proj_free(p);
         p = NULL;
@@ -383,8 +388,10 @@ static td_status to_frame(td_merc_proj *p, size_t n, double *X, double *Y, int *
 {
     if (n > (size_t)INT32_MAX)
         return td_err_set(err, TD_ERANGE, "too many points");
+    CPLPushErrorHandler(CPLQuietErrorHandler); /* points outside the CRS's domain: NaN, no log */
     if (!OCTTransformEx(p->to_crs, (int)n, X, Y, NULL, ok))
         memset(ok, 0, n * sizeof *ok);
+    CPLPopErrorHandler();
     for (size_t k = 0; k < n; k++) {
         if (ok[k] && isfinite(X[k]) && isfinite(Y[k])) {
             crs_to_frame(p, &X[k], &Y[k]);
@@ -464,9 +471,11 @@ static td_status exact(td_merc_proj *p, const double b[4], int px, double *xy, d
     for (size_t k = 0; k < n && rc == TD_OK; k++) {
         xy[2 * k] = X[k];
         xy[2 * k + 1] = Y[k];
-        if (k % (size_t)px + 1 < (size_t)px && k + (size_t)px < n)
-            *foot = dmin(*foot, dmin(hypot(X[k + 1] - X[k], Y[k + 1] - Y[k]),
-                                     hypot(X[k + px] - X[k], Y[k + px] - Y[k])));
+        if (k % (size_t)px + 1 < (size_t)px && k + (size_t)px < n) {
+            double f = dmin(hypot(X[k + 1] - X[k], Y[k + 1] - Y[k]), hypot(X[k + px] - X[k], Y[k + px] - Y[k]));
+            if (isfinite(f)) /* NaN where PROJ failed */
+                *foot = dmin(*foot, f);
+        }
     }
 out:
     free(X);
@@ -509,11 +518,12 @@ out:
 
 td_status td_merc_to_lonlat(td_merc_proj *p, double x, double y, double ll[2], td_err *err)
 {
-    int ok = 0;
+    int ok = 0, done;
     frame_to_crs(p, x, y, &ll[0], &ll[1]);
-    if (!OCTTransformEx(p->to_ll, 1, &ll[0], &ll[1], NULL, &ok) || !ok)
-        return td_err_set(err, TD_ERANGE, "(%g, %g) does not transform to lon/lat", x, y);
-    return TD_OK;
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    done = OCTTransformEx(p->to_ll, 1, &ll[0], &ll[1], NULL, &ok) && ok;
+    CPLPopErrorHandler();
+    return done ? TD_OK : td_err_set(err, TD_ERANGE, "(%g, %g) does not transform to lon/lat", x, y);
 }
 
 #endif
