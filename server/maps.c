@@ -286,20 +286,6 @@ typedef struct map_job {
     double parse_ms;
 } map_job;
 
-static int parse_int(const char *s, long max, long *out)
-{
-    char *end = NULL;
-    long v;
-    if (!isdigit((unsigned char)s[0]))
-        return 0;
-    errno = 0;
-    v = strtol(s, &end, 10);
-    if (errno || *end || v < 0 || v > max)
-        return 0;
-    *out = v;
-    return 1;
-}
-
 /* The PNG of a tile; 0, or -1 with the answer in r (404 when the tile holds no data). */
 static int tile_png(map_job *j, td_merc_proj *proj, td_http_resp *r, td_buf *png, td_maptile_stats *st,
                     double ms[3])
@@ -480,11 +466,11 @@ void td_maps_tile_route(td_app *app, td_http_req *q, td_http_resp *r, char **seg
     }
     if (dataset_style(app, r, seg[0], seg[1], &idx, &style, &di, &mi))
         goto out;
-    if (!parse_int(seg[2], TD_MERC_MAX_ZOOM, &z)) {
+    if (!td_routes_parse_uint(seg[2], TD_MERC_MAX_ZOOM, &z)) {
         td_routes_error(r, "bad_request", "z", "z: an integer zoom in [0, 24]");
         goto out;
     }
-    if (!parse_int(seg[3], (1L << z) - 1, &x) || !parse_int(seg[4], (1L << z) - 1, &y)) {
+    if (!td_routes_parse_uint(seg[3], (1L << z) - 1, &x) || !td_routes_parse_uint(seg[4], (1L << z) - 1, &y)) {
         snprintf(msg, sizeof msg, "no tile %.20s/%.20s at zoom %ld (x and y in [0, %ld])", seg[3], seg[4], z,
                  (1L << z) - 1);
         td_routes_error(r, "not_found", NULL, msg);

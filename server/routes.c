@@ -1181,7 +1181,7 @@ static void h_pick(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     h_render(app, q, r, 1, 1);
 }
 
-static int parse_uint(const char *s, long max, long *out)
+int td_routes_parse_uint(const char *s, long max, long *out)
 {
     char *end = NULL;
     long v;
@@ -1216,11 +1216,11 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
         api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", seg[0]);
         goto out;
     }
-    if (!parse_uint(seg[1], 24, &z)) {
+    if (!td_routes_parse_uint(seg[1], 24, &z)) {
         api_error(r, TD_AE_BAD_REQUEST, "z", "z: an integer zoom in [0, 24]");
         goto out;
     }
-    if (!parse_uint(seg[2], (1L << z) - 1, &x) || !parse_uint(seg[3], (1L << z) - 1, &y)) {
+    if (!td_routes_parse_uint(seg[2], (1L << z) - 1, &x) || !td_routes_parse_uint(seg[3], (1L << z) - 1, &y)) {
         api_error(r, TD_AE_NOT_FOUND, NULL, "no tile %s/%s at zoom %ld (x and y in [0, %ld])", seg[2],
                   seg[3], z, (1L << z) - 1);
         goto out;

@@ -77,6 +77,9 @@ int td_routes_json_body(td_http_req *q, td_http_resp *r);
  * --max-body-kb for every other request (so only an admin can send large bodies). */
 size_t td_routes_body_cap(void *cls, const td_http_req *q);
 
+/* A decimal integer in [0, max] (digits only): 1 and *out, or 0. */
+int td_routes_parse_uint(const char *s, long max, long *out);
+
 /* Constant-time comparison of a presented token with the configured one. */
 int td_routes_token_equal(const char *given, const char *want);
 

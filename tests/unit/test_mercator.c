@@ -18,26 +18,16 @@
 #include "dem.h"
 #include "mercator.h"
 
-static td_grid *load(const char *name)
+/* A fixture's grid and, when p is not NULL, its transformations. */
+static td_grid *fixture(const char *name, td_merc_proj **p)
 {
     char path[512];
     td_grid *g = NULL;
     td_err e = {0};
     snprintf(path, sizeof path, "%s/%s", TERRAD_TEST_DATA, name);
-    if (td_dem_load(path, NULL, &g, &e))
+    if (td_dem_load(path, NULL, &g, &e) || (p && td_merc_proj_create(path, g, p, &e)))
         fail_msg("%s: %s", path, e.msg);
     return g;
-}
-
-static td_merc_proj *proj_of(const char *name, const td_grid *g)
-{
-    char path[512];
-    td_merc_proj *p = NULL;
-    td_err e = {0};
-    snprintf(path, sizeof path, "%s/%s", TERRAD_TEST_DATA, name);
-    if (td_merc_proj_create(path, g, &p, &e))
-        fail_msg("%s: %s", path, e.msg);
-    return p;
 }
 
 static void test_tile_math(void **state)
@@ -101,8 +91,8 @@ static double check_positions(td_merc_proj *p, int z, int x, int y, int px, int 
 
 static void test_positions(void **state)
 {
-    td_grid *ll = load("trinidad-crop.f32"), *utm = load("trinidad-utm13.tif");
-    td_merc_proj *pl = proj_of("trinidad-crop.f32", ll), *pu = proj_of("trinidad-utm13.tif", utm);
+    td_merc_proj *pl = NULL, *pu = NULL;
+    td_grid *ll = fixture("trinidad-crop.f32", &pl), *utm = fixture("trinidad-utm13.tif", &pu);
     int exact = -1;
     double w;
     (void)state;
@@ -151,7 +141,7 @@ static void test_positions(void **state)
 
 static void test_refusals(void **state)
 {
-    td_grid *g = load("volcano.asc"); /* projected by its extent, no .prj */
+    td_grid *g = fixture("volcano.asc", NULL); /* projected by its extent, no .prj */
     td_merc_proj *p = NULL;
     td_err e = {0};
     double xy[2 * 256 * 256], foot;

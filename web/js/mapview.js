@@ -9,7 +9,7 @@
 // dataset's georeference (lon/lat datasets: a projected one shows no wedge), and the
 // marker is the terrain point at the centre of its view (POST /v1/pick).
 // window.terradMap exposes the map and its state to the browser test.
-import { normaliseDataset, frameToGeo, wedge, defaultCamera } from './frame.js';
+import { normaliseDataset, frameToGeo, wedge, defaultCamera, cameraHash, parseCameraHash } from './frame.js';
 
 const $ = (id) => document.getElementById(id);
 const state = { ds: null, cam: null, map: null, sun: null, picked: null, marker: null, seq: 0, errors: [] };
@@ -37,17 +37,8 @@ async function tileJson(style, query) {
   return j;
 }
 
-function readHash() {
-  const parts = location.hash.replace(/^#/, '').split('/');
-  if (parts.length !== 7) return null;
-  const v = parts.slice(1).map(Number);
-  if (!v.every(Number.isFinite)) return null;
-  return { id: decodeURIComponent(parts[0]), cam: { x: v[0], y: v[1], agl: v[2], heading: v[3], pitch: v[4], fov: v[5] } };
-}
-
 function saveHash() {
-  const c = state.cam;
-  const h = `#${encodeURIComponent(state.ds.id)}/${[c.x, c.y, c.agl, c.heading, c.pitch, c.fov].map((v) => +v.toFixed(2)).join('/')}`;
+  const h = cameraHash(state.ds.id, state.cam);
   history.replaceState(null, '', h);
   $('wm-back').href = `index.html${h}`;
 }
@@ -192,7 +183,7 @@ async function main() {
   if (!all.length) { status('No dataset has a georeference: nothing to map.'); return; }
   const sel = $('wm-dataset');
   for (const d of all) sel.add(new Option(d.id, d.id));
-  const h = readHash();
+  const h = parseCameraHash(location.hash);
   const first = (h && all.find((d) => d.id === h.id)) || all.find((d) => d.id === 'trinidad') || all[0];
   sel.value = first.id;
   sel.addEventListener('change', () => showDataset(all.find((d) => d.id === sel.value)));

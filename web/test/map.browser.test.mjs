@@ -16,7 +16,7 @@
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { spawn } from 'node:child_process';
-import { createServer } from 'node:net';
+import { freePort, sleep } from './net.mjs';
 import http from 'node:http';
 import { copyFile, mkdir } from 'node:fs/promises';
 import { existsSync, openSync, closeSync } from 'node:fs';
@@ -46,18 +46,6 @@ for (const [what, p] of [['terrad', BIN], ['chromium', CHROMIUM]]) {
 let server = null, serverExit = null, base = '', other = null, otherBase = '', browser = null, page = null;
 const foreign = [], pageErrors = [], mapTiles = [];
 
-function freePort() {
-  return new Promise((resolve, reject) => {
-    const s = createServer();
-    s.on('error', reject);
-    s.listen(0, '127.0.0.1', () => {
-      const p = s.address().port;
-      s.close(() => resolve(p));
-    });
-  });
-}
-
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 async function waitReady(deadlineMs) {
   const end = Date.now() + deadlineMs;
