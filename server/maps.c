@@ -126,75 +126,41 @@ static int map_lookup(td_maps *m, const td_dataset_info *di, map_info *info, td_
 
 /* --- query parameters ----------------------------------------------------------------- */
 
-#define MAP_PARAM_LIST(X)                                                      \
-    X(P_AZIMUTH, "azimuth", 1)                                                 \
-    X(P_ELEVATION, "elevation", 1)                                             \
-    X(P_TIME, "time", 1)                                                       \
-    X(P_SHADOWS, "shadows", 1)                                                 \
-    X(P_AMBIENT, "ambient", 1)                                                 \
-    X(P_METHOD, "method", 1)                                                   \
-    X(P_SURFACE, "surface", 0)                                                 \
-    X(P_LOD, "lod", 0)
-
-enum {
-#define TD_X_ENUM(e, name, shaded_only) e,
-    MAP_PARAM_LIST(TD_X_ENUM)
-#undef TD_X_ENUM
-    P_COUNT
-};
-
 static const struct {
     const char *name;
     int shaded_only;
 } map_params[] = {
 #define TD_X_ROW(e, name, shaded_only) {name, shaded_only},
-    MAP_PARAM_LIST(TD_X_ROW)
+    TD_MAPS_PARAM_LIST(TD_X_ROW)
 #undef TD_X_ROW
 };
 
-/* The parsed query: the spec, the sun as asked (true north) and the canonical text. */
-typedef struct map_query {
-    td_maptile_spec spec;
-    const char *value[P_COUNT]; /* as given, or NULL */
-    double azimuth, elevation;  /* true azimuth, elevation of the sun (degrees) */
-    double time_s;              /* ?time=, or NAN */
-    char canon[256];            /* the parameters that change pixels, for the ETag */
-    char field[32], msg[300];   /* the error */
-} map_query;
-
-typedef struct q_collect {
-    map_query *mq;
-    td_mapstyle style;
-    int bad;
-} q_collect;
-
-static int collect(void *cls, const char *key, const char *value)
+/* One parameter into mq; 0, or -1 with the error. */
+static int add_param(td_maps_query *mq, td_mapstyle style, const char *key, const char *value)
 {
-    q_collect *c = cls;
-    map_query *mq = c->mq;
     int k = -1;
-    for (int i = 0; i < P_COUNT && k < 0; i++)
+    for (int i = 0; i < TD_MAPS_PARAM_COUNT && k < 0; i++)
         if (!strcmp(key, map_params[i].name))
             k = i;
-    if (k < 0 || (map_params[k].shaded_only && c->style != TD_MAPSTYLE_SHADED)) {
+    if (k < 0 || (map_params[k].shaded_only && style != TD_MAPSTYLE_SHADED)) {
         snprintf(mq->field, sizeof mq->field, "%.31s", key);
         snprintf(mq->msg, sizeof mq->msg, "%.40s: not a parameter of %s tiles (they take %s)", key,
-                 td_mapstyle_name(c->style),
-                 c->style == TD_MAPSTYLE_SHADED ? "azimuth, elevation, time, shadows, ambient, method, surface, lod"
-                                                : "surface, lod");
-        c->bad = 1;
-    } else if (mq->value[k] || !value) {
+                 td_mapstyle_name(style),
+                 style == TD_MAPSTYLE_SHADED ? "azimuth, elevation, time, shadows, ambient, method, surface, lod"
+                                             : "surface, lod");
+        return -1;
+    }
+    if (mq->value[k] || !value) {
         snprintf(mq->field, sizeof mq->field, "%s", map_params[k].name);
         snprintf(mq->msg, sizeof mq->msg, "%s: give it once, with a value", map_params[k].name);
-        c->bad = 1;
-    } else {
-        mq->value[k] = value;
+        return -1;
     }
-    return c->bad;
+    mq->value[k] = value;
+    return 0;
 }
 
 /* A number in [lo, hi] from the parameter k, or an error; 0 when fine. */
-static int num_param(map_query *mq, int k, double lo, double hi, double *out)
+static int num_param(td_maps_query *mq, int k, double lo, double hi, double *out)
 {
     char *end = NULL;
     double v;
@@ -209,7 +175,7 @@ static int num_param(map_query *mq, int k, double lo, double hi, double *out)
     return 0;
 }
 
-static int set_error(map_query *mq, const char *field, const char *msg)
+static int set_error(td_maps_query *mq, const char *field, const char *msg)
 {
     snprintf(mq->field, sizeof mq->field, "%s", field);
     snprintf(mq->msg, sizeof mq->msg, "%.290s", msg);
@@ -218,54 +184,52 @@ static int set_error(map_query *mq, const char *field, const char *msg)
 
 /* The sun: ?time= (NOAA's position at the dataset's centre) or ?azimuth=&elevation=
  * (default 315, 45); into the spec in the dataset frame. */
-static int sun_params(map_query *mq, const map_info *mi)
+static int sun_params(td_maps_query *mq, const double centre[2], double grid_north)
 {
     td_err e = {0};
     td_sun sun;
     mq->azimuth = 315.0;
     mq->elevation = 45.0;
     mq->time_s = NAN;
-    if (mq->value[P_TIME] && (mq->value[P_AZIMUTH] || mq->value[P_ELEVATION]))
+    if (mq->value[TD_MAPS_P_TIME] && (mq->value[TD_MAPS_P_AZIMUTH] || mq->value[TD_MAPS_P_ELEVATION]))
         return set_error(mq, "time", "time: give either time or azimuth and elevation, not both");
-    if (mq->value[P_TIME]) {
-        if (td_solar_parse_time(mq->value[P_TIME], "time", &mq->time_s, &e) ||
-            td_solar_position(mi->centre[1], mi->centre[0], mq->time_s, &sun, &e))
+    if (mq->value[TD_MAPS_P_TIME]) {
+        if (td_solar_parse_time(mq->value[TD_MAPS_P_TIME], "time", &mq->time_s, &e) ||
+            td_solar_position(centre[1], centre[0], mq->time_s, &sun, &e))
             return set_error(mq, "time", e.msg);
         mq->azimuth = sun.azimuth_deg;
         mq->elevation = sun.elevation_deg;
     }
-    if ((mq->value[P_AZIMUTH] && num_param(mq, P_AZIMUTH, 0.0, 360.0, &mq->azimuth)) ||
-        (mq->value[P_ELEVATION] && num_param(mq, P_ELEVATION, -90.0, 90.0, &mq->elevation)))
+    if ((mq->value[TD_MAPS_P_AZIMUTH] && num_param(mq, TD_MAPS_P_AZIMUTH, 0.0, 360.0, &mq->azimuth)) ||
+        (mq->value[TD_MAPS_P_ELEVATION] && num_param(mq, TD_MAPS_P_ELEVATION, -90.0, 90.0, &mq->elevation)))
         return -1;
-    td_solar_direction(mq->azimuth + mi->grid_north, mq->elevation, mq->spec.sun);
+    td_solar_direction(mq->azimuth + grid_north, mq->elevation, mq->spec.sun);
     return 0;
 }
 
-/* Parses and checks the query of a tile or TileJSON request of style `style`; 0 when
- * fine, else -1 with mq->field and mq->msg. */
-static int parse_query(td_http_req *q, td_mapstyle style, const map_info *mi, map_query *mq)
+int td_maps_parse_query(const char *const *keys, const char *const *values, size_t n, td_mapstyle style,
+                        const double centre[2], double grid_north, td_maps_query *mq)
 {
-    q_collect c = {mq, style, 0};
     memset(mq, 0, sizeof *mq);
     td_maptile_spec_default(&mq->spec);
     mq->spec.style = style;
-    td_http_req_query_each(q, collect, &c);
-    if (c.bad)
-        return -1;
-    if (mq->value[P_SURFACE] && td_surface_parse(mq->value[P_SURFACE], &mq->spec.surface))
+    for (size_t i = 0; i < n; i++)
+        if (add_param(mq, style, keys[i], values[i]))
+            return -1;
+    if (mq->value[TD_MAPS_P_SURFACE] && td_surface_parse(mq->value[TD_MAPS_P_SURFACE], &mq->spec.surface))
         return set_error(mq, "surface", "surface: plane, linear, triangle or bilinear");
-    if (mq->value[P_METHOD] && td_method_parse(mq->value[P_METHOD], &mq->spec.method))
+    if (mq->value[TD_MAPS_P_METHOD] && td_method_parse(mq->value[TD_MAPS_P_METHOD], &mq->spec.method))
         return set_error(mq, "method", "method: incremental, hierarchical, parametric, silhouette or auto");
-    if (mq->value[P_SHADOWS]) {
-        const char *v = mq->value[P_SHADOWS];
+    if (mq->value[TD_MAPS_P_SHADOWS]) {
+        const char *v = mq->value[TD_MAPS_P_SHADOWS];
         if (strcmp(v, "true") && strcmp(v, "false") && strcmp(v, "1") && strcmp(v, "0"))
             return set_error(mq, "shadows", "shadows: true or false");
         mq->spec.shadows = !strcmp(v, "true") || !strcmp(v, "1");
     }
-    if ((mq->value[P_AMBIENT] && num_param(mq, P_AMBIENT, 0.0, 1.0, &mq->spec.ambient)) ||
-        (mq->value[P_LOD] && num_param(mq, P_LOD, 0.0, 64.0, &mq->spec.lod_pixels)))
+    if ((mq->value[TD_MAPS_P_AMBIENT] && num_param(mq, TD_MAPS_P_AMBIENT, 0.0, 1.0, &mq->spec.ambient)) ||
+        (mq->value[TD_MAPS_P_LOD] && num_param(mq, TD_MAPS_P_LOD, 0.0, 64.0, &mq->spec.lod_pixels)))
         return -1;
-    if (style == TD_MAPSTYLE_SHADED && sun_params(mq, mi))
+    if (style == TD_MAPSTYLE_SHADED && sun_params(mq, centre, grid_north))
         return -1;
     snprintf(mq->canon, sizeof mq->canon, "%s;s=%d;m=%d;lod=%.17g;sun=%.17g,%.17g,%.17g;sh=%d;a=%.17g",
              td_mapstyle_name(style), (int)mq->spec.surface, (int)mq->spec.method, mq->spec.lod_pixels,
@@ -273,12 +237,44 @@ static int parse_query(td_http_req *q, td_mapstyle style, const map_info *mi, ma
     return 0;
 }
 
+/* The request's query into td_maps_parse_query (at most 32 parameters). */
+typedef struct q_args {
+    const char *keys[32], *values[32];
+    size_t n;
+    int overflow;
+} q_args;
+
+static int collect(void *cls, const char *key, const char *value)
+{
+    q_args *a = cls;
+    if (a->n == 32) {
+        a->overflow = 1;
+        return 1;
+    }
+    a->keys[a->n] = key;
+    a->values[a->n++] = value;
+    return 0;
+}
+
+static int parse_query(td_http_req *q, td_mapstyle style, const map_info *mi, td_maps_query *mq)
+{
+    q_args a;
+    memset(&a, 0, sizeof a);
+    td_http_req_query_each(q, collect, &a);
+    if (a.overflow) {
+        memset(mq, 0, sizeof *mq);
+        snprintf(mq->msg, sizeof mq->msg, "more than 32 query parameters");
+        return -1;
+    }
+    return td_maps_parse_query(a.keys, a.values, a.n, style, mi->centre, mi->grid_north, mq);
+}
+
 /* --- tiles ------------------------------------------------------------------------------- */
 
 typedef struct map_job {
     td_app *app;
     td_snapshot *snap;
-    map_query mq;
+    td_maps_query mq;
     size_t idx; /* the dataset */
     int z, px;
     int32_t x, y;
@@ -477,7 +473,7 @@ void td_maps_tile_route(td_app *app, td_http_req *q, td_http_resp *r, char **seg
         goto out;
     }
     if (parse_query(q, style, &mi, &j->mq)) {
-        td_routes_error(r, "bad_request", j->mq.field, j->mq.msg);
+        td_routes_error(r, "bad_request", j->mq.field[0] ? j->mq.field : NULL, j->mq.msg);
         goto out;
     }
     if (!tile_meets(&mi, (int)z, x, y)) {
@@ -540,11 +536,11 @@ static int base_url(td_app *app, td_http_req *q, char *out, size_t n)
 }
 
 /* Appends the parameters as given, percent-encoded, to the tiles template. */
-static void append_query(const map_query *mq, char *out, size_t n)
+static void append_query(const td_maps_query *mq, char *out, size_t n)
 {
     size_t l = strlen(out);
     char sep = '?';
-    for (int k = 0; k < P_COUNT; k++) {
+    for (int k = 0; k < TD_MAPS_PARAM_COUNT; k++) {
         if (!mq->value[k])
             continue;
         l += (size_t)snprintf(out + l, l < n ? n - l : 0, "%c%s=", sep, map_params[k].name);
@@ -560,7 +556,7 @@ void td_maps_tilejson_route(td_app *app, td_http_req *q, td_http_resp *r, char *
 {
     td_dataset_info di;
     map_info mi;
-    map_query mq;
+    td_maps_query mq;
     td_mapstyle style;
     long idx;
     size_t l = strlen(seg[1]);
@@ -576,7 +572,7 @@ void td_maps_tilejson_route(td_app *app, td_http_req *q, td_http_resp *r, char *
     if (dataset_style(app, r, seg[0], seg[1], &idx, &style, &di, &mi))
         return;
     if (parse_query(q, style, &mi, &mq)) {
-        td_routes_error(r, "bad_request", mq.field, mq.msg);
+        td_routes_error(r, "bad_request", mq.field[0] ? mq.field : NULL, mq.msg);
         return;
     }
     base_url(app, q, base, sizeof base);

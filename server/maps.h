@@ -16,7 +16,45 @@
 
 #include "routes.h"
 
+#include "maptile.h"
+
 typedef struct td_maps td_maps;
+
+/* The query parameters: X(enum, name, shaded only). */
+#define TD_MAPS_PARAM_LIST(X)                                                  \
+    X(TD_MAPS_P_AZIMUTH, "azimuth", 1)                                         \
+    X(TD_MAPS_P_ELEVATION, "elevation", 1)                                     \
+    X(TD_MAPS_P_TIME, "time", 1)                                               \
+    X(TD_MAPS_P_SHADOWS, "shadows", 1)                                         \
+    X(TD_MAPS_P_AMBIENT, "ambient", 1)                                         \
+    X(TD_MAPS_P_METHOD, "method", 1)                                           \
+    X(TD_MAPS_P_SURFACE, "surface", 0)                                         \
+    X(TD_MAPS_P_LOD, "lod", 0)
+
+enum {
+#define TD_X_ENUM(e, name, shaded_only) e,
+    TD_MAPS_PARAM_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_MAPS_PARAM_COUNT
+};
+
+/* A parsed query: the tile spec, the sun as asked (true north) and the canonical text of
+ * what changes pixels (the ETag's). */
+typedef struct td_maps_query {
+    td_maptile_spec spec;
+    const char *value[TD_MAPS_PARAM_COUNT]; /* as given, or NULL */
+    double azimuth, elevation;              /* the sun, true azimuth (degrees) */
+    double time_s;                          /* ?time=, or NAN */
+    char canon[256];
+    char field[32], msg[300];               /* the error */
+} td_maps_query;
+
+/* Parses a tile's or TileJSON's query (decoded key/value pairs) for `style`: centre is the
+ * dataset's lon/lat (for ?time=), grid_north the azimuth of true north in its frame
+ * (mercator.h). 0, or -1 with mq->field (may be empty) and mq->msg. Pure: the fuzz
+ * target calls it (tests/fuzz/fuzz_maps.c). */
+int td_maps_parse_query(const char *const *keys, const char *const *values, size_t n, td_mapstyle style,
+                        const double centre[2], double grid_north, td_maps_query *mq);
 
 td_maps *td_maps_create(void);
 void td_maps_free(td_maps *m);
