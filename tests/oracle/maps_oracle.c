@@ -2,8 +2,10 @@
  * double-precision reference and against GDAL's own tools.
  *
  *   oracle_maps           every method on every surface, on a lon/lat dataset
- *                         (trinidad-crop) and a UTM one (trinidad-utm13), a shaded tile
- *                         with cast shadows and the sun low: each pixel's vertical ray and
+ *                         (trinidad-crop) and a UTM one (trinidad-utm13) on the full grid,
+ *                         and on N37W105.hgt's level of detail 1 (a zoom-9 tile, every 4th
+ *                         pixel, judged on that level's grid), a shaded tile with cast
+ *                         shadows and the sun low: each pixel's vertical ray and
  *                         shadow ray (td_maptile_render's copies) traced by td_trace are
  *                         judged against reference.c; td_occluded (with the sun bound)
  *                         answers as td_trace does; the pixel is 255 n.sun (ambient 0)
@@ -31,6 +33,7 @@
 #include "maptile.h"
 #include "mercator.h"
 #include "reference.h"
+#include "shade.h"
 #include "sunlit.h"
 
 #define PX 256
@@ -40,6 +43,7 @@ typedef struct tile_run {
     uint8_t rgba[4 * PX * PX];
     td_ray rays[2 * PX * PX];
     double foot;
+    int level;
 } tile_run;
 
 static td_grid *load(const char *name, td_merc_proj **proj)
@@ -55,9 +59,10 @@ static td_grid *load(const char *name, td_merc_proj **proj)
     return g;
 }
 
-/* One tile of style spec->style, on the full grid (no levels of detail). */
-static void run_tile(const td_view *v, td_merc_proj *proj, const td_maptile_spec *spec, int z, int x, int y,
-                     tile_run *t)
+/* One tile of style spec->style (levels of detail from lod, which may be NULL); the level
+ * it was traced on into t->level. */
+static void run_tile(const td_view *v, const td_lod *lod, td_merc_proj *proj, const td_maptile_spec *spec, int z,
+                     int x, int y, tile_run *t)
 {
     td_err e = {0};
     td_sunlit *lit = NULL;
@@ -65,10 +70,11 @@ static void run_tile(const td_view *v, td_merc_proj *proj, const td_maptile_spec
     int exact = 0;
     if (td_merc_positions(proj, z, x, y, PX, t->xy, &exact, &t->foot, &e) ||
         (spec->shadows && td_sunlit_build(v, spec->sun, &lit, &e)) ||
-        td_maptile_render(v, NULL, lit, spec, t->xy, PX, t->foot, t->rgba, t->rays, &st, &e)) {
+        td_maptile_render(v, lod, lit, spec, t->xy, PX, t->foot, t->rgba, t->rays, &st, &e)) {
         fprintf(stderr, "oracle_maps: tile %d/%d/%d: %s\n", z, x, y, e.msg);
         exit(2);
     }
+    t->level = st.level;
     td_sunlit_free(lit);
 }
 
@@ -81,85 +87,107 @@ static int wrong(const td_view *v, td_method m, td_surface s, const td_ray *r, d
     return td_ref_judge(v->grid, s, r, &ref, h->t, eps) == TD_REF_WRONG;
 }
 
-/* Every method on every surface over one tile of g; returns the unexplained errors. */
-static long check_dataset(const char *name, int z, int x, int y)
+/* The band of the reference on grid g (as oracle.c's: float rounding times the slope). */
+static double band(const td_grid *g)
+{
+    double scale = fmax(fmax((g->w - 1) * g->sx, (g->h - 1) * g->sy), fmax(fabs(g->zmin), fabs(g->zmax)));
+    return (1e-3 + 2.0 * FLT_EPSILON * scale) * (1.0 + td_ref_max_slope(g));
+}
+
+typedef struct tally {
+    long rays, shadowed, hcheck, errors;
+    double hworst;
+} tally;
+
+/* A shaded tile's pixels (t) on view lv, every stride-th, with the terrarium tile of the
+ * same surface (enc) when check_heights: each vertical and shadow ray judged, the
+ * pixel's grey. */
+static void judge(const td_view *lv, const td_maptile_spec *sp, const tile_run *t, const tile_run *enc,
+                  int check_heights, double eps, int stride, const char *name, tally *ty)
+{
+    for (int k = 0; k < PX * PX; k += stride) {
+        const td_ray *vr = &t->rays[2 * k], *sr = &t->rays[2 * k + 1];
+        td_hit h, hs;
+        uint32_t steps = 0;
+        double ns;
+        if (!(vr->tmax >= 0.0))
+            continue;
+        ty->rays++;
+        if (wrong(lv, sp->method, sp->surface, vr, eps, &h) && ty->errors++ < 10)
+            printf("WRONG %s %s/%s pixel %d: vertical ray t %.9g\n", name, td_method_name(sp->method),
+                   td_surface_name(sp->surface), k, h.t);
+        if (check_heights && h.t < INFINITY) {
+            /* the terrarium height is the reference's vertical hit (half a step) */
+            double dz = fabs(td_maptile_decode(TD_MAPSTYLE_TERRARIUM, &enc->rgba[4 * k]) - h.p[2]);
+            ty->hworst = fmax(ty->hworst, dz);
+            ty->hcheck++;
+            if (dz > 1.0 / 512.0 + eps && ty->errors++ < 10)
+                printf("WRONG %s %s pixel %d: terrarium height off by %.6f m\n", name, td_surface_name(sp->surface), k,
+                       dz);
+        }
+        if (!(sr->tmax >= 0.0))
+            continue;
+        ty->rays++;
+        /* the pixel: 255 n.sun where lit (ambient 0), 0 in shadow */
+        ns = h.n[0] * sp->sun[0] + h.n[1] * sp->sun[1] + h.n[2] * sp->sun[2];
+        if ((wrong(lv, sp->method, sp->surface, sr, eps, &hs) ||
+             td_occluded(lv, sp->method, sp->surface, sr, NULL, &steps) != (hs.t < INFINITY) ||
+             t->rgba[4 * k] != (hs.t < INFINITY ? 0 : lround(255.0 * ns))) &&
+            ty->errors++ < 10)
+            printf("WRONG %s %s/%s pixel %d: shadow ray t %.9g, pixel %d\n", name, td_method_name(sp->method),
+                   td_surface_name(sp->surface), k, hs.t, t->rgba[4 * k]);
+        ty->shadowed += hs.t < INFINITY;
+    }
+}
+
+/* Every method on every surface over tile z/x/y of a dataset, on the full grid, or with
+ * its levels of detail (the tile then traced on a coarse level, judged against the
+ * reference on that level's grid); returns the unexplained errors. */
+static long check_dataset(const char *name, int z, int x, int y, int with_lod)
 {
     td_merc_proj *proj = NULL;
     td_grid *g = load(name, &proj);
     td_accel *acc = NULL;
+    td_lod *lod = NULL;
     td_accel_opts ao;
     td_err e = {0};
     tile_run *t = malloc(sizeof *t), *enc = malloc(sizeof *enc);
-    double scale = fmax(fmax((g->w - 1) * g->sx, (g->h - 1) * g->sy), fmax(fabs(g->zmin), fabs(g->zmax)));
-    double eps = (1e-3 + 2.0 * FLT_EPSILON * scale) * (1.0 + td_ref_max_slope(g));
     long errors = 0;
     td_accel_opts_default(&ao);
     ao.maxmip = ao.planes = 1;
     ao.threads = 2;
-    if (!t || !enc || td_accel_build(g, &ao, &acc, NULL, &e)) {
+    if (!t || !enc || td_accel_build(g, &ao, &acc, NULL, &e) ||
+        (with_lod && td_lod_build(g, TD_LOD_MAX, &ao, &lod, &e))) {
         fprintf(stderr, "oracle_maps: %s\n", e.msg);
         exit(2);
     }
     td_view v = {g, acc->tiles};
     for (int s = 0; s < TD_SURFACE_COUNT; s++) {
         td_maptile_spec sp;
-        long rays = 0, shadowed = 0, hcheck = 0, err0 = errors;
-        double hworst = 0;
+        tally ty = {0, 0, 0, 0, 0.0};
+        const td_view *lv;
         td_maptile_spec_default(&sp);
         sp.surface = (td_surface)s;
         sp.style = TD_MAPSTYLE_TERRARIUM;
-        sp.method = TD_METHOD_INCREMENTAL;
-        run_tile(&v, proj, &sp, z, x, y, enc);
+        run_tile(&v, lod, proj, &sp, z, x, y, enc);
+        lv = enc->level ? &lod->view[enc->level] : &v;
         for (int m = 0; m < TD_METHOD_COUNT; m++) {
             sp.method = (td_method)m;
             sp.style = TD_MAPSTYLE_SHADED;
-            sp.sun[0] = -cos(5.0 * M_PI / 180.0) * sin(60.0 * M_PI / 180.0); /* from the west-north-west */
-            sp.sun[1] = cos(5.0 * M_PI / 180.0) * cos(60.0 * M_PI / 180.0);
-            sp.sun[2] = sin(5.0 * M_PI / 180.0);
+            td_shade_sun_dir(300.0, 5.0, sp.sun); /* from the west-north-west, low */
             sp.ambient = 0.0;
-            run_tile(&v, proj, &sp, z, x, y, t);
-            for (int k = 0; k < PX * PX; k++) {
-                const td_ray *vr = &t->rays[2 * k], *sr = &t->rays[2 * k + 1];
-                td_hit h, hs;
-                uint32_t steps = 0;
-                if (!(vr->tmax >= 0.0))
-                    continue;
-                rays++;
-                if (wrong(&v, sp.method, sp.surface, vr, eps, &h)) {
-                    if (errors++ < 10)
-                        printf("WRONG %s %s/%s pixel %d: vertical ray t %.9g\n", name, td_method_name(sp.method),
-                               td_surface_name(sp.surface), k, h.t);
-                }
-                if (m == 0 && h.t < INFINITY) {
-                    /* the terrarium height is the reference's vertical hit (half a step) */
-                    double dz = fabs(td_maptile_decode(TD_MAPSTYLE_TERRARIUM, &enc->rgba[4 * k]) - h.p[2]);
-                    hworst = fmax(hworst, dz);
-                    hcheck++;
-                    if (dz > 1.0 / 512.0 + eps && errors++ < 10)
-                        printf("WRONG %s %s pixel %d: terrarium height off by %.6f m\n", name,
-                               td_surface_name(sp.surface), k, dz);
-                }
-                if (!(sr->tmax >= 0.0))
-                    continue;
-                rays++;
-                /* the pixel: 255 n.sun where lit (ambient 0), 0 in shadow */
-                double ns = h.n[0] * sp.sun[0] + h.n[1] * sp.sun[1] + h.n[2] * sp.sun[2];
-                if (wrong(&v, sp.method, sp.surface, sr, eps, &hs) ||
-                    td_occluded(&v, sp.method, sp.surface, sr, NULL, &steps) != (hs.t < INFINITY) ||
-                    t->rgba[4 * k] != (hs.t < INFINITY ? 0 : lround(255.0 * ns))) {
-                    if (errors++ < 10)
-                        printf("WRONG %s %s/%s pixel %d: shadow ray t %.9g, pixel %d\n", name,
-                               td_method_name(sp.method), td_surface_name(sp.surface), k, hs.t, t->rgba[4 * k]);
-                }
-                shadowed += hs.t < INFINITY;
-            }
+            run_tile(&v, lod, proj, &sp, z, x, y, t);
+            /* with levels of detail, every 4th pixel: a coarse level's shadow rays run far */
+            judge(lv, &sp, t, enc, m == 0, band(lv->grid), with_lod ? 4 : 1, name, &ty);
         }
-        printf("%s %s: %ld rays judged over every method (%ld shadowed), terrarium within %.5f m of the "
-               "reference at %ld pixels: %ld wrong\n",
-               name, td_surface_name((td_surface)s), rays, shadowed, hworst, hcheck, errors - err0);
-        if (shadowed == 0)
-            errors++; /* the tile must hold shadows for the check to mean anything */
+        printf("%s tile %d/%d/%d (level %d) %s: %ld rays judged over every method (%ld shadowed), terrarium within "
+               "%.5f m of the reference at %ld pixels: %ld wrong\n",
+               name, z, x, y, enc->level, td_surface_name((td_surface)s), ty.rays, ty.shadowed, ty.hworst, ty.hcheck,
+               ty.errors);
+        errors += ty.errors + (ty.shadowed == 0); /* the tile must hold shadows to mean anything */
+        errors += with_lod && enc->level == 0; /* and be traced on a coarse level when asked */
     }
+    td_lod_free(lod);
     td_accel_free(acc);
     td_merc_proj_free(proj);
     td_grid_free(g);
@@ -216,7 +244,7 @@ static long peers(const char *name, int geographic, int z, int x, int y, const c
     if (!fails && read_tif(cmd, ref)) {
         td_maptile_spec_default(&sp);
         sp.style = TD_MAPSTYLE_TERRAIN_RGB;
-        run_tile(&v, proj, &sp, z, x, y, t);
+        run_tile(&v, NULL, proj, &sp, z, x, y, t);
         for (int k = 0; k < PX * PX; k++) {
             double h = td_maptile_decode(TD_MAPSTYLE_TERRAIN_RGB, &t->rgba[4 * k]);
             if (isnan(h) || isnan(ref[k]))
@@ -248,7 +276,7 @@ static long peers(const char *name, int geographic, int z, int x, int y, const c
         td_maptile_spec_default(&sp);
         sp.shadows = 0;
         sp.ambient = 0.0;
-        run_tile(&v, proj, &sp, z, x, y, t);
+        run_tile(&v, NULL, proj, &sp, z, x, y, t);
         for (int k = 0; k < PX * PX; k++) {
             double a = t->rgba[4 * k], c = ref[k];
             if (!t->rgba[4 * k + 3] || isnan(c) || c == 0.0)
@@ -288,8 +316,9 @@ int main(int argc, char **argv)
         snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp);
         errors += system(cmd) != 0;
     } else {
-        errors += check_dataset("trinidad-crop.f32", 13, 1719, 3171);
-        errors += check_dataset("trinidad-utm13.tif", 13, 1719, 3171);
+        errors += check_dataset("trinidad-crop.f32", 13, 1719, 3171, 0);
+        errors += check_dataset("trinidad-utm13.tif", 13, 1719, 3171, 0);
+        errors += check_dataset("N37W105.hgt", 9, 107, 198, 1); /* 242 m pixels on 73.5 m cells: level 1 */
     }
     printf("%s: %ld failed checks\n", errors ? "FAIL" : "PASS", errors);
     return errors ? 1 : 0;
