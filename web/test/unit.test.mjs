@@ -4,7 +4,9 @@
 // overlay.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { parseServerTiming, buildScene, pickScene, firstPick, jobProgress, renderInfo, parseHeightError } from '../js/api.js';
+import {
+  parseServerTiming, buildScene, pickScene, firstPick, jobProgress, renderInfo, parseHeightError, routedUrl,
+} from '../js/api.js';
 import {
   normaliseDataset, transformation, maxNativeZoom, wedge, headingTo, along, normHeading,
   keyMove, defaultCamera, frameToGeo, roundNice,
@@ -280,4 +282,11 @@ test('the camera fragment round-trips (page and web map share it)', async () => 
   assert.deepEqual(parseCameraHash(h), { id: 'a b/c', cam: { ...cam, x: 20000.12 } });
   assert.equal(parseCameraHash('#trinidad/1/2/3'), null);
   assert.equal(parseCameraHash('#trinidad/1/2/3/x/5/6'), null);
+});
+
+test('POSTs carry the body\'s dataset in the query: the key a proxy routes replicas on', () => {
+  assert.equal(routedUrl('/v1/render', { dataset: 'trinidad', camera: {} }), '/v1/render?dataset=trinidad');
+  assert.equal(routedUrl('/v1/x?a=1', { dataset: 'a b/c' }), '/v1/x?a=1&dataset=a%20b%2Fc');
+  assert.equal(routedUrl('/v1/admin/preload', { tiles: [] }), '/v1/admin/preload');
+  assert.equal(routedUrl('/v1/render', null), '/v1/render');
 });
