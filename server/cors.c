@@ -37,7 +37,7 @@ int td_cors_apply(const char *origins, td_http_req *q, td_http_resp *r, const ch
     if (preflight) {
         r->status = 204;
         td_http_resp_header(r, "Access-Control-Allow-Methods", "%s", allow ? allow : "GET, HEAD");
-        td_http_resp_header(r, "Access-Control-Allow-Headers", "Content-Type, If-None-Match");
+        td_http_resp_header(r, "Access-Control-Allow-Headers", "Content-Type, If-None-Match, X-Terrad-Dataset");
         td_http_resp_header(r, "Access-Control-Max-Age", "600");
     } else {
         td_http_resp_header(r, "Access-Control-Expose-Headers",
