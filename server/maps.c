@@ -27,7 +27,6 @@
 #include "maptile.h"
 #include "mercator.h"
 #include "scene.h"
-#include "shade.h"
 #include "solar.h"
 #include "static.h"
 #include "sunlit.h"
