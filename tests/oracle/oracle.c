@@ -35,6 +35,7 @@
 #include <string.h>
 
 #include "accel.h"
+#include "cam_view.h"
 #include "dem.h"
 #include "embree_ref.h"
 #include "reference.h"
@@ -512,11 +513,6 @@ static void one_ray(ctx *c, const td_ray *r)
 
 /* ---- --cameras: rendered camera views (the coherence devices of render.c) ------------ */
 
-typedef struct cam_view {
-    const char *name;
-    double fx, fy, agl, heading, pitch, roll, fov, sun_az, sun_el;
-} cam_view;
-
 /* Views placed in the grid's own frame (fx, fy: fraction of its extent; agl over the
  * highest sample; a negative agl puts the camera below the crests, at the lowest sample
  * plus a quarter of the relief). */
@@ -584,34 +580,21 @@ static uint64_t camera_check(ctx *c, const cam_view *cv, td_method m, td_surface
     const td_grid *g = c->g;
     td_scene sc;
     td_render_opts o;
-    td_render_result on, off;
+    td_render_result on = {0}, off = {0};
     td_err err = {0};
     td_camera cam;
     uint64_t errors = 0;
     td_ray *sh = calloc((size_t)W * H, sizeof *sh);
-    td_scene_defaults(&sc);
-    sc.camera.x = cv->fx * (g->w - 1) * g->sx;
-    sc.camera.y = cv->fy * (g->h - 1) * g->sy;
-    sc.camera.z = cv->agl < 0.0 ? g->zmin + 0.25 * (g->zmax - g->zmin) : g->zmax + cv->agl;
-    sc.camera.heading = cv->heading, sc.camera.pitch = cv->pitch, sc.camera.roll = cv->roll;
-    sc.camera.fov = cv->fov;
-    sc.image.width = W, sc.image.height = H, sc.image.format = TD_FORMAT_DEPTH32F;
-    sc.quality.method = m, sc.quality.surface = sf;
-    sc.effects.sun_azimuth = cv->sun_az, sc.effects.sun_elevation = cv->sun_el;
+    cam_view_scene(cv, g, W, H, m, sf, &sc);
     td_render_opts_default(&o);
     o.threads = 1;
-    memset(&on, 0, sizeof on), memset(&off, 0, sizeof off);
-    td_render_opts plain = o;
-    plain.off = TD_RENDER_OFF_CAMERA;
-    if (!sh || td_render(&c->view, &sc, &o, &on, &err) || td_render(&c->view, &sc, &plain, &off, &err) ||
-        td_camera_setup(&sc.camera, W, H, g, &cam, &err)) {
+    if (!sh || cam_view_render(&c->view, &sc, &o, &on, &off, &cam, &err)) {
         printf("ERROR %s %s/%s: %s\n", cv->name, td_method_name(m), td_surface_name(sf), err.msg);
         errors++;
         goto out;
     }
     for (int k = 0; k < W * H; k++) {
-        if (memcmp(&on.depth[k], &off.depth[k], sizeof(float)) ||
-            (m != TD_METHOD_AUTO && memcmp(&on.depth[k], &auto_depth[k], sizeof(float)))) {
+        if (!cam_view_same(&on, &off, auto_depth, m, k)) {
             if (errors++ < MAX_PRINT)
                 printf("ERROR %s %s/%s pixel %d: horizon %.9g plain %.9g auto %.9g\n", cv->name,
                        td_method_name(m), td_surface_name(sf), k, on.depth[k], off.depth[k], auto_depth[k]);
