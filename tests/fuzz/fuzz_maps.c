@@ -17,7 +17,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     static const double centre[2] = {-105.486, 37.578};
     char *text, *keys[QUERY_MAX], *values[QUERY_MAX];
-    size_t n = 0;
+    size_t n;
     td_maps_query mq;
     td_mapstyle style;
     double north;
@@ -31,18 +31,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         abort();
     memcpy(text, data + 1, size - 1);
     text[size - 1] = '\0';
-    for (char *s = text, *next; s && n < QUERY_MAX; s = next) {
-        char *eq;
-        next = strchr(s, '&');
-        if (next)
-            *next++ = '\0';
-        eq = strchr(s, '=');
-        if (eq)
-            *eq++ = '\0';
-        keys[n] = s;
-        values[n] = eq; /* NULL: a key without a value */
-        n++;
-    }
+    n = fuzz_split_query(text, keys, values, QUERY_MAX, NULL); /* NULL: a key without a value */
     rc = td_maps_parse_query((const char *const *)keys, (const char *const *)values, n, style, centre, north, &mq);
     /* an accepted query is a tile spec maptile accepts: a unit sun, ambient and lod in range */
     if (rc == 0 && (!(fabs(mq.spec.sun[0] * mq.spec.sun[0] + mq.spec.sun[1] * mq.spec.sun[1] +
