@@ -1,22 +1,22 @@
 /* viewshed.c: viewsheds and lines of sight by ray casts (the rule, the curvature model and
  * the output are in viewshed.h).
  *
- * One segment a target sample and observer, searched with td_occluded (any hit, no hit
- * point), so each answer is exactly what the tracers say of that segment: there is no
- * sweep, no reference plane and no interpolation of horizons to disagree with them. The
- * oracle tests (tests/oracle/viewshed_oracle.c) trace the same segments (td_viewshed_ray)
- * with the double-precision reference.
+ * Each answer is what td_occluded (any hit, no hit point) says of the segment from the
+ * eye to the target: there is no reference plane and no interpolation of horizons to
+ * disagree with the tracers. Two ways to get it (td_vs_algo): `cast`, one segment a
+ * target sample and observer; `sweep` (the default), vsweep.c's exact horizon sweep,
+ * which proves most answers from an upper envelope of the projected edges and casts the
+ * segments it cannot prove with the same td_viewshed_cast. The oracle tests
+ * (tests/oracle/viewshed_oracle.c) trace the same segments (td_viewshed_ray) with the
+ * double-precision reference and hold the sweep to the cast byte for byte.
  *
  * Layout: per observer an `eye` (its view: the dataset's, or with curvature a lowered
- * copy of the grid skipped through the dataset's max-mipmaps, built in setup_eyes);
- * workers take rows of samples from an atomic counter and, per sample, ask every eye of
- * the pass in range (one pass for all observers, or one an observer with curvature).
- *
- * Alternative rejected for now: a sweep (Van Kreveld, or GDAL's reference planes) visits
- * each sample once, but decides on flattened cells or interpolated horizons; making one
- * agree with the exact surfaces is the open part of issue 18. The ray casts cost
- * O(samples x steps per ray); docs/viewshed.md has the measured figures against
- * gdal_viewshed. */
+ * copy of the grid skipped through the dataset's max-mipmaps, built in setup_eyes).
+ * Cast: workers take rows of samples from an atomic counter and, per sample, ask every
+ * eye of the pass in range (one pass for all observers, or one an observer with
+ * curvature). Sweep: one observer at a time, its four cones over up to four threads,
+ * its answers added to the counts (vs_sweep_run). The plane surface is always cast
+ * (vsweep.h). docs/viewshed.md has the measured figures against gdal_viewshed. */
 #include "viewshed.h"
 
 #include <math.h>
@@ -29,6 +29,26 @@
 #include "accel.h"
 #include "clock.h"
 #include "limit.h"
+#include "vsweep.h"
+
+static const char *const td_vs_algo_names[] = {
+#define TD_X_NAME(e, name) name,
+    TD_VS_ALGO_LIST(TD_X_NAME)
+#undef TD_X_NAME
+};
+
+const char *td_vs_algo_name(td_vs_algo a)
+{
+    return (unsigned)a < TD_VS_ALGO_COUNT ? td_vs_algo_names[a] : "unknown";
+}
+
+td_status td_vs_algo_parse(const char *name, td_vs_algo *out)
+{
+    int i = td_name_index(td_vs_algo_names, TD_VS_ALGO_COUNT, name);
+    if (i >= 0)
+        *out = (td_vs_algo)i;
+    return i >= 0 ? TD_OK : TD_EINVAL;
+}
 
 static const td_limit_row td_vs_limit_rows[TD_VS_LIMIT_COUNT] = {
 #define TD_X_ROW(id, path, min, api_max, max) {path, min, api_max, max},
@@ -114,6 +134,18 @@ int td_viewshed_ray(const td_grid *g, td_surface s, double ex, double ey, double
     return rc;
 }
 
+int td_viewshed_cast(const td_view *v, td_surface s, td_method m, double ex, double ey, double ez,
+                     int32_t i, int32_t j, double target_height, uint32_t *steps)
+{
+    td_ray r;
+    int kind = td_viewshed_ray(v->grid, s, ex, ey, ez, i, j, target_height, &r);
+    if (kind == 0)
+        kind = !td_occluded(v, m, s, &r, NULL, steps);
+    else if (kind > 0)
+        kind = 2;
+    return kind;
+}
+
 td_status td_vs_from_lonlat(const td_grid *g, double lon, double lat, const char *field, double *x,
                             double *y, td_err *err)
 {
@@ -197,6 +229,7 @@ td_status td_viewshed_check(const td_grid *g, const td_viewshed_opts *o, td_err 
 /* One observer's eye and the view its segments are traced on. */
 typedef struct eye {
     double x, y, z;
+    double ground; /* z - height: the surface under the eye */
     td_grid *lowered; /* with curvature, else NULL (the dataset's view is used) */
     td_accel *acc;       /* built for the lowered grid (parametric, or nothing resident) */
     td_tile_accel *bound; /* or the dataset's max-mipmaps, borrowed (see lowered_view) */
@@ -288,7 +321,8 @@ static td_status setup_eyes(const td_view *v, const td_vs_point *p, int n, doubl
         e->y = p[i].y;
         if (c != 0.0)
             rc = lowered_view(v, m, c, e->x, e->y, threads, e, err);
-        e->z = td_viewshed_ground(e->view.grid, s, e->x, e->y) + height;
+        e->ground = td_viewshed_ground(e->view.grid, s, e->x, e->y);
+        e->z = e->ground + height;
     }
 out:
     if (rc) {
@@ -328,20 +362,18 @@ static uint8_t vs_sample(vs_worker *w, int32_t i, int32_t j)
     for (int k = 0; k < c->neyes && !isvoid; k++) {
         const eye *e = &c->eyes[k];
         double dx = i * c->g->sx - e->x, dy = j * c->g->sy - e->y;
-        td_ray r;
         int kind;
-        uint32_t steps = 0;
+        uint32_t steps;
         if (dx * dx + dy * dy > c->maxd2)
             continue;
         in_range = 1;
-        kind = td_viewshed_ray(e->view.grid, o->surface, e->x, e->y, e->z, i, j, o->target_height, &r);
+        steps = 0;
+        kind = td_viewshed_cast(&e->view, o->surface, o->method, e->x, e->y, e->z, i, j, o->target_height, &steps);
         if (kind < 0) {
             isvoid = 1;
-        } else if (kind > 0) {
-            count++;
         } else {
-            count += !td_occluded(&e->view, o->method, o->surface, &r, NULL, &steps);
-            w->rays++;
+            count += kind > 0;
+            w->rays += kind < 2;
             w->steps += steps;
         }
     }
@@ -427,6 +459,46 @@ static void vs_count(const td_grid *g, const uint8_t *out, td_viewshed_stats *st
     st->visible_area_m2 = (double)st->visible * g->sx * g->sy;
 }
 
+/* ---- the viewshed by the horizon sweep (vsweep.h), one observer at a time -------------- */
+
+/* Adds eye e's answers vis (south-based) to the pass's counts in out. */
+static void vs_sweep_add(const vs_ctx *c, const eye *e, const uint8_t *vis)
+{
+    const td_grid *g = c->g;
+    for (int32_t j = 0; j < g->h; j++) {
+        double dy = j * g->sy - e->y;
+        uint8_t *row = &c->out[(size_t)(g->h - 1 - j) * (size_t)g->w];
+        for (int32_t i = 0; i < g->w; i++) {
+            double dx = i * g->sx - e->x;
+            if (dx * dx + dy * dy > c->maxd2 || isnan(sample_ground(e->view.grid, c->o->surface, i, j)))
+                continue;
+            row[i] = (uint8_t)((row[i] == TD_VS_OUTSIDE ? 0 : row[i]) + vis[(size_t)j * (size_t)g->w + (size_t)i]);
+        }
+    }
+}
+
+static td_status vs_sweep_run(vs_ctx *c, int nthreads, uint8_t *vis, td_viewshed_stats *st, td_err *err)
+{
+    const td_viewshed_opts *o = c->o;
+    td_status rc = TD_OK;
+    if (!c->merge)
+        memset(c->out, TD_VS_OUTSIDE, (size_t)c->g->w * (size_t)c->g->h);
+    for (int k = 0; k < c->neyes && rc == TD_OK; k++) {
+        const eye *e = &c->eyes[k];
+        td_vsweep_job job = {&e->view, o->surface, o->method, e->x, e->y, e->z, e->ground,
+                             o->target_height, c->maxd2, nthreads, o->cancel};
+        td_vsweep_stats vst;
+        rc = td_vsweep(&job, vis, &vst, err);
+        st->swept += vst.swept;
+        st->rays += vst.rays;
+        st->steps += vst.steps;
+        if (rc == TD_OK)
+            vs_sweep_add(c, e, vis);
+    }
+    st->threads = nthreads < 4 ? nthreads : 4;
+    return rc;
+}
+
 /* Without curvature one pass asks every observer per sample; with it, one pass an
  * observer, so that one lowered grid at a time is resident (64 observers over trinidad
  * would otherwise hold 64 copies, 0.7 GB), each pass adding its counts. */
@@ -437,10 +509,14 @@ td_status td_viewshed(const td_view *v, const td_viewshed_opts *o, uint8_t *out,
     eye *eyes = NULL;
     vs_ctx c;
     int nthreads = thread_count(o->threads, g->h), per = o->curvature ? 1 : o->nobs;
+    int sweep = o->algo == TD_VS_ALGO_SWEEP && o->surface != TD_SURFACE_PLANE;
+    uint8_t *vis = NULL;
     td_status rc;
 
     memset(st, 0, sizeof *st);
     rc = td_viewshed_check(g, o, err);
+    if (rc == TD_OK && sweep && !(vis = malloc((size_t)g->w * (size_t)g->h)))
+        rc = td_err_set(err, TD_ENOMEM, "viewshed: out of memory");
     for (int first = 0; rc == TD_OK && first < o->nobs; first += per) {
         double t0 = td_clock_s(), t1;
         rc = setup_eyes(v, o->obs + first, per, o->height, o->curvature, o->k, o->surface, o->method,
@@ -457,7 +533,7 @@ td_status td_viewshed(const td_view *v, const td_viewshed_opts *o, uint8_t *out,
         c.maxd2 = o->max_distance * o->max_distance;
         c.out = out;
         atomic_init(&c.next, 0);
-        rc = vs_run(&c, nthreads, st, err);
+        rc = sweep ? vs_sweep_run(&c, nthreads, vis, st, err) : vs_run(&c, nthreads, st, err);
         st->setup_ms += 1e3 * (t1 - t0);
         st->trace_ms += 1e3 * (td_clock_s() - t1);
         free_eyes(eyes, per);
@@ -465,6 +541,7 @@ td_status td_viewshed(const td_view *v, const td_viewshed_opts *o, uint8_t *out,
     }
     if (rc == TD_OK)
         vs_count(g, out, st);
+    free(vis);
     return rc;
 }
 

@@ -37,8 +37,10 @@
  * number of observers that see the sample (0 .. nobs), or TD_VS_OUTSIDE. td_viewshed_gray
  * turns a single observer's counts into the 255 / 0 / 128 picture.
  *
- * Threads: rows of samples go to workers through an atomic counter (as render.c's
- * blocks); every worker traces on the same immutable view. */
+ * How: opts.algo, the exact horizon sweep of vsweep.h (default) or one cast a sample;
+ * the same bytes. Threads: with the cast, rows of samples go to workers through an atomic
+ * counter (as render.c's blocks); with the sweep, the four cones of an observer; every
+ * worker traces on the same immutable view. */
 #ifndef TD_VIEWSHED_H
 #define TD_VIEWSHED_H
 
@@ -72,6 +74,22 @@ typedef enum td_vs_limit {
 /* The row of a limit (NULL outside the table). */
 const td_limit_row *td_vs_limit_get(td_vs_limit id);
 
+/* How td_viewshed decides: the horizon sweep of vsweep.h (casting the segments it
+ * cannot prove), or one cast a sample (the plane surface always casts). Same answers. */
+#define TD_VS_ALGO_LIST(X)                                                            \
+    X(TD_VS_ALGO_SWEEP, "sweep")                                                      \
+    X(TD_VS_ALGO_CAST, "cast")
+
+typedef enum td_vs_algo {
+#define TD_X_ENUM(e, name) e,
+    TD_VS_ALGO_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_VS_ALGO_COUNT
+} td_vs_algo;
+
+const char *td_vs_algo_name(td_vs_algo a);
+td_status td_vs_algo_parse(const char *name, td_vs_algo *out);
+
 typedef struct td_vs_point {
     double x, y; /* dataset frame, metres from the south-west sample */
 } td_vs_point;
@@ -86,6 +104,7 @@ typedef struct td_viewshed_opts {
     double k;
     td_surface surface;
     td_method method;
+    td_vs_algo algo; /* default sweep */
     int threads; /* <= 0: one per core */
     const atomic_int *cancel; /* may be NULL; raised: TD_ECANCELED */
 } td_viewshed_opts;
@@ -94,6 +113,7 @@ typedef struct td_viewshed_stats {
     uint64_t samples;  /* w * h */
     uint64_t inside;   /* samples not TD_VS_OUTSIDE */
     uint64_t visible;  /* samples seen by at least one observer */
+    uint64_t swept;    /* samples the sweep decided without a cast */
     uint64_t rays;     /* traced segments */
     uint64_t steps;    /* tracer steps over all rays */
     double visible_area_m2; /* visible samples * sx * sy */
@@ -123,6 +143,12 @@ void td_viewshed_gray(const uint8_t *counts, size_t n, uint8_t *gray);
  * oracle tests trace exactly the same segments. */
 int td_viewshed_ray(const td_grid *g, td_surface s, double ex, double ey, double ez, int32_t i,
                     int32_t j, double target_height, td_ray *r);
+
+/* The segment from the eye (ex, ey, ez) to sample (i, j) cast with td_occluded on view
+ * v: 1 visible, 0 not, 2 visible at horizontal distance 0 (not cast), -1 a void target; adds the
+ * tracer's steps to *steps. What every sample gets with algo cast. */
+int td_viewshed_cast(const td_view *v, td_surface s, td_method m, double ex, double ey, double ez,
+                     int32_t i, int32_t j, double target_height, uint32_t *steps);
 
 /* The surface under (x, y) on surface s (NaN on a hole, or outside the grid). */
 double td_viewshed_ground(const td_grid *g, td_surface s, double x, double y);

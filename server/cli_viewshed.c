@@ -4,7 +4,8 @@
  *
  *   terrad viewshed --dem FILE --observer X,Y [--observer X,Y ...] --height H
  *                   [--target-height T] [--max-distance M] [--curvature K]
- *                   [--surface S] [--method M] [--threads N] -o OUT.png [--stats FILE]
+ *                   [--surface S] [--method M] [--algorithm A] [--threads N] -o OUT.png
+ *                   [--stats FILE]
  *
  * Observers are in the dataset frame (metres east and north of the south-west sample).
  * OUT.png: 8-bit gray in the DEM's grid, row 0 north: 255 seen, 0 not, 128 outside
@@ -35,7 +36,8 @@ static void vs_usage(FILE *f)
     fprintf(f,
             "usage: terrad viewshed --dem FILE --observer X,Y [--observer X,Y ...] --height H\n"
             "                       [--target-height T] [--max-distance M] [--curvature K]\n"
-            "                       [--surface S] [--method M] [--threads N] -o OUT.png [--stats FILE]\n"
+            "                       [--surface S] [--method M] [--algorithm A] [--threads N]\n"
+            "                       -o OUT.png [--stats FILE]\n"
             "\n"
             "What can be seen from X,Y (dataset frame: metres east, north of the south-west\n"
             "sample), the eye H metres above the ground, a target T metres above each sample.\n"
@@ -43,6 +45,8 @@ static void vs_usage(FILE *f)
             "  --curvature K     Earth curvature with refraction coefficient K (e.g. 0.13)\n"
             "  --surface S       plane, linear, triangle, bilinear (default bilinear)\n"
             "  --method M        incremental, hierarchical, parametric, auto (default auto)\n"
+            "  --algorithm A     sweep (default: the exact horizon sweep, casting what it\n"
+            "                    cannot prove) or cast (one segment a sample); same answers\n"
             "  --threads N       threads (default: one per core)\n"
             "  -o OUT.png        8-bit gray, row 0 north: 255 seen, 0 not, 128 outside or void;\n"
             "                    several observers: how many see each sample, 255 outside\n"
@@ -100,6 +104,8 @@ static int vs_option(vs_cli *c, const char *opt, const char *val)
         ok = td_surface_parse(val, &c->o.surface) == TD_OK;
     else if (!strcmp(opt, "--method"))
         ok = td_method_parse(val, &c->o.method) == TD_OK;
+    else if (!strcmp(opt, "--algorithm"))
+        ok = td_vs_algo_parse(val, &c->o.algo) == TD_OK;
     else if (!strcmp(opt, "--threads"))
         ok = td_cli_parse_int(val, 1, 1024, &c->o.threads);
     else

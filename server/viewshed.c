@@ -47,7 +47,7 @@ json_t *td_vs_answer(const char *dataset, const td_grid *g, const td_viewshed_op
     for (int k = 0; k < o->nobs; k++)
         json_array_append_new(obs, json_pack("{s:f,s:f}", "x", o->obs[k].x, "y", o->obs[k].y));
     return json_pack("{s:s,s:i,s:i,s:o,s:f,s:f,s:o?,s:b,s:f,s:s,s:s,s:I,s:I,s:I,s:I,s:I,s:f,s:f,"
-                     "s:o,s:I,s:I,s:f,s:{s:f,s:f},s:i}",
+                     "s:o,s:I,s:I,s:I,s:f,s:{s:f,s:f},s:i}",
                      "dataset", dataset, "grid_width", (int)g->w, "grid_height", (int)g->h, "observers", obs,
                      "eye_height", o->height, "target_height", o->target_height, "max_distance",
                      isfinite(o->max_distance) ? json_real(o->max_distance) : NULL, "curvature",
@@ -57,7 +57,8 @@ json_t *td_vs_answer(const char *dataset, const td_grid *g, const td_viewshed_op
                      (json_int_t)(st->inside - st->visible), "outside",
                      (json_int_t)(st->samples - st->inside), "visible_fraction",
                      st->inside ? (double)st->visible / (double)st->inside : 0.0, "visible_area_m2",
-                     st->visible_area_m2, "seen_by", seen_by, "rays", (json_int_t)st->rays, "steps",
+                     st->visible_area_m2, "seen_by", seen_by, "swept", (json_int_t)st->swept, "rays",
+                     (json_int_t)st->rays, "steps",
                      (json_int_t)st->steps, "mean_steps", st->rays ? (double)st->steps / (double)st->rays : 0.0,
                      "timings_ms", "setup", st->setup_ms, "trace", st->trace_ms, "threads", st->threads);
 }

@@ -12,8 +12,9 @@
  *       reference finds no hit, hidden when it finds one; the other answer is a tie when
  *       the reference's hit never definitely crosses the surface, or a clear segment comes
  *       within the float band of it before the target's last tenth of a cell (oracle.c's
- *       band: 1 mm plus float32 rounding, times 1 + the steepest slope). Exit 1 on any
- *       other answer.
+ *       band: 1 mm plus float32 rounding, times 1 + the steepest slope). Every viewshed
+ *       (the horizon sweep, core/vsweep.c) is also held byte for byte to the one cast a
+ *       sample gives (algo cast). Exit 1 on any other answer.
  *   viewshed_oracle DEM --gdal RAW X Y H [--surface S]
  *       RAW: gdal_viewshed's output as raw bytes in file order (255 seen, 0 not, else
  *       outside). Prints the agreement with terrad in per cent of the samples both answer
@@ -36,6 +37,7 @@ typedef struct oracle {
     td_view v;
     double eps;
     uint64_t agree, tie, wrong, methods_wrong;
+    uint64_t sweep_same, sweep_wrong; /* the sweep's bytes against the per-sample cast's */
 } oracle;
 
 static uint64_t rnd(uint64_t *s)
@@ -163,8 +165,38 @@ static td_grid *lowered(const td_grid *g, td_vs_point p, double c)
     return l;
 }
 
-/* One observer on one surface (with curvature k = 0.13 when curv): the viewshed, then the
- * targets judged (with curvature, on the lowered grid). */
+/* The sweep's viewshed out (stats st) of options vo against the one cast a sample gives:
+ * every byte. */
+static int sweep_vs_cast(oracle *o, const td_viewshed_opts *vo, const uint8_t *out, const td_viewshed_stats *st)
+{
+    size_t n = (size_t)o->g->w * o->g->h;
+    uint8_t *cast = malloc(n);
+    td_viewshed_opts co = *vo;
+    td_viewshed_stats cst;
+    td_err err;
+    int ok = cast != NULL;
+    co.algo = TD_VS_ALGO_CAST;
+    if (ok && td_viewshed(&o->v, &co, cast, &cst, &err)) {
+        printf("  cast viewshed refused: %s\n", err.msg);
+        ok = 0;
+    }
+    for (size_t k = 0; ok && k < n; k++) {
+        int same = cast[k] == out[k];
+        o->sweep_same += same;
+        if (!same && o->sweep_wrong++ < 10)
+            printf("  SWEEP WRONG %s: target (%d, %d): sweep %d, cast %d\n", td_surface_name(vo->surface),
+                   (int)(k % o->g->w), (int)(o->g->h - 1 - k / o->g->w), out[k], cast[k]);
+    }
+    if (ok)
+        printf("  %-8s sweep: %.1f%% of the samples decided without a cast\n", td_surface_name(vo->surface),
+               100.0 * (double)st->swept / (double)(st->inside ? st->inside : 1));
+    free(cast);
+    return ok;
+}
+
+/* One observer on one surface (with curvature k = 0.13 when curv): the viewshed (the
+ * sweep's, held to the cast's byte for byte), then the targets judged (with curvature,
+ * on the lowered grid). */
 static int check_observer(oracle *o, td_surface s, td_vs_point p, double height, int curv, int targets,
                           uint64_t *seed, uint8_t *out)
 {
@@ -181,6 +213,8 @@ static int check_observer(oracle *o, td_surface s, td_vs_point p, double height,
         printf("  viewshed from (%g, %g) on %s refused: %s\n", p.x, p.y, td_surface_name(s), err.msg);
         return 0;
     }
+    if (!sweep_vs_cast(o, &vo, out, &st))
+        return 0;
     if (curv) {
         size_t n = (size_t)o->g->tiles_x * o->g->tiles_y;
         low.g = lowered(o->g, p, (1.0 - vo.k) / (2.0 * TD_EARTH_RADIUS_M));
@@ -266,8 +300,11 @@ static int run_check(oracle *o, int targets, uint64_t seed)
     printf("targets judged: %" PRIu64 " agree, %" PRIu64 " ties (float band %.3g m), %" PRIu64
            " wrong; td_occluded by each method on the same segments: %" PRIu64 " wrong\n",
            o->agree, o->tie, o->eps, o->wrong, o->methods_wrong);
+    printf("the sweep against one cast a sample: %" PRIu64 " samples the same, %" PRIu64 " different\n",
+           o->sweep_same, o->sweep_wrong);
     free(out);
-    return ok && o->wrong == 0 && o->methods_wrong == 0 && o->agree > 0;
+    return ok && o->wrong == 0 && o->methods_wrong == 0 && o->agree > 0 && o->sweep_wrong == 0 &&
+           o->sweep_same > 0;
 }
 
 /* --gdal: gdal_viewshed's bytes against terrad's, the disagreements judged. */

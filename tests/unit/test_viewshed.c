@@ -14,39 +14,22 @@
 
 #include "accel.h"
 #include "viewshed.h"
-
-typedef struct fixture {
-    td_grid *g;
-    td_accel *a;
-    td_view v;
-} fixture;
+#include "vs_fixture.h"
 
 /* A w x h grid, spacing 10 m, heights from f(i, j) (south-based j), with max-mipmaps and
  * planes (tiles of 4 cells, so the methods cross seams). */
 static void make(fixture *fx, int32_t w, int32_t h, double (*f)(int32_t i, int32_t j))
 {
-    td_accel_opts o;
     assert_int_equal(td_grid_create(w, h, 10.0, 10.0, 2, NULL, &fx->g, NULL), TD_OK);
     for (int32_t j = 0; j < h; j++)
         for (int32_t i = 0; i < w; i++)
             fx->g->z[(size_t)j * w + i] = (float)f(i, j);
-    assert_int_equal(td_grid_finish(fx->g, NULL), TD_OK);
-    td_accel_opts_default(&o);
-    o.maxmip = 1;
-    o.planes = 1;
-    o.threads = 1;
-    assert_int_equal(td_accel_build(fx->g, &o, &fx->a, NULL, NULL), TD_OK);
-    fx->v.grid = fx->g;
-    fx->v.accel = fx->a->tiles;
-}
-
-static void unmake(fixture *fx)
-{
-    td_accel_free(fx->a);
-    td_grid_free(fx->g);
+    fixture_finish(fx);
 }
 
 /* Runs a viewshed; out in file order. */
+static td_vs_algo run_algo = TD_VS_ALGO_SWEEP; /* what run() asks for */
+
 static td_status run(const fixture *fx, const td_vs_point *obs, int n, double h, double th,
                      td_surface s, td_method m, uint8_t *out, td_viewshed_stats *st, td_err *e)
 {
@@ -58,6 +41,7 @@ static td_status run(const fixture *fx, const td_vs_point *obs, int n, double h,
     o.target_height = th;
     o.surface = s;
     o.method = m;
+    o.algo = run_algo;
     o.threads = 2;
     return td_viewshed(&fx->v, &o, out, st, e);
 }
@@ -70,8 +54,9 @@ static uint8_t at(const fixture *fx, const uint8_t *out, int32_t i, int32_t j)
 
 static double flat(int32_t i, int32_t j) { (void)i; (void)j; return 100.0; }
 
-/* A 5 x 5 case seen from p (on a sample), eye h up, on the surfaces from s0 and every
- * method: the samples seen are those where seen(i, j) (south-based j) is non-zero. */
+/* A 5 x 5 case seen from p (on a sample), eye h up, on the surfaces from s0, every
+ * method and both algorithms (the sweep and one cast a sample): the samples seen are
+ * those where seen(i, j) (south-based j) is non-zero. */
 typedef struct vs_case {
     double (*height)(int32_t i, int32_t j);
     td_vs_point p;
@@ -86,9 +71,13 @@ static void check_case(const vs_case *c)
     uint8_t out[25];
     td_viewshed_stats st;
     make(&fx, 5, 5, c->height);
-    for (int s = c->s0; s < TD_SURFACE_COUNT; s++)
-        for (int m = 0; m < TD_METHOD_COUNT; m++) {
-            uint64_t n = 0;
+    for (int a = 0; a < TD_VS_ALGO_COUNT * TD_SURFACE_COUNT * TD_METHOD_COUNT; a++) {
+        int s = a / TD_METHOD_COUNT % TD_SURFACE_COUNT, m = a % TD_METHOD_COUNT;
+        uint64_t n = 0;
+        run_algo = (td_vs_algo)(a / (TD_METHOD_COUNT * TD_SURFACE_COUNT));
+        if (s < (int)c->s0)
+            continue;
+        {
             assert_int_equal(run(&fx, &c->p, 1, c->h, 0.0, (td_surface)s, (td_method)m, out, &st, NULL), TD_OK);
             for (int32_t j = 0; j < 5; j++)
                 for (int32_t i = 0; i < 5; i++) {
@@ -97,9 +86,14 @@ static void check_case(const vs_case *c)
                 }
             assert_int_equal(st.visible, n);
             assert_int_equal(st.inside, 25);
-            assert_int_equal(st.rays, 24); /* the sample under the observer is not traced */
+            /* the sample under the observer is not traced; the sweep casts what it cannot
+             * prove (here, within two cells, about all) */
+            assert_int_equal(st.rays + st.swept, 24);
+            assert_true(run_algo == TD_VS_ALGO_SWEEP || st.swept == 0);
             assert_true(fabs(st.visible_area_m2 - 100.0 * (double)n) < 1e-9);
         }
+    }
+    run_algo = TD_VS_ALGO_SWEEP;
     unmake(&fx);
 }
 

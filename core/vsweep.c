@@ -1,0 +1,849 @@
+/* vsweep.c: the horizon sweep of vsweep.h (what it proves, and when it casts instead).
+ *
+ * Cone coordinates. Each cone is swept as if it were the east one: a sample (U, V) of
+ * the cone is grid sample i = ui U + vi V, j = uj U + vj V (west: U = -i; north: U = j,
+ * V = i; south: U = -j), the eye is (eu, ev), u = U - eu > 0 is the distance along the
+ * sweep and m = (V - ev) / u, |m| <= 1, the ray's direction. Cells are the grid's; a
+ * triangle cell's diagonal (a + b = 1 in the grid's frame) is the anti-diagonal
+ * (U+1, V)-(U, V+1) in the east and north cones and the main one in the other two.
+ *
+ * The envelope F(m) is a list of pieces, each a part of one projected edge: value
+ * qr + s (m - mr) from its start m to the next piece's start, and a slack: the piece is
+ * an upper bound of the surface on the rays it covers, and value - slack is reached by a
+ * real surface point (slack 0 for real edges, |twist| / 4 / u for a bilinear cell's
+ * upper diagonal, |qa - qb| for an edge too narrow in m to keep its slope, which is then
+ * kept flat at its top). After the targets of column U are decided against F, the edges
+ * of column U and of the strip between columns U-1 and U (rows, diagonals) are added:
+ * each is first tested against F (most far terrain is under the horizon and is dropped
+ * there), the others are gathered in G (in m order, so each insertion touches G's tail)
+ * and G is merged into F in one pass. Holes: an edge counts when a cell it bounds has no
+ * void corner (the tracer skips hole cells).
+ *
+ * A target T = (U, V) is decided by
+ *   hi = max(F(m_T), NB, last-cell diagonal, with a target height its own ground),
+ *   lo = max(F(m_T) - slack, last-cell diagonal - slack),
+ * visible if q_T > hi + eps, hidden if q_T < lo - eps, else cast. The edges that end at T
+ * are not in F yet (F holds the strips up to column U-1), and the only edge the segment
+ * crosses in its last strip is the diagonal of the cell it arrives through when that
+ * diagonal does not end at T. NB bounds the part of every segment between the eye and
+ * the first column U0 at least a quarter cell away: per cell, by its highest corner over
+ * its nearest distance, or for the cells around the eye by the slope bound
+ * z <= ground + G u, so q <= G - height / u (the linear surface, whose height under the
+ * eye depends on the ray, gets no such bound). Targets in columns up to U0 + 1 are cast.
+ *
+ * Rounding: the envelope is computed in double from float heights; a crossing put off
+ * by rounding moves a value by the slope times 1e-16, kept below 1e-8 by flattening
+ * edges narrower than 1e-5 in m. eps (1e-6 m per cell of u, plus 1e-9 relative) is the
+ * height 1e-6 m at a cell's distance, a thousand times what either side's rounding
+ * reaches; a segment that close to the surface is cast.
+ *
+ * Alternatives measured (docs/viewshed.md "Speed"): per-wedge horizon bins
+ * (horizon.h) to start each cast late; see the doc for why the envelope replaced them. */
+#include "vsweep.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <pthread.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "viewshed.h"
+
+#define VS_EPS_ABS 1e-6
+#define VS_EPS_REL 1e-9
+#define VS_NARROW 1e-5   /* edges narrower than this in m are kept flat */
+#define VS_BINS 4096     /* bins of m in [-1, 1] for the holes' nearest distance */
+/* The envelope covers m in [-VS_MDOM, VS_MDOM], past the cone's [-1, 1], so that a sample
+ * at m = 1 whose only edge lies outside the cone is kept (an edge of zero width would
+ * not be). */
+#define VS_MDOM 1.5
+
+typedef struct piece {
+    double m;      /* start; the piece ends where the next one starts */
+    double mr, qr; /* value qr + s (m - mr); qr = -inf: no surface here */
+    double s, slack;
+    double umax; /* the farthest u of its edge: where a ray meets it, at most */
+} piece;
+
+typedef struct pvec {
+    piece *p; /* n pieces and p[n], the sentinel whose m is the end (1) */
+    int n, cap;
+} pvec;
+
+typedef struct cone {
+    const td_grid *g;
+    int ui, uj, vi, vj;
+    int strict; /* north and south: |V - ev| < u (the diagonals belong to east and west) */
+    int anti;   /* the triangle surface's diagonal is (U+1, V)-(U, V+1) */
+    double eu, ev;
+    int32_t ulo, uhi, vlo, vhi; /* U, V ranges of the grid */
+} cone;
+
+typedef struct sweep {
+    const td_vsweep_job *job;
+    cone c;
+    int tri, bil, lin;
+    int holes; /* the grid has void samples */
+    int hidden_ok;  /* the segments start above the surface (see near_strip) */
+    int visible_ok; /* the eye's strip is bounded (see near_strip) */
+    pvec F, G, T;
+    pvec N; /* bounds of the eye's strip with no real point (slack infinite): hi only */
+    int hint_q, hint_s, hint_n;
+    double umax;              /* of the edges being added */
+    double hole_u[VS_BINS];   /* per bin of m, the nearest u of a hole cell a ray there may cross */
+    int oom;
+    uint8_t *vis;
+    double *zcol[3]; /* columns U-1, U, U+1 (rows vlo.., NaN where not loaded) */
+    double *mcol[3], *qcol[3]; /* their samples projected (columns east of the eye) */
+    uint64_t swept, rays, steps;
+} sweep;
+
+static const piece empty_piece = {0.0, 0.0, -INFINITY, 0.0, 0.0, 0.0};
+
+static inline double pval(const piece *p, double m) { return p->qr + p->s * (m - p->mr); }
+
+static inline int same_line(const piece *a, const piece *b)
+{
+    return a->qr == b->qr && a->s == b->s && a->mr == b->mr && a->slack == b->slack && a->umax == b->umax;
+}
+
+static int pv_reserve(sweep *sw, pvec *v, int need)
+{
+    if (need + 1 > v->cap) {
+        int cap = v->cap ? v->cap : 256;
+        piece *p;
+        while (cap < need + 1)
+            cap *= 2;
+        p = realloc(v->p, (size_t)cap * sizeof *p);
+        if (!p) {
+            sw->oom = 1;
+            return 0;
+        }
+        v->p = p;
+        v->cap = cap;
+    }
+    return 1;
+}
+
+/* v = no surface over the domain. */
+static void pv_clear(pvec *v)
+{
+    v->p[0] = empty_piece;
+    v->p[0].m = -VS_MDOM;
+    v->p[1] = empty_piece;
+    v->p[1].m = VS_MDOM;
+    v->n = 1;
+}
+
+/* Appends src's line from m (a piece of zero width is replaced; equal lines join). */
+static void emit(pvec *o, double m, const piece *src)
+{
+    int join = o->n > 0 && same_line(&o->p[o->n - 1], src);
+    if (!join && o->n > 0 && o->p[o->n - 1].m >= m) {
+        o->n--;
+        join = o->n > 0 && same_line(&o->p[o->n - 1], src);
+    }
+    if (!join) {
+        o->p[o->n] = *src;
+        o->p[o->n].m = m;
+        o->n++;
+    }
+}
+
+/* out = max(a, b), both covering [a[0].m, end] with a[na].m = b[nb].m = end; out needs
+ * room for 2 (na + nb) + 1 pieces. Ties go to a (the older). */
+static void merge(const piece *a, int na, const piece *b, int nb, pvec *out)
+{
+    int ia = 0, ib = 0;
+    double cur = a[0].m, end = a[na].m;
+    out->n = 0;
+    while (cur < end && ia < na && ib < nb) {
+        double ea = a[ia + 1].m, eb = b[ib + 1].m, nx = ea < eb ? ea : eb;
+        const piece *pa = &a[ia], *pb = &b[ib];
+        if (nx > end)
+            nx = end;
+        if (nx > cur) {
+            if (pb->qr == -INFINITY) {
+                /* b empty up to eb: a's pieces that start before it, copied whole */
+                int k = ia + 1;
+                emit(out, cur, pa);
+                while (k < na && a[k].m < eb)
+                    k++;
+                if (k > ia + 1) {
+                    emit(out, a[ia + 1].m, &a[ia + 1]);
+                    memcpy(&out->p[out->n], &a[ia + 2], (size_t)(k - ia - 2) * sizeof *a);
+                    out->n += k - ia - 2;
+                    ia = k - 1;
+                    ea = a[ia + 1].m;
+                    nx = ea < eb ? ea : eb;
+                    if (nx > end)
+                        nx = end;
+                }
+            } else if (pa->qr == -INFINITY) {
+                emit(out, cur, pb);
+            } else {
+                double d0 = pval(pa, cur) - pval(pb, cur), d1 = pval(pa, nx) - pval(pb, nx);
+                if (d0 >= 0.0 && d1 >= 0.0) {
+                    emit(out, cur, pa);
+                } else if (d0 <= 0.0 && d1 <= 0.0) {
+                    emit(out, cur, pb);
+                } else {
+                    double c = cur + (nx - cur) * (d0 / (d0 - d1));
+                    emit(out, cur, d0 > 0.0 ? pa : pb);
+                    emit(out, c > cur ? (c < nx ? c : nx) : cur, d0 > 0.0 ? pb : pa);
+                }
+            }
+            cur = nx;
+        }
+        if (ea <= cur)
+            ia++;
+        if (eb <= cur)
+            ib++;
+    }
+    out->p[out->n] = empty_piece;
+    out->p[out->n].m = end;
+}
+
+/* The piece of v containing m (p[k].m <= m < p[k+1].m; the last one for m = end),
+ * searched from *hint. */
+static int find(const pvec *v, double m, int *hint)
+{
+    int k = *hint;
+    if (k >= v->n)
+        k = v->n - 1;
+    while (k > 0 && v->p[k].m > m)
+        k--;
+    while (k + 1 < v->n && v->p[k + 1].m <= m)
+        k++;
+    *hint = k;
+    return k;
+}
+
+/* ---- cone coordinates ------------------------------------------------------------ */
+
+static inline double cz(const cone *c, int32_t U, int32_t V)
+{
+    int32_t i = c->ui * U + c->vi * V, j = c->uj * U + c->vj * V;
+    return (double)c->g->z[(size_t)j * (size_t)c->g->w + (size_t)i];
+}
+
+static inline size_t cidx(const cone *c, int32_t U, int32_t V)
+{
+    int32_t i = c->ui * U + c->vi * V, j = c->uj * U + c->vj * V;
+    return (size_t)j * (size_t)c->g->w + (size_t)i;
+}
+
+/* Corners z00, z10, z01, z11 of cone cell (U, V) (U..U+1, V..V+1); 0 if it is off the
+ * grid or a hole. */
+static int cell(const cone *c, int32_t U, int32_t V, double z[4])
+{
+    int ok = U >= c->ulo && U + 1 <= c->uhi && V >= c->vlo && V + 1 <= c->vhi;
+    if (ok) {
+        z[0] = cz(c, U, V);
+        z[1] = cz(c, U + 1, V);
+        z[2] = cz(c, U, V + 1);
+        z[3] = cz(c, U + 1, V + 1);
+        ok = !isnan(z[0]) && !isnan(z[1]) && !isnan(z[2]) && !isnan(z[3]);
+    }
+    return ok;
+}
+
+static void cone_init(cone *c, const td_grid *g, int k, double eu, double ev)
+{
+    static const int t[4][5] = {
+        /* ui uj vi vj anti */
+        {1, 0, 0, 1, 1},  /* east: U = i, V = j */
+        {-1, 0, 0, 1, 0}, /* west: U = -i */
+        {0, 1, 1, 0, 1},  /* north: U = j, V = i */
+        {0, -1, 1, 0, 0}, /* south: U = -j */
+    };
+    int32_t nu = k < 2 ? g->w : g->h, nv = k < 2 ? g->h : g->w;
+    c->g = g;
+    c->ui = t[k][0];
+    c->uj = t[k][1];
+    c->vi = t[k][2];
+    c->vj = t[k][3];
+    c->anti = t[k][4];
+    c->strict = k >= 2;
+    c->eu = k < 2 ? (k == 0 ? eu : -eu) : (k == 2 ? ev : -ev);
+    c->ev = k < 2 ? ev : eu;
+    c->ulo = (k & 1) ? -(nu - 1) : 0;
+    c->uhi = (k & 1) ? 0 : nu - 1;
+    c->vlo = 0;
+    c->vhi = nv - 1;
+}
+
+/* Loads column U+1 into the buffers (U-1, U, U+1 then), rows |V - ev| <= u + 4: what
+ * the targets and edges of column U need. */
+static void load_next(sweep *sw, int32_t U)
+{
+    const cone *c = &sw->c;
+    double un = U + 1 - c->eu, iu = 1.0 / un, ez = sw->job->ez;
+    int32_t V0 = (int32_t)fmax(floor(c->ev - un) - 3.0, (double)c->vlo);
+    int32_t V1 = (int32_t)fmin(ceil(c->ev + un) + 3.0, (double)c->vhi);
+    double *t[3] = {sw->zcol[0], sw->mcol[0], sw->qcol[0]};
+    for (int b = 0; b < 2; b++) {
+        sw->zcol[b] = sw->zcol[b + 1];
+        sw->mcol[b] = sw->mcol[b + 1];
+        sw->qcol[b] = sw->qcol[b + 1];
+    }
+    sw->zcol[2] = t[0];
+    sw->mcol[2] = t[1];
+    sw->qcol[2] = t[2];
+    for (int32_t V = V0; V <= V1 && U + 1 <= c->uhi; V++) {
+        double z = cz(c, U + 1, V);
+        t[0][V - c->vlo] = z;
+        t[1][V - c->vlo] = (V - c->ev) * iu;
+        t[2][V - c->vlo] = (z - ez) * iu;
+    }
+}
+
+/* Cell between buffered columns a (west) and b at rows V..V+1: corners z00, z10, z01,
+ * z11; 0 off the grid or a hole. */
+static inline int cellz(const sweep *sw, const double *a, const double *b, int32_t V, double z[4])
+{
+    int32_t k = V - sw->c.vlo;
+    if (V < sw->c.vlo || V + 1 > sw->c.vhi)
+        return 0;
+    z[0] = a[k];
+    z[1] = b[k];
+    z[2] = a[k + 1];
+    z[3] = b[k + 1];
+    return !isnan(z[0] + z[1] + z[2] + z[3]);
+}
+
+/* ---- the envelope's updates ------------------------------------------------------ */
+
+/* Whether piece p over [m0, m1] stays at or under F. */
+static int under_f(sweep *sw, const piece *p, double m0, double m1)
+{
+    const pvec *F = &sw->F;
+    int k = find(F, m0, &sw->hint_s);
+    double x = m0;
+    int under = 1;
+    for (;;) {
+        double xe = F->p[k + 1].m < m1 ? F->p[k + 1].m : m1;
+        if (pval(p, x) > pval(&F->p[k], x) || pval(p, xe) > pval(&F->p[k], xe))
+            under = 0;
+        if (!under || xe >= m1 || k + 1 >= F->n)
+            break;
+        x = xe;
+        k++;
+    }
+    return under;
+}
+
+/* p over [m0, m1] into G (whose pieces after the one holding m0 are few: edges come in
+ * about increasing m). */
+static void g_insert(sweep *sw, const piece *p, double m0, double m1)
+{
+    pvec *G = &sw->G, *T = &sw->T;
+    piece b[4];
+    int k = G->n - 1;
+    if (G->p[k].qr == -INFINITY && G->p[k].m <= m0) { /* past everything so far: append */
+        if (pv_reserve(sw, G, G->n + 3)) {
+            k += G->p[k].m < m0;
+            G->p[k] = *p;
+            G->p[k].m = m0;
+            G->p[k + 1] = empty_piece;
+            G->p[k + 1].m = m1;
+            G->n = k + (m1 < VS_MDOM ? 2 : 1);
+            G->p[G->n] = empty_piece;
+            G->p[G->n].m = VS_MDOM;
+        }
+    } else {
+        while (k > 0 && G->p[k].m > m0)
+            k--;
+        b[0] = empty_piece;
+        b[0].m = G->p[k].m;
+        b[1] = *p;
+        b[1].m = m0;
+        b[2] = empty_piece;
+        b[2].m = m1;
+        b[3] = empty_piece;
+        b[3].m = VS_MDOM;
+        if (pv_reserve(sw, T, 2 * (G->n - k + 3) + 1) && pv_reserve(sw, G, k + 2 * (G->n - k + 3) + 1)) {
+            merge(&G->p[k], G->n - k, b, 3, T);
+            memcpy(&G->p[k], T->p, (size_t)(T->n + 1) * sizeof *T->p);
+            G->n = k + T->n;
+        }
+    }
+}
+
+/* The projected edge from (ma, qa) to (mb, qb) into G; with `prune`, unless F already
+ * covers it. */
+static void add_seg(sweep *sw, double ma, double qa, double mb, double qb, double slack, int prune)
+{
+    double m0, m1;
+    piece p;
+    if (ma > mb) {
+        double t = ma;
+        ma = mb;
+        mb = t;
+        t = qa;
+        qa = qb;
+        qb = t;
+    }
+    /* a point in m (its ends are column samples) or off the domain: nothing */
+    if (mb > ma && mb >= -VS_MDOM && ma <= VS_MDOM) {
+        p.mr = ma;
+        p.umax = sw->umax;
+        if (mb - ma < VS_NARROW) {
+            p.qr = qa > qb ? qa : qb;
+            p.s = 0.0;
+            p.slack = slack + fabs(qa - qb);
+        } else {
+            p.qr = qa;
+            p.s = (qb - qa) / (mb - ma);
+            p.slack = slack;
+        }
+        m0 = ma < -VS_MDOM ? -VS_MDOM : ma;
+        m1 = mb > VS_MDOM ? VS_MDOM : mb;
+        if (m1 > m0 && !(prune && under_f(sw, &p, m0, m1)))
+            g_insert(sw, &p, m0, m1);
+    }
+}
+
+/* The edge from (ua, va, za) to (ub, vb, zb) (u, v from the eye, u > 0) projected, into
+ * G unless F already covers it. */
+static void add_edge_uv(sweep *sw, double ua, double va, double za, double ub, double vb, double zb,
+                        double slack)
+{
+    double ez = sw->job->ez;
+    add_seg(sw, va / ua, (za - ez) / ua, vb / ub, (zb - ez) / ub, slack, 1);
+}
+
+/* F = max(F, G). */
+static void merge_g(sweep *sw)
+{
+    if ((sw->G.n > 1 || sw->G.p[0].qr != -INFINITY) && pv_reserve(sw, &sw->T, 2 * (sw->F.n + sw->G.n) + 1)) {
+        pvec t;
+        merge(sw->F.p, sw->F.n, sw->G.p, sw->G.n, &sw->T);
+        t = sw->F;
+        sw->F = sw->T;
+        sw->T = t;
+        sw->hint_q = sw->hint_s = 0;
+    }
+}
+
+/* The bilinear cell's upper diagonal (main when its twist k >= 0) and its slack at
+ * distance u0 (nearest point of the cell); the triangle's is fixed per cone. */
+static int upper_main(const sweep *sw, const double z[4], double u0, double *slack)
+{
+    double k = z[0] - z[1] - z[2] + z[3];
+    *slack = sw->bil ? fabs(k) / (4.0 * u0) : 0.0;
+    return sw->bil ? k >= 0.0 : !sw->c.anti;
+}
+
+static inline int bin_of(double m)
+{
+    double b = floor((m + 1.0) * (VS_BINS / 2.0));
+    return b < 0.0 ? 0 : (b >= VS_BINS ? VS_BINS - 1 : (int)b);
+}
+
+/* Holes. The tracer sees a surface only where the segment crosses it inside a cell that
+ * has one (a hole cell is passed as if nothing were there), so a segment may enter a
+ * cell from a hole already under its surface and leave it into a hole: no crossing.
+ * A surface point above the segment proves it hidden only when no hole lies between
+ * the eye and that point: hole_u[bin of m] is the nearest u of the hole cells the rays
+ * of that bin may cross, and a piece proves only while its umax is nearer. Marks the
+ * hole cell at u in [ua, ub], v in [va, vb] (from the eye). */
+static void mark_hole(sweep *sw, double ua, double ub, double va, double vb)
+{
+    double mlo, mhi;
+    if (ua > 0.0) {
+        mlo = fmin(va / ua, va / ub);
+        mhi = fmax(vb / ua, vb / ub);
+    } else { /* the cell reaches back to the eye's column: m = v / u with u in (0, ub] */
+        mlo = va >= 0.0 ? va / ub : -1.0;
+        mhi = vb <= 0.0 ? vb / ub : 1.0;
+    }
+    for (int b = bin_of(mlo), e = bin_of(mhi); b <= e && mhi >= -1.0 && mlo <= 1.0; b++)
+        sw->hole_u[b] = fmin(sw->hole_u[b], fmax(ua, 0.0));
+}
+
+/* Column U's edges, and with `strip` those between columns U-1 and U, into F. */
+static void add_column(sweep *sw, int32_t U, int strip)
+{
+    const cone *c = &sw->c;
+    const double *zp = sw->zcol[0], *zc = sw->zcol[1], *zn = sw->zcol[2];
+    const double *mp = sw->mcol[0] - c->vlo, *qp = sw->qcol[0] - c->vlo;
+    const double *mc = sw->mcol[1] - c->vlo, *qc = sw->qcol[1] - c->vlo;
+    double u = U - c->eu, z[4], zl[4], zb[4], slack;
+    int32_t V0 = (int32_t)fmax(floor(c->ev - u) - 1.0, (double)c->vlo);
+    int32_t V1 = (int32_t)fmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
+    sw->umax = u;
+    /* the column first (in m order, so G is appended to): the strip's rows and diagonals
+     * are then tested against F with it, and where the terrain faces the eye they are
+     * under it. An edge whose two ends are under one piece of F is under F. */
+    pv_clear(&sw->G);
+    {
+        int hint = sw->hint_s, k0 = find(&sw->F, mc[V0], &hint), k1;
+        int under0 = qc[V0] <= pval(&sw->F.p[k0], mc[V0]), under1;
+        for (int32_t V = V0; V < V1 && !sw->oom; V++, k0 = k1, under0 = under1) {
+            k1 = find(&sw->F, mc[V + 1], &hint);
+            under1 = qc[V + 1] <= pval(&sw->F.p[k1], mc[V + 1]);
+            if ((k0 != k1 || !under0 || !under1) &&
+                ((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl)))
+                add_seg(sw, mc[V], qc[V], mc[V + 1], qc[V + 1], 0.0, 0);
+        }
+    }
+    merge_g(sw);
+    pv_clear(&sw->G);
+    for (int32_t V = V0, below = cellz(sw, zp, zc, V0 - 1, zb); strip && V <= V1 && !sw->oom; V++) {
+        int left = cellz(sw, zp, zc, V, zl);
+        if (!left && sw->holes && V >= c->vlo && V + 1 <= c->vhi)
+            mark_hole(sw, u - 1.0, u, V - c->ev, V + 1 - c->ev);
+        if (left || below)
+            add_seg(sw, mp[V], qp[V], mc[V], qc[V], 0.0, 1);
+        below = left;
+        if (left && !sw->lin) {
+            if (upper_main(sw, zl, u - 1.0, &slack))
+                add_seg(sw, mp[V], qp[V], mc[V + 1], qc[V + 1], slack, 1);
+            else
+                add_seg(sw, mc[V], qc[V], mp[V + 1], qp[V + 1], slack, 1);
+        }
+    }
+    merge_g(sw);
+}
+
+/* Adds the edge from (ua, va, za) to (ub, vb, zb) (u, v from the eye), clipped to the
+ * cone u >= |v|, to G unless F covers it: the edges of the eye's strip, which may pass
+ * by or through the eye (one through the eye is a single m: its far end is a column
+ * sample, or a point of an edge added here). */
+static void add_clipped(sweep *sw, double ua, double va, double za, double ub, double vb, double zb,
+                        double slack)
+{
+    double t0 = 0.0, t1 = 1.0, du = ub - ua, dv = vb - va;
+    /* u - v >= 0, u + v >= 0 on [t0, t1] */
+    double f0[2] = {ua - va, ua + va}, df[2] = {du - dv, du + dv}, u0, u1;
+    for (int k = 0; k < 2; k++) {
+        if (df[k] == 0.0)
+            t1 = f0[k] < 0.0 ? -1.0 : t1; /* parallel to the side, outside: nothing */
+        else if (df[k] > 0.0)
+            t0 = fmax(t0, -f0[k] / df[k]);
+        else
+            t1 = fmin(t1, -f0[k] / df[k]);
+    }
+    u0 = ua + t0 * du;
+    u1 = ua + t1 * du;
+    if (t1 > t0 && u0 > 0.0 && u1 > 0.0) /* else outside the cone, or through the eye */
+        add_edge_uv(sw, u0, va + t0 * dv, za + t0 * (zb - za), u1, va + t1 * dv, za + t1 * (zb - za), slack);
+}
+
+/* The bilinear eye cell's bound over m in [lo, hi] (one sign): the maximum over u of
+ * -h / u + ga + gb m - |k m| u is g(m) = ga + gb m - 2 sqrt(h |k| |m|) (kh = |k| h) at
+ * u = sqrt(h / |k m|); where that is past u0 >= the ray's exit from the cell, q rises
+ * all the way and peaks at the exit, an edge. g is convex in m on each side of 0, so
+ * under its chords: 16 of them, closer near the start where the root is steep. */
+static void eye_cell_bound(sweep *sw, double ga, double gb, double kh, double k, double u0, double lo,
+                           double hi)
+{
+    /* lo or hi is 0; below |m| = a the peak u = sqrt(h / |k m|) is past u0 */
+    double a = kh / (k * k * u0 * u0), b = fmax(fabs(lo), fabs(hi)), sg = hi > 0.0 ? 1.0 : -1.0;
+    for (int i = 0; i < 16 && a < b; i++) {
+        double f0 = (double)i / 16.0, f1 = (double)(i + 1) / 16.0;
+        double m0 = sg * (a + (b - a) * f0 * f0), m1 = sg * (a + (b - a) * f1 * f1);
+        double g0 = ga + gb * m0 - 2.0 * sqrt(kh * fabs(m0)), g1 = ga + gb * m1 - 2.0 * sqrt(kh * fabs(m1));
+        add_seg(sw, m0, g0 + 1e-9 * fabs(g0), m1, g1 + 1e-9 * fabs(g1), INFINITY, 1);
+    }
+}
+
+/* G and N exchanged: what is added goes to N, the eye's strip's bounds. */
+static void swap_gn(sweep *sw)
+{
+    pvec t = sw->G;
+    sw->G = sw->N;
+    sw->N = t;
+}
+
+/* The eye's strip: cells U0-1 .. U0 (u from 0, or from the eye, to u0 = U0 - eu <= 1).
+ * Its rows and diagonals, clipped; the pieces of cells that hold the eye reach their
+ * maximum q where a ray leaves them (q = -height / u + slope, increasing), except the
+ * bilinear patch, whose height along a ray from the eye is ground + s(m) u + k m u^2:
+ * where k m < 0, q = -height / u + s(m) + k m u may peak inside, below s(m), a line in m
+ * (slack infinite: no real point). Sets hidden_ok and visible_ok. */
+static void near_strip(sweep *sw, int32_t U0)
+{
+    const cone *c = &sw->c;
+    const td_vsweep_job *j = sw->job;
+    int32_t Uc = U0 - 1;
+    double u0 = U0 - c->eu, uc = Uc - c->eu, z[4], twist = 0.0, h = j->ez - j->ground;
+    pv_clear(&sw->G);
+    pv_clear(&sw->N);
+    sw->umax = u0;
+    for (int32_t V = (int32_t)floor(c->ev - u0) - 1; V <= (int32_t)ceil(c->ev + u0) + 1; V++) {
+        int here = cell(c, Uc, V, z);
+        double zb[4];
+        if (V < c->vlo || V > c->vhi)
+            continue;
+        if (!here && V + 1 <= c->vhi)
+            mark_hole(sw, uc, u0, V - c->ev, V + 1 - c->ev);
+        if (here || cell(c, Uc, V - 1, zb))
+            add_clipped(sw, uc, V - c->ev, cz(c, Uc, V), u0, V - c->ev, cz(c, U0, V), 0.0);
+        if (!here)
+            continue;
+        if (c->eu <= Uc + 1 && c->eu >= Uc && c->ev >= V && c->ev <= V + 1) { /* holds the eye */
+            double k = z[0] - z[1] - z[2] + z[3], ae = c->eu - Uc, be = c->ev - V;
+            twist = fmax(twist, fabs(k));
+            if (sw->bil && k != 0.0) {
+                double ga = (z[1] - z[0]) + k * be, gb = (z[2] - z[0]) + k * ae;
+                /* rays that enter the cell from the eye, and k m < 0 */
+                double lo = be <= 0.0 ? 0.0 : -1.0, hi = be >= 1.0 ? 0.0 : 1.0;
+                if (k > 0.0)
+                    hi = fmin(hi, 0.0);
+                else
+                    lo = fmax(lo, 0.0);
+                if (hi > lo) {
+                    swap_gn(sw);
+                    eye_cell_bound(sw, ga, gb, fabs(k) * h, k, u0, lo, hi);
+                    swap_gn(sw);
+                }
+            }
+        }
+        if (!sw->lin) {
+            double slack;
+            if (sw->bil) /* the upper diagonal of a bilinear cell: a bound only */
+                swap_gn(sw);
+            if (upper_main(sw, z, 1.0, &slack))
+                add_clipped(sw, uc, V - c->ev, z[0], u0, V + 1 - c->ev, z[3], sw->bil ? INFINITY : 0.0);
+            else
+                add_clipped(sw, u0, V - c->ev, z[1], uc, V + 1 - c->ev, z[2], sw->bil ? INFINITY : 0.0);
+            if (sw->bil)
+                swap_gn(sw);
+        }
+    }
+    sw->hidden_ok = h > 1e-9 * (1.0 + fabs(j->ez)) + (sw->lin ? twist / 4.0 : 0.0);
+    /* the linear surface's chord under the eye may be above it: then nothing is proved */
+    sw->visible_ok = !sw->lin || sw->hidden_ok;
+    merge_g(sw);
+}
+
+/* ---- the targets ------------------------------------------------------------------ */
+
+/* The segment to (U, V) cast, as td_viewshed does without the sweep. */
+static void cast(sweep *sw, int32_t U, int32_t V)
+{
+    const td_vsweep_job *j = sw->job;
+    const cone *c = &sw->c;
+    int32_t i = c->ui * U + c->vi * V, jj = c->uj * U + c->vj * V;
+    uint32_t steps = 0;
+    int r = td_viewshed_cast(j->v, j->surface, j->method, j->ex, j->ey, j->ez, i, jj, j->target_height, &steps);
+    sw->rays += r == 0 || r == 1;
+    sw->steps += steps;
+    sw->vis[cidx(c, U, V)] = r > 0;
+}
+
+/* The diagonal the segment to (U, V) crosses in its last strip, if it does not end at
+ * (U, V) (column U buffered): raises *hi and *lo. */
+static void last_cell(const sweep *sw, int32_t V, double u, double m, double hu, double *hi, double *lo)
+{
+    double z[4], slack, a = fabs(m), s = a / (1.0 + a), h = NAN, q;
+    if (m > 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V - 1, z) && !upper_main(sw, z, u - 1.0, &slack))
+        h = z[1] + (z[2] - z[1]) * (1.0 - a + a * s); /* from the south-west: (U, V-1)-(U-1, V) */
+    else if (m < 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V, z) && upper_main(sw, z, u - 1.0, &slack))
+        h = z[0] + (z[3] - z[0]) * s; /* from the north-west: the main diagonal (U-1, V)-(U, V+1) */
+    if (!isnan(h)) {
+        q = (h - sw->job->ez) / (u - 1.0 + s);
+        *hi = fmax(*hi, q);
+        if (u - 1.0 + s < hu)
+            *lo = fmax(*lo, q - slack);
+    }
+}
+
+/* Decides target (U, V) of column U (not a void) against F, or casts it. */
+static void target(sweep *sw, int32_t U, int32_t V)
+{
+    const td_vsweep_job *j = sw->job;
+    const cone *c = &sw->c;
+    const pvec *F = &sw->F;
+    double u = U - c->eu, m = sw->mcol[1][V - c->vlo], zt = sw->zcol[1][V - c->vlo], q, hi, lo, eps, hu;
+    int k;
+    q = j->target_height > 0.0 ? (zt + j->target_height - j->ez) / u : sw->qcol[1][V - c->vlo];
+    k = find(F, m, &sw->hint_q);
+    hu = sw->holes ? sw->hole_u[bin_of(m)] : INFINITY;
+    hi = pval(&F->p[k], m);
+    lo = F->p[k].umax < hu ? hi - F->p[k].slack : -INFINITY;
+    if (k > 0 && F->p[k].m == m) { /* on a break: the piece ending here holds m too */
+        double v = pval(&F->p[k - 1], m);
+        hi = fmax(hi, v);
+        if (F->p[k - 1].umax < hu)
+            lo = fmax(lo, v - F->p[k - 1].slack);
+    }
+    {
+        int kn = find(&sw->N, m, &sw->hint_n);
+        hi = fmax(hi, pval(&sw->N.p[kn], m));
+        if (kn > 0 && sw->N.p[kn].m == m) /* on a break: the piece ending here too */
+            hi = fmax(hi, pval(&sw->N.p[kn - 1], m));
+    }
+    if (j->target_height > 0.0)
+        hi = fmax(hi, (zt - j->ez) / u);
+    last_cell(sw, V, u, m, hu, &hi, &lo);
+    eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
+#ifdef TD_VSWEEP_DEBUG /* every proof checked against the cast */
+    if (((q > hi + eps && sw->visible_ok) || (q < lo - eps && sw->hidden_ok))) {
+        uint32_t st = 0;
+        int32_t i = c->ui * U + c->vi * V, jj = c->uj * U + c->vj * V;
+        int r = td_viewshed_cast(j->v, j->surface, j->method, j->ex, j->ey, j->ez, i, jj, j->target_height, &st);
+        if ((r > 0) != (q > hi + eps && sw->visible_ok))
+            fprintf(stderr, "MISMATCH U %d V %d (i %d j %d) u %g m %g q %.9g hi %.9g lo %.9g cast %d F piece %d/%d\n",
+                    U, V, i, jj, u, m, q, hi, lo, r, k, F->n);
+    }
+#endif
+    if (q > hi + eps && sw->visible_ok) {
+        sw->vis[cidx(c, U, V)] = 1;
+        sw->swept++;
+    } else if (q < lo - eps && sw->hidden_ok) {
+        sw->vis[cidx(c, U, V)] = 0;
+        sw->swept++;
+    } else {
+        cast(sw, U, V);
+    }
+}
+
+/* Whether sample (U, V) belongs to this cone and is within max_distance. */
+static int owned(const sweep *sw, int32_t U, int32_t V, double u)
+{
+    const cone *c = &sw->c;
+    const td_grid *g = c->g;
+    double dv = fabs(V - c->ev), dx, dy;
+    int32_t i = c->ui * U + c->vi * V, j = c->uj * U + c->vj * V;
+    if (!(c->strict ? dv < u : dv <= u))
+        return 0;
+    if (sw->job->maxd2 == INFINITY)
+        return 1;
+    dx = i * g->sx - sw->job->ex;
+    dy = j * g->sy - sw->job->ey;
+    return dx * dx + dy * dy <= sw->job->maxd2;
+}
+
+static void sweep_cone(sweep *sw)
+{
+    const cone *c = &sw->c;
+    int32_t U0 = (int32_t)floor(c->eu) + 1; /* the first column east of the eye */
+    pv_clear(&sw->F);
+    for (int b = 0; b < VS_BINS; b++)
+        sw->hole_u[b] = INFINITY;
+    if (U0 <= c->uhi) {
+        near_strip(sw, U0);
+        load_next(sw, U0 - 2);
+        load_next(sw, U0 - 1);
+    }
+    for (int32_t U = U0; U <= c->uhi && !sw->oom; U++) {
+        double u = U - c->eu;
+        int32_t V0 = (int32_t)fmax(floor(c->ev - u) - 1.0, (double)c->vlo);
+        int32_t V1 = (int32_t)fmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
+        if (sw->job->cancel && atomic_load_explicit(sw->job->cancel, memory_order_relaxed))
+            break;
+        load_next(sw, U);
+        sw->hint_q = sw->hint_n = 0;
+        for (int32_t V = V0; V <= V1; V++) {
+            if (!owned(sw, U, V, u) || isnan(sw->zcol[1][V - c->vlo]))
+                continue;
+            if (U <= U0 + 1) /* the first two columns: cast */
+                cast(sw, U, V);
+            else
+                target(sw, U, V);
+        }
+        add_column(sw, U, U > U0);
+    }
+}
+
+/* ---- the four cones across threads ---------------------------------------------------- */
+
+typedef struct cone_task {
+    const td_vsweep_job *job;
+    uint8_t *vis;
+    atomic_int next;
+    sweep sw[4];
+} cone_task;
+
+static void *cone_worker(void *arg)
+{
+    cone_task *t = arg;
+    for (;;) {
+        int k = atomic_fetch_add_explicit(&t->next, 1, memory_order_relaxed);
+        sweep *sw;
+        if (k >= 4)
+            break;
+        sw = &t->sw[k];
+        size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
+        double *zb = malloc(9 * nv * sizeof *zb);
+        if (zb && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
+            pv_reserve(sw, &sw->N, 16)) {
+            for (size_t q = 0; q < 9 * nv; q++)
+                zb[q] = NAN;
+            for (int b = 0; b < 3; b++) {
+                sw->zcol[b] = zb + (size_t)b * nv;
+                sw->mcol[b] = zb + (size_t)(3 + b) * nv;
+                sw->qcol[b] = zb + (size_t)(6 + b) * nv;
+            }
+            sweep_cone(sw);
+        } else {
+            sw->oom = 1;
+        }
+        free(zb);
+    }
+    return NULL;
+}
+
+td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st, td_err *err)
+{
+    const td_grid *g = job->v->grid;
+    cone_task *t = calloc(1, sizeof *t);
+    pthread_t th[3];
+    int n = job->threads < 1 ? 1 : (job->threads > 4 ? 4 : job->threads), started = 0, oom = 0;
+    double eu = job->ex / g->sx, ev = job->ey / g->sy;
+    td_status rc = TD_OK;
+    memset(st, 0, sizeof *st);
+    if (!t) {
+        rc = td_err_set(err, TD_ENOMEM, "viewshed: out of memory");
+        goto out;
+    }
+    t->job = job;
+    t->vis = vis;
+    atomic_init(&t->next, 0);
+    for (int k = 0; k < 4; k++) {
+        sweep *sw = &t->sw[k];
+        sw->job = job;
+        sw->vis = vis;
+        sw->tri = job->surface == TD_SURFACE_TRIANGLE;
+        sw->bil = job->surface == TD_SURFACE_BILINEAR;
+        sw->lin = job->surface == TD_SURFACE_LINEAR;
+        sw->holes = g->voids > 0;
+        cone_init(&sw->c, g, k, eu, ev);
+    }
+    /* the sample under the eye, if there is one, belongs to no cone */
+    for (int32_t j = (int32_t)floor(ev); j <= (int32_t)ceil(ev) && j < g->h; j++)
+        for (int32_t i = (int32_t)floor(eu); i <= (int32_t)ceil(eu) && i < g->w; i++)
+            if ((double)i - eu == 0.0 && (double)j - ev == 0.0) {
+                uint32_t steps = 0;
+                int r = td_viewshed_cast(job->v, job->surface, job->method, job->ex, job->ey, job->ez, i, j,
+                                         job->target_height, &steps);
+                vis[(size_t)j * (size_t)g->w + (size_t)i] = r > 0;
+            }
+    for (started = 0; started < n - 1; started++)
+        if (pthread_create(&th[started], NULL, cone_worker, t) != 0)
+            break;
+    cone_worker(t);
+    for (int k = 0; k < started; k++)
+        pthread_join(th[k], NULL);
+    for (int k = 0; k < 4; k++) {
+        sweep *sw = &t->sw[k];
+        st->swept += sw->swept;
+        st->rays += sw->rays;
+        st->steps += sw->steps;
+        oom |= sw->oom;
+        free(sw->F.p);
+        free(sw->G.p);
+        free(sw->T.p);
+        free(sw->N.p);
+    }
+    if (oom)
+        rc = td_err_set(err, TD_ENOMEM, "viewshed: out of memory for the horizon");
+    else if (job->cancel && atomic_load_explicit(job->cancel, memory_order_relaxed))
+        rc = td_err_set(err, TD_ECANCELED, "viewshed: cancelled");
+out:
+    free(t);
+    return rc;
+}
