@@ -31,6 +31,7 @@
 #include "log.h"
 #include "metrics.h"
 #include "routes.h"
+#include "maps.h"
 #include "static.h"
 #include "tilestore.h"
 
@@ -214,7 +215,8 @@ int td_cli_serve(int argc, char **argv)
         goto out;
     td_static_resolve(cfg.web_dir, app.web_dir, app.leaflet_dir);
     app.metrics = td_metrics_create(td_route_names, TD_ROUTE_COUNT);
-    if (!app.metrics || td_jobs_start(app.store, &app.jobs, &e)) {
+    app.maps = td_maps_create();
+    if (!app.metrics || !app.maps || td_jobs_start(app.store, &app.jobs, &e)) {
         td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg[0] ? e.msg : "out of memory"));
         goto out;
     }
@@ -236,6 +238,7 @@ out:
         td_http_stop(app.http, 0);
     td_jobs_stop(app.jobs);
     td_store_free(app.store);
+    td_maps_free(app.maps);
     td_metrics_free(app.metrics);
     td_config_free(&cfg);
     return rc;

@@ -63,6 +63,8 @@
       "cells per tile side (a power of two)")                                              \
     X(planes_k, INT, "--planes-k", "TERRAD_PLANES_K", "16", 1, 255,                        \
       "height slices of the parameter planes")                                             \
+    X(cors_origins, STR, "--cors-origins", "TERRAD_CORS_ORIGINS", "*", 0, 0,               \
+      "origins allowed to read the non-admin API from browsers: *, a comma-separated list, or empty") \
     X(isometric_lod, INT, "--isometric-lod", "TERRAD_ISOMETRIC_LOD", "0", 0, 1,            \
       "1: keep isometric twins of the levels of detail too (quality.lod_grid)")
 

@@ -40,6 +40,8 @@
 #include "render.h"
 #include "request.h"
 #include "static.h"
+#include "cors.h"
+#include "maps.h"
 #include "viewshed_api.h"
 
 const char *const td_route_names[TD_ROUTE_COUNT] = {
@@ -1205,7 +1207,7 @@ static void h_pick(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     h_render(app, q, r, 1, 1);
 }
 
-static int parse_uint(const char *s, long max, long *out)
+int td_routes_parse_uint(const char *s, long max, long *out)
 {
     char *end = NULL;
     long v;
@@ -1244,11 +1246,11 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
         api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", seg[0]);
         goto out;
     }
-    if (!parse_uint(seg[1], 24, &z)) {
+    if (!td_routes_parse_uint(seg[1], 24, &z)) {
         api_error(r, TD_AE_BAD_REQUEST, "z", "z: an integer zoom in [0, 24]");
         goto out;
     }
-    if (!parse_uint(seg[2], (1L << z) - 1, &x) || !parse_uint(seg[3], (1L << z) - 1, &y)) {
+    if (!td_routes_parse_uint(seg[2], (1L << z) - 1, &x) || !td_routes_parse_uint(seg[3], (1L << z) - 1, &y)) {
         api_error(r, TD_AE_NOT_FOUND, NULL, "no tile %s/%s at zoom %ld (x and y in [0, %ld])", seg[2],
                   seg[3], z, (1L << z) - 1);
         goto out;
@@ -1359,6 +1361,10 @@ static const td_route_row td_routes[] = {
     {TD_ROUTE_LOS, "/v1/los", NULL, 0, 0, "POST", td_los_route, NULL},
     {TD_ROUTE_TILES, "/v1/tiles/", "*/*/*/*", 4, 0, "GET, HEAD", h_tile, NULL},
     {TD_ROUTE_TILES, "/v1/tiles/", "", 0, 0, NULL, NULL, "tile paths are /v1/tiles/{dataset}/{z}/{x}/{y}.png"},
+    {TD_ROUTE_MAPS, "/v1/maps/", "*/*/*/*/*", 5, 0, "GET, HEAD", td_maps_tile_route, NULL},
+    {TD_ROUTE_TILEJSON, "/v1/maps/", "*/*", 2, 0, "GET, HEAD", td_maps_tilejson_route, NULL},
+    {TD_ROUTE_MAPS, "/v1/maps/", "", 0, 0, NULL, NULL,
+     "map paths are /v1/maps/{dataset}/{style}/{z}/{x}/{y}.png and /v1/maps/{dataset}/{style}.json"},
     {TD_ROUTE_DATASETS, "/v1/datasets", NULL, 0, 0, "GET, HEAD", h_datasets, NULL},
     {TD_ROUTE_DATASETS, "/v1/datasets/", NULL, 0, 0, "GET, HEAD", h_datasets, NULL},
     {TD_ROUTE_DATASET, "/v1/datasets/", "*", 1, 0, "GET, HEAD", h_dataset, NULL},
@@ -1370,6 +1376,7 @@ static const td_route_row td_routes[] = {
     {TD_ROUTE_HEIGHTS, "/v1/admin/", "datasets/*/heights", 4, 1, "GET, HEAD, PUT", h_heights, NULL},
     {TD_ROUTE_EVICT, "/v1/admin/", "", 0, 1, NULL, NULL, "no such admin route"},
     {TD_ROUTE_WEB, TD_STATIC_VENDOR_PREFIX, "", 0, 0, "GET, HEAD", h_vendor, NULL},
+    {TD_ROUTE_WEB, TD_MAPS_VENDOR_PREFIX, "", 0, 0, "GET, HEAD", td_maps_vendor_route, NULL},
     {TD_ROUTE_UNKNOWN, "/v1", NULL, 0, 0, NULL, h_no_route, NULL},
     {TD_ROUTE_UNKNOWN, "/v1/", "", 0, 0, NULL, h_no_route, NULL},
     {TD_ROUTE_WEB, "/", "", 0, 0, "GET, HEAD", h_page, NULL},
@@ -1453,6 +1460,8 @@ static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
         api_error(r, TD_AE_LOADING, NULL, "the datasets are loading; retry shortly");
     } else if (w->admin && admin_check(app, q, r)) {
         /* answered: 404 admin_disabled or 401 */
+    } else if (!w->admin && w->route != TD_ROUTE_WEB && td_cors_apply(app->cfg->cors_origins, q, r, w->allow)) {
+        /* answered: a CORS preflight (cors.h); admin routes never get CORS */
     } else if (w->allow && !method_allowed(w->allow, m)) {
         method_not_allowed(r, w->allow, m);
     } else if (!w->fn) {

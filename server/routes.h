@@ -33,6 +33,8 @@
     X(TD_ROUTE_WEB, "web")                                                     \
     X(TD_ROUTE_VIEWSHED, "viewshed")                                           \
     X(TD_ROUTE_LOS, "los")                                                     \
+    X(TD_ROUTE_MAPS, "maps")                                                   \
+    X(TD_ROUTE_TILEJSON, "tilejson")                                           \
     X(TD_ROUTE_UNKNOWN, "unknown")
 
 typedef enum td_route {
@@ -56,6 +58,7 @@ typedef struct td_app {
                           /readyz answer (503), and nothing reads the store */
     char web_dir[PATH_MAX];     /* realpath, or "" when absent */
     char leaflet_dir[PATH_MAX]; /* realpath of web/node_modules/leaflet/dist, or "" */
+    struct td_maps *maps;       /* map tiles' per-dataset CRS cache (maps.h) */
 } td_app;
 
 /* td_http_handler and td_http_done_fn for td_http_start (cls: the td_app). */
@@ -73,6 +76,9 @@ int td_routes_json_body(td_http_req *q, td_http_resp *r);
 /* td_http_opts.body_cap: --max-edit-kb for a PUT of heights with the right bearer token,
  * --max-body-kb for every other request (so only an admin can send large bodies). */
 size_t td_routes_body_cap(void *cls, const td_http_req *q);
+
+/* A decimal integer in [0, max] (digits only): 1 and *out, or 0. */
+int td_routes_parse_uint(const char *s, long max, long *out);
 
 /* Constant-time comparison of a presented token with the configured one. */
 int td_routes_token_equal(const char *given, const char *want);

@@ -50,7 +50,7 @@ void td_static_resolve(const char *web_dir, char web[PATH_MAX], char leaflet[PAT
 
 int td_static_is_page(const char *path)
 {
-    return !strcmp(path, "/") || !strcmp(path, "/index.html") || !strcmp(path, "/style.css") ||
+    return !strcmp(path, "/") || !strcmp(path, "/index.html") || !strcmp(path, "/map.html") || !strcmp(path, "/style.css") ||
            !strncmp(path, "/js/", 4) || !strcmp(path, "/favicon.ico");
 }
 

@@ -22,7 +22,7 @@
 void td_static_resolve(const char *web_dir, char web[PATH_MAX], char leaflet[PATH_MAX]);
 
 /* 1 when a URL path names one of the page's own files (not its tests, build files or
- * node_modules): /, /index.html, /style.css, /js/..., /favicon.ico. */
+ * node_modules): /, /index.html, /map.html (the web map), /style.css, /js/..., /favicon.ico. */
 int td_static_is_page(const char *path);
 
 /* The Content-Type of a file, by its extension (application/octet-stream if unknown). */

@@ -29,6 +29,11 @@ void fuzz_remove(const char *name);
  * check that the seeds reach what they should); silent otherwise. */
 void fuzz_report(const char *what, int status, const char *msg);
 
+/* Splits text (modified in place) at '&' into at most max key=value pairs, as the HTTP
+ * layer hands a query string over (decoded): keys[i], values[i]; a pair without '=' gets
+ * `missing` as its value. Returns the number of pairs. */
+size_t fuzz_split_query(char *text, char **keys, char **values, size_t max, char *missing);
+
 /* The byte budget the loader targets give the loaders: small enough that libFuzzer's
  * 2 GB RSS limit is never the finding, large enough for the seeds. */
 #define FUZZ_BUDGET_BYTES ((uint64_t)256 << 20)

@@ -13,26 +13,15 @@
 
 static void parse_query(const uint8_t *data, size_t size, const td_request_limits *lim)
 {
-    char *text = malloc(size + 1), *keys[QUERY_MAX], *values[QUERY_MAX];
-    size_t n = 0;
+    char *text = malloc(size + 1), *keys[QUERY_MAX], *values[QUERY_MAX], empty[1] = "";
+    size_t n;
     td_scene sc;
     td_request_error re;
     if (!text)
         abort();
     memcpy(text, data, size);
     text[size] = '\0';
-    for (char *s = text, *next; s && n < QUERY_MAX; s = next) {
-        char *eq;
-        next = strchr(s, '&');
-        if (next)
-            *next++ = '\0';
-        eq = strchr(s, '=');
-        if (eq)
-            *eq++ = '\0';
-        keys[n] = s;
-        values[n] = eq ? eq : s + strlen(s);
-        n++;
-    }
+    n = fuzz_split_query(text, keys, values, QUERY_MAX, empty);
     fuzz_report("query", td_request_parse_query((const char *const *)keys, (const char *const *)values,
                                                 n, lim, &sc, &re),
                 re.message);

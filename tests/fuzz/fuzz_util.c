@@ -79,3 +79,20 @@ void fuzz_report(const char *what, int status, const char *msg)
     if (verbose)
         fprintf(stderr, "%s: status %d%s%s\n", what, status, status ? ": " : "", status ? msg : "");
 }
+
+size_t fuzz_split_query(char *text, char **keys, char **values, size_t max, char *missing)
+{
+    size_t n = 0;
+    for (char *s = text, *next; s && n < max; s = next) {
+        char *eq;
+        next = strchr(s, '&');
+        if (next)
+            *next++ = '\0';
+        eq = strchr(s, '=');
+        if (eq)
+            *eq++ = '\0';
+        keys[n] = s;
+        values[n++] = eq ? eq : missing;
+    }
+    return n;
+}

@@ -18,7 +18,7 @@
 import * as api from './api.js';
 import {
   normaliseDataset, transformation, maxNativeZoom, defaultCamera, wedge, along, headingTo,
-  normHeading, clampToDataset, keyMove, frameToGeo, clamp,
+  normHeading, clampToDataset, keyMove, frameToGeo, clamp, cameraHash, parseCameraHash,
 } from './frame.js';
 import { drawTimingChart, totalOf, fmtMs } from './chart.js';
 import { diffImages } from './diff.js';
@@ -342,17 +342,14 @@ function wireCameraFields() {
 // The camera in the URL fragment: #dataset/x/y/agl/heading/pitch/fov (a link shows the
 // same view).
 function saveHash() {
-  const c = state.cam;
-  const h = `#${encodeURIComponent(state.ds.id)}/${[c.x, c.y, c.agl, c.heading, c.pitch, c.fov].map((v) => +v.toFixed(2)).join('/')}`;
+  const h = cameraHash(state.ds.id, state.cam);
   history.replaceState(null, '', h);
+  const wm = document.getElementById('webmap-link');
+  if (wm) wm.href = `map.html${h}`; // the web map shows this camera
 }
 
 function readHash() {
-  const parts = location.hash.replace(/^#/, '').split('/');
-  if (parts.length !== 7) return null;
-  const v = parts.slice(1).map(Number);
-  if (!v.every(Number.isFinite)) return null;
-  return { id: decodeURIComponent(parts[0]), cam: { x: v[0], y: v[1], agl: v[2], heading: v[3], pitch: v[4], fov: v[5] } };
+  return parseCameraHash(location.hash);
 }
 
 // --- settings -------------------------------------------------------------------------

@@ -139,3 +139,18 @@ export function keyMove(cam, key, ds, big) {
   }
   return c;
 }
+
+// The camera in a URL fragment, shared by the page and the web map:
+// #dataset/x/y/agl/heading/pitch/fov (frame metres and degrees, 2 decimals).
+export function cameraHash(id, c) {
+  return `#${encodeURIComponent(id)}/${[c.x, c.y, c.agl, c.heading, c.pitch, c.fov].map((v) => +v.toFixed(2)).join('/')}`;
+}
+
+// The dataset id and camera of such a fragment, or null.
+export function parseCameraHash(hash) {
+  const parts = hash.replace(/^#/, '').split('/');
+  if (parts.length !== 7) return null;
+  const v = parts.slice(1).map(Number);
+  if (!v.every(Number.isFinite)) return null;
+  return { id: decodeURIComponent(parts[0]), cam: { x: v[0], y: v[1], agl: v[2], heading: v[3], pitch: v[4], fov: v[5] } };
+}

@@ -21,7 +21,7 @@
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
 import { spawn } from 'node:child_process';
-import { createServer } from 'node:net';
+import { freePort, sleep } from './net.mjs';
 import { mkdtemp, rm, mkdir, copyFile } from 'node:fs/promises';
 import { existsSync, openSync, closeSync, readFileSync, rmSync } from 'node:fs';
 import { tmpdir } from 'node:os';
@@ -55,18 +55,6 @@ let server = null, serverExit = null, port = 0, base = '';
 let context = null, page = null, profile = null;
 const foreign = [], pageErrors = [], renderRequests = [], failed = [], viewshedRequests = [];
 
-function freePort() {
-  return new Promise((resolve, reject) => {
-    const s = createServer();
-    s.on('error', reject);
-    s.listen(0, '127.0.0.1', () => {
-      const p = s.address().port;
-      s.close(() => resolve(p));
-    });
-  });
-}
-
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 async function waitReady(deadlineMs) {
   const end = Date.now() + deadlineMs;

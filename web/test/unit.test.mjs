@@ -274,6 +274,16 @@ test('viewshed overlay: bounds half a sample beyond the grid, the observer\'s pi
   assert.equal(viewshedBody('v', 1, 2, { maxDistance: 0 }).max_distance, 0, 'terrad judges 0, not the page');
 });
 
+test('the camera fragment round-trips (page and web map share it)', async () => {
+  const { cameraHash, parseCameraHash } = await import('../js/frame.js');
+  const cam = { x: 20000.123, y: 15000, agl: 300, heading: 60, pitch: -8.5, fov: 60 };
+  const h = cameraHash('a b/c', cam);
+  assert.equal(h, '#a%20b%2Fc/20000.12/15000/300/60/-8.5/60');
+  assert.deepEqual(parseCameraHash(h), { id: 'a b/c', cam: { ...cam, x: 20000.12 } });
+  assert.equal(parseCameraHash('#trinidad/1/2/3'), null);
+  assert.equal(parseCameraHash('#trinidad/1/2/3/x/5/6'), null);
+});
+
 test('POSTs carry the body\'s dataset in the query: the key a proxy routes replicas on', () => {
   assert.equal(routedUrl('/v1/render', { dataset: 'trinidad', camera: {} }), '/v1/render?dataset=trinidad');
   assert.equal(routedUrl('/v1/x?a=1', { dataset: 'a b/c' }), '/v1/x?a=1&dataset=a%20b%2Fc');
