@@ -74,9 +74,11 @@ tsan: deps
 	cd $(TSAN_BUILD) && TSAN_OPTIONS="halt_on_error=1 exitcode=66 second_deadlock_stack=1" \
 		ctest --output-on-failure -R '^(server_tilestore|server_edit)$$'
 
-# `terrad bench` runs build/terrad-bench (tests/bench), built beside terrad by `build`.
+# `terrad bench` runs build/terrad-bench (tests/bench), built beside terrad by `build`;
+# then what map tiles cost (build/maps-bench, issue 17), which the report's summary links.
 bench: build
 	./$(BUILD)/terrad bench --out docs
+	./$(BUILD)/maps-bench . docs/maps-bench.md --runs 5
 
 clean:
 	rm -rf $(BUILD) $(ASAN_BUILD) $(FUZZ_BUILD) $(TSAN_BUILD)

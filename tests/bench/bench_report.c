@@ -689,6 +689,9 @@ static td_status write_summary(const bench_ctx *b, const char *path, td_err *err
                    "parametric) against the paper's 209.5 / 7.88 / 3.74.\n", d->name, mean[0], mean[1], mean[2]);
     }
     td_bench_camera_summary(f, b);
+    fprintf(f, "\nWeb Mercator map tiles (issue 17): tiles per second for each style on one thread, and what "
+               "cast shadows add, are in [docs/maps-bench.md](docs/maps-bench.md), written by the same `make "
+               "bench`.\n");
     if (d->speed_done)
         fprintf(f, "\n![time against error](docs/bench/pareto-trace.svg)\n");
     if (fclose(f) != 0)
