@@ -515,20 +515,24 @@ static void one_ray(ctx *c, const td_ray *r)
 typedef struct cam_view {
     const char *name;
     double fx, fy, agl, heading, pitch, roll, fov, sun_az, sun_el;
+    td_projection proj; /* perspective unless given */
 } cam_view;
 
 /* Views placed in the grid's own frame (fx, fy: fraction of its extent; agl over the
  * highest sample; a negative agl puts the camera below the crests, at the lowest sample
  * plus a quarter of the relief). */
 static const cam_view cam_views[] = {
-    {"level", 0.3, 0.3, 150, 40, 0, 0, 70, 300, 30},
-    {"grazing sunset", 0.2, 0.5, 60, 95, -3, 0, 70, 270, 3},
-    {"rolled 35", 0.7, 0.6, 300, 200, -10, 35, 70, 120, 40},
-    {"roll 90", 0.5, 0.2, 200, 10, -15, 90, 60, 60, 25},
-    {"straight down", 0.5, 0.5, 2000, 0, -90, 0, 70, 150, 35},
-    {"vanishing point inside", 0.4, 0.4, 800, 30, -60, 0, 100, 200, 20},
-    {"fov 170", 0.5, 0.1, 100, 0, -5, 0, 170, 90, 10},
-    {"below the crests", 0.5, 0.5, -1, 70, 5, 0, 80, 320, 45},
+    {"level", 0.3, 0.3, 150, 40, 0, 0, 70, 300, 30, TD_PROJ_PERSPECTIVE},
+    {"grazing sunset", 0.2, 0.5, 60, 95, -3, 0, 70, 270, 3, TD_PROJ_PERSPECTIVE},
+    {"rolled 35", 0.7, 0.6, 300, 200, -10, 35, 70, 120, 40, TD_PROJ_PERSPECTIVE},
+    {"roll 90", 0.5, 0.2, 200, 10, -15, 90, 60, 60, 25, TD_PROJ_PERSPECTIVE},
+    {"straight down", 0.5, 0.5, 2000, 0, -90, 0, 70, 150, 35, TD_PROJ_PERSPECTIVE},
+    {"vanishing point inside", 0.4, 0.4, 800, 30, -60, 0, 100, 200, 20, TD_PROJ_PERSPECTIVE},
+    {"fov 170", 0.5, 0.1, 100, 0, -5, 0, 170, 90, 10, TD_PROJ_PERSPECTIVE},
+    {"below the crests", 0.5, 0.5, -1, 70, 5, 0, 80, 320, 45, TD_PROJ_PERSPECTIVE},
+    /* panoramas (issue 19): every column an azimuth, the seam at heading +- 180 */
+    {"panorama 360", 0.5, 0.5, 40, 17, 0, 0, 360, 200, 15, TD_PROJ_CYLINDRICAL},
+    {"panorama 140 low", 0.3, 0.6, -1, 250, -4, 0, 140, 80, 30, TD_PROJ_CYLINDRICAL},
 };
 
 /* The shadow rays of a colour render of the view (png, shadows on): td_occluded with the
@@ -595,6 +599,7 @@ static uint64_t camera_check(ctx *c, const cam_view *cv, td_method m, td_surface
     sc.camera.z = cv->agl < 0.0 ? g->zmin + 0.25 * (g->zmax - g->zmin) : g->zmax + cv->agl;
     sc.camera.heading = cv->heading, sc.camera.pitch = cv->pitch, sc.camera.roll = cv->roll;
     sc.camera.fov = cv->fov;
+    sc.camera.projection = cv->proj;
     sc.image.width = W, sc.image.height = H, sc.image.format = TD_FORMAT_DEPTH32F;
     sc.quality.method = m, sc.quality.surface = sf;
     sc.effects.sun_azimuth = cv->sun_az, sc.effects.sun_elevation = cv->sun_el;
