@@ -1,0 +1,188 @@
+/* test_skyline.c: the skyline (core/skyline.c) against values worked by hand (a ridge
+ * on a plain, the grid's edge, a wall beyond the earth's curve) and against a rendered
+ * panorama of the same eye: the first terrain row of every column is the skyline's row,
+ * to a pixel. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "accel.h"
+#include "effects.h"
+#include "camera.h"
+#include "render.h"
+#include "skyline.h"
+#include "terrain.h"
+
+#define DEG (M_PI / 180.0)
+
+/* A plain at 0 m, 201 x 201 samples 10 m apart, with a north-south ridge of 100 m on
+ * column 150 (x = 1500 m). */
+static td_grid *ridge_grid(void)
+{
+    td_grid *g = NULL;
+    assert_int_equal(td_grid_create(201, 201, 10.0, 10.0, 5, NULL, &g, NULL), TD_OK);
+    for (int32_t j = 0; j < 201; j++)
+        for (int32_t i = 0; i < 201; i++)
+            g->z[(size_t)j * 201 + i] = i == 150 ? 100.0f : 0.0f;
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    return g;
+}
+
+static void test_ridge_and_edge(void **state)
+{
+    td_grid *g = ridge_grid();
+    td_view v = {g, NULL};
+    td_skyline_opts o;
+    td_skyline s;
+    td_err err = {0};
+    (void)state;
+    td_skyline_opts_default(&o);
+    o.x = 500, o.y = 1000, o.height = 10, o.curvature = 0, o.step_deg = 1;
+    for (int surf = 0; surf < TD_SURFACE_COUNT; surf++) {
+        o.surface = (td_surface)surf;
+        assert_int_equal(td_skyline_compute(&v, &o, &s, &err), TD_OK);
+        assert_int_equal(s.n, 360);
+        assert_float_equal(s.eye[2], 10.0, 1e-9);
+        /* east: the ridge's crest, 1000 m away, 90 m above the eye (the plane surface's
+           cells next to the crest are flat-topped at 100 m: the crest is a cell nearer) */
+        double near = surf == TD_SURFACE_PLANE ? 10.0 : 0.0;
+        assert_float_equal(s.pt[90].azimuth, 90.0, 1e-12);
+        assert_float_equal(s.pt[90].elevation, atan(90.0 / (1000.0 - near)) / DEG, 1e-6);
+        assert_float_equal(s.pt[90].distance, 1000.0 - near, 0.01);
+        assert_float_equal(s.pt[90].p[2], 100.0, 0.01);
+        /* west: the plain ends at the grid's edge, 500 m away, 10 m below the eye */
+        assert_float_equal(s.pt[270].elevation, -atan(10.0 / 500.0) / DEG, 1e-6);
+        assert_float_equal(s.pt[270].distance, 500.0, 0.01);
+        /* north-east at 45 degrees the ridge is sqrt(2) km away */
+        assert_float_equal(s.pt[45].elevation, atan(90.0 / (sqrt(2.0) * (1000.0 - near))) / DEG, 1e-5);
+        /* between azimuths: linear */
+        assert_float_equal(td_skyline_elevation_at(&s, 90.5),
+                           0.5 * (s.pt[90].elevation + s.pt[91].elevation), 1e-12);
+        assert_float_equal(td_skyline_elevation_at(&s, -270.0), s.pt[90].elevation, 1e-12);
+        td_skyline_free(&s);
+    }
+    /* refused, naming the field */
+    o.step_deg = 0.001;
+    assert_int_equal(td_skyline_compute(&v, &o, &s, &err), TD_ERANGE);
+    assert_string_equal(err.field, "step_deg");
+    o.step_deg = 1, o.x = -5;
+    assert_int_equal(td_skyline_compute(&v, &o, &s, &err), TD_ERANGE);
+    assert_string_equal(err.field, "observer");
+    o.x = 500, o.max_distance = 0;
+    assert_int_equal(td_skyline_compute(&v, &o, &s, &err), TD_ERANGE);
+    assert_string_equal(err.field, "max_distance");
+    /* max_distance: the ridge 1000 m away is out of a 800 m reach; the plain's far edge
+       at 800 m forms the skyline */
+    o.max_distance = 800;
+    assert_int_equal(td_skyline_compute(&v, &o, &s, &err), TD_OK);
+    assert_float_equal(s.pt[90].elevation, -atan(10.0 / 800.0) / DEG, 1e-5);
+    td_skyline_free(&s);
+    td_grid_free(g);
+}
+
+/* The earth's curve: a 500 m wall 40 km across a sea, seen from 10 m; with curvature
+ * (k = 0.13) it sinks by (1 - k) s^2 / 2R = 109.3 m. */
+static void test_curvature(void **state)
+{
+    td_grid *g = NULL;
+    td_accel *a = NULL;
+    td_accel_opts ao;
+    td_skyline_opts o;
+    td_skyline s;
+    td_err err = {0};
+    (void)state;
+    assert_int_equal(td_grid_create(401, 3, 100.0, 100.0, 6, NULL, &g, NULL), TD_OK);
+    for (int k = 0; k < 401 * 3; k++)
+        g->z[k] = k % 401 == 400 ? 500.0f : 0.0f;
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel_opts_default(&ao);
+    ao.maxmip = 1;
+    assert_int_equal(td_accel_build(g, &ao, &a, NULL, NULL), TD_OK);
+    td_view v = {g, a->tiles};
+    td_skyline_opts_default(&o);
+    o.x = 0, o.y = 100, o.height = 10;
+    double s2 = 40000.0 * 40000.0, drop = (1.0 - 0.13) * s2 / (2.0 * TD_EARTH_RADIUS_M);
+    assert_int_equal(td_skyline_compute(&v, &o, &s, &err), TD_OK);
+    assert_int_equal(s.n, 1440);
+    /* within the chords' 1/256 of a step */
+    assert_float_equal(s.pt[360].elevation, atan((490.0 - drop) / 40000.0) / DEG, 0.25 / 256 + 1e-6);
+    assert_float_equal(s.pt[360].distance, 40000.0, 1.0);
+    td_skyline_free(&s);
+    o.curvature = 0;
+    assert_int_equal(td_skyline_compute(&v, &o, &s, &err), TD_OK);
+    assert_float_equal(s.pt[360].elevation, atan(490.0 / 40000.0) / DEG, 1e-6);
+    td_skyline_free(&s);
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
+/* A rendered 360-degree panorama of the same eye (column k at azimuth k * step, as the
+ * skyline's): in every column the first row from the top that meets terrain is the row
+ * of the skyline's elevation, to a pixel. */
+static void test_matches_render(void **state)
+{
+    td_terrain_params p;
+    td_grid *g = NULL;
+    td_err err = {0};
+    td_skyline_opts o;
+    td_skyline sk;
+    td_scene sc;
+    td_render_opts ro;
+    td_render_result res;
+    td_camera cam;
+    enum { W = 720, H = 360 };
+    int exact = 0;
+    (void)state;
+    td_terrain_params_default(&p);
+    p.width = p.height = 129;
+    p.spacing = 30.0;
+    p.feature_m = 1500.0;
+    p.relief_m = 400.0;
+    p.seed = 3;
+    assert_int_equal(td_terrain_generate(&p, 5, &g, &err), TD_OK);
+    td_view v = {g, NULL};
+    td_skyline_opts_default(&o);
+    o.x = 64 * 30.0 + 3, o.y = 64 * 30.0 - 4, o.height = 15, o.step_deg = 360.0 / W;
+    assert_int_equal(td_skyline_compute(&v, &o, &sk, &err), TD_OK);
+    td_scene_defaults(&sc);
+    sc.dataset[0] = 'x';
+    sc.camera.projection = TD_PROJ_CYLINDRICAL;
+    sc.camera.x = sk.eye[0], sc.camera.y = sk.eye[1], sc.camera.z = sk.eye[2];
+    sc.camera.fov = 360, sc.camera.heading = (0.5 * W - 0.5) * o.step_deg;
+    sc.image.width = W, sc.image.height = H, sc.image.format = TD_FORMAT_DEPTH32F;
+    sc.effects.curvature = 1;
+    td_render_opts_default(&ro);
+    ro.threads = 2;
+    memset(&res, 0, sizeof res);
+    assert_int_equal(td_render(&v, &sc, &ro, &res, &err), TD_OK);
+    assert_int_equal(td_camera_setup(&sc.camera, W, H, g, &cam, &err), TD_OK);
+    for (int x = 0; x < W; x++) {
+        int row = 0;
+        while (row < H && !isfinite(res.depth[row * W + x]))
+            row++;
+        double py = cam.fv_px * (cam.tan_top - tan(sk.pt[x].elevation * DEG)) - 0.5;
+        int want = (int)ceil(py);
+        assert_true(abs(row - want) <= 1);
+        exact += row == want;
+    }
+    assert_true(exact >= W * 95 / 100);
+    td_render_result_free(&res);
+    td_skyline_free(&sk);
+    td_grid_free(g);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_ridge_and_edge),
+        cmocka_unit_test(test_curvature),
+        cmocka_unit_test(test_matches_render),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
