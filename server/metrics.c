@@ -215,6 +215,26 @@ static void put_totals(td_buf *b, td_metrics *m, const td_metrics_ext *e)
         (unsigned long long)e->jobs_done, (unsigned long long)e->jobs_failed);
 }
 
+/* The per-dataset series, each family's HELP and TYPE once. */
+static void put_datasets(td_buf *b, const td_metrics_ext *e)
+{
+#define TD_DS_SERIES(X)                                                                     \
+    X("terrad_dataset_resident_tiles", "gauge", "Tiles of the dataset with acceleration resident.", \
+      resident_tiles)                                                                       \
+    X("terrad_dataset_resident_bytes", "gauge", "Bytes of the dataset's heights and acceleration.", \
+      resident_bytes)                                                                       \
+    X("terrad_dataset_requests_total", "counter",                                           \
+      "Requests that traced the dataset (renders, tiles, picks, viewsheds).", requests)
+#define TD_X_PUT(name, type, help, field)                                                   \
+    if (e->ndatasets)                                                                       \
+        put(b, "# HELP " name " " help "\n# TYPE " name " " type "\n");                     \
+    for (size_t i = 0; i < e->ndatasets; i++)                                               \
+        put(b, name "{dataset=\"%s\"} %llu\n", e->ds[i].id, (unsigned long long)e->ds[i].field);
+    TD_DS_SERIES(TD_X_PUT)
+#undef TD_X_PUT
+#undef TD_DS_SERIES
+}
+
 char *td_metrics_format(const td_metrics *mc, const td_metrics_ext *e, size_t *len)
 {
     td_metrics *m = (td_metrics *)mc; /* atomic loads need a non-const object in C11 */
@@ -224,6 +244,7 @@ char *td_metrics_format(const td_metrics *mc, const td_metrics_ext *e, size_t *l
     put_requests(&b, m);
     put_render_seconds(&b, m);
     put_totals(&b, m, e);
+    put_datasets(&b, e);
     if (b.oom) {
         free(b.p);
         b.p = NULL;

@@ -19,12 +19,21 @@ typedef struct td_metrics td_metrics;
 #define TD_METRICS_BUCKETS(X) X(0.005) X(0.01) X(0.025) X(0.05) X(0.1) X(0.25) X(0.5) \
     X(1.0) X(2.5) X(5.0) X(10.0) X(30.0)
 
+/* One dataset's series (labels dataset="id"): what a replica keeps hot and serves, so a
+ * load balancer's routing by dataset can be seen per replica. */
+typedef struct td_metrics_dataset {
+    const char *id; /* td_store_id_valid: no character that needs escaping in a label */
+    uint64_t resident_tiles, resident_bytes, requests;
+} td_metrics_dataset;
+
 typedef struct td_metrics_ext {
     int queue_depth, queue_capacity;
     int datasets;
     uint64_t resident_tiles, total_tiles, resident_bytes, budget_bytes;
     uint64_t tiles_built, tiles_evicted, cache_hits, cache_misses;
     uint64_t jobs_queued, jobs_running, jobs_done, jobs_failed;
+    const td_metrics_dataset *ds; /* ndatasets of them (may be 0) */
+    size_t ndatasets;
 } td_metrics_ext;
 
 /* route_names[nroutes] must outlive the metrics. NULL when out of memory. */

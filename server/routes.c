@@ -300,6 +300,7 @@ static void h_healthz(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 static void h_metrics(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
     td_metrics_ext e;
+    td_metrics_dataset *ds;
     td_store_stats st;
     size_t jc[TD_JOB_STATE_COUNT], len = 0;
     char *text;
@@ -323,7 +324,16 @@ static void h_metrics(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     e.jobs_running = jc[TD_JOB_RUNNING];
     e.jobs_done = jc[TD_JOB_DONE];
     e.jobs_failed = jc[TD_JOB_FAILED];
-    text = td_metrics_format(app->metrics, &e, &len);
+    e.ndatasets = td_store_count(app->store);
+    e.ds = ds = calloc(e.ndatasets ? e.ndatasets : 1, sizeof *ds);
+    for (size_t i = 0; ds && i < e.ndatasets; i++) {
+        td_dataset_info di;
+        td_store_info(app->store, i, &di);
+        ds[i] = (td_metrics_dataset){di.id, di.resident_tiles,
+                                     di.grid_bytes + di.accel_bytes + di.drape_bytes, di.snapshots};
+    }
+    text = ds ? td_metrics_format(app->metrics, &e, &len) : NULL;
+    free(ds);
     if (text) {
         r->status = 200;
         td_http_resp_take(r, text, len, "text/plain; version=0.0.4; charset=utf-8");
@@ -1378,6 +1388,29 @@ static int method_allowed(const char *allow, const char *method)
     return ok;
 }
 
+/* `?dataset=ID` on a POST is a routing key for a proxy in front of replicas
+ * (docker/nginx.conf hashes on it, as it does on the id in GET paths); the body says what
+ * is traced, so where both name a dataset they must agree. 0, or -1 with a 400 sent. */
+static int dataset_hint_check(td_http_req *q, td_http_resp *r)
+{
+    const char *hint = td_http_req_query(q, "dataset");
+    int rc = 0;
+    if (hint && !strcmp(td_http_req_method(q), "POST")) {
+        size_t len = 0;
+        const char *body = td_http_req_body(q, &len);
+        json_t *root = body ? json_loadb(body, len, 0, NULL) : NULL;
+        const char *id = json_string_value(json_object_get(root, "dataset"));
+        if (id && strcmp(id, hint)) {
+            rc = -1;
+            api_error(r, TD_AE_BAD_REQUEST, "dataset",
+                      "dataset: the body's '%.64s' differs from the query's '%.64s' (the key "
+                      "a proxy routes on)", id, hint);
+        }
+        json_decref(root);
+    }
+    return rc;
+}
+
 static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
 {
     const char *m = td_http_req_method(q), *path = td_http_req_path(q);
@@ -1399,6 +1432,8 @@ static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
         method_not_allowed(r, w->allow, m);
     } else if (!w->fn) {
         api_error(r, TD_AE_NOT_FOUND, NULL, "%s", w->missing);
+    } else if (dataset_hint_check(q, r)) {
+        /* answered: 400 */
     } else {
         w->fn(app, q, r, seg);
     }

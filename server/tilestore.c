@@ -108,6 +108,7 @@ typedef struct td_ds {
     /* kept with the slots (store lock) */
     size_t resident_tiles, pinned_tiles, part_tiles[TD_PART_COUNT];
     uint64_t accel_bytes, drape_bytes;
+    uint64_t snapshots;   /* requests that traced it (td_store_acquire) */
     td_drape *drapes;
 } td_ds;
 
@@ -892,6 +893,7 @@ void td_store_info(td_store *s, size_t idx, td_dataset_info *out)
     out->pinned_tiles = d->pinned_tiles;
     out->accel_bytes = d->accel_bytes;
     out->drape_bytes = d->drape_bytes;
+    out->snapshots = d->snapshots;
     pthread_mutex_unlock(&s->mu);
 }
 
@@ -947,6 +949,7 @@ td_status td_store_acquire(td_store *s, const char *id, td_snapshot **out, td_er
     atomic_fetch_add_explicit(&snap->hv->refs, 1, memory_order_relaxed);
     snap->view.grid = snap->hv->grid;
     stamp = ++s->clock;
+    d->snapshots++;
     for (size_t t = 0; t < d->ntiles; t++) {
         td_slot *sl = &d->slots[t];
         for (int k = 0; k < TD_PART_COUNT; k++) {

@@ -104,6 +104,8 @@ typedef struct td_dataset_info {
     size_t pinned_tiles;
     uint64_t grid_bytes, accel_bytes;
     uint64_t drape_bytes;   /* decoded drapes kept with the dataset */
+    uint64_t snapshots;     /* requests that traced it since start (renders, tiles, picks,
+                               viewsheds: one td_store_acquire each) */
 } td_dataset_info;
 
 typedef struct td_store_stats {

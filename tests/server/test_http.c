@@ -772,6 +772,25 @@ static void test_metrics(void **state)
     assert_non_null(strstr(r.body, "terrad_build_jobs{state=\"done\"} "));
     assert_non_null(strstr(r.body, "terrad_datasets 3\n"));
     assert_non_null(strstr(r.body, "terrad_render_queue_capacity 18\n"));
+    /* per dataset: what this replica serves and keeps (a proxy routes by dataset) */
+    assert_non_null(strstr(r.body, "# TYPE terrad_dataset_requests_total counter\n"));
+    assert_non_null(strstr(r.body, "terrad_dataset_resident_tiles{dataset=\"levi\"} "));
+    assert_non_null(strstr(r.body, "terrad_dataset_resident_bytes{dataset=\"volcano\"} "));
+    assert_null(strstr(r.body, "terrad_dataset_requests_total{dataset=\"levi\"} 0\n"));
+    th_resp_free(&r);
+}
+
+/* `?dataset=` on a POST is the key a proxy routes on: it must agree with the body's. */
+static void test_dataset_routing_key(void **state)
+{
+    th_resp r;
+    (void)state;
+    req(&A, "POST", "/v1/render?dataset=volcano", JSON_CT, SCENE, &r);
+    assert_error(&r, 400, "bad_request", "dataset");
+    assert_non_null(strstr(r.body, "'levi' differs from the query's 'volcano'"));
+    th_resp_free(&r);
+    req(&A, "POST", "/v1/render?dataset=levi", JSON_CT, SCENE, &r);
+    assert_int_equal(r.status, 200);
     th_resp_free(&r);
 }
 
@@ -1196,6 +1215,7 @@ int main(void)
         cmocka_unit_test(test_render_during_preload_and_evict),
         cmocka_unit_test(test_web),
         cmocka_unit_test(test_metrics),
+        cmocka_unit_test(test_dataset_routing_key),
     };
     const struct CMUnitTest others[] = {
         cmocka_unit_test(test_admin_disabled),

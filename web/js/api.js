@@ -137,8 +137,15 @@ export function renderInfo(headers) {
   return info;
 }
 
+// The body's dataset also goes into the query: the key a proxy in front of several terrad
+// replicas routes on (docker/nginx.conf), so each dataset stays on the replica that keeps it hot.
+export function routedUrl(url, body) {
+  const id = body && typeof body.dataset === 'string' ? body.dataset : null;
+  return id ? `${url}${url.includes('?') ? '&' : '?'}dataset=${encodeURIComponent(id)}` : url;
+}
+
 async function postJson(url, body, signal, extraHeaders = {}) {
-  return fetch(url, {
+  return fetch(routedUrl(url, body), {
     method: 'POST',
     headers: { 'Content-Type': 'application/json', ...extraHeaders },
     body: JSON.stringify(body),

@@ -146,8 +146,9 @@ before(async () => {
   page.on('pageerror', (e) => pageErrors.push(`pageerror: ${e.message}`));
   page.on('console', (m) => { if (m.type() === 'error') pageErrors.push(`console: ${m.text()}`); });
   page.on('request', (r) => {
-    if (r.url().endsWith('/v1/render')) renderRequests.push(r.postDataJSON());
-    if (r.url().endsWith('/v1/viewshed')) viewshedRequests.push(r.postDataJSON());
+    const pathname = new URL(r.url()).pathname;
+    if (pathname === '/v1/render') renderRequests.push(r.postDataJSON());
+    if (pathname === '/v1/viewshed') viewshedRequests.push(r.postDataJSON());
   });
   page.on('response', (r) => {
     if (r.status() < 400) return;

@@ -4,7 +4,9 @@
 // overlay.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
-import { parseServerTiming, buildScene, pickScene, firstPick, jobProgress, renderInfo, parseHeightError } from '../js/api.js';
+import {
+  parseServerTiming, buildScene, pickScene, firstPick, jobProgress, renderInfo, parseHeightError, routedUrl,
+} from '../js/api.js';
 import {
   normaliseDataset, transformation, maxNativeZoom, wedge, headingTo, along, normHeading,
   keyMove, defaultCamera, frameToGeo, roundNice,
@@ -270,4 +272,11 @@ test('viewshed overlay: bounds half a sample beyond the grid, the observer\'s pi
   assert.equal(b.height, 10);
   assert.equal(b.max_distance, 5000);
   assert.equal(viewshedBody('v', 1, 2, { maxDistance: 0 }).max_distance, 0, 'terrad judges 0, not the page');
+});
+
+test('POSTs carry the body\'s dataset in the query: the key a proxy routes replicas on', () => {
+  assert.equal(routedUrl('/v1/render', { dataset: 'trinidad', camera: {} }), '/v1/render?dataset=trinidad');
+  assert.equal(routedUrl('/v1/x?a=1', { dataset: 'a b/c' }), '/v1/x?a=1&dataset=a%20b%2Fc');
+  assert.equal(routedUrl('/v1/admin/preload', { tiles: [] }), '/v1/admin/preload');
+  assert.equal(routedUrl('/v1/render', null), '/v1/render');
 });
