@@ -211,3 +211,99 @@ void td_skyline_free(td_skyline *s)
         s->n = 0;
     }
 }
+
+/* ---- the sun against the skyline ------------------------------------------------------ */
+
+/* The sun at t as seen (centre: geometric + refraction) and how far its upper limb is
+ * above the skyline there (degrees; above the astronomical horizon where the skyline
+ * has no terrain). */
+static td_status sun_at(const td_skyline *s, double lat, double lon, double t, td_sun_sample *o, double *margin,
+                        td_err *err)
+{
+    td_sun sun;
+    td_status rc = td_solar_position(lat, lon, t, &sun, err);
+    if (!rc) {
+        o->t = t;
+        o->azimuth = sun.azimuth_deg;
+        o->elevation = sun.elevation_deg + sun.refraction_deg;
+        o->skyline = td_skyline_elevation_at(s, sun.azimuth_deg);
+        *margin = o->elevation + TD_SUN_RADIUS_DEG - (isnan(o->skyline) ? 0.0 : o->skyline);
+        o->seen = *margin > 0.0;
+    }
+    return rc;
+}
+
+/* The instant in (a, b] where the sun's margin changes sign (seen at b: sb), to 1 s. */
+static td_status refine(const td_skyline *s, double lat, double lon, double a, double b, int sb, double *t,
+                        td_err *err)
+{
+    td_status rc = TD_OK;
+    td_sun_sample smp;
+    double m;
+    while (!rc && b - a > 1.0) {
+        double mid = 0.5 * (a + b);
+        rc = sun_at(s, lat, lon, mid, &smp, &m, err);
+        if (smp.seen == sb)
+            b = mid;
+        else
+            a = mid;
+    }
+    *t = b;
+    return rc;
+}
+
+/* Scans the day for the stretches the sun is seen (see skyline.h). */
+static td_status scan_day(const td_skyline *s, double lat, double lon, td_skyline_sun *o, td_err *err)
+{
+    td_status rc = TD_OK;
+    double t0 = o->noon_s - 43200.0, t1 = o->noon_s + 43200.0, m, prev_t = t0;
+    td_sun_sample smp;
+    int prev = 0, open = 0;
+    o->rise_s = o->set_s = NAN;
+    for (double t = t0; !rc && t <= t1; t += TD_SUN_SCAN_S) {
+        double edge = t;
+        rc = sun_at(s, lat, lon, t, &smp, &m, err);
+        if (!rc && t > t0 && smp.seen != prev)
+            rc = refine(s, lat, lon, prev_t, t, smp.seen, &edge, err);
+        if (!rc && smp.seen && !prev && o->nint < TD_SUN_INTERVALS_MAX) {
+            o->interval[o->nint][0] = edge;
+            open = 1;
+            if (t > t0 && isnan(o->rise_s))
+                o->rise_s = edge;
+        } else if (!rc && !smp.seen && prev && open) {
+            o->interval[o->nint++][1] = edge;
+            o->set_s = edge;
+            open = 0;
+        }
+        prev = smp.seen;
+        prev_t = t;
+    }
+    if (!rc && open)
+        o->interval[o->nint++][1] = t1;
+    for (int k = 0; k < o->nint; k++)
+        o->seen_s += o->interval[k][1] - o->interval[k][0];
+    return rc;
+}
+
+td_status td_skyline_sun_day(const td_skyline *s, double lat, double lon, double day_s, td_skyline_sun *out,
+                         td_err *err)
+{
+    td_sun_day day;
+    double m;
+    memset(out, 0, sizeof *out);
+    td_status rc = td_solar_day(lat, lon, day_s, &day, err);
+    if (rc) {
+        rc = td_err_field(err, rc, "observer", "%s", err->msg);
+        goto out;
+    }
+    out->noon_s = day.noon_s;
+    out->polar = day.polar;
+    out->astro_rise_s = day.polar ? NAN : day.rise_s;
+    out->astro_set_s = day.polar ? NAN : day.set_s;
+    for (int k = 0; !rc && k < TD_SUN_PATH_MAX; k++)
+        rc = sun_at(s, lat, lon, day.noon_s - 43200.0 + 300.0 * k, &out->path[out->npath++], &m, err);
+    if (!rc)
+        rc = scan_day(s, lat, lon, out, err);
+out:
+    return rc;
+}

@@ -20,6 +20,7 @@
 
 #include <stdatomic.h>
 
+#include "solar.h"
 #include "trace.h"
 
 /* the finest azimuth step (degrees) and the coarsest */
@@ -64,5 +65,43 @@ td_status td_skyline_compute(const td_view *v, const td_skyline_opts *o, td_skyl
 double td_skyline_elevation_at(const td_skyline *s, double azimuth);
 
 void td_skyline_free(td_skyline *s);
+
+/* The sun against the skyline over one day (solar.h's NOAA position). The day is the
+ * solar day around the solar noon of the UTC date that contains day_s: noon - 12 h to
+ * noon + 12 h, so a place far from Greenwich gets its own morning and evening. The sun
+ * counts as seen when its upper limb (centre + 0.2667 degrees, as seen: geometric +
+ * refraction) is above the skyline at its azimuth, where the skyline has no terrain
+ * above the astronomical horizon (the almanac's rule: the upper limb at 0 degrees).
+ * Rises and sets are found every TD_SUN_SCAN_S and refined by bisection to 1 s. */
+#define TD_SUN_PATH_MAX 289     /* path samples: every 5 minutes over the day, both ends */
+#define TD_SUN_INTERVALS_MAX 16 /* stretches of the day the sun is seen */
+#define TD_SUN_SCAN_S 60.0
+#define TD_SUN_RADIUS_DEG 0.2667
+
+typedef struct td_sun_sample {
+    double t;               /* unix seconds */
+    double azimuth;         /* degrees */
+    double elevation;       /* the centre as seen (geometric + refraction), degrees */
+    double skyline;         /* the skyline's elevation at that azimuth (NaN: none) */
+    int seen;
+} td_sun_sample;
+
+typedef struct td_skyline_sun {
+    double noon_s;          /* solar noon */
+    double astro_rise_s, astro_set_s; /* almanac sunrise, sunset (solar.h); polar: NaN */
+    int polar;              /* +1 up all day, -1 down all day (astronomically), else 0 */
+    double rise_s, set_s;   /* the first time the sun clears the skyline and the last it
+                               goes behind it; NaN when it does not (seen all day: rise
+                               and set are NaN, seen_s the whole day) */
+    double seen_s;          /* seconds of the day the sun is seen */
+    int nint;               /* stretches seen: [start, end] each (day ends included) */
+    double interval[TD_SUN_INTERVALS_MAX][2];
+    int npath;
+    td_sun_sample path[TD_SUN_PATH_MAX];
+} td_skyline_sun;
+
+/* Errors name "sun.date" (not a date), "observer" (lat/lon out of range). */
+td_status td_skyline_sun_day(const td_skyline *s, double lat, double lon, double day_s, td_skyline_sun *out,
+                         td_err *err);
 
 #endif

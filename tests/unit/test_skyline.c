@@ -177,12 +177,61 @@ static void test_matches_render(void **state)
     td_grid_free(g);
 }
 
+/* Sunrise behind a ridge: a 100 m ridge 1 km east of an eye 10 m up (5.14 degrees) on
+ * a plain at 45 N, 7 E at the equinox. The sun clears it later than the almanac's
+ * sunrise by the time it takes to climb the ridge's angle, and at that instant its upper
+ * limb is on the skyline; to the west the plain ends 500 m away, 1.15 degrees down, so it
+ * sets later than the almanac says. */
+static void test_sun_behind_ridge(void **state)
+{
+    td_grid *g = ridge_grid();
+    td_view v = {g, NULL};
+    td_skyline_opts o;
+    td_skyline s;
+    td_skyline_sun *sun = malloc(sizeof *sun);
+    td_err err = {0};
+    double day;
+    (void)state;
+    assert_non_null(sun);
+    td_skyline_opts_default(&o);
+    o.x = 500, o.y = 1000, o.height = 10, o.step_deg = 0.1;
+    assert_int_equal(td_skyline_compute(&v, &o, &s, &err), TD_OK);
+    assert_int_equal(td_solar_parse_time("2026-03-20", "sun.date", &day, &err), TD_OK);
+    assert_int_equal(td_skyline_sun_day(&s, 45.0, 7.0, day, sun, &err), TD_OK);
+    assert_int_equal(sun->polar, 0);
+    assert_true(sun->rise_s > sun->astro_rise_s);
+    assert_true(sun->set_s > sun->astro_set_s);
+    assert_int_equal(sun->nint, 1);
+    /* at the terrain's sunrise the upper limb is on the ridge (1 s of climb is 0.003 deg) */
+    td_sun p0, p1;
+    assert_int_equal(td_solar_position(45.0, 7.0, sun->rise_s, &p0, &err), TD_OK);
+    double ridge = td_skyline_elevation_at(&s, p0.azimuth_deg);
+    assert_true(ridge > 4.0 && ridge < 5.2);
+    assert_float_equal(p0.elevation_deg + p0.refraction_deg + TD_SUN_RADIUS_DEG, ridge, 0.005);
+    /* later than the almanac by the ridge's angle: from the almanac's sunrise (centre
+       0.833 deg below the astronomical horizon) the sun climbs to the ridge (less the
+       refraction and radius there) at the equinox's 15 deg/h * cos(latitude) */
+    double climb = ridge - p0.refraction_deg - TD_SUN_RADIUS_DEG + 0.833;
+    double delay = sun->rise_s - sun->astro_rise_s;
+    assert_float_equal(delay, climb / (15.0 / 3600.0 * cos(45.0 * DEG)), 0.02 * delay);
+    assert_int_equal(td_solar_position(45.0, 7.0, sun->astro_rise_s, &p1, &err), TD_OK);
+    assert_float_equal(p1.elevation_deg, -0.833, 0.01);
+    /* the path: 5-minute samples over the solar day, seen only between rise and set */
+    assert_int_equal(sun->npath, TD_SUN_PATH_MAX);
+    for (int k = 0; k < sun->npath; k++)
+        assert_int_equal(sun->path[k].seen, sun->path[k].t >= sun->rise_s && sun->path[k].t < sun->set_s);
+    td_skyline_free(&s);
+    free(sun);
+    td_grid_free(g);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_ridge_and_edge),
         cmocka_unit_test(test_curvature),
         cmocka_unit_test(test_matches_render),
+        cmocka_unit_test(test_sun_behind_ridge),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
