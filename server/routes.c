@@ -40,6 +40,7 @@
 #include "request.h"
 #include "static.h"
 #include "viewshed_api.h"
+#include "pano.h"
 
 const char *const td_route_names[TD_ROUTE_COUNT] = {
 #define TD_X_NAME(e, name) name,
@@ -1332,6 +1333,8 @@ static const td_route_row td_routes[] = {
     {TD_ROUTE_PICK, "/v1/pick", NULL, 0, 0, "POST", h_pick, NULL},
     {TD_ROUTE_VIEWSHED, "/v1/viewshed", NULL, 0, 0, "POST", td_vs_route, NULL},
     {TD_ROUTE_LOS, "/v1/los", NULL, 0, 0, "POST", td_los_route, NULL},
+    {TD_ROUTE_HORIZON, "/v1/horizon", NULL, 0, 0, "POST", td_horizon_route, NULL}, /* pano.c */
+    {TD_ROUTE_PEAKS, "/v1/peaks", NULL, 0, 0, "POST", td_peaks_route, NULL},
     {TD_ROUTE_TILES, "/v1/tiles/", "*/*/*/*", 4, 0, "GET, HEAD", h_tile, NULL},
     {TD_ROUTE_TILES, "/v1/tiles/", "", 0, 0, NULL, NULL, "tile paths are /v1/tiles/{dataset}/{z}/{x}/{y}.png"},
     {TD_ROUTE_DATASETS, "/v1/datasets", NULL, 0, 0, "GET, HEAD", h_datasets, NULL},

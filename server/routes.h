@@ -33,6 +33,8 @@
     X(TD_ROUTE_WEB, "web")                                                     \
     X(TD_ROUTE_VIEWSHED, "viewshed")                                           \
     X(TD_ROUTE_LOS, "los")                                                     \
+    X(TD_ROUTE_HORIZON, "horizon")                                             \
+    X(TD_ROUTE_PEAKS, "peaks")                                                 \
     X(TD_ROUTE_UNKNOWN, "unknown")
 
 typedef enum td_route {
