@@ -39,12 +39,14 @@ export function peakText(p) {
   return `${Math.round(p.z)} m · ${km} km`;
 }
 
-// Where the labels go, in displayed pixels: each at its summit's x, stacked in tiers above
-// the summit so that no two labels of one tier overlap (greedy, most prominent first:
-// terrad lists them so). scale: displayed pixels per image pixel. Returns [{x, y, tier,
-// text, peak}], y the summit's displayed y; a label's box is tier * (lineHeight) above y.
+// Where the labels go, in displayed pixels: each at its summit's x, its text on a leader
+// line going up from the summit, the line 14 + 15 * tier px long (style.css's
+// .peak-label), the tier the lowest whose text box (14 px tall, about charWidth a
+// character wide) meets no box already placed; most prominent first (terrad lists them
+// so); a summit with no free tier up to maxTiers goes unlabelled. scale: displayed pixels
+// per image pixel. Returns [{x, y, tier, text, peak}], (x, y) the summit, displayed.
 export function placeLabels(peaks, scale, { charWidth = 6.5, pad = 6, maxTiers = 4 } = {}) {
-  const tiers = [];
+  const boxes = [];
   const out = [];
   for (const p of peaks) {
     const text = peakText(p);
@@ -52,9 +54,9 @@ export function placeLabels(peaks, scale, { charWidth = 6.5, pad = 6, maxTiers =
     const w = text.length * charWidth + pad;
     let tier = 0;
     for (; tier < maxTiers; tier++) {
-      const used = tiers[tier] || (tiers[tier] = []);
-      if (!used.some(([a, b]) => x < b && x + w > a)) {
-        used.push([x, x + w]);
+      const y1 = y - 14 - 15 * tier, y0 = y1 - 14;
+      if (!boxes.some(([a, b, c, d]) => x < b && x + w > a && y0 < d && y1 > c)) {
+        boxes.push([x, x + w, y0, y1]);
         break;
       }
     }

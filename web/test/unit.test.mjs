@@ -305,4 +305,7 @@ test('panorama and summits: the scenes, the body, labels in tiers that never ove
   for (let i = 0; i < placed.length; i++)
     for (let j = i + 1; j < placed.length; j++)
       if (placed[i].tier === placed[j].tier) assert.ok(Math.abs(placed[i].x - placed[j].x) > 90);
+  // summits at different heights: a box is where its tier puts it, not a row of its own
+  const two = placeLabels([{ px: 0, py: 100, z: 1, distance: 1 }, { px: 20, py: 110, z: 1, distance: 1 }], 1);
+  assert.deepEqual(two.map((l) => l.tier), [0, 2], 'one tier up lands on the first box; two clear it');
 });
