@@ -452,12 +452,8 @@ static void pano_work(void *cls, td_http_req *hq, td_http_resp *r, int cancelled
         td_routes_error(r, "stopping", NULL, "the server is stopping");
     } else {
         rc = j->q.peaks ? work_peaks(j, r, &e) : work_horizon(j, hq, r, &e);
-        if (rc == TD_ECANCELED)
-            td_routes_error(r, "render_timeout", NULL, "the work did not finish within --render-timeout");
-        else if (rc == TD_ENOMEM || rc == TD_EIO)
-            td_routes_error(r, "internal", NULL, e.msg);
-        else if (rc)
-            td_routes_error(r, "bad_request", e.field[0] ? e.field : NULL, e.msg);
+        if (rc)
+            td_routes_work_error(j->app, r, rc, &e, j->q.peaks ? "the summits" : "the horizon");
         else
             td_http_resp_header(r, "Cache-Control", "no-store");
     }
@@ -472,7 +468,6 @@ static void pano_handle(td_app *app, td_http_req *hq, td_http_resp *r, int peaks
 {
     pano_job *j = calloc(1, sizeof *j);
     td_err e = {0};
-    td_status rc;
     const char *body;
     size_t len;
     double t0 = td_clock_s();
@@ -488,22 +483,11 @@ static void pano_handle(td_app *app, td_http_req *hq, td_http_resp *r, int peaks
         td_routes_error(r, "bad_request", e.field[0] ? e.field : NULL, e.msg);
         goto out;
     }
-    rc = td_store_acquire(app->store, j->q.dataset, &j->snap, &e);
-    if (rc) {
-        td_routes_error(r, rc == TD_ENOTFOUND ? "unknown_dataset" : "internal", "dataset", e.msg);
-        goto out;
-    }
     j->app = app;
     j->parse_ms = 1e3 * (td_clock_s() - t0);
-    if (td_http_defer(hq, pano_work, j) == 0) {
+    if (td_routes_defer_dataset(app, hq, r, j->q.dataset, &j->snap, pano_work, j) == 0)
         j = NULL; /* the worker frees it */
-    } else {
-        td_http_resp_header(r, "Retry-After", "1");
-        td_routes_error(r, atomic_load(&app->ready) ? "busy" : "stopping", NULL, "the work queue is full; retry later");
-    }
 out:
-    if (j)
-        td_snapshot_release(j->snap);
     free(j);
 }
 

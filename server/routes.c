@@ -1479,3 +1479,34 @@ void td_routes_error(td_http_resp *r, const char *code, const char *field, const
 void td_routes_json(td_http_resp *r, int status, json_t *j) { send_json(r, status, j); }
 
 int td_routes_json_body(td_http_req *q, td_http_resp *r) { return json_body_check(q, r); }
+
+int td_routes_defer_dataset(td_app *app, td_http_req *q, td_http_resp *r, const char *id, td_snapshot **snap,
+                            td_http_work_fn fn, void *job)
+{
+    td_err e = {0};
+    td_status rc = td_store_acquire(app->store, id, snap, &e);
+    int queued = 0;
+    if (rc) {
+        *snap = NULL;
+        td_routes_error(r, rc == TD_ENOTFOUND ? "unknown_dataset" : "internal", "dataset", e.msg);
+    } else if (td_http_defer(q, fn, job) == 0) {
+        queued = 1;
+    } else {
+        td_snapshot_release(*snap);
+        *snap = NULL;
+        td_http_resp_header(r, "Retry-After", "1");
+        td_routes_error(r, atomic_load(&app->ready) ? "busy" : "stopping", NULL, "the work queue is full; retry later");
+    }
+    return queued ? 0 : -1;
+}
+
+void td_routes_work_error(td_app *app, td_http_resp *r, td_status rc, const td_err *e, const char *what)
+{
+    if (rc == TD_ECANCELED)
+        api_error(r, atomic_load(&app->ready) ? TD_AE_TIMEOUT : TD_AE_STOPPING, NULL,
+                  "%s did not finish within --render-timeout", what);
+    else if (rc == TD_ENOMEM || rc == TD_EIO)
+        api_error(r, TD_AE_INTERNAL, NULL, "%s", e->msg);
+    else
+        api_error(r, TD_AE_BAD_REQUEST, e->field[0] ? e->field : NULL, "%s", e->msg);
+}
