@@ -23,6 +23,7 @@
 
 #define TD_DEG (M_PI / 180.0)
 #define TD_SKYLINE_TOL 1e-6 /* rows */
+#define TD_SKYLINE_LIFT 0.01 /* metres: the lowest eye above the (bilinear) ground */
 
 void td_skyline_opts_default(td_skyline_opts *o)
 {
@@ -35,10 +36,32 @@ void td_skyline_opts_default(td_skyline_opts *o)
     o->method = TD_METHOD_AUTO;
 }
 
+/* The chosen surface's height below (x, y): the eye stands on it, not inside it (the
+ * plane surface's cell is a box up to its highest corner, the triangles depart from the
+ * bilinear patch). Bilinear for linear and bilinear; NaN outside or over a void. */
+static double surface_ground(const td_grid *g, td_surface surf, double x, double y)
+{
+    double z = td_camera_ground(g, x, y);
+    if (!isnan(z) && (surf == TD_SURFACE_PLANE || surf == TD_SURFACE_TRIANGLE)) {
+        double fx = x / g->sx, fy = y / g->sy;
+        int32_t i = fx >= g->w - 1 ? g->w - 2 : (int32_t)fx, j = fy >= g->h - 1 ? g->h - 2 : (int32_t)fy;
+        double u = fx - i, t = fy - j;
+        double z00 = td_grid_at(g, i, j), z10 = td_grid_at(g, i + 1, j), z01 = td_grid_at(g, i, j + 1),
+               z11 = td_grid_at(g, i + 1, j + 1);
+        if (surf == TD_SURFACE_PLANE) /* (a point on a cell edge: the higher cell's box would do too) */
+            z = fmax(fmax(z00, z10), fmax(z01, z11));
+        else if (u + t <= 1.0) /* split from (i+1, j) to (i, j+1): the south-west triangle */
+            z = z00 + u * (z10 - z00) + t * (z01 - z00);
+        else
+            z = z11 + (1.0 - u) * (z01 - z11) + (1.0 - t) * (z10 - z11);
+    }
+    return z;
+}
+
 static td_status check_opts(const td_view *v, const td_skyline_opts *o, double *ground, td_err *err)
 {
     td_status rc = TD_OK;
-    *ground = td_camera_ground(v->grid, o->x, o->y);
+    *ground = surface_ground(v->grid, o->surface, o->x, o->y);
     if (!(o->step_deg >= TD_SKYLINE_STEP_MIN && o->step_deg <= TD_SKYLINE_STEP_MAX))
         rc = td_err_field(err, TD_ERANGE, "step_deg", "%g is outside %g .. %g degrees", o->step_deg,
                           TD_SKYLINE_STEP_MIN, TD_SKYLINE_STEP_MAX);
@@ -152,7 +175,8 @@ td_status td_skyline_compute(const td_view *v, const td_skyline_opts *o, td_skyl
     }
     out->n = n;
     out->step_deg = o->step_deg;
-    virtual_scene(o, n, ground + o->height, s);
+    /* an eye on the ground would start its rays on the surface: lift it by TD_SKYLINE_LIFT */
+    virtual_scene(o, n, ground + fmax(o->height, TD_SKYLINE_LIFT), s);
     rc = td_camera_setup(&s->camera, s->image.width, s->image.height, v->grid, &cam, err);
     memcpy(out->eye, cam.o, sizeof out->eye);
     for (int k = 0; k < n; k++)

@@ -29,7 +29,8 @@
 
 typedef struct td_skyline_opts {
     double x, y;            /* observer, dataset frame */
-    double height;          /* eye above the ground, metres */
+    double height;          /* eye above the chosen surface (plane: the cell's box; triangle:
+                               its triangle; else bilinear), metres; at least 1 cm is used */
     double step_deg;        /* azimuth step (default 0.25) */
     double max_distance;    /* horizontal, metres (default +inf: the whole grid) */
     int curvature;          /* earth curvature and refraction (default on) */

@@ -67,6 +67,25 @@ static void test_ridge_and_edge(void **state)
         assert_float_equal(td_skyline_elevation_at(&s, -270.0), s.pt[90].elevation, 1e-12);
         td_skyline_free(&s);
     }
+    /* an eye on the ground (height 0) is lifted 1 cm: the plain's edge is then 1 cm down */
+    o.height = 0, o.surface = TD_SURFACE_BILINEAR;
+    assert_int_equal(td_skyline_compute(&v, &o, &s, &err), TD_OK);
+    assert_float_equal(s.eye[2], 0.01, 1e-12);
+    assert_float_equal(s.pt[270].elevation, -atan(0.01 / 500.0) / DEG, 1e-6);
+    assert_float_equal(s.pt[90].elevation, atan(99.99 / 1000.0) / DEG, 1e-6);
+    td_skyline_free(&s);
+    /* the eye stands on the chosen surface: halfway up the ridge's east-west cells the
+       bilinear ground is 50 m, the plane surface's box 100 m (its highest corner) */
+    o.x = 1495, o.height = 10;
+    for (int surf = 0; surf < TD_SURFACE_COUNT; surf++) {
+        o.surface = (td_surface)surf;
+        assert_int_equal(td_skyline_compute(&v, &o, &s, &err), TD_OK);
+        double eye = surf == TD_SURFACE_PLANE ? 110.0 : 60.0;
+        assert_float_equal(s.eye[2], eye, 1e-9);
+        assert_float_equal(s.pt[270].elevation, -atan(eye / 1495.0) / DEG, 1e-6);
+        td_skyline_free(&s);
+    }
+    o.x = 500, o.surface = TD_SURFACE_BILINEAR;
     /* refused, naming the field */
     o.step_deg = 0.001;
     assert_int_equal(td_skyline_compute(&v, &o, &s, &err), TD_ERANGE);
