@@ -43,7 +43,7 @@ try {
   const browser = await chromium.launch({ executablePath: process.env.CHROMIUM || '/usr/bin/chromium', headless: true, args: ['--no-sandbox'] });
   const page = await browser.newPage({ viewport: { width, height } });
   await page.setContent(`<style>${css} body{margin:0} #p{position:relative;width:${width}px;height:${height}px;line-height:0}</style>` +
-    `<div id="p"><img src="data:image/png;base64,${png.toString('base64')}"><div class="peak-labels">${labels}</div></div>`);
+    `<div id="p"><img src="data:image/png;base64,${png.toString('base64')}"><div class="peak-labels" style="aspect-ratio:${width}/${height}">${labels}</div></div>`);
   await page.locator('#p').screenshot({ path: path.join(here, 'trinidad-panorama-labelled.png') });
   await browser.close();
   console.log(`${peaks.visible} of ${peaks.summits} summits labelled; ${peaks.rays} rays; summits found in ${peaks.summits_ms.toFixed(0)} ms`);

@@ -125,13 +125,15 @@ export class PeaksControl {
   draw(r, scene, img, frame) {
     const box = document.createElement('div');
     box.className = 'peak-labels';
+    box.style.aspectRatio = `${scene.image.width} / ${scene.image.height}`; /* the picture's box, whatever the frame's */
     const scale = img.clientWidth / scene.image.width;
     const placed = placeLabels(r.peaks, scale);
     for (const l of placed) {
       const el = document.createElement('div');
       el.className = 'peak-label';
-      el.style.left = `${l.x}px`;
-      el.style.top = `${l.y}px`;
+      /* in per cent of the picture: the labels stay on their summits when it is resized */
+      el.style.left = `${(100 * (l.peak.px + 0.5)) / scene.image.width}%`;
+      el.style.top = `${(100 * (l.peak.py + 0.5)) / scene.image.height}%`;
       el.style.setProperty('--tier', String(l.tier));
       el.dataset.px = String(l.peak.px);
       el.dataset.py = String(l.peak.py);
