@@ -96,7 +96,9 @@ static td_status setup_cylindrical(const td_scene_camera *c, td_camera *out, td_
                           "a cylindrical camera takes heading, pitch, fov (and fov_v), no roll");
     else if (!(c->fov > 0.0 && c->fov <= 360.0))
         rc = td_err_field(err, TD_ERANGE, "camera.fov", "%g is outside (0, 360] degrees", c->fov);
-    else if (!(c->fov_v >= 0.0 && fabs(c->pitch) + c->fov_v * 0.5 < 89.0))
+    else if (!isfinite(c->pitch) || !isfinite(c->heading))
+        rc = td_err_field(err, TD_ERANGE, isfinite(c->pitch) ? "camera.heading" : "camera.pitch", "must be finite");
+    else if (!(c->fov_v >= 0.0) || (c->fov_v > 0.0 && !(fabs(c->pitch) + c->fov_v * 0.5 < 89.0)))
         rc = td_err_field(err, TD_ERANGE, "camera.fov_v",
                           "pitch +- fov_v/2 (%g +- %g) must stay within 89 degrees of the horizon",
                           c->pitch, 0.5 * c->fov_v);
