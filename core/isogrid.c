@@ -18,9 +18,11 @@
  * Hierarchy: a pyramid of block maxima (8 x 8 rows and columns, then doubling); where the
  * ray stays above a block's maximum over the block's box the walk jumps to the box's exit
  * and starts its three families again there (the "hierarchical" method on the lattice).
- * Rejected for now: Paglieroni-Petersen cones on the lattice (distance transforms over a
- * sheared grid; not done, see docs/isometric.md). Measured there: the walk's rays per
- * second against the square grid's methods on the same samples. */
+ * Rejected: Paglieroni-Petersen cones on the lattice. Measured (docs/isometric.md,
+ * "Trace cost"): on the levels of detail cones save 5-9% of a max pyramid's steps where far
+ * rays land (trinidad's levels 1-2), each cone step costs more, and this pyramid already
+ * takes fewer steps than the square level's cones. Measured there too: the walk's rays
+ * per second against the square grid's methods on the same samples. */
 #include "isogrid.h"
 
 #include <math.h>
@@ -51,7 +53,10 @@ double td_iso_x(const td_iso *l, int32_t r, int32_t c)
     return x;
 }
 
-td_status td_iso_create(int32_t nx, int32_t ny, double a, double b, td_iso **out, td_err *err)
+/* A lattice's record and block pyramid, with float samples (NaN) if `floats`; a packed
+ * lattice (td_iso_pack_lattice) has none. */
+static td_status iso_alloc(int32_t nx, int32_t ny, double a, double b, int floats, td_iso **out,
+                           td_err *err)
 {
     td_status rc = TD_OK;
     td_iso *l = NULL;
@@ -84,12 +89,12 @@ td_status td_iso_create(int32_t nx, int32_t ny, double a, double b, td_iso **out
             bw = (bw + 1) / 2;
             bh = (bh + 1) / 2;
         }
-        l->z = malloc(n);
+        l->z = floats ? malloc(n) : NULL;
         l->bmax[0] = malloc(nb * sizeof(float));
         for (int k = 1; l->bmax[0] && k < l->blevels; k++)
             l->bmax[k] = l->bmax[k - 1] + (size_t)l->bw[k - 1] * (size_t)l->bh[k - 1];
     }
-    if (!l || !l->z || !l->bmax[0]) {
+    if (!l || (floats && !l->z) || !l->bmax[0]) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for a %d x %d isometric lattice", (int)nx,
                         (int)ny);
         goto out;
@@ -98,7 +103,7 @@ td_status td_iso_create(int32_t nx, int32_t ny, double a, double b, td_iso **out
     l->ny = ny;
     l->a = a;
     l->b = b;
-    for (size_t i = 0; i < n / sizeof(float); i++)
+    for (size_t i = 0; floats && i < n / sizeof(float); i++)
         l->z[i] = NAN;
     l->zmin = l->zmax = NAN;
 out:
@@ -108,6 +113,11 @@ out:
     }
     *out = l;
     return rc;
+}
+
+td_status td_iso_create(int32_t nx, int32_t ny, double a, double b, td_iso **out, td_err *err)
+{
+    return iso_alloc(nx, ny, a, b, 1, out, err);
 }
 
 void td_iso_sample(td_iso *l, td_iso_fn f, void *ctx)
@@ -232,6 +242,7 @@ void td_iso_free(td_iso *l)
     if (l) {
         free(l->bmax[0]);
         free(l->z);
+        td_iso_packed_free(l->packed);
         free(l);
     }
 }
@@ -337,7 +348,11 @@ static double above(const td_ray *ray, const iso_plane *p, double t)
  * ray's height above the surface where the previous triangle's segment ended (NaN after a
  * hole or at the start): a sign change between it and this triangle's entry is a crossing
  * on their shared edge, which the two planes' roundings could otherwise both miss. On
- * return *fprev is the height at t1. */
+ * return *fprev is the height at t1. A hole forgets the sign (the ray may pass under its
+ * edge), unless the ray only passes its corner: a segment shorter than 1e-9 cells on the
+ * ground, which is how a ray through a vertex between two valid triangles and a hole
+ * looks after rounding (the three families' lines cross there at t's a few ulps apart);
+ * a sign change across that vertex is a crossing at it. */
 static double segment_hit(const td_iso *l, const td_ray *ray, int32_t r, int32_t q, double t0,
                           double t1, iso_plane *p, double *fprev)
 {
@@ -350,8 +365,9 @@ static double segment_hit(const td_iso *l, const td_ray *ray, int32_t r, int32_t
     m = td_iso_at(l, rr[2], cc[2]) > m ? td_iso_at(l, rr[2], cc[2]) : m;
     if (zr0 > m && zr1 > m) { /* above the highest corner at both ends: nothing to solve */
         *fprev = 1.0;
-    } else if (!plane_of(l, r, q, p)) { /* a hole */
-        *fprev = NAN;
+    } else if (!plane_of(l, r, q, p)) { /* a hole: see above */
+        double run = (t1 - t0) * hypot(ray->d[0], ray->d[1]);
+        *fprev = run > 1e-9 * (l->a < l->b ? l->a : l->b) ? NAN : *fprev;
     } else {
         double f0 = above(ray, p, t0), f1 = t1 > t0 ? above(ray, p, t1) : f0;
         if (f0 == 0.0 || (*fprev > 0.0 && f0 < 0.0) || (*fprev < 0.0 && f0 > 0.0)) {
@@ -384,6 +400,22 @@ static int clip_axis(const td_ray *ray, int k, double lo, double hi, double *t0,
     return ok && *t0 <= *t1;
 }
 
+/* The cell [i, i+1) of the integer lines holding v, ties broken toward the direction of
+ * travel: floor(v), or ceil(v) - 1 going down. By truncation (floor and ceil are library
+ * calls without SSE4.1, and this runs at every step and block test): v is a lattice
+ * coordinate, far inside int32 (clamped, so a cast is never undefined). */
+static int32_t cell_toward(double v, int down)
+{
+    int32_t i;
+    v = v >= -1e9 ? (v <= 1e9 ? v : 1e9) : -1e9;
+    i = (int32_t)v;
+    if (down)
+        i += ((double)i < v) - 1;
+    else
+        i -= (double)i > v;
+    return i;
+}
+
 /* One family of lines v(t) = v0 + t dv, v = integer: the floor of v along the ray (ties
  * broken toward the direction of travel) and the t of its next change. */
 typedef struct iso_family {
@@ -397,7 +429,7 @@ static void family_init(iso_family *f, double v0, double dv, double t)
     f->v0 = v0;
     f->dv = dv;
     f->dir = dv > 0.0 ? 1 : (dv < 0.0 ? -1 : 0);
-    f->idx = (int32_t)(f->dir < 0 ? ceil(v) - 1.0 : floor(v));
+    f->idx = cell_toward(v, f->dir < 0);
     f->tnext = f->dir > 0 ? (f->idx + 1 - v0) / dv : (f->dir < 0 ? (f->idx - v0) / dv : INFINITY);
 }
 
@@ -436,7 +468,7 @@ static int block_clear(const td_iso *l, int k, const td_ray *ray, const iso_inv 
     *te = t1;
     for (int a = 0; a < 2; a++) {
         double v = (ray->o[a] + tc * ray->d[a]) * (inv->s[a] * iS);
-        bi[a] = clamp32((int32_t)(ray->d[a] < 0.0 ? ceil(v) - 1.0 : floor(v)), 0, n[a] - 1);
+        bi[a] = clamp32(cell_toward(v, ray->d[a] < 0.0), 0, n[a] - 1);
         if (ray->d[a] != 0.0) {
             double ta = ((ray->d[a] > 0.0 ? bi[a] + 1 : bi[a]) * w[a] - ray->o[a]) * inv->d[a];
             *te = ta < *te ? ta : *te;
@@ -549,16 +581,6 @@ out:
 
 /* --- two-byte vertices ------------------------------------------------------------- */
 
-/* The tile that stores sample (r, c). */
-static size_t owner(const td_iso_packed *p, int32_t r, int32_t c)
-{
-    int32_t tx = c >> p->tile_log2, ty = r >> p->tile_log2;
-    tx = tx < p->tiles_x ? tx : p->tiles_x - 1;
-    return (size_t)ty * (size_t)p->tiles_x + (size_t)tx;
-}
-
-static double decode(double offset, double step, uint16_t k) { return (float)(offset + k * step); }
-
 /* Whether every valid sample of tile `ti` is offset + k * step exactly (k <= 65534). */
 static int tile_exact(const td_iso *l, const td_iso_packed *p, size_t ti, double offset,
                       double step)
@@ -571,7 +593,7 @@ static int tile_exact(const td_iso *l, const td_iso_packed *p, size_t ti, double
         for (int32_t c = tx * T; ok && c < cend; c++) {
             float z = td_iso_at(l, r, c);
             double k = nearbyint(((double)z - offset) / step);
-            ok = isnan(z) || (k >= 0.0 && k <= 65534.0 && decode(offset, step, (uint16_t)k) == (double)z);
+            ok = isnan(z) || (k >= 0.0 && k <= 65534.0 && (float)(offset + k * step) == z);
         }
     }
     return ok;
@@ -643,7 +665,7 @@ td_status td_iso_pack(const td_iso *l, int tile_log2, td_iso_packed **out, td_er
     for (int32_t r = 0; r < l->ny; r++) {
         for (int32_t c = 0; c < td_iso_row_len(l, r); c++) {
             double z = td_iso_at(l, r, c);
-            size_t ti = owner(p, r, c);
+            size_t ti = td_iso_packed_tile(p, r, c);
             lo[ti] = z < lo[ti] ? z : lo[ti]; /* NaN compares false */
             hi[ti] = z > hi[ti] ? z : hi[ti];
         }
@@ -653,12 +675,12 @@ td_status td_iso_pack(const td_iso *l, int tile_log2, td_iso_packed **out, td_er
     for (int32_t r = 0; r < l->ny; r++) {
         for (int32_t c = 0; c < td_iso_row_len(l, r); c++) {
             float z = td_iso_at(l, r, c);
-            size_t ti = owner(p, r, c), i = td_iso_row_offset(l->nx, r) + (size_t)c;
+            size_t ti = td_iso_packed_tile(p, r, c), i = td_iso_row_offset(l->nx, r) + (size_t)c;
             double k = isnan(z) ? 65535.0 : nearbyint(((double)z - p->offset[ti]) / p->step[ti]);
             k = k < 0.0 ? 0.0 : (k > 65534.0 && !isnan(z) ? 65534.0 : k);
             p->k[i] = (uint16_t)k;
             if (!isnan(z)) {
-                double e = fabs(decode(p->offset[ti], p->step[ti], p->k[i]) - (double)z);
+                double e = fabs((double)td_iso_packed_at(p, r, c, i) - (double)z);
                 p->max_err = e > p->max_err ? e : p->max_err;
             }
         }
@@ -686,13 +708,39 @@ td_status td_iso_unpack(const td_iso_packed *p, td_iso **out, td_err *err)
         goto out;
     for (int32_t r = 0; r < p->ny; r++) {
         for (int32_t c = 0; c < p->nx + (r & 1); c++) {
-            size_t ti = owner(p, r, c), i = td_iso_row_offset(p->nx, r) + (size_t)c;
-            (*out)->z[i] = p->k[i] == 0xFFFF ? NAN : (float)decode(p->offset[ti], p->step[ti], p->k[i]);
+            size_t i = td_iso_row_offset(p->nx, r) + (size_t)c;
+            (*out)->z[i] = td_iso_packed_at(p, r, c, i);
         }
     }
     td_iso_finish(*out);
 out:
     return rc;
+}
+
+td_status td_iso_pack_lattice(const td_iso *l, int tile_log2, td_iso **out, td_err *err)
+{
+    td_iso_packed *p = NULL;
+    td_status rc = td_iso_pack(l, tile_log2, &p, err);
+    if (rc)
+        goto out;
+    rc = iso_alloc(l->nx, l->ny, l->a, l->b, 0, out, err);
+    if (rc)
+        goto out;
+    (*out)->packed = p; /* the lattice owns it from here */
+    p = NULL;
+    td_iso_finish(*out);
+out:
+    td_iso_packed_free(p);
+    return rc;
+}
+
+uint64_t td_iso_bytes(const td_iso *l)
+{
+    uint64_t n = 0;
+    for (int k = 0; k < l->blevels; k++)
+        n += (uint64_t)l->bw[k] * (uint64_t)l->bh[k] * sizeof(float);
+    return n + (l->packed ? l->packed->bytes
+                          : (uint64_t)td_iso_row_offset(l->nx, l->ny) * sizeof(float));
 }
 
 void td_iso_packed_free(td_iso_packed *p)

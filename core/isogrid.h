@@ -35,6 +35,7 @@
 #ifndef TD_ISOGRID_H
 #define TD_ISOGRID_H
 
+#include <math.h>
 #include <stdint.h>
 
 #include "grid.h"
@@ -53,13 +54,35 @@ typedef enum td_iso_rows {
 
 const char *td_iso_rows_name(td_iso_rows r);
 
+/* Two-byte vertices (the paper's storage): the samples are cut into tiles of T x T
+ * (rows r >> tile_log2, columns c >> tile_log2; an odd row's last sample belongs to the
+ * last tile); each tile has an offset and a step, and each sample a 16-bit k, height =
+ * offset + k * step of the sample's own tile. Every sample is stored once, so it decodes
+ * to one height wherever triangles of two tiles share it (watertight). A tile is lossless
+ * when all its heights are offset + k * step for the coarsest of the steps 2^4 .. 2^-16
+ * and 1/10 .. 1/1000 that does it and its range fits 65534 steps; otherwise step = range /
+ * 65534 and the error is at most step / 2 (max_err says what it was). */
+typedef struct td_iso_packed {
+    int32_t nx, ny;
+    double a, b;
+    int tile_log2;
+    int32_t tiles_x, tiles_y;
+    double *offset;   /* tiles_x * tiles_y */
+    double *step;     /* tiles_x * tiles_y */
+    uint16_t *k;      /* one per sample, in td_iso's order; 0xFFFF is a void */
+    int32_t lossless; /* tiles decoded exactly */
+    double max_err;   /* largest |decoded - original| over valid samples, metres */
+    uint64_t bytes;   /* k, offsets and steps */
+} td_iso_packed;
+
 #define TD_ISO_BLOCK_LOG2 3 /* level-0 blocks of 8 x 8 rows and columns */
 #define TD_ISO_BLEVELS 24    /* block levels at most (each doubles the block) */
 
 typedef struct td_iso {
     int32_t nx, ny;   /* samples per even row (>= 2), rows (>= 2); odd rows hold nx + 1 */
     double a, b;      /* column and row spacing, metres */
-    float *z;         /* row r starts at z + td_iso_row_offset(r) */
+    float *z;         /* row r starts at z + td_iso_row_offset(r); NULL when packed */
+    td_iso_packed *packed; /* the samples as two-byte vertices (td_iso_pack_lattice), or NULL */
     float zmin, zmax; /* over valid samples; NaN if all are void */
     /* Block maxima (the walk's hierarchy, a max pyramid): at level k, block (i, j) is the
      * box x in [i S a, (i+1) S a], y in [j S b, (j+1) S b], S = 2^(TD_ISO_BLOCK_LOG2 + k);
@@ -80,9 +103,27 @@ static inline size_t td_iso_row_offset(int32_t nx, int32_t r)
 
 static inline int32_t td_iso_row_len(const td_iso *l, int32_t r) { return l->nx + (r & 1); }
 
+/* The tile that stores sample (r, c) of a packed lattice, and sample i (row r, column c): offset + k step of its tile, NaN for a
+ * void. The one decoder: every reader of a packed lattice sees these heights. */
+static inline size_t td_iso_packed_tile(const td_iso_packed *p, int32_t r, int32_t c)
+{
+    int32_t tx = c >> p->tile_log2;
+    return (size_t)(r >> p->tile_log2) * (size_t)p->tiles_x +
+           (size_t)(tx < p->tiles_x ? tx : p->tiles_x - 1);
+}
+
+static inline float td_iso_packed_at(const td_iso_packed *p, int32_t r, int32_t c, size_t i)
+{
+    size_t ti = td_iso_packed_tile(p, r, c);
+    uint16_t k = p->k[i];
+    return k == 0xFFFF ? NAN : (float)(p->offset[ti] + k * p->step[ti]);
+}
+
+/* Sample c of row r: the float, or the packed vertex decoded. */
 static inline float td_iso_at(const td_iso *l, int32_t r, int32_t c)
 {
-    return l->z[td_iso_row_offset(l->nx, r) + (size_t)c];
+    size_t i = td_iso_row_offset(l->nx, r) + (size_t)c;
+    return l->z ? l->z[i] : td_iso_packed_at(l->packed, r, c, i);
 }
 
 /* x of sample c in row r. */
@@ -127,32 +168,21 @@ int td_iso_eval(const td_iso *l, double x, double y, double *z, double n[3]);
  * hold the triangle (q, r); hit->method is TD_METHOD_INCREMENTAL. */
 void td_iso_trace(const td_iso *l, const td_ray *r, td_hit *hit);
 
-/* Two-byte vertices (the paper's storage): the samples are cut into tiles of T x T
- * (rows r >> tile_log2, columns c >> tile_log2; an odd row's last sample belongs to the
- * last tile); each tile has an offset and a step, and each sample a 16-bit k, height =
- * offset + k * step of the sample's own tile. Every sample is stored once, so it decodes
- * to one height wherever triangles of two tiles share it (watertight). A tile is lossless
- * when all its heights are offset + k * step for the coarsest of the steps 2^4 .. 2^-16
- * and 1/10 .. 1/1000 that does it and its range fits 65534 steps; otherwise step = range /
- * 65534 and the error is at most step / 2 (max_err says what it was). */
-typedef struct td_iso_packed {
-    int32_t nx, ny;
-    double a, b;
-    int tile_log2;
-    int32_t tiles_x, tiles_y;
-    double *offset;   /* tiles_x * tiles_y */
-    double *step;     /* tiles_x * tiles_y */
-    uint16_t *k;      /* one per sample, in td_iso's order; 0xFFFF is a void */
-    int32_t lossless; /* tiles decoded exactly */
-    double max_err;   /* largest |decoded - original| over valid samples, metres */
-    uint64_t bytes;   /* k, offsets and steps */
-} td_iso_packed;
-
 td_status td_iso_pack(const td_iso *l, int tile_log2, td_iso_packed **out, td_err *err);
 
 /* The lattice a packed one decodes to. */
 td_status td_iso_unpack(const td_iso_packed *p, td_iso **out, td_err *err);
 
 void td_iso_packed_free(td_iso_packed *p);
+
+/* The lattice l as the paper keeps it: packed (td_iso_pack, tiles of 2^tile_log2) and read
+ * through its two-byte vertices, no floats: td_iso_at decodes, so the walk, td_iso_eval
+ * and the block maxima all see the decoded heights (l->packed->max_err from l's). l is
+ * left alone. */
+td_status td_iso_pack_lattice(const td_iso *l, int tile_log2, td_iso **out, td_err *err);
+
+/* Bytes a lattice holds: its samples (floats or packed vertices, tile offsets and steps)
+ * and its block maxima. */
+uint64_t td_iso_bytes(const td_iso *l);
 
 #endif

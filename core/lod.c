@@ -84,11 +84,14 @@ out:
 }
 
 /* The isometric twin of square level `sq` (made from `src` by halve): even rows at sq's
- * nodes, odd rows' samples between them (the finer level's odd nodes), filtered alike. */
+ * nodes, odd rows' samples between them (the finer level's odd nodes), filtered alike;
+ * kept as two-byte vertices (the paper's storage, tiles of 2^TD_LOD_ISO_TILE_LOG2), which
+ * the walk decodes: the floats are only the packing's input. */
 static td_status iso_twin(const td_grid *src, const td_grid *sq, td_iso **out, td_err *err)
 {
-    td_status rc = td_iso_create(sq->w, sq->h, sq->sx, sq->sy, out, err);
-    td_iso *l = *out;
+    td_iso *l = NULL;
+    td_status rc = td_iso_create(sq->w, sq->h, sq->sx, sq->sy, &l, err);
+    *out = NULL;
     if (rc)
         goto out;
     for (int32_t r = 0; r < l->ny; r++) {
@@ -99,7 +102,9 @@ static td_status iso_twin(const td_grid *src, const td_grid *sq, td_iso **out, t
         }
     }
     td_iso_finish(l);
+    rc = td_iso_pack_lattice(l, TD_LOD_ISO_TILE_LOG2, out, err);
 out:
+    td_iso_free(l);
     return rc;
 }
 
@@ -161,7 +166,7 @@ td_status td_lod_add_iso(td_lod *l, const td_grid *base, td_err *err)
     for (int k = 1; k <= l->levels && !rc; k++) {
         rc = iso_twin(k == 1 ? base : l->grid[k - 1], l->grid[k], &iso[k], err);
         if (!rc)
-            bytes += td_iso_row_offset(iso[k]->nx, iso[k]->ny) * sizeof(float);
+            bytes += td_iso_bytes(iso[k]);
     }
     for (int k = 1; k <= l->levels; k++) {
         if (rc) {

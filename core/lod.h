@@ -10,9 +10,11 @@
  * Beside each square level, on demand (td_lod_add_iso), its isometric twin (isogrid.h,
  * square rows: issue 14): the same rows, columns and spacing, odd rows slid half a cell
  * east, every sample the same 1-2-1 mean of the finer level at that point (a node of the
- * finer level, since the spacing doubles); quality.lod_grid picks which one far rays are
- * traced on. docs/isometric.md measures both; "square" is the default (why: there), so
- * the twins (a third more of the levels' heights) are built only where asked. */
+ * finer level, since the spacing doubles), kept as two-byte vertices per tile of 64 x 64
+ * (td_iso_pack_lattice; the walk decodes them); quality.lod_grid picks which one far
+ * rays are traced on. docs/isometric.md measures both; "square" is the default (why:
+ * there), so the twins (about 2.1 bytes a sample with their block maxima, against 4.1
+ * as floats) are built only where asked. */
 #ifndef TD_LOD_H
 #define TD_LOD_H
 
@@ -20,6 +22,7 @@
 #include "isogrid.h"
 
 #define TD_LOD_MAX 8
+#define TD_LOD_ISO_TILE_LOG2 6 /* the twins' packing tiles: 64 x 64 samples */
 
 #define TD_LOD_GRID_LIST(X)                                                    \
     X(TD_LOD_GRID_SQUARE, "square")                                            \
@@ -41,7 +44,7 @@ typedef struct td_lod {
     td_grid *grid[TD_LOD_MAX + 1];  /* [1 .. levels]; [0] unused (the base is the caller's) */
     td_accel *accel[TD_LOD_MAX + 1];
     td_view view[TD_LOD_MAX + 1];   /* [1 .. levels] */
-    td_iso *iso[TD_LOD_MAX + 1];    /* [1 .. levels]: the isometric twins, or all NULL */
+    td_iso *iso[TD_LOD_MAX + 1];    /* [1 .. levels]: the isometric twins (packed), or all NULL */
     uint64_t bytes;                 /* grids, lattices and acceleration */
 } td_lod;
 

@@ -50,7 +50,7 @@
  * Level of detail (quality.lod, Cohen-Or et al.; Qu et al.): the caller passes the
  * coarse levels of lod.h. A perspective camera ray is traced on level 0 up to the
  * distance d_1 where one pixel's footprint covers lod_pixels^-1 * 2 base cells, then on
- * level 1 up to d_2 (4 cells), and so on: d_l = 2^l * cell * lod_pixels / pixel_angle,
+ * level 1 up to d_2 (4 cells), and so on: d_l = 2^l * cell / (lod_pixels * pixel_angle),
  * cell = min(sx, sy). An orthographic view traces every ray on the one level whose cells
  * fit its pixel footprint. Shadow, AO and reflection rays of a sample use the level its
  * camera ray hit, so they start on the surface they were shaded with. The stats count

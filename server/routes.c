@@ -1206,11 +1206,15 @@ static int parse_uint(const char *s, long max, long *out)
 
 /* GET /v1/tiles/{dataset}/{z}/{x}/{y}.png: a 256 x 256 top-down view for Leaflet's
  * CRS.Simple. z = 0 is the whole dataset in one tile: its north-west corner at the
- * dataset's north-west corner, side = max(width, height) in metres; each zoom halves it. */
+ * dataset's north-west corner, side = max(width, height) in metres; each zoom halves it.
+ * ?quality.lod_grid=isometric traces the level of detail on its isometric twin (lod.h;
+ * a 400 naming it where the twins are not resident, as for /v1/render). */
 static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
 {
     long z, x, y, idx;
     size_t yl = strlen(seg[3]);
+    const char *lg = td_http_req_query(q, "quality.lod_grid");
+    td_lod_grid grid = TD_LOD_GRID_SQUARE;
     td_rjob *j = NULL;
     td_dataset_info di;
     double wm, hm, side, t;
@@ -1232,6 +1236,10 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     if (!parse_uint(seg[2], (1L << z) - 1, &x) || !parse_uint(seg[3], (1L << z) - 1, &y)) {
         api_error(r, TD_AE_NOT_FOUND, NULL, "no tile %s/%s at zoom %ld (x and y in [0, %ld])", seg[2],
                   seg[3], z, (1L << z) - 1);
+        goto out;
+    }
+    if (lg && td_lod_grid_parse(lg, &grid)) {
+        api_error(r, TD_AE_BAD_REQUEST, "quality.lod_grid", "quality.lod_grid: '%.40s' is not square or isometric", lg);
         goto out;
     }
     td_store_info(app->store, (size_t)idx, &di);
@@ -1261,6 +1269,7 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     /* a map tile whose pixels cover several cells is traced on the level of detail whose
      * cells fit a pixel: cheaper at low zooms, and no aliasing from skipped cells */
     j->scene.quality.lod = 1;
+    j->scene.quality.lod_grid = (int)grid;
     j->kind = TD_RK_TILE;
     j->get = 1;
     {
@@ -1269,8 +1278,8 @@ static void h_tile(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
         double key[6] = {(double)di.grid->w, (double)di.grid->h, di.grid->sx, di.grid->sy,
                          (double)di.grid->zmin, (double)di.grid->zmax};
         uint64_t hsh = td_fnv1a(TD_FNV1A_INIT, key, sizeof key);
-        snprintf(j->etag, sizeof j->etag, "\"t%012llx-%ld-%ld-%ld\"",
-                 (unsigned long long)(hsh & 0xffffffffffffULL), z, x, y);
+        snprintf(j->etag, sizeof j->etag, "\"t%012llx-%ld-%ld-%ld%s\"",
+                 (unsigned long long)(hsh & 0xffffffffffffULL), z, x, y, grid ? "-iso" : "");
     }
     render_defer(app, q, r, j); /* takes j */
 out:

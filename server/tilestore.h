@@ -117,8 +117,8 @@ typedef struct td_store_stats {
 td_status td_store_create(const td_store_opts *o, td_store **out, td_err *err);
 
 /* Datasets added from now on also keep their levels of detail's isometric twins (lod.h:
- * quality.lod_grid isometric; a third more of the levels' heights). Off by default; call
- * before adding datasets (terrad serve --isometric-lod 1). */
+ * quality.lod_grid isometric; two-byte vertices, about half the levels' float heights).
+ * Off by default; call before adding datasets (terrad serve --isometric-lod 1). */
 void td_store_set_lod_iso(td_store *s, int on);
 /* Call only when no snapshot is held any more. */
 void td_store_free(td_store *s);

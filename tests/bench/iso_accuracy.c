@@ -24,7 +24,11 @@
  *
  * Usage: iso-accuracy DATA_DIR OUT_DIR  (writes OUT_DIR/isometric-tables.md and
  * OUT_DIR/bench/iso-*.svg; run by hand, see docs/isometric.md; about 3 minutes), or
- * iso-accuracy DATA_DIR --timing (the trace-cost table only, to stdout). */
+ * iso-accuracy DATA_DIR --timing (the trace-cost table only, to stdout), or iso-accuracy
+ * DATA_DIR --lod [DEM] (the levels of detail's packed twins only, to stdout), or
+ * iso-accuracy DATA_DIR --cones [DEM] (steps per ray of the square levels' methods and of
+ * the lattice walk with and without its pyramid: docs/isometric.md, "Parametric"), or
+ * iso-accuracy DATA_DIR --tiles DEM (map tiles on both lattices against the full grid). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -35,6 +39,8 @@
 #include "bench_svg.h"
 #include "dem.h"
 #include "isogrid.h"
+#include "lod.h"
+#include "render.h"
 #include "trace.h"
 
 #define NREC 4
@@ -493,6 +499,18 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
+/* Camera-like rays over grid g's extent: from above its highest point toward random
+ * ground points (trace_cost's and lod_twins' rays). */
+static void camera_rays(const td_grid *g, uint64_t seed, td_ray *rays, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        double X = (g->w - 1) * g->sx, Y = (g->h - 1) * g->sy, dz = g->zmax - g->zmin;
+        double o[3] = {X * rnd(&seed), Y * rnd(&seed), g->zmax + 0.2 * dz};
+        double p[3] = {X * rnd(&seed), Y * rnd(&seed), g->zmin + 0.5 * dz};
+        rays[i] = (td_ray){{o[0], o[1], o[2]}, {p[0] - o[0], p[1] - o[1], p[2] - o[2]}, 0.0, INFINITY};
+    }
+}
+
 /* Rays per second of the square grid's triangle surface (incremental without acceleration,
  * and auto with max-mipmaps and planes) and of the lattices' walk, on the same rays over the
  * same samples: camera-like rays from above the highest point toward random ground points
@@ -520,12 +538,8 @@ static td_status trace_cost(FILE *f, const char *data, td_err *err)
             rc = td_iso_from_grid(g, 1, (td_iso_rows)k, &iso[k], err);
         if (!rc)
             rc = td_accel_build(g, &ao, &ac, &ast, err);
-        for (size_t i = 0; i < NR && !rc; i++) {
-            double X = (g->w - 1) * g->sx, Y = (g->h - 1) * g->sy, dz = g->zmax - g->zmin;
-            double o[3] = {X * rnd(&seed), Y * rnd(&seed), g->zmax + 0.2 * dz};
-            double p[3] = {X * rnd(&seed), Y * rnd(&seed), g->zmin + 0.5 * dz};
-            rays[i] = (td_ray){{o[0], o[1], o[2]}, {p[0] - o[0], p[1] - o[1], p[2] - o[2]}, 0.0, INFINITY};
-        }
+        if (!rc)
+            camera_rays(g, seed, rays, NR);
         for (int c = 0; c < 4 && !rc; c++) {
             static const char *const names[4] = {"square, incremental (triangle)",
                                                   "square, auto with max-mipmaps and planes (triangle)",
@@ -580,6 +594,248 @@ static td_status packing(FILE *f, const char *data, td_err *err)
     return rc;
 }
 
+/* DEM d of the LOD tables (the three fixtures in data, then `extra` if not NULL) with 4
+ * levels of detail (acceleration as `ao` asks) and their isometric twins; *name gets the
+ * file's name. Past the last one, *g is NULL. */
+static td_status lod_dem(const char *data, const char *extra, int d, const td_accel_opts *ao,
+                         td_grid **g, td_lod **lod, const char **name, td_err *err)
+{
+    static const char *const files[] = {"trinidad-crop.f32", "picos-dtm.asc", "volcano.asc"};
+    static char path[1024];
+    td_status rc = TD_OK;
+    *g = NULL;
+    *lod = NULL;
+    if (d < 3 || (d == 3 && extra)) {
+        snprintf(path, sizeof path, "%s%s%s", d < 3 ? data : extra, d < 3 ? "/" : "", d < 3 ? files[d] : "");
+        *name = strrchr(path, '/') ? strrchr(path, '/') + 1 : path;
+        rc = td_dem_load(path, NULL, g, err);
+        if (!rc)
+            rc = td_lod_build(*g, 4, ao, lod, err);
+        if (!rc)
+            rc = td_lod_add_iso(*lod, *g, err);
+    }
+    return rc;
+}
+
+/* The levels of detail's isometric twins as core/lod.c keeps them (two-byte vertices,
+ * tiles of 64 x 64): per level, the packing's error and bytes per sample against the
+ * floats they decode to, and the walk's rays per second on the packed vertices against
+ * the same walk on the decoded floats (same rays, same steps). `extra` (may be NULL): one
+ * more DEM, e.g. the full trinidad. */
+static td_status lod_twins(FILE *f, const char *data, const char *extra, td_err *err)
+{
+    enum { NR = 20000, NRUN = 5 };
+    td_status rc = TD_OK;
+    td_ray *rays = malloc(NR * sizeof *rays);
+    fprintf(f, "\nThe levels of detail's isometric twins as `td_lod_add_iso` keeps them (two-byte "
+               "vertices, tiles of 64 x 64; bytes per sample include the tiles' offsets and steps and "
+               "the block maxima); rays/s of the walk on the packed vertices and on the floats they "
+               "decode to (median of %d runs of %d camera-like rays, one thread, shared machine: "
+               "indicative; same steps, same hits bit for bit).\n\n| DEM | level | samples | tiles "
+               "lossless | largest error (m) | bytes/sample packed | floats | rays/s packed | floats | "
+               "steps/ray |\n|---|---|---|---|---|---|---|---|---|---|\n", NRUN, NR);
+    for (int d = 0; !rc && rays; d++) {
+        const char *name = "";
+        td_grid *g = NULL;
+        td_lod *lod = NULL;
+        td_accel_opts ao = {0, 0, 1, 1};
+        rc = lod_dem(data, extra, d, &ao, &g, &lod, &name, err);
+        if (!rc && !g)
+            break;
+        for (int k = 1; !rc && k <= lod->levels; k++) {
+            const td_iso *l = lod->iso[k];
+            td_iso *fl = NULL;
+            double tp[NRUN], tf[NRUN], steps = 0, sf = 0, hits = 0, hf = 0;
+            size_t n = td_iso_row_offset(l->nx, l->ny);
+            rc = td_iso_unpack(l->packed, &fl, err);
+            if (rc)
+                break;
+            camera_rays(lod->grid[k], 77 + (uint64_t)k, rays, NR);
+            for (int r = 0; r < NRUN; r++) {
+                tp[r] = time_rays(1, NULL, TD_METHOD_AUTO, l, rays, NR, &steps, &hits);
+                tf[r] = time_rays(1, NULL, TD_METHOD_AUTO, fl, rays, NR, &sf, &hf);
+            }
+            qsort(tp, NRUN, sizeof tp[0], cmp_double);
+            qsort(tf, NRUN, sizeof tf[0], cmp_double);
+            fprintf(f, "| %s | %d | %zu | %d / %d | %.3g | %.3f | %.3f | %.3g | %.3g | %.1f%s |\n",
+                    name, k, n, l->packed->lossless,
+                    l->packed->tiles_x * l->packed->tiles_y, l->packed->max_err,
+                    (double)td_iso_bytes(l) / (double)n, (double)td_iso_bytes(fl) / (double)n,
+                    NR / tp[NRUN / 2], NR / tf[NRUN / 2], steps,
+                    steps == sf && hits == hf ? "" : " (differ!)");
+            td_iso_free(fl);
+        }
+        td_lod_free(lod);
+        td_grid_free(g);
+    }
+    free(rays);
+    return rc;
+}
+
+/* Mean steps per ray of the square level's methods (triangle surface) and of the lattice
+ * walk on its twin, without its block pyramid (every block maximum +inf: no block is ever
+ * cleared) and with it, on the same camera-like rays: what the block pyramid saves, and
+ * what Paglieroni-Petersen cones (`parametric`) save over a max pyramid (`hierarchical`)
+ * on the square level, i.e. what cones on the lattice could hope to save over its pyramid. */
+static td_status cones(FILE *f, const char *data, const char *extra, td_err *err)
+{
+    static const td_method meth[4] = {TD_METHOD_INCREMENTAL, TD_METHOD_HIERARCHICAL,
+                                      TD_METHOD_PARAMETRIC, TD_METHOD_AUTO};
+    enum { NR = 20000 };
+    td_status rc = TD_OK;
+    td_ray *rays = malloc(NR * sizeof *rays);
+    fprintf(f, "\nSteps per ray on the levels of detail (%d camera-like rays a level): the square "
+               "level's methods (triangle surface; max-mipmaps and planes built) and the lattice walk "
+               "on its isometric twin without and with its block pyramid; ms for the %d rays, one "
+               "thread, shared machine: indicative.\n\n| DEM | level | square incremental | "
+               "hierarchical | parametric | auto | lattice, no pyramid | lattice, pyramid | "
+               "parametric / hierarchical | lattice pyramid / square parametric |\n"
+               "|---|---|---|---|---|---|---|---|---|---|\n", NR, NR);
+    for (int d = 0; !rc && rays; d++) {
+        const char *name = "";
+        td_grid *g = NULL;
+        td_lod *lod = NULL;
+        td_accel_opts ao;
+        td_accel_opts_default(&ao);
+        ao.threads = 1;
+        rc = lod_dem(data, extra, d, &ao, &g, &lod, &name, err);
+        if (!rc && !g)
+            break;
+        for (int k = 1; !rc && k <= lod->levels; k++) {
+            td_iso *flat = NULL; /* the twin with its pyramid disabled */
+            double st[6], hits, ms[6];
+            size_t nb = 0;
+            rc = td_iso_unpack(lod->iso[k]->packed, &flat, err);
+            if (rc)
+                break;
+            for (int b = 0; b < flat->blevels; b++)
+                nb += (size_t)flat->bw[b] * (size_t)flat->bh[b];
+            for (size_t i = 0; i < nb; i++)
+                flat->bmax[0][i] = INFINITY;
+            camera_rays(lod->grid[k], 177 + (uint64_t)k, rays, NR);
+            for (int m = 0; m < 4; m++)
+                ms[m] = 1e3 * time_rays(0, &lod->view[k], meth[m], NULL, rays, NR, &st[m], &hits);
+            ms[4] = 1e3 * time_rays(1, NULL, TD_METHOD_AUTO, flat, rays, NR, &st[4], &hits);
+            ms[5] = 1e3 * time_rays(1, NULL, TD_METHOD_AUTO, lod->iso[k], rays, NR, &st[5], &hits);
+            fprintf(f, "| %s | %d |", name, k);
+            for (int m = 0; m < 6; m++)
+                fprintf(f, " %.1f (%.0f ms) |", st[m], ms[m]);
+            fprintf(f, " %.2f | %.2f |\n", st[2] / st[1], st[5] / st[2]);
+            td_iso_free(flat);
+        }
+        td_lod_free(lod);
+        td_grid_free(g);
+    }
+    free(rays);
+    return rc;
+}
+
+/* Squared RGB differences of a and b over the pixels opaque in both; *n counts them. */
+static double rgb_sse(const td_render_result *a, const td_render_result *b, uint64_t *n)
+{
+    double sse = 0.0;
+    for (size_t i = 0; i < (size_t)a->width * (size_t)a->height; i++) {
+        const uint8_t *p = a->rgba + 4 * i, *q = b->rgba + 4 * i;
+        if (!p[3] || !q[3])
+            continue;
+        for (int c = 0; c < 3; c++)
+            sse += ((double)p[c] - q[c]) * ((double)p[c] - q[c]);
+        *n += 3;
+    }
+    return sse;
+}
+
+/* Map tiles as GET /v1/tiles makes them (256 x 256, orthographic, top down, quality.lod on,
+ * the scene's defaults) on the square levels and on their isometric twins, against the
+ * same tile traced on the full grid with 4 x 4 rays a pixel (the picture the level
+ * stands for): PSNR of the colours, the render's height error, the primary stage's time.
+ * Zooms 0-3, up to 4 tiles a zoom (the north-west ones). */
+static td_status tiles(FILE *f, const char *dem, td_err *err)
+{
+    td_status rc;
+    td_grid *g = NULL;
+    td_accel *ac = NULL;
+    td_lod *lod = NULL;
+    td_accel_opts ao;
+    td_accel_stats ast;
+    td_dem_opts dopt;
+    td_dem_opts_default(&dopt);
+    td_accel_opts_default(&ao);
+    ao.threads = 1;
+    rc = td_dem_load(dem, &dopt, &g, err);
+    if (!rc)
+        rc = td_accel_build(g, &ao, &ac, &ast, err);
+    ao.planes = 0; /* as the server builds its levels (server/tilestore.c) */
+    if (!rc)
+        rc = td_lod_build(g, TD_LOD_MAX, &ao, &lod, err);
+    if (!rc)
+        rc = td_lod_add_iso(lod, g, err);
+    if (!rc)
+        fprintf(f, "\nMap tiles of %s (%d x %d samples) as `GET /v1/tiles` makes them, on the square "
+                   "levels and on their isometric twins, against the same tiles traced on the full grid "
+                   "with 4 x 4 rays a pixel; one thread, shared machine (times indicative).\n\n"
+                   "| zoom | tiles | level | PSNR square (dB) | PSNR isometric | height error mean / max, "
+                   "square (m) | isometric | primary ms square | isometric |\n"
+                   "|---|---|---|---|---|---|---|---|---|\n",
+                strrchr(dem, '/') ? strrchr(dem, '/') + 1 : dem, (int)g->w, (int)g->h);
+    for (int z = 0; z <= 3 && !rc; z++) {
+        double wm = g->sx * (g->w - 1), hm = g->sy * (g->h - 1), side = wm > hm ? wm : hm;
+        double t = side / (double)(1L << z), sse[2] = {0, 0}, hs[2] = {0, 0}, hx[2] = {0, 0};
+        double ms[2] = {0, 0};
+        uint64_t n[2] = {0, 0}, hh[2] = {0, 0};
+        int ntiles = 0, level = 0;
+        td_view v = {g, ac->tiles};
+        for (long y = 0; y < (1L << z) && y * t < hm && ntiles < 4 && !rc; y++) {
+            for (long x = 0; x < (1L << z) && x * t < wm && ntiles < 4 && !rc; x++) {
+                td_scene sc;
+                td_render_opts o;
+                td_render_result truth = {0}, res[2] = {{0}, {0}};
+                td_scene_defaults(&sc);
+                sc.camera.projection = TD_PROJ_ORTHOGRAPHIC;
+                sc.camera.extent[0] = (double)x * t;
+                sc.camera.extent[2] = (double)(x + 1) * t;
+                sc.camera.extent[3] = hm - (double)y * t;
+                sc.camera.extent[1] = hm - (double)(y + 1) * t;
+                sc.image.width = sc.image.height = 256;
+                sc.image.format = TD_FORMAT_PNG;
+                td_render_opts_default(&o);
+                o.threads = 1;
+                sc.quality.samples = 4;
+                rc = td_render(&v, &sc, &o, &truth, err);
+                sc.quality.samples = 1;
+                sc.quality.lod = 1;
+                o.lod = lod;
+                for (int k = 0; k < 2 && !rc; k++) {
+                    sc.quality.lod_grid = k ? TD_LOD_GRID_ISOMETRIC : TD_LOD_GRID_SQUARE;
+                    rc = td_render(&v, &sc, &o, &res[k], err);
+                    if (rc)
+                        break;
+                    sse[k] += rgb_sse(&truth, &res[k], &n[k]);
+                    hs[k] += res[k].stats.height_err_sum_m;
+                    hh[k] += res[k].stats.height_err_hits;
+                    hx[k] = fmax(hx[k], res[k].stats.height_err_max_m);
+                    ms[k] += res[k].stats.stage_ms[TD_STAGE_PRIMARY];
+                    for (int l = 0; l <= TD_LOD_MAX; l++)
+                        level = res[k].stats.lod_rays[l] ? l : level;
+                }
+                td_render_result_free(&truth);
+                td_render_result_free(&res[0]);
+                td_render_result_free(&res[1]);
+                ntiles++;
+            }
+        }
+        if (!rc)
+            fprintf(f, "| %d | %d | %d | %.2f | %.2f | %.2f / %.1f | %.2f / %.1f | %.0f | %.0f |\n", z,
+                    ntiles, level, 10.0 * log10(255.0 * 255.0 * (double)n[0] / sse[0]),
+                    10.0 * log10(255.0 * 255.0 * (double)n[1] / sse[1]), hs[0] / (double)hh[0], hx[0],
+                    hs[1] / (double)hh[1], hx[1], ms[0], ms[1]);
+    }
+    td_lod_free(lod);
+    td_accel_free(ac);
+    td_grid_free(g);
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
     static wave_res waves, sums;
@@ -591,8 +847,15 @@ int main(int argc, char **argv)
 
     if (argc == 3 && !strcmp(argv[2], "--timing")) /* the trace-cost table only, to stdout */
         return trace_cost(stdout, argv[1], &err) ? 1 : 0;
+    if (argc == 4 && !strcmp(argv[2], "--tiles")) /* map tiles of one DEM, to stdout */
+        return tiles(stdout, argv[3], &err) ? 1 : 0;
+    if (argc >= 3 && !strcmp(argv[2], "--cones")) /* the steps table only, to stdout */
+        return cones(stdout, argv[1], argc > 3 ? argv[3] : NULL, &err) ? 1 : 0;
+    if (argc >= 3 && !strcmp(argv[2], "--lod")) /* the LOD twins' table only, to stdout */
+        return lod_twins(stdout, argv[1], argc > 3 ? argv[3] : NULL, &err) ? 1 : 0;
     if (argc != 3) {
-        fprintf(stderr, "usage: %s DATA_DIR OUT_DIR (e.g. tests/data docs) | DATA_DIR --timing\n",
+        fprintf(stderr, "usage: %s DATA_DIR OUT_DIR (e.g. tests/data docs) | DATA_DIR --timing | "
+                        "DATA_DIR --lod [DEM] | DATA_DIR --cones [DEM] | DATA_DIR --tiles DEM\n",
                 argv[0]);
         return 2;
     }
@@ -621,6 +884,10 @@ int main(int argc, char **argv)
         rc = dems(f, argv[1], &err);
     if (!rc)
         rc = packing(f, argv[1], &err);
+    if (!rc)
+        rc = lod_twins(f, argv[1], NULL, &err);
+    if (!rc)
+        rc = cones(f, argv[1], NULL, &err);
     if (!rc && !getenv("ISO_NO_TIMING"))
         rc = trace_cost(f, argv[1], &err);
     if (!rc)

@@ -166,6 +166,25 @@ static double mesh_indices(const td_grid *g, int refine, size_t vw, unsigned *ib
     return bound;
 }
 
+/* e's device (`threads` build threads, 0 all; its memory counted by monitor) and its
+ * empty robust, high-quality scene. */
+static td_status scene_open(td_embree *e, int threads, td_err *err)
+{
+    td_status rc = TD_OK;
+    char cfg[64];
+    snprintf(cfg, sizeof cfg, "threads=%d,verbose=0", threads > 0 ? threads : 0);
+    e->dev = rtcNewDevice(cfg);
+    if (!e->dev) {
+        rc = td_err_set(err, TD_EUNSUPPORTED, "embree: rtcNewDevice(\"%s\") failed", cfg);
+    } else {
+        rtcSetDeviceMemoryMonitorFunction(e->dev, monitor, e);
+        e->scene = rtcNewScene(e->dev);
+        rtcSetSceneFlags(e->scene, RTC_SCENE_FLAG_ROBUST);
+        rtcSetSceneBuildQuality(e->scene, RTC_BUILD_QUALITY_HIGH);
+    }
+    return rc;
+}
+
 void td_embree_opts_default(td_embree_opts *o)
 {
     o->geom = TD_EMBREE_TRIANGLES;
@@ -182,7 +201,6 @@ td_status td_embree_build_opts(const td_grid *g, const td_embree_opts *o, td_emb
     td_embree_stats stats;
     const int refine = o->refine;
     size_t vw, vh, nv, ncell = 0, nprim = 0, tmp;
-    char cfg[64];
     double t0;
 
     *out = NULL;
@@ -218,18 +236,10 @@ td_status td_embree_build_opts(const td_grid *g, const td_embree_opts *o, td_emb
     e->hi[1] = (g->h - 1) * g->sy + 1.0;
     e->lo[2] = isnan(g->zmin) ? 0.0 : (double)g->zmin - 1.0 - 1e-6 * fabs(g->zmin);
     e->hi[2] = isnan(g->zmax) ? 0.0 : (double)g->zmax + 1.0 + 1e-6 * fabs(g->zmax);
-    snprintf(cfg, sizeof cfg, "threads=%d,verbose=0", o->threads > 0 ? o->threads : 0);
-    e->dev = rtcNewDevice(cfg);
-    if (!e->dev) {
-        rc = td_err_set(err, TD_EUNSUPPORTED, "embree: rtcNewDevice(\"%s\") failed", cfg);
+    rc = scene_open(e, o->threads, err);
+    if (rc)
         goto out;
-    }
-    rtcSetDeviceMemoryMonitorFunction(e->dev, monitor, e);
-
     t0 = td_clock_s();
-    e->scene = rtcNewScene(e->dev);
-    rtcSetSceneFlags(e->scene, RTC_SCENE_FLAG_ROBUST);
-    rtcSetSceneBuildQuality(e->scene, RTC_BUILD_QUALITY_HIGH);
     if (ncell > 0) {
         float *vb;
         gm = rtcNewGeometry(e->dev, o->geom == TD_EMBREE_GRID ? RTC_GEOMETRY_TYPE_GRID
@@ -296,6 +306,72 @@ out:
     }
     if (st)
         *st = stats;
+    *out = e;
+    return rc;
+}
+
+td_status td_embree_build_mesh(const double *v, size_t nv, const uint32_t *tri, size_t nt,
+                               td_embree **out, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_embree *e = calloc(1, sizeof *e);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    RTCGeometry gm = NULL;
+    float *vb;
+    unsigned *ib;
+
+    *out = NULL;
+    if (!e || nv > 0xffffffffu || nt > 0x7fffffffu / 3) {
+        rc = td_err_set(err, e ? TD_ETOOBIG : TD_ENOMEM, "embree: a mesh of %zu vertices, %zu triangles", nv, nt);
+        goto out;
+    }
+    for (size_t k = 0; k < nv; k++)
+        for (int a = 0; a < 3 && !isnan(v[3 * k + 2]); a++) {
+            lo[a] = fmin(lo[a], v[3 * k + a]);
+            hi[a] = fmax(hi[a], v[3 * k + a]);
+        }
+    for (int a = 0; a < 3; a++) { /* the box padded as a grid's (td_embree_build_opts) */
+        double pad = a < 2 ? 1.0 : 1.0 + 1e-6 * fmax(fabs(lo[a]), fabs(hi[a]));
+        lo[a] = isfinite(lo[a]) ? lo[a] : 0.0;
+        hi[a] = isfinite(hi[a]) ? hi[a] : 0.0;
+        e->c[a] = 0.5 * (lo[a] + hi[a]);
+        e->lo[a] = lo[a] - pad;
+        e->hi[a] = hi[a] + pad;
+    }
+    rc = scene_open(e, 0, err);
+    if (rc || nt == 0)
+        goto commit;
+    gm = rtcNewGeometry(e->dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetGeometryBuildQuality(gm, RTC_BUILD_QUALITY_HIGH);
+    vb = rtcSetNewGeometryBuffer(gm, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv);
+    ib = rtcSetNewGeometryBuffer(gm, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), nt);
+    if (!vb || !ib) {
+        rc = td_err_set(err, TD_ENOMEM, "embree: out of memory for %zu triangles", nt);
+        goto out;
+    }
+    for (size_t k = 0; k < nv; k++)
+        for (int a = 0; a < 3; a++)
+            vb[3 * k + a] = (float)(isnan(v[3 * k + 2]) ? 0.0 : v[3 * k + a] - e->c[a]);
+    for (size_t k = 0; k < 3 * nt; k++)
+        ib[k] = tri[k];
+    rtcCommitGeometry(gm);
+    rtcAttachGeometry(e->scene, gm);
+    rtcReleaseGeometry(gm);
+    gm = NULL;
+    e->prims = nt;
+commit:
+    if (!rc)
+        rtcCommitScene(e->scene);
+    if (!rc && rtcGetDeviceError(e->dev) != RTC_ERROR_NONE)
+        rc = td_err_set(err, TD_EUNSUPPORTED, "embree: mesh build failed (error %d)",
+                        (int)rtcGetDeviceError(e->dev));
+out:
+    if (gm)
+        rtcReleaseGeometry(gm);
+    if (rc) {
+        td_embree_free(e);
+        e = NULL;
+    }
     *out = e;
     return rc;
 }

@@ -63,6 +63,12 @@ td_status td_embree_build_opts(const td_grid *g, const td_embree_opts *o, td_emb
                                td_embree_stats *st, td_err *err);
 /* The triangle mesh with refinement `refine` (the oracle's scene). */
 td_status td_embree_build(const td_grid *g, int refine, td_embree **out, td_err *err);
+/* A robust triangle mesh of any triangles: nv vertices (x, y, z in the dataset frame;
+ * a NaN z marks a vertex no triangle uses) and nt triangles (three vertex indices each),
+ * in a local frame centred on their box, rays prepared and traced as for a grid's scene.
+ * The isometric lattice's Embree oracle (oracle_iso.c). */
+td_status td_embree_build_mesh(const double *v, size_t nv, const uint32_t *tri, size_t nt,
+                               td_embree **out, td_err *err);
 void td_embree_free(td_embree *e);
 
 /* Max vertical distance between the refined mesh and the bilinear patches (0 for

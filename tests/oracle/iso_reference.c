@@ -89,9 +89,12 @@ static int clip_tri(const td_ray *r, const vtx *p[3], double margin, clip *c)
     return ok && c->lo <= c->hi;
 }
 
-/* The ray over one valid triangle: [lo, hi] and its height above it, f0 + f1 t. */
+/* The ray over one valid triangle: [lo, hi] and its height above it, f0 + f1 t; inner
+ * when the ray's ground track enters the triangle's interior (not only its closed edge or
+ * a corner, within the margin). */
 typedef struct piece {
     double lo, hi, f0, f1;
+    int inner;
 } piece;
 
 typedef struct ref_ctx {
@@ -137,7 +140,9 @@ static void on_tri(void *vctx, const vtx *a, const vtx *b, const vtx *c3)
         x->pc = np;
         x->cap = nc;
     }
-    x->pc[x->n++] = (piece){c.lo, c.hi, c.f0, c.f1};
+    clip in;
+    int inner = clip_tri(x->r, p, -x->margin, &in) && fmax(in.lo, x->r->tmin) < fmin(in.hi, x->r->tmax);
+    x->pc[x->n++] = (piece){c.lo, c.hi, c.f0, c.f1, inner};
 }
 
 static int by_lo(const void *a, const void *b)
@@ -147,8 +152,11 @@ static int by_lo(const void *a, const void *b)
 }
 
 /* The answers from the pieces: the exact hit and t_near per piece; t_strict by a sweep in
- * ray order that remembers which side the ray was definitely on (forgotten at a gap: a
- * hole, where the ray may pass under an edge without crossing anything). */
+ * ray order over the inner pieces that remembers which side the ray was definitely on
+ * (forgotten at a gap: a hole, where the ray may pass under an edge without crossing
+ * anything). A ray whose ground track runs along an edge, or through a corner, without
+ * entering a valid triangle there (along a hole's border) only touches the surface: a
+ * hit or a miss there is a tie, as the square grid's reference has it (reference.c). */
 static void sweep(ref_ctx *x)
 {
     double eps = x->eps, t_cov = -INFINITY;
@@ -161,6 +169,8 @@ static void sweep(ref_ctx *x)
         x->out->t = fmin(x->out->t, first_at(c, 0.0));
         double tn = fabs(flo) <= eps ? c->lo : fmin(first_at(c, eps), first_at(c, -eps));
         x->out->t_near = fmin(x->out->t_near, tn);
+        if (!c->inner)
+            continue;
         if (c->lo > t_cov + 1e-9 * (1.0 + fabs(c->lo)))
             side = 0; /* a gap */
         if (side == 0)
@@ -233,9 +243,15 @@ static void on_tri_height(void *vctx, const vtx *a, const vtx *b, const vtx *c3)
 
 double td_iso_ref_height(const td_iso *l, double x, double y)
 {
-    height_ctx h = {x, y, NAN};
+    double X = (l->nx - 1) * l->a, Y = (l->ny - 1) * l->b, m = 1e-9 * fmax(X, Y);
+    height_ctx h;
     vtx *buf = malloc(2 * ((size_t)l->nx + 1) * sizeof *buf);
-    int32_t r = (int32_t)floor(y / l->b);
+    int32_t r;
+    /* a point a rounding outside the border (a hit where the ray enters) is on it */
+    x = x < 0.0 && x >= -m ? 0.0 : (x > X && x <= X + m ? X : x);
+    y = y < 0.0 && y >= -m ? 0.0 : (y > Y && y <= Y + m ? Y : y);
+    h = (height_ctx){x, y, NAN};
+    r = (int32_t)floor(y / l->b);
     r = r > l->ny - 2 ? l->ny - 2 : r;
     if (buf && r >= 0 && x >= 0.0 && x <= (l->nx - 1) * l->a && y <= (l->ny - 1) * l->b)
         strip(l, r, buf, on_tri_height, &h);

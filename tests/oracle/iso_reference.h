@@ -13,8 +13,11 @@
  * a valid triangle. Band of half-width eps (metres, vertical), as reference.h: t_near is
  * the first t where the ray comes within eps of the surface, t_strict the first where it
  * has definitely crossed it (from more than eps on one side to more than eps on the other,
- * over valid triangles without a hole between). Any answer in [t_near, t_strict] whose
- * point is within eps of the surface is a tie; a miss is consistent iff t_strict is +inf. */
+ * over valid triangles whose interior the ray's ground track enters, without a hole
+ * between: a ray running along a hole's border only touches the surface, as in
+ * reference.h). Any answer in [t_near, t_strict] whose point is within eps of the surface
+ * (a point a rounding outside the lattice's border counts as on it) is a tie; a miss is
+ * consistent iff t_strict is +inf. */
 #ifndef TD_ISO_REFERENCE_H
 #define TD_ISO_REFERENCE_H
 

@@ -499,6 +499,43 @@ static void test_tiles(void **state)
     th_resp_free(&r);
 }
 
+/* Map tiles on the levels of detail's isometric twins (?quality.lod_grid=isometric): a 400
+ * naming the field without --isometric-lod 1 or for an unknown lattice; with it, a tile
+ * with its own ETag (not the square tile's) and a height error. */
+static void test_tiles_isometric(void **state)
+{
+    th_server s;
+    th_resp r, r2;
+    int w, h;
+    char e1[128], e2[128], herr[128];
+    const char *args[] = {"--demo-dir", TERRAD_DATA_DIR, "--preload", "none", "--isometric-lod", "1", NULL};
+    const char *refused[] = {"isometric", "hex"}; /* on A: no twins; no such lattice */
+    (void)state;
+    for (int k = 0; k < 2; k++) {
+        char path[96];
+        snprintf(path, sizeof path, "/v1/tiles/volcano/0/0/0.png?quality.lod_grid=%s", refused[k]);
+        req(&A, "GET", path, NULL, NULL, &r);
+        assert_error(&r, 400, "bad_request", "quality.lod_grid");
+        th_resp_free(&r);
+    }
+    assert_int_equal(th_start(&s, TERRAD_BIN, args, NULL), 0);
+    req(&s, "GET", "/v1/tiles/volcano/0/0/0.png?quality.lod_grid=isometric", NULL, NULL, &r);
+    assert_int_equal(r.status, 200);
+    assert_true(th_png_size(&r, &w, &h));
+    assert_int_equal(w, 256);
+    assert_int_equal(h, 256);
+    assert_true(th_header(&r, "ETag", e1, sizeof e1));
+    assert_true(th_header(&r, "X-Terrad-Height-Error", herr, sizeof herr));
+    req(&s, "GET", "/v1/tiles/volcano/0/0/0.png?quality.lod_grid=square", NULL, NULL, &r2);
+    assert_int_equal(r2.status, 200);
+    assert_true(th_header(&r2, "ETag", e2, sizeof e2));
+    assert_string_not_equal(e1, e2);
+    th_resp_free(&r2);
+    th_resp_free(&r);
+    assert_int_equal(th_stop(&s), 0);
+    th_forget(&s);
+}
+
 /* --- admin ------------------------------------------------------------------------------- */
 
 static json_t *dataset_residency(const th_server *s, const char *id)
@@ -1210,6 +1247,7 @@ int main(void)
         cmocka_unit_test(test_render_never_500),
         cmocka_unit_test(test_pick),
         cmocka_unit_test(test_tiles),
+        cmocka_unit_test(test_tiles_isometric),
         cmocka_unit_test(test_admin_auth),
         cmocka_unit_test(test_admin_preload),
         cmocka_unit_test(test_render_during_preload_and_evict),

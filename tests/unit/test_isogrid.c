@@ -239,14 +239,25 @@ typedef struct tally {
     int agree, tie, wrong;
 } tally;
 
-static void judge(const td_iso *l, const td_ray *r, tally *t)
+/* td_iso_trace on lattice l against the reference on `fl`: l itself when it holds
+ * floats, its decoded heights (td_iso_unpack) when it is packed, and then the walk on the
+ * packed vertices must answer bit for bit what it answers on their decoded floats. */
+static void judge_on(const td_iso *l, const td_iso *fl, const td_ray *r, tally *t)
 {
     td_hit h;
     td_iso_ref_hit ref;
     double eps = 1e-6 * (1.0 + fmax(fabs(l->zmin), fabs(l->zmax)));
     td_iso_trace(l, r, &h);
-    td_iso_ref_trace(l, r, eps, &ref);
-    td_iso_ref_verdict v = td_iso_ref_judge(l, r, &ref, h.t, eps);
+    if (fl != l) {
+        td_hit hf;
+        td_iso_trace(fl, r, &hf);
+        assert_true(h.t == hf.t || (isnan(h.t) && isnan(hf.t)));
+        assert_true(h.t == INFINITY || (h.n[0] == hf.n[0] && h.n[1] == hf.n[1] &&
+                                        h.n[2] == hf.n[2] && h.ci == hf.ci && h.cj == hf.cj));
+        assert_int_equal(h.steps, hf.steps);
+    }
+    td_iso_ref_trace(fl, r, eps, &ref);
+    td_iso_ref_verdict v = td_iso_ref_judge(fl, r, &ref, h.t, eps);
     if (v == TD_ISO_REF_WRONG)
         print_message("wrong: o %.17g %.17g %.17g d %.17g %.17g %.17g t %.17g ref %.17g "
                       "[%.17g, %.17g]\n", r->o[0], r->o[1], r->o[2], r->d[0], r->d[1], r->d[2],
@@ -271,8 +282,10 @@ static void judge(const td_iso *l, const td_ray *r, tally *t)
     }
 }
 
+static void judge(const td_iso *l, const td_ray *r, tally *t) { judge_on(l, l, r, t); }
+
 /* Random rays from above the lattice toward points on it and beyond. */
-static void random_rays(const td_iso *l, int n, uint64_t *seed, tally *t)
+static void random_rays_on(const td_iso *l, const td_iso *fl, int n, uint64_t *seed, tally *t)
 {
     double X = (l->nx - 1) * l->a, Y = (l->ny - 1) * l->b, dz = l->zmax - l->zmin + 1.0;
     for (int k = 0; k < n; k++) {
@@ -284,8 +297,13 @@ static void random_rays(const td_iso *l, int n, uint64_t *seed, tally *t)
             r.tmax = 0.5 + rnd(seed);
         if (k % 9 == 0) /* steep */
             r.d[0] *= 0.01, r.d[1] *= 0.01;
-        judge(l, &r, t);
+        judge_on(l, fl, &r, t);
     }
+}
+
+static void random_rays(const td_iso *l, int n, uint64_t *seed, tally *t)
+{
+    random_rays_on(l, l, n, seed, t);
 }
 
 static void test_iso_rays_reference(void **state)
@@ -314,6 +332,73 @@ static void test_iso_rays_reference(void **state)
     assert_true(t.agree >= 20900);
 }
 
+/* Hard cases on lattice m (the reference on fl, see judge_on): rays along each of the
+ * three families of lattice lines, at vertices, vertical, grazing a sample, downward
+ * everywhere (watertight), from below, outside and under the lattice, starting on it. */
+static void hard_rays(const td_iso *m, const td_iso *fl, uint64_t *seed_, tally *t)
+{
+    uint64_t seed = *seed_;
+    double X = (m->nx - 1) * m->a, Y = (m->ny - 1) * m->b;
+    for (int k = 0; k < 600; k++) {
+        int32_t r = 1 + k % (m->ny - 2), c = 1 + (k * 7) % (m->nx - 2);
+        double vx = td_iso_x(m, r, c), vy = r * m->b, vz = td_iso_at(m, r, c);
+        double z0 = vz + 30.0 * rnd(&seed) - 15.0;
+        td_ray rays[5] = {
+            {{-1.0, vy, z0}, {1.0, 0.0, 0.01 * (rnd(&seed) - 0.5)}, 0.0, INFINITY}, /* along a row */
+            {{vx, vy, z0}, {0.5 * m->a, m->b, -0.2}, -30.0, INFINITY},  /* along a u - Y/2 line */
+            {{vx, vy, z0}, {-0.5 * m->a, m->b, -0.2}, -30.0, INFINITY}, /* along a u + Y/2 line */
+            {{vx + 3.0, vy + 2.0, vz + 3.0}, {-3.0, -2.0, -3.0}, 0.0, INFINITY}, /* at a vertex */
+            {{vx, vy, vz + 10.0}, {0.0, 0.0, -1.0}, 0.0, INFINITY}, /* vertical on a vertex */
+        };
+        for (int q = 0; q < 5; q++)
+            judge_on(m, fl, &rays[q], t);
+    }
+    for (int k = 0; k < 400; k++) { /* grazing: just over / at / under a sample */
+        int32_t r = 1 + k % (m->ny - 2), c = 1 + (k * 3) % (m->nx - 2);
+        double vx = td_iso_x(m, r, c), vy = r * m->b, vz = td_iso_at(m, r, c);
+        double off = (k % 3 - 1) * 1e-9;
+        td_ray g = {{vx - 10.0, vy - 7.0, vz + off}, {10.0, 7.0, 0.0}, 0.0, 2.0};
+        judge_on(m, fl, &g, t);
+    }
+    /* from outside, starting below, downward everywhere: every such ray hits */
+    for (int k = 0; k < 2000; k++) {
+        double x = rnd(&seed) * X, y = rnd(&seed) * Y;
+        if (k % 10 == 0)
+            x = floor(x / m->a) * m->a; /* on even-row columns */
+        td_ray dn = {{x, y, 200.0}, {0.3 * (rnd(&seed) - 0.5), 0.3 * (rnd(&seed) - 0.5), -1.0}, 0.0,
+                     INFINITY};
+        td_hit h;
+        td_iso_trace(m, &dn, &h);
+        if (dn.o[0] + 250 * dn.d[0] >= 0 && dn.o[0] + 250 * dn.d[0] <= X &&
+            dn.o[1] + 250 * dn.d[1] >= 0 && dn.o[1] + 250 * dn.d[1] <= Y)
+            assert_true(h.t < INFINITY); /* watertight: the ground track stays inside */
+        judge_on(m, fl, &dn, t);
+    }
+    /* two-sided: from below, a ray hits where it comes up through the surface */
+    double zc;
+    assert_true(td_iso_eval(m, X / 2, Y / 2, &zc, NULL));
+    td_ray below = {{X / 2, Y / 2, -100.0}, {0.0, 0.0, 2.0}, 0.0, INFINITY};
+    td_hit h;
+    td_iso_trace(m, &below, &h);
+    assert_true(fabs(h.t - (zc + 100.0) / 2.0) < 1e-9);
+    below.d[2] = -1.0; /* and never going down */
+    td_iso_trace(m, &below, &h);
+    assert_true(h.t == INFINITY);
+    td_ray outside = {{-10.0, Y / 3, 300.0}, {1.0, 0.0, 0.0}, 0.0, INFINITY};
+    td_iso_trace(m, &outside, &h);
+    assert_true(h.t == INFINITY);
+    td_ray under = {{-10.0, Y / 3, -300.0}, {1.0, 0.0, 0.0}, 0.0, INFINITY};
+    td_iso_trace(m, &under, &h); /* under the lattice all along: no walls */
+    assert_true(h.t == INFINITY);
+    td_ray on = {{X / 2, Y / 2, zc}, {1.0, 0.5, 3.0}, 0.0, INFINITY};
+    td_iso_trace(m, &on, &h); /* starting on it */
+    assert_true(h.t == 0.0);
+    judge_on(m, fl, &below, t);
+    judge_on(m, fl, &under, t);
+    judge_on(m, fl, &on, t);
+    *seed_ = seed;
+}
+
 static void test_iso_hardcases(void **state)
 {
     (void)state;
@@ -322,67 +407,8 @@ static void test_iso_hardcases(void **state)
     td_iso *l = make(40, 40, 1.0, 1.0, bumpy_fn, NULL);
     td_iso *e = make(40, 44, 1.0, sqrt(3.0) / 2.0, bumpy_fn, NULL);
     td_iso *L[2] = {l, e};
-    for (int v = 0; v < 2; v++) {
-        const td_iso *m = L[v];
-        double X = (m->nx - 1) * m->a, Y = (m->ny - 1) * m->b;
-        for (int k = 0; k < 600; k++) {
-            int32_t r = 1 + k % (m->ny - 2), c = 1 + (k * 7) % (m->nx - 2);
-            double vx = td_iso_x(m, r, c), vy = r * m->b, vz = td_iso_at(m, r, c);
-            double z0 = vz + 30.0 * rnd(&seed) - 15.0;
-            td_ray rays[5] = {
-                {{-1.0, vy, z0}, {1.0, 0.0, 0.01 * (rnd(&seed) - 0.5)}, 0.0, INFINITY}, /* along a row */
-                {{vx, vy, z0}, {0.5 * m->a, m->b, -0.2}, -30.0, INFINITY},  /* along a u - Y/2 line */
-                {{vx, vy, z0}, {-0.5 * m->a, m->b, -0.2}, -30.0, INFINITY}, /* along a u + Y/2 line */
-                {{vx + 3.0, vy + 2.0, vz + 3.0}, {-3.0, -2.0, -3.0}, 0.0, INFINITY}, /* at a vertex */
-                {{vx, vy, vz + 10.0}, {0.0, 0.0, -1.0}, 0.0, INFINITY}, /* vertical on a vertex */
-            };
-            for (int q = 0; q < 5; q++)
-                judge(m, &rays[q], &t);
-        }
-        for (int k = 0; k < 400; k++) { /* grazing: just over / at / under a sample */
-            int32_t r = 1 + k % (m->ny - 2), c = 1 + (k * 3) % (m->nx - 2);
-            double vx = td_iso_x(m, r, c), vy = r * m->b, vz = td_iso_at(m, r, c);
-            double off = (k % 3 - 1) * 1e-9;
-            td_ray g = {{vx - 10.0, vy - 7.0, vz + off}, {10.0, 7.0, 0.0}, 0.0, 2.0};
-            judge(m, &g, &t);
-        }
-        /* from outside, starting below, downward everywhere: every such ray hits */
-        for (int k = 0; k < 2000; k++) {
-            double x = rnd(&seed) * X, y = rnd(&seed) * Y;
-            if (k % 10 == 0)
-                x = floor(x / m->a) * m->a; /* on even-row columns */
-            td_ray dn = {{x, y, 200.0}, {0.3 * (rnd(&seed) - 0.5), 0.3 * (rnd(&seed) - 0.5), -1.0}, 0.0,
-                         INFINITY};
-            td_hit h;
-            td_iso_trace(m, &dn, &h);
-            if (dn.o[0] + 250 * dn.d[0] >= 0 && dn.o[0] + 250 * dn.d[0] <= X &&
-                dn.o[1] + 250 * dn.d[1] >= 0 && dn.o[1] + 250 * dn.d[1] <= Y)
-                assert_true(h.t < INFINITY); /* watertight: the ground track stays inside */
-            judge(m, &dn, &t);
-        }
-        /* two-sided: from below, a ray hits where it comes up through the surface */
-        double zc;
-        assert_true(td_iso_eval(m, X / 2, Y / 2, &zc, NULL));
-        td_ray below = {{X / 2, Y / 2, -100.0}, {0.0, 0.0, 2.0}, 0.0, INFINITY};
-        td_hit h;
-        td_iso_trace(m, &below, &h);
-        assert_true(fabs(h.t - (zc + 100.0) / 2.0) < 1e-9);
-        below.d[2] = -1.0; /* and never going down */
-        td_iso_trace(m, &below, &h);
-        assert_true(h.t == INFINITY);
-        td_ray outside = {{-10.0, Y / 3, 300.0}, {1.0, 0.0, 0.0}, 0.0, INFINITY};
-        td_iso_trace(m, &outside, &h);
-        assert_true(h.t == INFINITY);
-        td_ray under = {{-10.0, Y / 3, -300.0}, {1.0, 0.0, 0.0}, 0.0, INFINITY};
-        td_iso_trace(m, &under, &h); /* under the lattice all along: no walls */
-        assert_true(h.t == INFINITY);
-        td_ray on = {{X / 2, Y / 2, zc}, {1.0, 0.5, 3.0}, 0.0, INFINITY};
-        td_iso_trace(m, &on, &h); /* starting on it */
-        assert_true(h.t == 0.0);
-        judge(m, &below, &t);
-        judge(m, &under, &t);
-        judge(m, &on, &t);
-    }
+    for (int v = 0; v < 2; v++)
+        hard_rays(L[v], L[v], &seed, &t);
     td_iso_free(l);
     td_iso_free(e);
 
@@ -414,6 +440,42 @@ static void test_iso_hardcases(void **state)
     td_iso_free(l);
     print_message("hard cases: %d agree, %d ties, %d wrong\n", t.agree, t.tie, t.wrong);
     assert_int_equal(t.wrong, 0);
+}
+
+/* Rays through a vertex on a hole's border, level at the vertex's height, crossing the
+ * surface there from below to above or back, at 72 headings (the walk passes the hole's
+ * corner in segments a few ulps long: the crossing at the vertex must not be forgotten),
+ * and along the three line families next to the hole. */
+static void test_iso_hole_corners(void **state)
+{
+    (void)state;
+    tally t = {0, 0, 0};
+    td_iso *l = NULL;
+    assert_int_equal(td_iso_create(30, 30, 1.0, 1.0, &l, NULL), TD_OK);
+    td_iso_sample(l, bumpy_fn, NULL);
+    for (int32_t r = 4; r < 26; r += 5) /* single voids, each making a hole of six triangles */
+        for (int32_t c = 4; c < 26; c += 5)
+            l->z[td_iso_row_offset(l->nx, r) + (size_t)c] = NAN;
+    td_iso_finish(l);
+    for (int32_t r = 4; r < 26; r += 5) {
+        for (int32_t c = 4; c < 26; c += 5) {
+            static const int32_t nb[6][2] = {{0, -1}, {0, 1}, {-1, 0}, {-1, 1}, {1, 0}, {1, 1}};
+            for (int k = 0; k < 6; k++) { /* the void's neighbours (either row parity) */
+                int32_t vr = r + nb[k][0], vc = c + nb[k][1] - (nb[k][0] != 0 && !(r & 1));
+                double vx = td_iso_x(l, vr, vc), vy = vr * l->b, vz = td_iso_at(l, vr, vc);
+                for (int h = 0; h < 72; h++) {
+                    double ang = h * (M_PI / 36.0) + 0.01;
+                    td_ray ray = {{vx - 3.0 * cos(ang), vy - 3.0 * sin(ang), vz}, {cos(ang), sin(ang), 0.0},
+                                  0.0, 6.0};
+                    judge(l, &ray, &t);
+                }
+            }
+        }
+    }
+    td_iso_free(l);
+    print_message("hole corners: %d agree, %d ties, %d wrong\n", t.agree, t.tie, t.wrong);
+    assert_int_equal(t.wrong, 0);
+    assert_true(t.agree > t.tie);
 }
 
 /* The pyramid's sizes, and every block maximum at every level bounds the surface over its
@@ -450,6 +512,96 @@ static void test_iso_blocks(void **state)
     td_iso_free(l);
 }
 
+/* A packed lattice and the floats it decodes to (td_iso_unpack): the same heights, block
+ * maxima, heights and normals anywhere; bytes per sample about 2. */
+static td_iso *packed_twin(const td_iso *l, int tile_log2, td_iso **fl)
+{
+    td_iso *p = NULL;
+    size_t n = td_iso_row_offset(l->nx, l->ny), nb = 0;
+    uint64_t seed = 17;
+    assert_int_equal(td_iso_pack_lattice(l, tile_log2, &p, NULL), TD_OK);
+    assert_null(p->z);
+    assert_int_equal(td_iso_unpack(p->packed, fl, NULL), TD_OK);
+    for (int k = 0; k < p->blevels; k++)
+        nb += (size_t)p->bw[k] * (size_t)p->bh[k];
+    assert_memory_equal(p->bmax[0], (*fl)->bmax[0], nb * sizeof(float));
+    assert_true(p->zmin == (*fl)->zmin && p->zmax == (*fl)->zmax);
+    assert_int_equal(td_iso_bytes(p), p->packed->bytes + nb * sizeof(float));
+    assert_int_equal(td_iso_bytes(*fl), n * sizeof(float) + nb * sizeof(float));
+    for (int k = 0; k < 2000; k++) {
+        double x = rnd(&seed) * (l->nx - 1) * l->a, y = rnd(&seed) * (l->ny - 1) * l->b;
+        double z = 0, zf = 0, nn[3] = {0}, nf[3] = {0};
+        int ok = td_iso_eval(p, x, y, &z, nn);
+        assert_int_equal(ok, td_iso_eval(*fl, x, y, &zf, nf));
+        assert_true(!ok || (z == zf && nn[0] == nf[0] && nn[1] == nf[1] && nn[2] == nf[2]));
+        if (ok) { /* within the packing's error of the original surface */
+            double zo;
+            assert_true(td_iso_eval(l, x, y, &zo, NULL));
+            assert_true(fabs(z - zo) <= p->packed->max_err * (1 + 1e-9) + 1e-6 * fabs(zo));
+        }
+    }
+    return p;
+}
+
+/* The walk on two-byte vertices: against the reference on the decoded heights, and bit for
+ * bit what it answers on those heights as floats; lossless, lossy, voids, both row
+ * spacings, and the levels of detail's twins. */
+static void test_iso_packed_trace(void **state)
+{
+    (void)state;
+    uint64_t seed = 4242;
+    tally t = {0, 0, 0};
+    td_iso *fl = NULL, *p;
+    td_iso *l = make(40, 40, 1.0, 1.0, bumpy_fn, NULL);
+    td_iso *e = make(40, 44, 1.0, sqrt(3.0) / 2.0, bumpy_fn, NULL);
+    td_iso *L[2] = {l, e};
+    for (int v = 0; v < 2; v++) {
+        p = packed_twin(L[v], 3, &fl);
+        assert_true(p->packed->max_err > 0.0); /* every fraction: lossy */
+        hard_rays(p, fl, &seed, &t);
+        td_iso_free(p);
+        td_iso_free(fl);
+        td_iso_free(L[v]);
+    }
+    l = make(48, 56, 1.0, sqrt(3.0) / 2.0, bumpy_fn, (void *)1); /* with holes */
+    p = packed_twin(l, 4, &fl);
+    random_rays_on(p, fl, 4000, &seed, &t);
+    td_iso_free(p);
+    td_iso_free(fl);
+    td_iso_free(l);
+    td_grid *g = load("volcano.asc");
+    assert_int_equal(td_iso_from_grid(g, 1, TD_ISO_ROWS_SQUARE, &l, NULL), TD_OK);
+    p = packed_twin(l, 6, &fl);
+    assert_true(p->packed->max_err == 0.0); /* whole metres: lossless */
+    assert_true(td_iso_bytes(p) < 0.55 * td_iso_bytes(fl));
+    random_rays_on(p, fl, 3000, &seed, &t);
+    td_iso_free(p);
+    td_iso_free(fl);
+    td_iso_free(l);
+    td_lod *lod = NULL;
+    td_accel_opts ao = {0, 0, 1, 1};
+    assert_int_equal(td_lod_build(g, 3, &ao, &lod, NULL), TD_OK);
+    assert_int_equal(td_lod_add_iso(lod, g, NULL), TD_OK);
+    for (int k = 1; k <= lod->levels; k++) {
+        assert_int_equal(td_iso_unpack(lod->iso[k]->packed, &fl, NULL), TD_OK);
+        random_rays_on(lod->iso[k], fl, 1500, &seed, &t);
+        td_iso_free(fl);
+    }
+    td_lod_free(lod);
+    td_grid_free(g);
+    g = load("picos-dtm.asc"); /* voids, centimetres: lossy in most tiles */
+    assert_int_equal(td_iso_from_grid(g, 4, TD_ISO_ROWS_SQUARE, &l, NULL), TD_OK);
+    p = packed_twin(l, 6, &fl);
+    random_rays_on(p, fl, 3000, &seed, &t);
+    td_iso_free(p);
+    td_iso_free(fl);
+    td_iso_free(l);
+    td_grid_free(g);
+    print_message("packed: %d agree, %d ties, %d wrong\n", t.agree, t.tie, t.wrong);
+    assert_int_equal(t.wrong, 0);
+    assert_true(t.agree >= 20000);
+}
+
 /* The levels of detail's isometric twins: even rows are the square level's samples, odd
  * rows the finer level's filtered samples between them; td_lod_iso_trace names the square
  * level's cell under the hit. */
@@ -473,9 +625,17 @@ static void test_iso_lod_twin(void **state)
         assert_int_equal(l->nx, sq->w);
         assert_int_equal(l->ny, sq->h);
         assert_true(l->a == sq->sx && l->b == sq->sy);
+        assert_null(l->z); /* two-byte vertices only, within the packing's error */
+        assert_non_null(l->packed);
+        double tol = l->packed->max_err;
+        double step = 0.0;
+        for (size_t i = 0; i < (size_t)l->packed->tiles_x * (size_t)l->packed->tiles_y; i++)
+            step = fmax(step, l->packed->step[i]);
+        assert_true(tol <= step / 2 + 1e-4); /* half a step, plus the float's rounding */
+        print_message("level %d: packed error %.3g m, step up to %.3g m\n", k, tol, step);
         for (int32_t r = 0; r < l->ny; r += 2)
             for (int32_t c = 0; c < l->nx; c++)
-                assert_true(td_iso_at(l, r, c) == td_grid_at(sq, c, r));
+                assert_true(fabs(td_iso_at(l, r, c) - td_grid_at(sq, c, r)) <= tol);
         /* an odd row's inner sample: the 1-2-1 mean around the finer node (2c - 1, 2r) */
         int32_t r = 1, c = 2, i = 2 * c - 1, j = 2 * r;
         double sum = 0, w = 0;
@@ -485,7 +645,7 @@ static void test_iso_lod_twin(void **state)
                 sum += wt * td_grid_at(fine, i + di, j + dj);
                 w += wt;
             }
-        assert_true(fabs(td_iso_at(l, r, c) - sum / w) < 1e-4);
+        assert_true(fabs(td_iso_at(l, r, c) - sum / w) < 1e-4 + tol);
         for (int n = 0; n < 200; n++) {
             double X = (sq->w - 1) * sq->sx, Y = (sq->h - 1) * sq->sy;
             td_ray ray = {{rnd(&seed) * X, rnd(&seed) * Y, g->zmax + 50.0},
@@ -520,6 +680,8 @@ int main(void)
         cmocka_unit_test(test_iso_pack),
         cmocka_unit_test(test_iso_rays_reference),
         cmocka_unit_test(test_iso_hardcases),
+        cmocka_unit_test(test_iso_packed_trace),
+        cmocka_unit_test(test_iso_hole_corners),
         cmocka_unit_test(test_iso_blocks),
         cmocka_unit_test(test_iso_lod_twin),
     };
