@@ -11,7 +11,11 @@
  *
  * The photogrammetric camera (Paglieroni and Petersen's tilt, swing, azimuth) is the
  * same frame with heading = azimuth, pitch = tilt - 90, roll = swing - 180 and
- * f = focal_mm / pixel_mm; its fov follows from f and the width. */
+ * f = focal_mm / pixel_mm; its fov follows from f and the width.
+ *
+ * The cylindrical camera (camera.h) keeps the pinhole frame of its centre pixel in fwd,
+ * right, up (for callers that want an axis); its rays and projections use the heading,
+ * f_h, f_v and tan_top. */
 #include "camera.h"
 
 #include <math.h>
@@ -82,6 +86,39 @@ out:
     return rc;
 }
 
+/* The cylindrical camera's rows and columns (camera.h); the frame is set by the caller. */
+static td_status setup_cylindrical(const td_scene_camera *c, td_camera *out, td_err *err)
+{
+    td_status rc = TD_OK;
+    double fh = out->width / (c->fov * TD_DEG), P = c->pitch * TD_DEG, hv = 0.5 * c->fov_v * TD_DEG;
+    if (c->photogrammetric || c->roll != 0.0)
+        rc = td_err_field(err, TD_EINVAL, c->photogrammetric ? "camera.tilt" : "camera.roll",
+                          "a cylindrical camera takes heading, pitch, fov (and fov_v), no roll");
+    else if (!(c->fov > 0.0 && c->fov <= 360.0))
+        rc = td_err_field(err, TD_ERANGE, "camera.fov", "%g is outside (0, 360] degrees", c->fov);
+    else if (!isfinite(c->pitch) || !isfinite(c->heading))
+        rc = td_err_field(err, TD_ERANGE, isfinite(c->pitch) ? "camera.heading" : "camera.pitch", "must be finite");
+    else if (!(c->fov_v >= 0.0) || (c->fov_v > 0.0 && !(fabs(c->pitch) + c->fov_v * 0.5 < 89.0)))
+        rc = td_err_field(err, TD_ERANGE, "camera.fov_v",
+                          "pitch +- fov_v/2 (%g +- %g) must stay within 89 degrees of the horizon",
+                          c->pitch, 0.5 * c->fov_v);
+    if (rc)
+        goto out;
+    out->heading = c->heading * TD_DEG;
+    out->focal_px = fh;
+    if (c->fov_v > 0.0) {
+        out->tan_top = tan(P + hv);
+        out->fv_px = out->height / (tan(P + hv) - tan(P - hv));
+    } else {
+        out->fv_px = fh;
+        out->tan_top = tan(P) + 0.5 * out->height / fh;
+    }
+    /* the vertical angle per pixel is cos^2(e) / f_v <= 1 / f_v */
+    out->pixel_angle = 1.0 / fmax(fh, out->fv_px);
+out:
+    return rc;
+}
+
 td_status td_camera_setup(const td_scene_camera *c, int32_t width, int32_t height,
                           const td_grid *g, td_camera *out, td_err *err)
 {
@@ -121,7 +158,12 @@ td_status td_camera_setup(const td_scene_camera *c, int32_t width, int32_t heigh
     }
 
     double heading = c->heading, pitch = c->pitch, roll = c->roll, f;
-    if (c->photogrammetric) {
+    if (c->projection == TD_PROJ_CYLINDRICAL) {
+        rc = setup_cylindrical(c, out, err);
+        if (rc)
+            goto out;
+        f = out->focal_px;
+    } else if (c->photogrammetric) {
         heading = c->azimuth;
         pitch = c->tilt - 90.0;
         roll = c->swing - 180.0;
@@ -151,8 +193,10 @@ td_status td_camera_setup(const td_scene_camera *c, int32_t width, int32_t heigh
         out->right[k] = cos(R) * r0[k] - sin(R) * u0[k];
         out->up[k] = sin(R) * r0[k] + cos(R) * u0[k];
     }
-    out->focal_px = f;
-    out->pixel_angle = 1.0 / f;
+    if (c->projection != TD_PROJ_CYLINDRICAL) {
+        out->focal_px = f;
+        out->pixel_angle = 1.0 / f;
+    }
 out:
     return rc;
 }
@@ -167,6 +211,13 @@ void td_camera_ray(const td_camera *cam, double px, double py, td_ray *r)
         r->d[0] = 0.0;
         r->d[1] = 0.0;
         r->d[2] = -1.0;
+    } else if (cam->projection == TD_PROJ_CYLINDRICAL) {
+        double az = cam->heading + (u - 0.5 * cam->width) / cam->focal_px;
+        double te = cam->tan_top - v / cam->fv_px, inv = 1.0 / sqrt(1.0 + te * te);
+        memcpy(r->o, cam->o, sizeof r->o);
+        r->d[0] = sin(az) * inv;
+        r->d[1] = cos(az) * inv;
+        r->d[2] = te * inv;
     } else {
         /* fwd + (right*a - up*b) / f: bounded for any focal length (f*fwd + ... would
          * overflow when squared for a fov of 1e-150 degrees) */
@@ -247,6 +298,15 @@ int td_camera_project(const td_camera *cam, const double p[3], double *px, doubl
     if (cam->projection == TD_PROJ_ORTHOGRAPHIC) {
         *px = (p[0] - cam->x0) / cam->dx - 0.5;
         *py = (cam->y1 - p[1]) / cam->dy - 0.5;
+    } else if (cam->projection == TD_PROJ_CYLINDRICAL) {
+        double v[3] = {p[0] - cam->o[0], p[1] - cam->o[1], p[2] - cam->o[2]};
+        double h = hypot(v[0], v[1]);
+        ok = h > 0.0;
+        if (ok) {
+            double da = remainder(atan2(v[0], v[1]) - cam->heading, 2.0 * M_PI);
+            *px = 0.5 * cam->width + da * cam->focal_px - 0.5;
+            *py = cam->fv_px * (cam->tan_top - v[2] / h) - 0.5;
+        }
     } else {
         double v[3] = {p[0] - cam->o[0], p[1] - cam->o[1], p[2] - cam->o[2]};
         double xc = v[0] * cam->right[0] + v[1] * cam->right[1] + v[2] * cam->right[2];

@@ -6,8 +6,18 @@
  * convention, which makes project -> pick a round trip.
  *
  * Rays are set up in double precision relative to the camera: origin = the camera's
- * position (perspective) or a point on the top plane above the pixel (orthographic),
- * unit direction, so t is in metres. */
+ * position (perspective, cylindrical) or a point on the top plane above the pixel
+ * (orthographic), unit direction, so t is in metres.
+ *
+ * Cylindrical (panorama): the image is the unrolled inside of a vertical cylinder around
+ * the eye. Column u = px + 0.5 looks at azimuth heading + (u - W/2) / f_h (radians,
+ * clockwise from north; f_h = W / fov in pixels per radian, fov up to 360 degrees); row
+ * v = py + 0.5 looks at the elevation e with tan e = tan_top - v / f_v. Without fov_v,
+ * f_v = f_h (square pixels at the horizon) and the centre row looks at the pitch; with
+ * fov_v the rows span pitch - fov_v/2 .. pitch + fov_v/2. Verticals stay vertical and
+ * every column is one azimuth, so a skyline is one row per column. Roll is refused. At
+ * 360 degrees the seam (azimuth heading +- 180) is the left edge of pixel 0 and the right
+ * edge of pixel W-1; td_camera_project maps an azimuth to heading - 180 .. heading + 180. */
 #ifndef TD_CAMERA_H
 #define TD_CAMERA_H
 
@@ -21,6 +31,9 @@ typedef struct td_camera {
     double fwd[3], right[3], up[3];  /* orthonormal camera frame */
     double focal_px;                 /* focal length in pixels */
     double pixel_angle;              /* radians per pixel at the image centre */
+    /* cylindrical (focal_px = f_h above) */
+    double heading;                  /* radians, azimuth of the centre column */
+    double fv_px, tan_top;           /* rows: tan e = tan_top - v / fv_px */
     /* orthographic: top-down, north up */
     double x0, y1;                   /* west and north edges of the extent */
     double dx, dy;                   /* metres per pixel */
@@ -50,7 +63,7 @@ int td_camera_azimuths(const td_camera *cam, double px0, double py0, double px1,
 void td_camera_rising(const td_camera *cam, double px, double py, double vert[2]);
 
 /* Projects p (dataset frame) to pixel coordinates; returns 0 when p is behind the
- * camera (perspective) and leaves px, py unset, 1 otherwise (the point may still be
+ * camera (perspective) or straight above or below the eye (cylindrical) and leaves px, py unset, 1 otherwise (the point may still be
  * outside the image). */
 int td_camera_project(const td_camera *cam, const double p[3], double *px, double *py);
 

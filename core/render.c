@@ -1146,7 +1146,7 @@ static td_status setup_ctx(ctx *c, const td_view *v, const td_scene *s, td_err *
         c->curv_smin2 = sqrt(TD_CURVE_EPS2 / c->curv_a);
         c->curv2 = hypot(c->gx1, c->gy1) >= c->curv_smin2;
     }
-    if (s->effects.curvature && c->cam.projection == TD_PROJ_PERSPECTIVE) {
+    if (s->effects.curvature && c->cam.projection != TD_PROJ_ORTHOGRAPHIC) { /* pano: cylindrical too */
         c->curv_smin = 2.0 * c->cam.pixel_angle / c->curv_a;
         /* the farthest the view can reach over the grid: its farthest corner */
         double far = 0.0;

@@ -24,7 +24,8 @@
 
 #define TD_PROJECTION_LIST(X)                                                  \
     X(TD_PROJ_PERSPECTIVE, "perspective")                                      \
-    X(TD_PROJ_ORTHOGRAPHIC, "orthographic")
+    X(TD_PROJ_ORTHOGRAPHIC, "orthographic")                                    \
+    X(TD_PROJ_CYLINDRICAL, "cylindrical") /* panorama: fov up to 360 (camera.h) */
 
 #define TD_FORMAT_LIST(X)                                                      \
     X(TD_FORMAT_PNG, "png")         /* RGBA8 PNG */                            \
@@ -71,6 +72,9 @@ typedef struct td_scene_camera {
     td_projection projection;
     /* pinhole */
     double heading, pitch, roll, fov;
+    /* cylindrical: the vertical field of view, degrees (0 = from the image's aspect,
+     * square pixels at the horizon) */
+    double fov_v;
     /* Paglieroni's photogrammetric camera, when `photogrammetric` is set: tilt is the
      * angle of the optical axis from the nadir (0 looks straight down, 90 at the
      * horizon), azimuth the optical axis' heading, swing the rotation about the axis

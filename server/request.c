@@ -389,7 +389,7 @@ static int parse_extent(pctx *p, json_t *cam, td_scene_camera *c)
 
 static int parse_camera(pctx *p, json_t *cam, td_scene_camera *c)
 {
-    static const char *const keys[] = {"position", "heading", "pitch", "roll", "fov",
+    static const char *const keys[] = {"position", "heading", "pitch", "roll", "fov", "fov_v",
                                        "projection", "tilt", "swing", "azimuth", "focal_mm",
                                        "pixel_mm", "extent", NULL};
     int rc = check_keys(p, cam, keys);
@@ -401,7 +401,7 @@ static int parse_camera(pctx *p, json_t *cam, td_scene_camera *c)
     if (!rc && proj) {
         size_t old = push(p, "projection");
         if (td_projection_parse(proj, &c->projection))
-            rc = fail(p, TD_EINVAL, "'%.40s' is not perspective or orthographic", proj);
+            rc = fail(p, TD_EINVAL, "'%.40s' is not perspective, orthographic or cylindrical", proj);
         pop(p, old);
     }
     if (!rc && (r = object(p, cam, "position", &pos)) < 0)
@@ -410,7 +410,7 @@ static int parse_camera(pctx *p, json_t *cam, td_scene_camera *c)
         size_t old = push(p, "position");
         rc = parse_position(p, pos, c);
         pop(p, old);
-    } else if (!rc && c->projection == TD_PROJ_PERSPECTIVE) {
+    } else if (!rc && c->projection != TD_PROJ_ORTHOGRAPHIC) {
         size_t old = push(p, "position");
         rc = fail(p, TD_EINVAL, "required");
         pop(p, old);
@@ -424,7 +424,9 @@ static int parse_camera(pctx *p, json_t *cam, td_scene_camera *c)
         {"heading", -TD_ANGLE, TD_ANGLE, &c->heading, &pinhole},
         {"pitch", -90.0, 90.0, &c->pitch, &pinhole},
         {"roll", -180.0, 180.0, &c->roll, &pinhole},
-        {"fov", 0.01, 179.0, &c->fov, &pinhole},
+        /* a panorama (cylindrical) may go round: 360 degrees */
+        {"fov", 0.01, c->projection == TD_PROJ_CYLINDRICAL ? 360.0 : 179.0, &c->fov, &pinhole},
+        {"fov_v", 0.01, 170.0, &c->fov_v, &pinhole},
         {"tilt", 0.0, 180.0, &c->tilt, &photo},
         {"swing", -TD_ANGLE, TD_ANGLE, &c->swing, &photo},
         {"azimuth", -TD_ANGLE, TD_ANGLE, &c->azimuth, &photo},
@@ -445,6 +447,11 @@ static int parse_camera(pctx *p, json_t *cam, td_scene_camera *c)
     c->photogrammetric = photo;
     if (!rc)
         rc = parse_extent(p, cam, c);
+    if (!rc && json_object_get(cam, "fov_v") && c->projection != TD_PROJ_CYLINDRICAL) {
+        size_t old = push(p, "fov_v");
+        rc = fail(p, TD_EINVAL, "only for projection cylindrical");
+        pop(p, old);
+    }
     if (!rc && json_object_get(cam, "extent") && c->projection != TD_PROJ_ORTHOGRAPHIC) {
         size_t old = push(p, "extent");
         rc = fail(p, TD_EINVAL, "only for projection orthographic");
@@ -745,6 +752,8 @@ static td_status walk(pctx *p, json_t *root, td_scene *s)
     pop(p, old);
     if (r < 0)
         goto out;
+    /* a panorama sees far: curvature and refraction on unless effects.curvature says no */
+    s->effects.curvature = s->camera.projection == TD_PROJ_CYLINDRICAL;
     if (member(p, root, "quality", parse_quality, s) < 0 ||
         member(p, root, "effects", parse_effects, s) < 0)
         goto out;

@@ -43,6 +43,7 @@
 #include "cors.h"
 #include "maps.h"
 #include "viewshed_api.h"
+#include "pano.h"
 
 const char *const td_route_names[TD_ROUTE_COUNT] = {
 #define TD_X_NAME(e, name) name,
@@ -1359,6 +1360,8 @@ static const td_route_row td_routes[] = {
     {TD_ROUTE_PICK, "/v1/pick", NULL, 0, 0, "POST", h_pick, NULL},
     {TD_ROUTE_VIEWSHED, "/v1/viewshed", NULL, 0, 0, "POST", td_vs_route, NULL},
     {TD_ROUTE_LOS, "/v1/los", NULL, 0, 0, "POST", td_los_route, NULL},
+    {TD_ROUTE_HORIZON, "/v1/horizon", NULL, 0, 0, "POST", td_horizon_route, NULL}, /* pano.c */
+    {TD_ROUTE_PEAKS, "/v1/peaks", NULL, 0, 0, "POST", td_peaks_route, NULL},
     {TD_ROUTE_TILES, "/v1/tiles/", "*/*/*/*", 4, 0, "GET, HEAD", h_tile, NULL},
     {TD_ROUTE_TILES, "/v1/tiles/", "", 0, 0, NULL, NULL, "tile paths are /v1/tiles/{dataset}/{z}/{x}/{y}.png"},
     {TD_ROUTE_MAPS, "/v1/maps/", "*/*/*/*/*", 5, 0, "GET, HEAD", td_maps_tile_route, NULL},
@@ -1510,3 +1513,37 @@ void td_routes_error(td_http_resp *r, const char *code, const char *field, const
 void td_routes_json(td_http_resp *r, int status, json_t *j) { send_json(r, status, j); }
 
 int td_routes_json_body(td_http_req *q, td_http_resp *r) { return json_body_check(q, r); }
+
+int td_routes_defer_dataset(td_app *app, td_http_req *q, td_http_resp *r, const char *id, td_snapshot **snap,
+                            td_http_work_fn fn, void *job)
+{
+    td_err e = {0};
+    td_status rc = td_store_acquire(app->store, id, snap, &e);
+    int queued = 0;
+    if (rc == TD_EAGAIN) /* a prepared dataset still being checked */
+        td_http_resp_header(r, "Retry-After", "1");
+    if (rc) {
+        *snap = NULL;
+        td_routes_error(r, rc == TD_ENOTFOUND ? "unknown_dataset" : rc == TD_EAGAIN ? "loading" : "internal",
+                        "dataset", e.msg);
+    } else if (td_http_defer(q, fn, job) == 0) {
+        queued = 1;
+    } else {
+        td_snapshot_release(*snap);
+        *snap = NULL;
+        td_http_resp_header(r, "Retry-After", "1");
+        td_routes_error(r, atomic_load(&app->ready) ? "busy" : "stopping", NULL, "the work queue is full; retry later");
+    }
+    return queued ? 0 : -1;
+}
+
+void td_routes_work_error(td_app *app, td_http_resp *r, td_status rc, const td_err *e, const char *what)
+{
+    if (rc == TD_ECANCELED)
+        api_error(r, atomic_load(&app->ready) ? TD_AE_TIMEOUT : TD_AE_STOPPING, NULL,
+                  "%s did not finish within --render-timeout", what);
+    else if (rc == TD_ENOMEM || rc == TD_EIO)
+        api_error(r, TD_AE_INTERNAL, NULL, "%s", e->msg);
+    else
+        api_error(r, TD_AE_BAD_REQUEST, e->field[0] ? e->field : NULL, "%s", e->msg);
+}

@@ -35,6 +35,8 @@
     X(TD_ROUTE_LOS, "los")                                                     \
     X(TD_ROUTE_MAPS, "maps")                                                   \
     X(TD_ROUTE_TILEJSON, "tilejson")                                           \
+    X(TD_ROUTE_HORIZON, "horizon")                                             \
+    X(TD_ROUTE_PEAKS, "peaks")                                                 \
     X(TD_ROUTE_UNKNOWN, "unknown")
 
 typedef enum td_route {
@@ -72,6 +74,18 @@ void td_routes_done(void *cls, int route, int status, size_t bytes, double secon
 void td_routes_error(td_http_resp *r, const char *code, const char *field, const char *msg);
 void td_routes_json(td_http_resp *r, int status, json_t *j);
 int td_routes_json_body(td_http_req *q, td_http_resp *r);
+
+/* For deferred handlers in other files (viewshed.c, pano.c): takes the snapshot of dataset
+ * id into *snap (404 unknown_dataset, or 500), then queues fn(job) on the HTTP layer's
+ * worker queue (503 busy, or stopping, with Retry-After when it is full). 0 when queued:
+ * the worker owns job and *snap; else the answer is set, *snap is released and NULL, and
+ * job is still the caller's. */
+int td_routes_defer_dataset(td_app *app, td_http_req *q, td_http_resp *r, const char *id, td_snapshot **snap,
+                            td_http_work_fn fn, void *job);
+/* A core failure of deferred work as the answer: the deadline or shutdown (TD_ECANCELED:
+ * 503 render_timeout or stopping; `what` names the work, e.g. "the viewshed"), ours
+ * (TD_ENOMEM, TD_EIO: 500), else the input at fault (400 with core's field). */
+void td_routes_work_error(td_app *app, td_http_resp *r, td_status rc, const td_err *e, const char *what);
 
 /* td_http_opts.body_cap: --max-edit-kb for a PUT of heights with the right bearer token,
  * --max-body-kb for every other request (so only an admin can send large bodies). */

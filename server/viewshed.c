@@ -308,19 +308,6 @@ static td_status resolve(const td_grid *g, vs_req *q, td_vs_point *out, td_err *
     return rc;
 }
 
-/* A core failure as an HTTP answer: the input at fault (400 with core's field), the
- * deadline (503), or ours (500). */
-static void work_error(td_app *app, td_http_resp *r, td_status rc, const td_err *e)
-{
-    if (rc == TD_ECANCELED)
-        td_routes_error(r, atomic_load(&app->ready) ? "render_timeout" : "stopping", NULL,
-                        "the viewshed did not finish within --render-timeout");
-    else if (rc == TD_ENOMEM || rc == TD_EIO)
-        td_routes_error(r, "internal", NULL, e->msg);
-    else
-        td_routes_error(r, "bad_request", e->field[0] ? e->field : NULL, e->msg);
-}
-
 /* A viewshed on the worker: PNG or JSON, and the stages' times in *st. */
 static td_status work_viewshed(vs_job *j, td_http_req *hq, td_http_resp *r, td_viewshed_stats *st,
                                double *encode_ms, td_err *e)
@@ -413,7 +400,7 @@ static void vs_work(void *cls, td_http_req *hq, td_http_resp *r, int cancelled)
     }
     rc = j->q.los ? work_los(j, r, &e) : work_viewshed(j, hq, r, &st, &encode_ms, &e);
     if (rc)
-        work_error(j->app, r, rc, &e);
+        td_routes_work_error(j->app, r, rc, &e, "the viewshed");
     else
         td_http_resp_header(r, "Cache-Control", "no-store");
 out:
@@ -433,7 +420,6 @@ static void vs_handle(td_app *app, td_http_req *hq, td_http_resp *r, int los)
 {
     vs_job *j = calloc(1, sizeof *j);
     td_err e = {0};
-    td_status rc;
     const char *body;
     size_t len;
     double t0 = td_clock_s();
@@ -450,24 +436,11 @@ static void vs_handle(td_app *app, td_http_req *hq, td_http_resp *r, int los)
         td_routes_error(r, "bad_request", e.field[0] ? e.field : NULL, e.msg);
         goto out;
     }
-    rc = td_store_acquire(app->store, j->q.dataset, &j->snap, &e);
-    if (rc) {
-        td_routes_error(r, rc == TD_ENOTFOUND ? "unknown_dataset" : rc == TD_EAGAIN ? "loading" : "internal",
-                        "dataset", e.msg);
-        goto out;
-    }
     j->app = app;
     j->parse_ms = 1e3 * (td_clock_s() - t0);
-    if (td_http_defer(hq, vs_work, j) == 0) {
+    if (td_routes_defer_dataset(app, hq, r, j->q.dataset, &j->snap, vs_work, j) == 0)
         j = NULL; /* the worker frees it */
-    } else {
-        td_http_resp_header(r, "Retry-After", "1");
-        td_routes_error(r, atomic_load(&app->ready) ? "busy" : "stopping", NULL,
-                        "the work queue is full; retry later");
-    }
 out:
-    if (j)
-        td_snapshot_release(j->snap);
     free(j);
 }
 

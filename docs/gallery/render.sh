@@ -10,7 +10,7 @@ terrad="$root/${1:-build}/terrad"
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 for scene in "$here"/*.json; do
-  case "$scene" in *.stats.json) continue ;; esac
+  case "$scene" in *.stats.json | *.peaks.json) continue ;; esac
   name="$(basename "$scene" .json)"
   for run in 1 2 3; do
     "$terrad" render "$scene" -o "$tmp/$name.$run.png" --stats "$tmp/$name.$run.stats.json"

@@ -1073,7 +1073,7 @@ static void camera_render(hc_stats *st, const hc_scene *sc, const hc_cam *c, td_
  * (a subsample of large ones) is valid, unit length and judged like any other ray; its
  * renders (depth for every method and surface, colour once) hold no NaN, and a depth is
  * +inf for nothing or finite and >= 0. */
-static void camera_one(hc_stats *st, const hc_scene *sc, const hc_cam *c)
+static void camera_one(hc_stats *st, const hc_scene *sc, const hc_cam *c, td_projection proj, double fov_v)
 {
     td_scene scene;
     td_camera cam;
@@ -1089,6 +1089,8 @@ static void camera_one(hc_stats *st, const hc_scene *sc, const hc_cam *c)
     scene.camera.pitch = c->pitch;
     scene.camera.roll = c->roll;
     scene.camera.fov = c->fov;
+    scene.camera.projection = proj;
+    scene.camera.fov_v = fov_v;
     scene.image.width = c->w;
     scene.image.height = c->h;
     rc = td_camera_setup(&scene.camera, c->w, c->h, sc->g, &cam, &err);
@@ -1119,7 +1121,9 @@ static void camera_one(hc_stats *st, const hc_scene *sc, const hc_cam *c)
             camera_render(st, sc, c, &scene, (td_method)m, (td_surface)sf);
 }
 
-static void camera_set(hc_stats *st, const hc_cam *cams, size_t n)
+/* The cameras over a procedural 65 x 65 scene; a panorama's (proj cylindrical) each with
+ * its fov_v (0: from the aspect). */
+static void camera_set_proj(hc_stats *st, const hc_cam *cams, size_t n, td_projection proj, const double *fov_v)
 {
     hc_terrain_params p;
     hc_scene sc;
@@ -1129,11 +1133,16 @@ static void camera_set(hc_stats *st, const hc_cam *cams, size_t n)
     if (hc_scene_init(&sc, "procedural 65x65 (cameras)", hc_terrain_make(&p), 16) == 0) {
         st->scenes++;
         for (size_t k = 0; k < n; k++)
-            camera_one(st, &sc, &cams[k]);
+            camera_one(st, &sc, &cams[k], proj, fov_v ? fov_v[k] : 0.0);
     } else {
         hc_check(st, 0, "camera scene could not be built");
     }
     hc_scene_free(&sc);
+}
+
+static void camera_set(hc_stats *st, const hc_cam *cams, size_t n)
+{
+    camera_set_proj(st, cams, n, TD_PROJ_PERSPECTIVE, NULL);
 }
 
 /* fov near 0 and 180, pitch +-90, roll +-180, 1x1, 1x4096 and 4096x1 images. */
@@ -1165,6 +1174,27 @@ static int case_camera_coherence(hc_stats *st)
         {70, -30, 45, 64, 48, 0, 1},  {5, -2, 0, 64, 48, 0, 0},   {120, 60, 0, 64, 48, 0, 0},
     };
     camera_set(st, cams, sizeof cams / sizeof cams[0]);
+    return 0;
+}
+
+/* The cylindrical camera (issue 19): 360 degrees on 1x1, 4096x1 and 1x4096 images, pitch
+ * +-90 without fov_v (the centre row's tangent 1.6e16: every ray near vertical), fov_v
+ * near 0 and at its limit, a fov of 1e-6; refused: fov 0, 361, NaN, fov_v past the
+ * zenith, any roll, a NaN pitch. Every accepted one's
+ * rays are unit and judged, and it renders the same depths with the devices off (they do
+ * not run for it: the plain walk). */
+static int case_camera_panorama(hc_stats *st)
+{
+    static const hc_cam cams[] = {
+        {360, 0, 0, 1, 1, 0, 0},     {360, 0, 0, 4096, 1, 0, 0},   {360, -30, 0, 1, 4096, 0, 0},
+        {360, -90, 0, 64, 48, 0, 0}, {360, 90, 0, 64, 48, 0, 0},   {360, 5, 0, 96, 32, 0, 1},
+        {90, -10, 0, 64, 48, 0, 0},  {1e-6, -20, 0, 16, 16, 0, 0}, {360, 0, 0, 64, 48, 0, 0},
+        {360, 10, 0, 64, 48, 0, 0},  {0.0, 0, 0, 8, 8, 1, 0},      {361, 0, 0, 8, 8, 1, 0},
+        {NAN, 0, 0, 8, 8, 1, 0},     {360, 10, 0, 8, 8, 1, 0},     {360, 0, 3, 8, 8, 1, 0},
+        {360, NAN, 0, 8, 8, 1, 0},
+    };
+    static const double fov_v[] = {0, 0, 0, 0, 0, 0, 30, 0, 1e-6, 157.9, 0, 0, 0, 160, 0, 0};
+    camera_set_proj(st, cams, sizeof cams / sizeof cams[0], TD_PROJ_CYLINDRICAL, fov_v);
     return 0;
 }
 
@@ -1269,6 +1299,7 @@ static int case_property(hc_stats *st)
     X(camera, "fov near 0/180, pitch +-90, roll +-180, 1x1 and 1x4096 images")             \
     X(camera_tiny_fov, "fov below 1e-150 degrees: valid rays")                                \
     X(camera_coherence, "level, straight down, vanishing point inside, roll 90, fov 170, below crests: horizons change no depth") \
+    X(camera_panorama, "cylindrical: 360 degrees on 1x1 and 1x4096 images, pitch +-90, fov_v near 0 and 89: valid rays, the plain walk") \
     X(property, "seeded mix of everything (TERRAD_SEED replays)")
 
 typedef struct hc_case {

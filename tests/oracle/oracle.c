@@ -527,6 +527,13 @@ static const cam_view cam_views[] = {
     {"below the crests", 0.5, 0.5, -1, 70, 5, 0, 80, 320, 45},
 };
 
+/* Panoramas (issue 19): the cylindrical camera, every column an azimuth, the seam at
+ * heading +- 180; placed as the views above. */
+static const cam_view pano_views[] = {
+    {"panorama 360", 0.5, 0.5, 40, 17, 0, 0, 360, 200, 15},
+    {"panorama 140 low", 0.3, 0.6, -1, 250, -4, 0, 140, 80, 30},
+};
+
 /* The shadow rays of a colour render of the view (png, shadows on): td_occluded with the
  * render's sun bound answers as td_trace, whose hit is judged against the reference. */
 static uint64_t camera_shadows(ctx *c, td_scene *sc, td_surface sf, td_ray *sh, uint64_t *count)
@@ -573,7 +580,8 @@ static uint64_t camera_shadows(ctx *c, td_scene *sc, td_surface sf, td_ray *sh, 
  * bit for bit; each pixel's depth (auto only: all methods must equal it) is judged
  * against the references like any ray; the render's shadow rays answer td_occluded with
  * the sun bound as td_trace does, and that is judged too. Returns unexplained errors. */
-static uint64_t camera_check(ctx *c, const cam_view *cv, td_method m, td_surface sf, float *auto_depth,
+static uint64_t camera_check(ctx *c, const cam_view *cv, td_projection proj, td_method m, td_surface sf,
+                             float *auto_depth,
                              uint64_t *pixels, uint64_t *shadow_rays)
 {
     enum { W = 96, H = 72 };
@@ -586,6 +594,7 @@ static uint64_t camera_check(ctx *c, const cam_view *cv, td_method m, td_surface
     uint64_t errors = 0;
     td_ray *sh = calloc((size_t)W * H, sizeof *sh);
     cam_view_scene(cv, g, W, H, m, sf, &sc);
+    sc.camera.projection = proj;
     td_render_opts_default(&o);
     o.threads = 1;
     if (!sh || cam_view_render(&c->view, &sc, &o, &on, &off, &cam, &err)) {
@@ -623,22 +632,29 @@ out:
     return errors;
 }
 
-/* --cameras: every view, method and surface. */
+/* One view with every method and surface; prints its line. */
+static uint64_t run_view(ctx *c, const cam_view *cv, td_projection proj, float *auto_depth, uint64_t *pixels,
+                         uint64_t *shadow_rays)
+{
+    uint64_t errors = 0;
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
+        errors += camera_check(c, cv, proj, TD_METHOD_AUTO, (td_surface)sf, auto_depth, pixels, shadow_rays);
+        for (int m = 0; m < TD_METHOD_AUTO; m++)
+            errors += camera_check(c, cv, proj, (td_method)m, (td_surface)sf, auto_depth, pixels, shadow_rays);
+    }
+    printf("camera %-24s every method and surface: %s\n", cv->name, errors ? "ERRORS" : "ok");
+    return errors;
+}
+
+/* --cameras: every view (perspective, then the panoramas), method and surface. */
 static uint64_t run_cameras(ctx *c)
 {
     uint64_t errors = 0, pixels = 0, shadow_rays = 0;
     float *auto_depth = calloc(96 * 72, sizeof *auto_depth);
-    for (size_t v = 0; auto_depth && v < sizeof cam_views / sizeof cam_views[0]; v++) {
-        uint64_t e0 = errors;
-        for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
-            errors += camera_check(c, &cam_views[v], TD_METHOD_AUTO, (td_surface)sf, auto_depth, &pixels,
-                                   &shadow_rays);
-            for (int m = 0; m < TD_METHOD_AUTO; m++)
-                errors += camera_check(c, &cam_views[v], (td_method)m, (td_surface)sf, auto_depth, &pixels,
-                                       &shadow_rays);
-        }
-        printf("camera %-24s every method and surface: %s\n", cam_views[v].name, errors > e0 ? "ERRORS" : "ok");
-    }
+    for (size_t v = 0; auto_depth && v < sizeof cam_views / sizeof cam_views[0]; v++)
+        errors += run_view(c, &cam_views[v], TD_PROJ_PERSPECTIVE, auto_depth, &pixels, &shadow_rays);
+    for (size_t v = 0; auto_depth && v < sizeof pano_views / sizeof pano_views[0]; v++)
+        errors += run_view(c, &pano_views[v], TD_PROJ_CYLINDRICAL, auto_depth, &pixels, &shadow_rays);
     printf("cameras: %" PRIu64 " pixels judged against the references, %" PRIu64
            " shadow rays; horizon-started and plain depths compared bit for bit\n", pixels, shadow_rays);
     free(auto_depth);

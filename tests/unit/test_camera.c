@@ -284,6 +284,137 @@ static void test_project_then_pick(void **state)
     td_grid_free(g);
 }
 
+/* The cylindrical camera (issue 19): known pixels, ray -> project round trips over the
+ * whole image including the seam of a 360-degree panorama, fov_v, and what it refuses. */
+static void test_cylindrical(void **state)
+{
+    td_grid *g = terrain(33, 100.0);
+    td_scene s;
+    td_camera cam;
+    td_err err = {0};
+    td_ray r;
+    double px, py;
+    (void)state;
+    td_scene_defaults(&s);
+    s.camera.projection = TD_PROJ_CYLINDRICAL;
+    s.camera.x = 500, s.camera.y = 400, s.camera.z = 1000;
+    s.camera.fov = 360;
+    assert_int_equal(td_camera_setup(&s.camera, 360, 100, g, &cam, &err), TD_OK);
+    /* f = 360 / 2 pi px per radian; the centre row at the horizon */
+    double east[3] = {1500, 400, 1000}, south_up[3] = {500, -600, 1000 + 1000 * tan(10 * M_PI / 180)};
+    assert_true(td_camera_project(&cam, east, &px, &py));
+    assert_float_equal(px, 269.5, 1e-9);
+    assert_float_equal(py, 49.5, 1e-9);
+    assert_true(td_camera_project(&cam, south_up, &px, &py)); /* on the seam: an edge */
+    assert_true(fabs(px - -0.5) < 1e-9 || fabs(px - 359.5) < 1e-9);
+    assert_float_equal(py, 49.5 - 360 / (2 * M_PI) * tan(10 * M_PI / 180), 1e-9);
+    double above[3] = {500, 400, 2000};
+    assert_false(td_camera_project(&cam, above, &px, &py));
+    /* a column is an azimuth: pixel 179.5 looks due north, level */
+    td_camera_ray(&cam, 179.5, 49.5, &r);
+    assert_float_equal(r.d[0], 0.0, 1e-12);
+    assert_float_equal(r.d[1], 1.0, 1e-12);
+    assert_float_equal(r.d[2], 0.0, 1e-12);
+    /* round trips everywhere, both sides of the seam included */
+    for (int k = 0; k <= 100; k++) {
+        double qx = -0.5 + 1e-7 + (360.0 - 2e-7) * k / 100.0, qy = -0.5 + 100.0 * k / 101.0, q[3];
+        td_camera_ray(&cam, qx, qy, &r);
+        for (int c = 0; c < 3; c++)
+            q[c] = r.o[c] + 777.0 * r.d[c];
+        assert_true(td_camera_project(&cam, q, &px, &py));
+        assert_float_equal(px, qx, 1e-6);
+        assert_float_equal(py, qy, 1e-6);
+    }
+    /* the seam: the left edge of pixel 0 and the right edge of pixel W-1 are one ray */
+    td_ray a, b;
+    td_camera_ray(&cam, -0.5, 20, &a);
+    td_camera_ray(&cam, 359.5, 20, &b);
+    for (int c = 0; c < 3; c++)
+        assert_float_equal(a.d[c], b.d[c], 1e-12);
+    /* fov_v: the rows span pitch +- fov_v / 2 exactly */
+    s.camera.fov = 90, s.camera.heading = 30, s.camera.pitch = 5, s.camera.fov_v = 40;
+    assert_int_equal(td_camera_setup(&s.camera, 200, 50, g, &cam, &err), TD_OK);
+    td_camera_ray(&cam, -0.5, -0.5, &a);   /* top-left corner */
+    td_camera_ray(&cam, 199.5, 49.5, &b);  /* bottom-right corner */
+    assert_float_equal(asin(a.d[2]) * 180 / M_PI, 25.0, 1e-9);
+    assert_float_equal(asin(b.d[2]) * 180 / M_PI, -15.0, 1e-9);
+    assert_float_equal(atan2(a.d[0], a.d[1]) * 180 / M_PI, -15.0, 1e-9);
+    assert_float_equal(atan2(b.d[0], b.d[1]) * 180 / M_PI, 75.0, 1e-9);
+    /* refused, naming the field */
+    s.camera.fov_v = 170; /* 5 + 85: the zenith */
+    assert_int_equal(td_camera_setup(&s.camera, 200, 50, g, &cam, &err), TD_ERANGE);
+    assert_string_equal(err.field, "camera.fov_v");
+    s.camera.fov_v = 0, s.camera.roll = 3;
+    assert_int_equal(td_camera_setup(&s.camera, 200, 50, g, &cam, &err), TD_EINVAL);
+    assert_string_equal(err.field, "camera.roll");
+    s.camera.roll = 0, s.camera.fov = 361;
+    assert_int_equal(td_camera_setup(&s.camera, 200, 50, g, &cam, &err), TD_ERANGE);
+    assert_string_equal(err.field, "camera.fov");
+    td_grid_free(g);
+}
+
+/* A panorama's pick round trip: terrain samples all round the eye project to pixels of a
+ * 360-degree panorama, and picking those pixels finds the samples (every surface but
+ * plane; curvature on, which on a 1 km grid bends nothing by a pixel). Then the seam in a
+ * render: the same panorama turned by k columns' angle is the same picture shifted by k
+ * columns, wrapping round. */
+static void test_cylindrical_pick_and_seam(void **state)
+{
+    td_grid *g = terrain(65, 400.0);
+    td_scene s;
+    td_camera cam;
+    td_err err = {0};
+    td_view v = {g, NULL};
+    (void)state;
+    td_scene_defaults(&s);
+    s.dataset[0] = 'x';
+    s.camera.projection = TD_PROJ_CYLINDRICAL;
+    s.camera.x = 32 * g->sx + 7, s.camera.y = 32 * g->sy - 5, s.camera.z = g->zmax + 300;
+    s.camera.fov = 360, s.camera.heading = 11, s.camera.pitch = -30;
+    s.effects.curvature = 1;
+    s.image.width = 720, s.image.height = 300, s.image.format = TD_FORMAT_PICK;
+    assert_int_equal(td_camera_setup(&s.camera, 720, 300, g, &cam, &err), TD_OK);
+    const int32_t ij[6][2] = {{40, 22}, {10, 50}, {60, 60}, {5, 5}, {33, 12}, {50, 31}};
+    s.npick = 6;
+    for (int k = 0; k < 6; k++) {
+        double P[3] = {ij[k][0] * g->sx, ij[k][1] * g->sy, td_grid_at(g, ij[k][0], ij[k][1])};
+        assert_true(td_camera_project(&cam, P, &s.pick[k][0], &s.pick[k][1]));
+        assert_true(s.pick[k][1] > -0.5 && s.pick[k][1] < 299.5);
+    }
+    for (int surf = 1; surf < TD_SURFACE_COUNT; surf++) {
+        td_pick pk[6];
+        s.quality.surface = (td_surface)surf;
+        assert_int_equal(td_render_pick(&v, &s, pk, NULL, &err), TD_OK);
+        for (int k = 0; k < 6; k++) {
+            assert_true(pk[k].hit);
+            assert_float_equal(pk[k].p[0], ij[k][0] * g->sx, 0.05);
+            assert_float_equal(pk[k].p[1], ij[k][1] * g->sy, 0.05);
+            assert_float_equal(pk[k].p[2], td_grid_at(g, ij[k][0], ij[k][1]), 0.05);
+        }
+    }
+    /* the seam: turned by 5 columns (0.5 degree each) */
+    td_render_opts o;
+    td_render_result a, b;
+    int32_t W = 720, H = 300, differ = 0;
+    td_render_opts_default(&o);
+    o.threads = 2;
+    s.npick = 0;
+    s.image.format = TD_FORMAT_DEPTH32F;
+    memset(&a, 0, sizeof a), memset(&b, 0, sizeof b);
+    assert_int_equal(td_render(&v, &s, &o, &a, &err), TD_OK);
+    s.camera.heading += 5 * 0.5;
+    assert_int_equal(td_render(&v, &s, &o, &b, &err), TD_OK);
+    for (int32_t y = 0; y < H; y++)
+        for (int32_t x = 0; x < W; x++) {
+            float da = a.depth[y * W + (x + 5) % W], db = b.depth[y * W + x];
+            differ += !(da == db || fabsf(da - db) <= 1e-3f * da);
+        }
+    assert_true(differ < W * H / 500); /* rounding of the azimuth may move an edge pixel */
+    td_render_result_free(&a);
+    td_render_result_free(&b);
+    td_grid_free(g);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -293,6 +424,8 @@ int main(void)
         cmocka_unit_test(test_orthographic),
         cmocka_unit_test(test_positions),
         cmocka_unit_test(test_project_then_pick),
+        cmocka_unit_test(test_cylindrical),
+        cmocka_unit_test(test_cylindrical_pick_and_seam),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -444,6 +444,33 @@ static void test_limits_table(void **state)
     assert_string_equal(e.field, pk->path);
 }
 
+/* The cylindrical camera (issue 19): fov up to 360 and fov_v for it only, curvature on
+ * by default for it and off when the scene says so. */
+static void test_cylindrical(void **state)
+{
+    td_request_error e;
+    (void)state;
+    assert_int_equal(parse("{\"dataset\":\"d\",\"camera\":{\"projection\":\"cylindrical\",\"position\":"
+                           "{\"x\":1,\"y\":2,\"z\":3},\"fov\":360,\"fov_v\":40}}", &e), TD_OK);
+    assert_int_equal(scene.camera.projection, TD_PROJ_CYLINDRICAL);
+    assert_true(scene.camera.fov == 360.0 && scene.camera.fov_v == 40.0);
+    assert_int_equal(scene.effects.curvature, 1);
+    assert_true(scene.effects.curvature_k == 0.13);
+    assert_int_equal(parse("{\"dataset\":\"d\",\"camera\":{\"projection\":\"cylindrical\",\"position\":"
+                           "{\"x\":1,\"y\":2,\"z\":3}},\"effects\":{\"curvature\":false}}", &e), TD_OK);
+    assert_int_equal(scene.effects.curvature, 0);
+    assert_int_equal(parse("{\"dataset\":\"d\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3}}}", &e), TD_OK);
+    assert_int_equal(scene.effects.curvature, 0); /* perspective: off unless asked */
+    assert_int_not_equal(parse("{\"dataset\":\"d\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3},"
+                               "\"fov\":360}}", &e), TD_OK);
+    assert_string_equal(e.field, "camera.fov");
+    assert_int_not_equal(parse("{\"dataset\":\"d\",\"camera\":{\"position\":{\"x\":1,\"y\":2,\"z\":3},"
+                               "\"fov_v\":30}}", &e), TD_OK);
+    assert_string_equal(e.field, "camera.fov_v");
+    assert_int_not_equal(parse("{\"dataset\":\"d\",\"camera\":{\"projection\":\"cylindrical\"}}", &e), TD_OK);
+    assert_string_equal(e.field, "camera.position");
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -454,6 +481,7 @@ int main(void)
         cmocka_unit_test(test_pick_body),
         cmocka_unit_test(test_query),
         cmocka_unit_test(test_limits_table),
+        cmocka_unit_test(test_cylindrical),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

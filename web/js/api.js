@@ -172,6 +172,13 @@ export async function viewshed(body, signal) {
   return { blob, visible: num('X-Terrad-Visible'), visibleArea: num('X-Terrad-Visible-Area'), ms: performance.now() - t0 };
 }
 
+// POST /v1/peaks (the summits a scene sees, peaks.js) -> its JSON; throws ApiError.
+export async function peaks(body, signal) {
+  const resp = await postJson('/v1/peaks', body, signal);
+  if (!resp.ok) throw await apiError(resp);
+  return resp.json();
+}
+
 // POST /v1/pick -> the first picked pixel, normalised (see firstPick).
 export async function pick(scene, signal) {
   const resp = await postJson('/v1/pick', scene, signal);

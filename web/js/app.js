@@ -24,6 +24,7 @@ import { drawTimingChart, totalOf, fmtMs } from './chart.js';
 import { diffImages } from './diff.js';
 import { discRegion, raiseDisc, encodeHeights, decodeHeights } from './disc.js';
 import { ViewshedControl } from './viewshed.js';
+import { PeaksControl, panoramaScene } from './peaks.js';
 
 const $ = (id) => document.getElementById(id);
 const DEBOUNCE_MS = 150, MAX_WAIT_MS = 500;
@@ -55,6 +56,7 @@ const state = {
   urls: new Map(),  // img element -> object URL shown
   adminJob: null,
   viewshed: null,   // ViewshedControl (viewshed.js)
+  peaks: null,      // PeaksControl (peaks.js): summit labels over view A and the map
 };
 window.terrad = state;
 
@@ -196,6 +198,7 @@ function buildMap() {
   state.map = map;
   state.layers = { camera, handle, wedgeLayer, headingLine, picks, tiles };
   state.viewshed.attach(map, ds);
+  state.peaks.attach(map);
 
   // While dragging, previews (half size, no comparison); the full view when dropped.
   camera.on('drag', () => {
@@ -478,8 +481,9 @@ async function renderNow(preview = false) {
   const full = imageSize(), fx = effects();
   const size = preview ? { width: Math.round(full.width / 2), height: Math.round(full.height / 2) } : full;
   const qa = preview ? { ...qualityA(), samples: 1 } : qualityA();
-  const sceneA = api.buildScene(state.ds.id, state.cam, size, qa, fx);
-  const sceneB = comparing() && !preview ? api.buildScene(state.ds.id, state.cam, size, qualityB(), fx) : null;
+  const pano = (sc) => ($('pano-on').checked ? panoramaScene(sc) : sc); /* peaks.js */
+  const sceneA = pano(api.buildScene(state.ds.id, state.cam, size, qa, fx));
+  const sceneB = comparing() && !preview ? pano(api.buildScene(state.ds.id, state.cam, size, qualityB(), fx)) : null;
   $('view-b').classList.toggle('stale', comparing() && preview);
   $('view-diff').classList.toggle('stale', comparing() && preview);
   const frames = [$('view-a'), $('view-b')].map((f) => f.querySelector('.frame'));
@@ -499,6 +503,7 @@ async function renderNow(preview = false) {
     if (rb) $('view-b-caption').textContent = `B: ${describeInfo(rb.info, sceneB)}`;
     drawCharts();
     if (rb) showDiff();
+    if (!preview) state.peaks.show(sceneA, $('view-img'), $('view-a').querySelector('.frame'));
     state.renders++;
     document.body.dataset.renders = String(state.renders);
     setStatus(`View ${state.renders}: ${fmtMs(totalOf(ra.info))} on the server` +
@@ -732,6 +737,18 @@ function wireViewshed() {
   $('vs-clear').addEventListener('click', () => state.viewshed.clear());
 }
 
+// --- summits and panoramas (peaks.js) ---------------------------------------------------
+
+function wirePeaks() {
+  state.peaks = new PeaksControl(api, {
+    result: $('peaks-result'),
+    onError: (text) => setStatus(text, true),
+    readOptions: () => ({ on: $('peaks-on').checked, minProminence: Number($('peaks-prominence').value) || 0 }),
+  });
+  for (const id of ['peaks-on', 'peaks-prominence', 'pano-on'])
+    $(id).addEventListener('change', () => scheduleRender({ now: true }));
+}
+
 // --- start ----------------------------------------------------------------------------
 
 async function main() {
@@ -744,6 +761,7 @@ async function main() {
   wirePicking();
   wireAdmin();
   wireViewshed();
+  wirePeaks();
   try {
     await loadDatasets();
   } catch (e) {

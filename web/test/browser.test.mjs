@@ -9,7 +9,9 @@
 // the view marks the picked terrain point on the map with plausible coordinates, compare
 // mode shows two renders and their pixel difference, the admin panel's preload
 // reaches 100 %, and the viewshed control lays the viewshed of a clicked observer over
-// the map, pixel for pixel the server's answer recoloured, and shows a refusal.
+// the map, pixel for pixel the server's answer recoloured, and shows a refusal; the
+// panorama option renders a 360-degree view whose summits (POST /v1/peaks) are labelled
+// over it at their pixels and marked on the map.
 // Screenshots (the page, the view, the map with a viewshed) go to the output directory
 // (and the page to docs/web-screenshot.png when TERRAD_WEB_DOCS_SCREENSHOT=1).
 //
@@ -53,7 +55,7 @@ for (const [what, p] of [['terrad', BIN], ['chromium', CHROMIUM]]) {
 
 let server = null, serverExit = null, port = 0, base = '';
 let context = null, page = null, profile = null;
-const foreign = [], pageErrors = [], renderRequests = [], failed = [], viewshedRequests = [];
+const foreign = [], pageErrors = [], renderRequests = [], failed = [], viewshedRequests = [], peaksRequests = [];
 
 
 async function waitReady(deadlineMs) {
@@ -137,6 +139,7 @@ before(async () => {
     const pathname = new URL(r.url()).pathname;
     if (pathname === '/v1/render') renderRequests.push(r.postDataJSON());
     if (pathname === '/v1/viewshed') viewshedRequests.push(r.postDataJSON());
+    if (pathname === '/v1/peaks') peaksRequests.push(r.postDataJSON());
   });
   page.on('response', (r) => {
     if (r.status() < 400) return;
@@ -537,7 +540,7 @@ test('every control is labelled and reachable by Tab in reading order', async ()
   await page.evaluate(() => { document.activeElement && document.activeElement.blur(); window.scrollTo(0, 0); });
   await page.focus('#dataset');
   const order = [];
-  for (let i = 0; i < 40; i++) {
+  for (let i = 0; i < 48; i++) { // 40 + the summits fieldset and room
     await page.keyboard.press('Tab');
     order.push(await page.evaluate(() => {
       const e = document.activeElement;
@@ -553,6 +556,46 @@ test('every control is labelled and reachable by Tab in reading order', async ()
   await page.focus('#view-img');
   await page.keyboard.press('Enter');
   await page.waitForFunction((k) => Number(document.body.dataset.picks || 0) > k, picks);
+});
+
+test('a panorama with its summits labelled, each label at the pixel terrad gives', async () => {
+  const n = await renders();
+  await page.check('#pano-on');
+  await waitRenders(n + 1);
+  const last = renderRequests.at(-1);
+  assert.equal(last.camera.projection, 'cylindrical');
+  assert.equal(last.camera.fov, 360);
+  assert.equal(last.image.height, Math.round(last.image.width / 3));
+  await page.waitForFunction(() => Number(document.body.dataset.peaks || 0) >= 1).catch(async (e) => {
+    throw new Error(`${e.message}; peaks-result: ${await page.textContent('#peaks-result')}; status: ${await page.textContent('#status')}`);
+  });
+  const body = peaksRequests.at(-1);
+  assert.equal(body.camera.projection, 'cylindrical');
+  assert.equal(body.min_prominence, 100);
+  // the server's answer for the same body, and the labels drawn from it
+  const got = await page.evaluate(async (b) => {
+    const resp = await fetch('/v1/peaks', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(b) });
+    const j = await resp.json();
+    const img = document.getElementById('view-img').getBoundingClientRect();
+    const labels = [...document.querySelectorAll('.peak-label')].map((l) => {
+      const r = l.getBoundingClientRect();
+      return { x: r.left - img.left, bottom: r.bottom - img.top, px: Number(l.dataset.px), py: Number(l.dataset.py) };
+    });
+    return { j, labels, scale: img.width / b.image.width, markers: document.querySelectorAll('.peak-marker').length };
+  }, body);
+  assert.ok(got.j.peaks.length >= got.labels.length && got.labels.length >= 1);
+  assert.equal(got.markers, got.j.peaks.length, 'one map marker a summit');
+  for (const l of got.labels) {
+    assert.ok(got.j.peaks.some((p) => p.px === l.px && p.py === l.py), 'a label of a listed summit');
+    assert.ok(Math.abs(l.x - (l.px + 0.5) * got.scale) < 1.5, `label x ${l.x} at the summit's ${(l.px + 0.5) * got.scale}`);
+    assert.ok(Math.abs(l.bottom - (l.py + 0.5) * got.scale) < 1.5, 'the leader line ends on the summit');
+  }
+  for (const p of got.j.peaks) assert.ok(p.prominence >= 100);
+  await page.locator('#view-panel').screenshot({ path: path.join(OUT, 'web-panorama.png') });
+  const k = await renders();
+  await page.uncheck('#pano-on');
+  await waitRenders(k + 1);
+  assert.ok(!renderRequests.at(-1).camera.projection, 'back to the perspective camera');
 });
 
 test('screenshots, and nothing went wrong on the way', async () => {

@@ -16,6 +16,7 @@ import { discRegion, raiseDisc, encodeHeights, decodeHeights } from '../js/disc.
 import {
   recolourViewshed, overlayBounds, sampleAt, viewshedBody, VISIBLE_RGBA, HIDDEN_RGBA, OUTSIDE_RGBA,
 } from '../js/viewshed.js';
+import { panoramaScene, peaksBody, peakText, placeLabels } from '../js/peaks.js';
 
 const near = (a, b, eps = 1e-9) => Math.abs(a - b) <= eps;
 
@@ -289,4 +290,32 @@ test('POSTs carry the body\'s dataset in the query: the key a proxy routes repli
   assert.equal(routedUrl('/v1/x?a=1', { dataset: 'a b/c' }), '/v1/x?a=1&dataset=a%20b%2Fc');
   assert.equal(routedUrl('/v1/admin/preload', { tiles: [] }), '/v1/admin/preload');
   assert.equal(routedUrl('/v1/render', null), '/v1/render');
+});
+
+test('panorama and summits: the scenes, the body, labels in tiers that never overlap', () => {
+  const scene = buildScene('trinidad', { x: 1, y: 2, agl: 3, heading: 40, pitch: -2, fov: 60 },
+    { width: 900, height: 400 }, { method: 'auto', surface: 'bilinear', samples: 1 }, { sunAzimuth: 1, sunElevation: 2 });
+  const pano = panoramaScene(scene);
+  assert.equal(pano.camera.projection, 'cylindrical');
+  assert.equal(pano.camera.fov, 360);
+  assert.equal(pano.image.height, 300);
+  assert.equal(scene.camera.fov, 60, 'the scene itself is left alone');
+  const b = peaksBody({ ...pickScene(pano, 1, 2) }, 150);
+  assert.equal(b.min_prominence, 150);
+  assert.equal(b.image.format, 'png');
+  assert.ok(!('pick' in b));
+  assert.equal(peakText({ z: 4321.6, distance: 15300 }), '4322 m · 15 km');
+  assert.equal(peakText({ z: 100, distance: 2340 }), '100 m · 2.3 km');
+  const peaks = [0, 5, 10, 300, 8].map((px) => ({ px, py: 50, z: 3000, distance: 5000 }));
+  const placed = placeLabels(peaks, 2, { maxTiers: 3 });
+  // the first three overlap (each label is ~90 px wide at scale 2): tiers 0, 1, 2; the
+  // fourth is far away: tier 0; the fifth has no tier left: left out
+  assert.deepEqual(placed.map((l) => l.tier), [0, 1, 2, 0]);
+  assert.ok(near(placed[3].x, 601) && near(placed[3].y, 101));
+  for (let i = 0; i < placed.length; i++)
+    for (let j = i + 1; j < placed.length; j++)
+      if (placed[i].tier === placed[j].tier) assert.ok(Math.abs(placed[i].x - placed[j].x) > 90);
+  // summits at different heights: a box is where its tier puts it, not a row of its own
+  const two = placeLabels([{ px: 0, py: 100, z: 1, distance: 1 }, { px: 20, py: 110, z: 1, distance: 1 }], 1);
+  assert.deepEqual(two.map((l) => l.tier), [0, 2], 'one tier up lands on the first box; two clear it');
 });
