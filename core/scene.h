@@ -105,6 +105,10 @@ typedef struct td_scene_quality {
 
 typedef struct td_scene_effects {
     double sun_azimuth, sun_elevation; /* always used by shading (default 315, 45) */
+    int sun_time;                      /* effects.sun.time given: whoever renders turns it into
+                                          sun_azimuth and sun_elevation at the dataset's centre
+                                          (td_solar_in_grid) before td_render */
+    double sun_time_s;                 /* that instant, seconds since 1970 UTC */
     double ambient;                    /* ambient light 0 .. 1 (default 0.25) */
     int shadows;
     int haze;

@@ -152,6 +152,19 @@ out:
     return rc;
 }
 
+td_status td_solar_in_grid(double lon_deg, double lat_deg, double grid_north_deg, double unix_s,
+                           double *azimuth_deg, double *elevation_deg, td_err *err)
+{
+    td_sun sun;
+    td_status rc = td_solar_position(lat_deg, lon_deg, unix_s, &sun, err);
+    if (!rc) {
+        double az = fmod(sun.azimuth_deg + grid_north_deg, 360.0);
+        *azimuth_deg = az < 0.0 ? az + 360.0 : az;
+        *elevation_deg = sun.elevation_deg;
+    }
+    return rc;
+}
+
 void td_solar_direction(double azimuth_deg, double elevation_deg, double dir[3])
 {
     double ce = cos(elevation_deg * DEG);

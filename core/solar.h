@@ -41,6 +41,14 @@ typedef struct td_sun_day {
 td_status td_solar_day(double lat_deg, double lon_deg, double day_s, td_sun_day *out,
                        td_err *err);
 
+/* The sun at unix_s seen from a grid's centre (lon_deg, lat_deg), its azimuth turned into
+ * the grid's frame: a true azimuth A is A + grid_north_deg there (td_merc_proj_grid_north:
+ * the CRS's meridian convergence; 0 for lon/lat grids), so *azimuth_deg is what a scene's
+ * effects.sun.azimuth means, in [0, 360). *elevation_deg is geometric. Errors as
+ * td_solar_position's. */
+td_status td_solar_in_grid(double lon_deg, double lat_deg, double grid_north_deg, double unix_s,
+                           double *azimuth_deg, double *elevation_deg, td_err *err);
+
 /* Unit vector toward the sun in the dataset frame (x east, y north, z up) for an azimuth
  * and elevation in degrees. */
 void td_solar_direction(double azimuth_deg, double elevation_deg, double dir[3]);

@@ -40,8 +40,10 @@
 #include "dem.h"
 #include "gridedit.h"
 #include "limit.h"
+#include "mercator.h"
 #include "render.h"
 #include "request.h"
+#include "solar.h"
 
 #ifndef TERRAD_SOURCE_DIR
 #define TERRAD_SOURCE_DIR "."
@@ -367,6 +369,23 @@ out:
 
 /* Loads the DEM and builds what the method needs for the whole grid (and the levels of
  * detail when asked), timed as load_ms and accel_ms. 0, or 1 with the error printed. */
+/* effects.sun.time: the sun at that instant over the grid's centre (solar.h), in the grid's
+ * frame, as the server computes it (routes.c). */
+static td_status sun_at_time(render_run *run, td_err *err)
+{
+    td_merc_proj *proj = NULL;
+    double ll[4], merc[4], centre[2];
+    td_scene_effects *fx = &run->scene->effects;
+    td_status rc = td_merc_proj_create(run->dem_path, run->g, &proj, err);
+    if (!rc) {
+        td_merc_proj_bounds(proj, ll, merc, centre);
+        rc = td_solar_in_grid(centre[0], centre[1], td_merc_proj_grid_north(proj), fx->sun_time_s,
+                              &fx->sun_azimuth, &fx->sun_elevation, err);
+    }
+    td_merc_proj_free(proj);
+    return rc;
+}
+
 static int load_dataset(render_run *run)
 {
     int rc = 1;
@@ -383,6 +402,8 @@ static int load_dataset(render_run *run)
     for (int i = 0; i < run->nedits; i++)
         if (apply_edit(run, run->edits[i], &err))
             goto out;
+    if (run->scene->effects.sun_time && sun_at_time(run, &err))
+        goto out;
     run->load_ms = 1e3 * td_clock_s() - t;
     td_accel_opts_default(&aopts);
     aopts.maxmip = m == TD_METHOD_HIERARCHICAL || m == TD_METHOD_AUTO;
@@ -558,6 +579,9 @@ static int write_stats(const render_run *run, json_t *stats, double t0)
     json_object_set_new(stats, "method", json_string(td_method_name(scene->quality.method)));
     json_object_set_new(stats, "surface", json_string(td_surface_name(scene->quality.surface)));
     json_object_set_new(stats, "samples", json_integer(scene->quality.samples));
+    /* the sun the picture was shaded with (from effects.sun.time, or as given) */
+    json_object_set_new(stats, "sun", json_pack("{s:f,s:f}", "azimuth", scene->effects.sun_azimuth, "elevation",
+                                                 scene->effects.sun_elevation));
     json_object_set_new(stats, "load_ms", json_real(run->load_ms));
     json_object_set_new(stats, "accel_ms", json_real(run->accel_ms));
     json_object_set_new(stats, "total_ms", json_real((1e3 * td_clock_s()) - t0));

@@ -41,7 +41,7 @@ int td_cors_apply(const char *origins, td_http_req *q, td_http_resp *r, const ch
         td_http_resp_header(r, "Access-Control-Max-Age", "600");
     } else {
         td_http_resp_header(r, "Access-Control-Expose-Headers",
-                            "ETag, Server-Timing, X-Terrad-Method, X-Terrad-Surface, X-Terrad-Rays, "
+                            "ETag, Server-Timing, X-Terrad-Method, X-Terrad-Surface, X-Terrad-Sun, X-Terrad-Rays, "
                             "X-Terrad-Steps, X-Terrad-Height-Error, X-Terrad-Level, Retry-After");
     }
 out:

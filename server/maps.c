@@ -123,6 +123,19 @@ static int map_lookup(td_maps *m, const td_dataset_info *di, map_info *info, td_
     return rc;
 }
 
+int td_maps_centre(td_maps *m, const td_dataset_info *di, double centre[2], double *grid_north, char *msg,
+                   size_t n)
+{
+    map_info info;
+    int rc = map_lookup(m, di, &info, NULL, msg, n);
+    if (rc == 0) {
+        centre[0] = info.centre[0];
+        centre[1] = info.centre[1];
+        *grid_north = info.grid_north;
+    }
+    return rc;
+}
+
 /* --- query parameters ----------------------------------------------------------------- */
 
 static const struct {

@@ -56,6 +56,12 @@ typedef struct td_maps_query {
 int td_maps_parse_query(const char *const *keys, const char *const *values, size_t n, td_mapstyle style,
                         const double centre[2], double grid_north, td_maps_query *mq);
 
+/* The lon/lat of dataset di's centre and the azimuth of true north in its frame
+ * (td_merc_proj_grid_north), from the cache: what a render's effects.sun.time needs. 0, or
+ * -1 with the reason (no georeference, no CRS PROJ knows) in msg. */
+int td_maps_centre(td_maps *m, const td_dataset_info *di, double centre[2], double *grid_north, char *msg,
+                   size_t n);
+
 td_maps *td_maps_create(void);
 void td_maps_free(td_maps *m);
 

@@ -14,6 +14,7 @@
 #include "request.h"
 #include "limit.h"
 #include "lod.h"
+#include "solar.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -590,9 +591,23 @@ static int parse_effects(pctx *p, json_t *fx, td_scene *s)
     if (!rc && (r = object(p, fx, "sun", &o)) < 0)
         rc = -1;
     if (!rc && r == 1) {
-        static const char *const k2[] = {"azimuth", "elevation", NULL};
+        static const char *const k2[] = {"azimuth", "elevation", "time", NULL};
+        const char *when = NULL;
         old = push(p, "sun");
         rc = check_keys(p, o, k2);
+        if (!rc && (r = string(p, o, "time", &when)) < 0)
+            rc = -1;
+        if (!rc && when) {
+            td_err te;
+            size_t at = push(p, "time");
+            if (json_object_get(o, "azimuth") || json_object_get(o, "elevation"))
+                rc = fail(p, TD_EINVAL, "give either time or azimuth and elevation, not both");
+            else if (td_solar_parse_time(when, "time", &e->sun_time_s, &te))
+                rc = fail(p, TD_EFORMAT, "%s", te.msg + strlen("time: "));
+            else
+                e->sun_time = 1;
+            pop(p, at);
+        }
         if (!rc && num(p, o, "azimuth", -TD_ANGLE, TD_ANGLE, &e->sun_azimuth) < 0)
             rc = -1;
         if (!rc && num(p, o, "elevation", lim_min(TD_LIMIT_SUN_ELEVATION),

@@ -44,6 +44,7 @@
 #include "maps.h"
 #include "viewshed_api.h"
 #include "pano.h"
+#include "solar.h"
 
 const char *const td_route_names[TD_ROUTE_COUNT] = {
 #define TD_X_NAME(e, name) name,
@@ -1005,6 +1006,9 @@ static void work_headers(const td_rjob *j, const td_render_stats *st, td_http_re
     method_label(j->scene.quality.method, st, label, sizeof label);
     td_http_resp_header(r, "X-Terrad-Method", "%s", label);
     td_http_resp_header(r, "X-Terrad-Surface", "%s", td_surface_name(j->scene.quality.surface));
+    /* the sun the picture was shaded with (from effects.sun.time, or as given) */
+    td_http_resp_header(r, "X-Terrad-Sun", "azimuth=%.17g; elevation=%.17g", j->scene.effects.sun_azimuth,
+                        j->scene.effects.sun_elevation);
     td_http_resp_header(r, "X-Terrad-Rays", "%llu", (unsigned long long)(st->rays[TD_RAY_PRIMARY] +
                         st->rays[TD_RAY_SHADOW] + st->rays[TD_RAY_REFLECTION] + st->rays[TD_RAY_AO]));
     td_http_resp_header(r, "X-Terrad-Steps", "%llu", (unsigned long long)st->steps);
@@ -1144,6 +1148,30 @@ static int collect_arg(void *cls, const char *key, const char *value)
     return 0;
 }
 
+/* effects.sun.time: the sun at that instant over the dataset's centre (NOAA, core/solar.h),
+ * in the dataset's frame. 0, or -1 with a 400 naming effects.sun.time (no georeference). An
+ * unknown dataset is left to render_defer's 404. */
+static int sun_at_time(td_app *app, td_scene *s, td_http_resp *r)
+{
+    td_dataset_info di;
+    long idx = td_store_find(app->store, s->dataset);
+    double centre[2], north = 0.0;
+    char msg[320];
+    td_err e = {0};
+    int rc = 0;
+    if (idx >= 0) {
+        td_store_info(app->store, (size_t)idx, &di);
+        if (td_maps_centre(app->maps, &di, centre, &north, msg, sizeof msg) ||
+            td_solar_in_grid(centre[0], centre[1], north, s->effects.sun_time_s, &s->effects.sun_azimuth,
+                             &s->effects.sun_elevation, &e)) {
+            rc = -1;
+            api_error(r, TD_AE_BAD_REQUEST, "effects.sun.time", "effects.sun.time: %s",
+                      e.msg[0] ? e.msg : msg);
+        }
+    }
+    return rc;
+}
+
 static void h_render(td_app *app, td_http_req *q, td_http_resp *r, int post, int pick)
 {
     td_rjob *j = calloc(1, sizeof *j);
@@ -1187,6 +1215,8 @@ static void h_render(td_app *app, td_http_req *q, td_http_resp *r, int post, int
         goto out;
     }
     j->kind = pick || j->scene.image.format == TD_FORMAT_PICK ? TD_RK_PICK : TD_RK_RENDER;
+    if (j->scene.effects.sun_time && sun_at_time(app, &j->scene, r))
+        goto out;
     j->parse_ms = (td_clock_s() - t0) * 1e3;
     render_defer(app, q, r, j); /* takes j */
     j = NULL;

@@ -817,6 +817,60 @@ static void test_metrics(void **state)
     th_resp_free(&r);
 }
 
+/* effects.sun.time: the sun of that instant over the dataset's centre, said in X-Terrad-Sun,
+ * and the picture the same as with that azimuth and elevation given. */
+static void test_render_sun_time(void **state)
+{
+    th_resp r, r2;
+    char v[128], body[512];
+    double az = 0, el = 0;
+    const char *scene = "{\"dataset\":\"trinidad\",\"camera\":{\"position\":{\"x\":22000,\"y\":2000,"
+                        "\"z\":4300},\"pitch\":-8},\"image\":{\"width\":64,\"height\":48},"
+                        "\"effects\":{\"shadows\":true,\"sun\":{%s}}}";
+    (void)state;
+    /* 21 June, 18:00 UTC: about 11:00 local solar time in Colorado, sun high in the south-east */
+    snprintf(body, sizeof body, scene, "\"time\":\"2026-06-21T18:00:00Z\"");
+    req(&A, "POST", "/v1/render", JSON_CT, body, &r);
+    assert_int_equal(r.status, 200);
+    assert_true(th_header(&r, "X-Terrad-Sun", v, sizeof v));
+    assert_int_equal(sscanf(v, "azimuth=%lf; elevation=%lf", &az, &el), 2);
+    assert_true(az > 100.0 && az < 160.0);
+    assert_true(el > 55.0 && el < 75.0);
+    snprintf(body, sizeof body, scene, "\"azimuth\":%.17g,\"elevation\":%.17g");
+    {
+        char b2[512];
+        snprintf(b2, sizeof b2, body, az, el);
+        req(&A, "POST", "/v1/render", JSON_CT, b2, &r2);
+    }
+    assert_int_equal(r2.status, 200);
+    assert_int_equal(r.len, r2.len);
+    assert_memory_equal(r.body, r2.body, r.len);
+    th_resp_free(&r);
+    th_resp_free(&r2);
+    /* 08:00 UTC is 01:00 there: the sun is down */
+    snprintf(body, sizeof body, scene, "\"time\":\"2026-06-21T08:00:00Z\"");
+    req(&A, "POST", "/v1/render", JSON_CT, body, &r);
+    assert_int_equal(r.status, 200);
+    assert_true(th_header(&r, "X-Terrad-Sun", v, sizeof v));
+    assert_int_equal(sscanf(v, "azimuth=%lf; elevation=%lf", &az, &el), 2);
+    assert_true(el < 0.0);
+    th_resp_free(&r);
+    /* refusals name the field */
+    snprintf(body, sizeof body, scene, "\"time\":\"2026-02-30T12:00Z\"");
+    req(&A, "POST", "/v1/render", JSON_CT, body, &r);
+    assert_error(&r, 400, "bad_request", "effects.sun.time");
+    th_resp_free(&r);
+    snprintf(body, sizeof body, scene, "\"time\":\"2026-06-21T18:00Z\",\"azimuth\":90");
+    req(&A, "POST", "/v1/render", JSON_CT, body, &r);
+    assert_error(&r, 400, "bad_request", "effects.sun.time");
+    th_resp_free(&r);
+    req(&A, "POST", "/v1/render", JSON_CT,
+        "{\"dataset\":\"volcano\",\"camera\":{\"position\":{\"x\":300,\"y\":-400,\"z\":450}},"
+        "\"image\":{\"width\":16,\"height\":16},\"effects\":{\"sun\":{\"time\":\"2026-06-21\"}}}", &r);
+    assert_error(&r, 400, "bad_request", "effects.sun.time"); /* no georeference */
+    th_resp_free(&r);
+}
+
 /* `?dataset=` on a POST is the key a proxy routes on: it must agree with the body's. */
 static void test_dataset_routing_key(void **state)
 {
@@ -1254,6 +1308,7 @@ int main(void)
         cmocka_unit_test(test_web),
         cmocka_unit_test(test_metrics),
         cmocka_unit_test(test_dataset_routing_key),
+        cmocka_unit_test(test_render_sun_time),
     };
     const struct CMUnitTest others[] = {
         cmocka_unit_test(test_admin_disabled),
