@@ -119,6 +119,35 @@ out:
     return rc;
 }
 
+/* Top-down, north up, over camera.extent (the whole grid when it is all zeros). */
+static td_status setup_orthographic(const td_scene_camera *c, const td_grid *g, td_camera *out,
+                                    td_err *err)
+{
+    td_status rc = TD_OK;
+    double x0 = c->extent[0], y0 = c->extent[1], x1 = c->extent[2], y1 = c->extent[3];
+    if (x0 == 0.0 && y0 == 0.0 && x1 == 0.0 && y1 == 0.0) {
+        x1 = (g->w - 1) * g->sx;
+        y1 = (g->h - 1) * g->sy;
+    }
+    if (!(x1 > x0) || !(y1 > y0) || !isfinite(x0 + x1 + y0 + y1)) {
+        rc = td_err_field(err, TD_ERANGE, "camera.extent", "[%g, %g, %g, %g] is empty", x0, y0, x1, y1);
+    } else {
+        out->x0 = x0;
+        out->y1 = y1;
+        out->dx = (x1 - x0) / out->width;
+        out->dy = (y1 - y0) / out->height;
+        out->ztop = (isfinite(g->zmax) ? (double)g->zmax : 0.0) + 100.0;
+        out->o[0] = 0.5 * (x0 + x1);
+        out->o[1] = 0.5 * (y0 + y1);
+        out->o[2] = out->ztop;
+        out->fwd[2] = -1.0;
+        out->right[0] = 1.0;
+        out->up[1] = 1.0;
+        out->pixel_angle = 0.0;
+    }
+    return rc;
+}
+
 td_status td_camera_setup(const td_scene_camera *c, int32_t width, int32_t height,
                           const td_grid *g, td_camera *out, td_err *err)
 {
@@ -132,28 +161,7 @@ td_status td_camera_setup(const td_scene_camera *c, int32_t width, int32_t heigh
         goto out;
     }
     if (c->projection == TD_PROJ_ORTHOGRAPHIC) {
-        double x0 = c->extent[0], y0 = c->extent[1], x1 = c->extent[2], y1 = c->extent[3];
-        if (x0 == 0.0 && y0 == 0.0 && x1 == 0.0 && y1 == 0.0) {
-            x1 = (g->w - 1) * g->sx;
-            y1 = (g->h - 1) * g->sy;
-        }
-        if (!(x1 > x0) || !(y1 > y0) || !isfinite(x0 + x1 + y0 + y1)) {
-            rc = td_err_field(err, TD_ERANGE, "camera.extent", "[%g, %g, %g, %g] is empty", x0, y0,
-                              x1, y1);
-            goto out;
-        }
-        out->x0 = x0;
-        out->y1 = y1;
-        out->dx = (x1 - x0) / width;
-        out->dy = (y1 - y0) / height;
-        out->ztop = (isfinite(g->zmax) ? (double)g->zmax : 0.0) + 100.0;
-        out->o[0] = 0.5 * (x0 + x1);
-        out->o[1] = 0.5 * (y0 + y1);
-        out->o[2] = out->ztop;
-        out->fwd[2] = -1.0;
-        out->right[0] = 1.0;
-        out->up[1] = 1.0;
-        out->pixel_angle = 0.0;
+        rc = setup_orthographic(c, g, out, err);
         goto out;
     }
 
