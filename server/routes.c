@@ -421,6 +421,23 @@ static void job_json_send(td_http_resp *r, int status, const td_job_info *ji)
                         "error", err));
 }
 
+/* `?dataset=ID` on a POST is a routing key for a proxy in front of replicas
+ * (docker/nginx.conf hashes on it, as it does on the id in GET paths); the body says what
+ * is traced, so where both name a dataset they must agree. Called by each handler with the
+ * id it parsed (no second parse of the body). 0, or -1 with a 400 sent. */
+static int dataset_hint_check(td_http_req *q, td_http_resp *r, const char *id)
+{
+    const char *hint = td_http_req_query(q, "dataset");
+    int rc = 0;
+    if (hint && id && strcmp(td_http_req_method(q), "GET") && strcmp(id, hint)) {
+        rc = -1;
+        api_error(r, TD_AE_BAD_REQUEST, "dataset",
+                  "dataset: the body's '%.64s' differs from the query's '%.64s' (the key a proxy "
+                  "routes on)", id, hint);
+    }
+    return rc;
+}
+
 /* POST /v1/admin/preload, stage 1: the body is a JSON object of known keys naming a
  * dataset of the store. 0 and *root (the caller's to free), or -1 with r answered. */
 static int preload_body(td_app *app, td_http_req *q, td_http_resp *r, json_t **root,
@@ -452,6 +469,8 @@ static int preload_body(td_app *app, td_http_req *q, td_http_resp *r, json_t **r
         api_error(r, TD_AE_BAD_REQUEST, "dataset", "dataset: a string id is required");
         goto out;
     }
+    if (dataset_hint_check(q, r, json_string_value(v)))
+        goto out;
     idx = td_store_find(app->store, json_string_value(v));
     if (idx < 0) {
         api_error(r, TD_AE_UNKNOWN_DATASET, "dataset", "unknown dataset '%s'", json_string_value(v));
@@ -1077,6 +1096,8 @@ static void render_defer(td_app *app, td_http_req *q, td_http_resp *r, td_rjob *
     td_status rc;
     int deferred = 0;
 
+    if (dataset_hint_check(q, r, j->scene.dataset))
+        goto out;
     rc = td_store_acquire(app->store, j->scene.dataset, &j->snap, &e);
     if (rc == TD_EAGAIN) /* a prepared dataset still being checked */
         td_http_resp_header(r, "Retry-After", "1");
@@ -1453,29 +1474,6 @@ static int method_allowed(const char *allow, const char *method)
     return ok;
 }
 
-/* `?dataset=ID` on a POST is a routing key for a proxy in front of replicas
- * (docker/nginx.conf hashes on it, as it does on the id in GET paths); the body says what
- * is traced, so where both name a dataset they must agree. 0, or -1 with a 400 sent. */
-static int dataset_hint_check(td_http_req *q, td_http_resp *r)
-{
-    const char *hint = td_http_req_query(q, "dataset");
-    int rc = 0;
-    if (hint && !strcmp(td_http_req_method(q), "POST")) {
-        size_t len = 0;
-        const char *body = td_http_req_body(q, &len);
-        json_t *root = body ? json_loadb(body, len, 0, NULL) : NULL;
-        const char *id = json_string_value(json_object_get(root, "dataset"));
-        if (id && strcmp(id, hint)) {
-            rc = -1;
-            api_error(r, TD_AE_BAD_REQUEST, "dataset",
-                      "dataset: the body's '%.64s' differs from the query's '%.64s' (the key "
-                      "a proxy routes on)", id, hint);
-        }
-        json_decref(root);
-    }
-    return rc;
-}
-
 static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
 {
     const char *m = td_http_req_method(q), *path = td_http_req_path(q);
@@ -1499,8 +1497,6 @@ static void dispatch(td_app *app, td_http_req *q, td_http_resp *r)
         method_not_allowed(r, w->allow, m);
     } else if (!w->fn) {
         api_error(r, TD_AE_NOT_FOUND, NULL, "%s", w->missing);
-    } else if (dataset_hint_check(q, r)) {
-        /* answered: 400 */
     } else {
         w->fn(app, q, r, seg);
     }
@@ -1548,11 +1544,15 @@ int td_routes_defer_dataset(td_app *app, td_http_req *q, td_http_resp *r, const 
                             td_http_work_fn fn, void *job)
 {
     td_err e = {0};
-    td_status rc = td_store_acquire(app->store, id, snap, &e);
-    int queued = 0;
+    td_status rc;
+    int queued = 0, answered = dataset_hint_check(q, r, id) != 0;
+    *snap = NULL;
+    rc = answered ? TD_OK : td_store_acquire(app->store, id, snap, &e);
     if (rc == TD_EAGAIN) /* a prepared dataset still being checked */
         td_http_resp_header(r, "Retry-After", "1");
-    if (rc) {
+    if (answered) {
+        /* 400: the routing key */
+    } else if (rc) {
         *snap = NULL;
         td_routes_error(r, rc == TD_ENOTFOUND ? "unknown_dataset" : rc == TD_EAGAIN ? "loading" : "internal",
                         "dataset", e.msg);

@@ -883,6 +883,12 @@ static void test_dataset_routing_key(void **state)
     req(&A, "POST", "/v1/render?dataset=levi", JSON_CT, SCENE, &r);
     assert_int_equal(r.status, 200);
     th_resp_free(&r);
+    /* the same rule where the body is another endpoint's (the shared deferral) */
+    req(&A, "POST", "/v1/los?dataset=volcano", JSON_CT,
+        "{\"dataset\":\"levi\",\"from\":{\"x\":4000,\"y\":4000,\"height\":2},"
+        "\"to\":{\"x\":5000,\"y\":5000,\"height\":2}}", &r);
+    assert_error(&r, 400, "bad_request", "dataset");
+    th_resp_free(&r);
 }
 
 /* --- static web -------------------------------------------------------------------------- */
