@@ -42,17 +42,22 @@
 #include "hash.h"
 
 #define TD_PREPARED_FORMAT "terrad-prepared"
-#define TD_STATE_MAGIC "TDPREP1"
+#define TD_STATE_MAGIC "TDPREP2"
 #define TD_INDEX_MAX (16u << 20) /* 16 MiB of JSON: 65536 chunks of checksums */
 
 _Static_assert(sizeof(td_tile) == 24, "tiles.bin holds td_tile records of 24 bytes");
 
+/* Layer k: 0 the heights (grid), 1 .. nlev the coarse levels (lev[k]); their shapes,
+ * chunks and checksums are kept when the grids are taken. */
 struct td_prepared {
     char dir[PATH_MAX];
     td_grid *grid;
-    int32_t w, h; /* kept when the grid is taken */
-    int32_t chunk_rows, nchunks;
-    uint64_t *sums;
+    td_grid *lev[TD_LOD_MAX + 1];
+    int nlev;
+    int32_t lw[TD_LOD_MAX + 1], lh[TD_LOD_MAX + 1], lchunks[TD_LOD_MAX + 1];
+    uint64_t *sums[TD_LOD_MAX + 1];
+    uint64_t tiles_fnv[TD_LOD_MAX + 1];
+    int32_t chunk_rows, nchunks; /* nchunks: of every layer */
     uint64_t fingerprint;
 };
 
@@ -150,23 +155,36 @@ static void src_close(td_src_rows *s)
 
 /* --- the prepare's state: chunks done and running statistics ----------------------- */
 
+/* One grid of the form (0: heights.f32; k >= 1: coarse level k, lodk.f32) as the state
+ * file keeps it: its shape, the rows written from the north, running statistics. */
+typedef struct td_layer {
+    int32_t w, h, tiles_x, tiles_y, nchunks, emitted;
+    int64_t voids;
+    float zmin, zmax;
+} td_layer;
+
 typedef struct td_state_hdr {
     char magic[8];
     uint32_t version;
-    int32_t w, h, tile_log2, chunk_rows, nchunks, done, tiles_x, tiles_y;
+    int32_t tile_log2, chunk_rows, done, nlayers; /* done: chunks of heights.f32 */
     uint64_t src_size;
     int64_t src_mtime;
-    int64_t voids;
-    float zmin, zmax;
+    td_layer layer[TD_LOD_MAX + 1];
 } td_state_hdr;
+
+typedef struct td_layer_buf {
+    uint64_t *sums; /* nchunks */
+    float *lo, *hi; /* per tile */
+    float *ring;    /* levels: the finer layer's last three rows, at (south row % 3) */
+    float *row;     /* levels: the row being made */
+    int fd;
+} td_layer_buf;
 
 typedef struct td_prep_run {
     const char *dir;
     td_state_hdr st;
-    uint64_t *sums;   /* nchunks */
-    float *lo, *hi;   /* per tile */
-    float *buf;       /* chunk_rows * w */
-    int fd;           /* heights.f32 */
+    td_layer_buf b[TD_LOD_MAX + 1];
+    float *buf; /* chunk_rows * w * 2: a chunk in south order, then in file order (and scratch) */
 } td_prep_run;
 
 /* dir/name into out (n bytes); 0 if it does not fit. */
@@ -180,6 +198,25 @@ static int path_in(char *out, size_t n, const char *dir, const char *name)
         memcpy(out + a + 1, name, b + 1);
     }
     return ok;
+}
+
+/* The heights and tile records' file names of layer k. */
+static const char *layer_file(int k, char *out, size_t n)
+{
+    if (k == 0)
+        snprintf(out, n, "%s", TD_PREPARED_HEIGHTS);
+    else
+        snprintf(out, n, TD_PREPARED_LEVEL_FMT, k);
+    return out;
+}
+
+static const char *layer_tiles(int k, char *out, size_t n)
+{
+    if (k == 0)
+        snprintf(out, n, "%s", TD_PREPARED_TILES);
+    else
+        snprintf(out, n, TD_PREPARED_LEVEL_TILES_FMT, k);
+    return out;
 }
 
 static td_status write_file(const char *dir, const char *name, const void *const *parts,
@@ -208,29 +245,49 @@ out:
     return rc;
 }
 
+static size_t layer_tiles_n(const td_layer *m) { return (size_t)m->tiles_x * (size_t)m->tiles_y; }
+
 static td_status state_save(td_prep_run *r, td_err *err)
 {
-    size_t nt = (size_t)r->st.tiles_x * (size_t)r->st.tiles_y;
-    const void *parts[4] = {&r->st, r->sums, r->lo, r->hi};
-    size_t lens[4] = {sizeof r->st, (size_t)r->st.nchunks * 8, nt * 4, nt * 4};
-    return write_file(r->dir, TD_PREPARED_STATE, parts, lens, 4, err);
+    const void *parts[1 + 3 * (TD_LOD_MAX + 1)] = {&r->st};
+    size_t lens[1 + 3 * (TD_LOD_MAX + 1)] = {sizeof r->st};
+    int n = 1;
+    for (int k = 0; k < r->st.nlayers; k++) {
+        const td_layer *m = &r->st.layer[k];
+        parts[n] = r->b[k].sums;
+        lens[n++] = (size_t)m->nchunks * 8;
+        parts[n] = r->b[k].lo;
+        lens[n++] = layer_tiles_n(m) * 4;
+        parts[n] = r->b[k].hi;
+        lens[n++] = layer_tiles_n(m) * 4;
+    }
+    return write_file(r->dir, TD_PREPARED_STATE, parts, lens, n, err);
 }
 
-/* A state file that matches `want` (same source, shape and chunking): its chunks done and
- * statistics into r. Anything else (absent, short, foreign): start again. */
+static int same_layer(const td_layer *a, const td_layer *b)
+{
+    return a->w == b->w && a->h == b->h && a->tiles_x == b->tiles_x && a->tiles_y == b->tiles_y &&
+           a->nchunks == b->nchunks && a->emitted >= 0 && a->emitted <= a->h;
+}
+
+/* A state file that matches `want` (same source, shape, chunking and levels): its rows
+ * done and statistics into r. Anything else (absent, short, foreign): start again. */
 static int state_load(td_prep_run *r, const td_state_hdr *want)
 {
     char path[PATH_MAX];
     td_state_hdr h;
-    size_t nt = (size_t)want->tiles_x * (size_t)want->tiles_y;
     FILE *f = path_in(path, sizeof path, r->dir, TD_PREPARED_STATE) ? fopen(path, "rb") : NULL;
     int ok = f && fread(&h, sizeof h, 1, f) == 1 && !memcmp(h.magic, want->magic, 8) &&
-             h.version == want->version && h.w == want->w && h.h == want->h &&
-             h.tile_log2 == want->tile_log2 && h.chunk_rows == want->chunk_rows &&
-             h.nchunks == want->nchunks && h.src_size == want->src_size &&
-             h.src_mtime == want->src_mtime && h.done >= 0 && h.done <= h.nchunks &&
-             fread(r->sums, 8, (size_t)h.nchunks, f) == (size_t)h.nchunks &&
-             fread(r->lo, 4, nt, f) == nt && fread(r->hi, 4, nt, f) == nt;
+             h.version == want->version && h.tile_log2 == want->tile_log2 &&
+             h.chunk_rows == want->chunk_rows && h.nlayers == want->nlayers &&
+             h.src_size == want->src_size && h.src_mtime == want->src_mtime && h.done >= 0 &&
+             h.done <= want->layer[0].nchunks;
+    for (int k = 0; ok && k < want->nlayers; k++) {
+        size_t nt = layer_tiles_n(&want->layer[k]);
+        ok = same_layer(&h.layer[k], &want->layer[k]) &&
+             fread(r->b[k].sums, 8, (size_t)want->layer[k].nchunks, f) == (size_t)want->layer[k].nchunks &&
+             fread(r->b[k].lo, 4, nt, f) == nt && fread(r->b[k].hi, 4, nt, f) == nt;
+    }
     if (ok)
         r->st = h;
     if (f)
@@ -238,26 +295,25 @@ static int state_load(td_prep_run *r, const td_state_hdr *want)
     return ok;
 }
 
-/* Folds south row j (w samples) into the tiles' and the grid's statistics. */
-static void stats_row(td_prep_run *r, int32_t j, const float *row)
+/* Folds south row j (m->w samples) of layer m into its tiles' and its statistics. */
+static void stats_row(td_layer *m, td_layer_buf *b, int L, int32_t j, const float *row)
 {
-    const int L = r->st.tile_log2;
-    const int32_t T = (int32_t)1 << L, w = r->st.w;
+    const int32_t T = (int32_t)1 << L, w = m->w;
     int32_t tys[2], nty = 0;
-    if ((j >> L) < r->st.tiles_y)
+    if ((j >> L) < m->tiles_y)
         tys[nty++] = j >> L;
     if (j > 0 && (j & (T - 1)) == 0)
         tys[nty++] = (j >> L) - 1; /* the top edge of the tile row below */
     for (int32_t i = 0; i < w; i++) {
         float v = row[i];
         if (isnan(v)) {
-            r->st.voids++;
+            m->voids++;
         } else {
-            r->st.zmin = v < r->st.zmin ? v : r->st.zmin;
-            r->st.zmax = v > r->st.zmax ? v : r->st.zmax;
+            m->zmin = v < m->zmin ? v : m->zmin;
+            m->zmax = v > m->zmax ? v : m->zmax;
         }
     }
-    for (int32_t tx = 0; tx < r->st.tiles_x; tx++) {
+    for (int32_t tx = 0; tx < m->tiles_x; tx++) {
         int32_t i0 = tx * T, i1 = i0 + T < w - 1 ? i0 + T : w - 1;
         float lo = INFINITY, hi = -INFINITY;
         for (int32_t i = i0; i <= i1; i++) {
@@ -265,36 +321,161 @@ static void stats_row(td_prep_run *r, int32_t j, const float *row)
             hi = row[i] > hi ? row[i] : hi;
         }
         for (int k = 0; k < nty; k++) {
-            size_t t = (size_t)tys[k] * (size_t)r->st.tiles_x + (size_t)tx;
-            r->lo[t] = lo < r->lo[t] ? lo : r->lo[t];
-            r->hi[t] = hi > r->hi[t] ? hi : r->hi[t];
+            size_t t = (size_t)tys[k] * (size_t)m->tiles_x + (size_t)tx;
+            b->lo[t] = lo < b->lo[t] ? lo : b->lo[t];
+            b->hi[t] = hi > b->hi[t] ? hi : b->hi[t];
         }
     }
 }
 
-/* Chunk c: read, reverse into south order, statistics, checksum, one pwrite. */
+/* Chunk c of a layer: its rows (*n) and where they start in its file (rows from the
+ * north c*R .. c*R+n-1 are the south rows h-c*R-n .. h-1-c*R, one contiguous range). */
+static off_t chunk_span(int32_t w, int32_t h, int32_t R, int32_t c, int32_t *n)
+{
+    int32_t r0 = c * R;
+    *n = h - r0 < R ? h - r0 : R;
+    return (off_t)(h - r0 - *n) * (off_t)w * 4;
+}
+
+/* --- the coarse levels, made while the heights stream ------------------------------ */
+
+/* The finer row whose arrival (rows come north first) completes coarse row J: the
+ * lowest of the rows around its node, which lod.c's filter reads. */
+static int32_t level_trigger(const td_layer *f, int32_t J)
+{
+    int32_t cj = 2 * J < f->h - 1 ? 2 * J : f->h - 1;
+    return cj > 0 ? cj - 1 : 0;
+}
+
+/* Coarse row J from the finer layer f's last three rows: lod.c's filtered() at every node
+ * (same weights, same sums in the same order, so the same floats as td_lod_build). */
+static void level_row(const td_layer *f, const float *ring, int32_t J, int32_t wk, float *out)
+{
+    static const double wt[3] = {1.0, 2.0, 1.0};
+    const int32_t cj = 2 * J < f->h - 1 ? 2 * J : f->h - 1;
+    for (int32_t I = 0; I < wk; I++) {
+        int32_t ci = 2 * I < f->w - 1 ? 2 * I : f->w - 1;
+        double sum = 0.0, wsum = 0.0;
+        float v = NAN;
+        if (!isnan(ring[(size_t)(cj % 3) * (size_t)f->w + (size_t)ci])) {
+            for (int dj = -1; dj <= 1; dj++) {
+                int32_t j = cj + dj;
+                if (j < 0 || j >= f->h)
+                    continue;
+                for (int di = -1; di <= 1; di++) {
+                    int32_t i = ci + di;
+                    if (i < 0 || i >= f->w)
+                        continue;
+                    float z = ring[(size_t)(j % 3) * (size_t)f->w + (size_t)i];
+                    if (!isnan(z)) {
+                        sum += wt[di + 1] * wt[dj + 1] * (double)z;
+                        wsum += wt[di + 1] * wt[dj + 1];
+                    }
+                }
+            }
+            v = (float)(sum / wsum);
+        }
+        out[I] = v;
+    }
+}
+
+/* Chunk c of layer k is written: read it back (from the page cache) for its checksum. */
+static td_status layer_sum(td_prep_run *r, int k, int32_t c, unsigned char *scratch, td_err *err)
+{
+    td_status rc = TD_OK;
+    const td_layer *m = &r->st.layer[k];
+    int32_t n;
+    off_t at = chunk_span(m->w, m->h, r->st.chunk_rows, c, &n);
+    size_t bytes = (size_t)n * (size_t)m->w * 4;
+    char name[32];
+    if (pread(r->b[k].fd, scratch, bytes, at) != (ssize_t)bytes)
+        rc = td_err_set(err, TD_EIO, "%s/%s: cannot read back chunk %ld (%s)", r->dir,
+                        layer_file(k, name, sizeof name), (long)c, strerror(errno));
+    else
+        r->b[k].sums[c] = td_fnv1a(TD_FNV1A_INIT, scratch, bytes);
+    return rc;
+}
+
+/* South row j of layer k-1 arrives (north first): every row of level k it completes is
+ * made, written, counted and passed on to level k+1. `scratch` holds a chunk of k. */
+static td_status level_feed(td_prep_run *r, int k, int32_t j, const float *row, unsigned char *scratch,
+                            td_err *err)
+{
+    td_status rc = TD_OK;
+    const td_layer *f = &r->st.layer[k - 1];
+    td_layer *m = &r->st.layer[k];
+    td_layer_buf *b = &r->b[k];
+    const int32_t R = r->st.chunk_rows;
+    char name[32];
+    memcpy(b->ring + (size_t)(j % 3) * (size_t)f->w, row, (size_t)f->w * 4);
+    while (rc == TD_OK && m->emitted < m->h && level_trigger(f, m->h - 1 - m->emitted) >= j) {
+        int32_t J = m->h - 1 - m->emitted;
+        size_t bytes = (size_t)m->w * 4;
+        level_row(f, b->ring, J, m->w, b->row);
+        stats_row(m, b, r->st.tile_log2, J, b->row);
+        if (pwrite(b->fd, b->row, bytes, (off_t)J * (off_t)bytes) != (ssize_t)bytes) {
+            rc = td_err_set(err, TD_EIO, "%s/%s: cannot write row %ld (%s)", r->dir,
+                            layer_file(k, name, sizeof name), (long)J, strerror(errno));
+            break;
+        }
+        m->emitted++;
+        if (m->emitted % R == 0 || m->emitted == m->h)
+            rc = layer_sum(r, k, (m->emitted - 1) / R, scratch, err);
+        if (rc == TD_OK && k + 1 < r->st.nlayers)
+            rc = level_feed(r, k + 1, J, b->row, scratch, err);
+    }
+    return rc;
+}
+
+/* After a resume: each level's ring again holds the last rows its finer layer wrote (from
+ * that layer's file: what the state counts was synced before the state was saved). */
+static td_status rings_load(td_prep_run *r, td_err *err)
+{
+    td_status rc = TD_OK;
+    char name[32];
+    for (int k = 1; k < r->st.nlayers && rc == TD_OK; k++) {
+        const td_layer *f = &r->st.layer[k - 1];
+        size_t bytes = (size_t)f->w * 4;
+        for (int32_t j = f->h - f->emitted; j < f->h && j < f->h - f->emitted + 3 && rc == TD_OK; j++)
+            if (pread(r->b[k - 1].fd, r->b[k].ring + (size_t)(j % 3) * (size_t)f->w, bytes,
+                      (off_t)j * (off_t)bytes) != (ssize_t)bytes)
+                rc = td_err_set(err, TD_EIO, "%s/%s: cannot read row %ld to continue (%s)", r->dir,
+                                layer_file(k - 1, name, sizeof name), (long)j, strerror(errno));
+    }
+    return rc;
+}
+
+/* Chunk c: read, reverse into south order, statistics, checksum, one pwrite, the levels
+ * it completes, then every file synced (before the state that counts it is saved). */
 static td_status chunk_write(td_prep_run *r, td_src_rows *src, int32_t c, td_err *err)
 {
     td_status rc;
-    const size_t w = (size_t)r->st.w;
+    td_layer *m = &r->st.layer[0];
+    const size_t w = (size_t)m->w;
+    int32_t n;
+    off_t at = chunk_span(m->w, m->h, r->st.chunk_rows, c, &n);
     int32_t r0 = c * r->st.chunk_rows;
-    int32_t n = r->st.h - r0 < r->st.chunk_rows ? r->st.h - r0 : r->st.chunk_rows;
     float *tmp = r->buf + (size_t)r->st.chunk_rows * w; /* the second half: file order */
     size_t bytes = (size_t)n * w * 4;
-    off_t at = (off_t)(r->st.h - r0 - n) * (off_t)w * 4;
 
     rc = src_rows(src, r0, n, tmp, err);
     for (int32_t k = 0; k < n && rc == TD_OK; k++) {
         float *dst = r->buf + (size_t)(n - 1 - k) * w;
         memcpy(dst, tmp + (size_t)k * w, w * 4);
-        stats_row(r, r->st.h - 1 - (r0 + k), dst);
+        stats_row(m, &r->b[0], r->st.tile_log2, m->h - 1 - (r0 + k), dst);
     }
     if (rc == TD_OK) {
-        r->sums[c] = td_fnv1a(TD_FNV1A_INIT, r->buf, bytes);
-        if (pwrite(r->fd, r->buf, bytes, at) != (ssize_t)bytes || fdatasync(r->fd))
+        r->b[0].sums[c] = td_fnv1a(TD_FNV1A_INIT, r->buf, bytes);
+        if (pwrite(r->b[0].fd, r->buf, bytes, at) != (ssize_t)bytes)
             rc = td_err_set(err, TD_EIO, "%s/%s: cannot write chunk %ld (%s)", r->dir,
                             TD_PREPARED_HEIGHTS, (long)c, strerror(errno));
     }
+    for (int32_t k = 0; k < n && rc == TD_OK && r->st.nlayers > 1; k++)
+        rc = level_feed(r, 1, m->h - 1 - (r0 + k), r->buf + (size_t)(n - 1 - k) * w, (unsigned char *)tmp, err);
+    m->emitted += rc == TD_OK ? n : 0;
+    for (int k = 0; k < r->st.nlayers && rc == TD_OK; k++)
+        if (fdatasync(r->b[k].fd))
+            rc = td_err_set(err, TD_EIO, "%s: cannot sync layer %d (%s)", r->dir, k, strerror(errno));
     return rc;
 }
 
@@ -307,60 +488,85 @@ static json_t *geo_json(const td_georef *g)
                      g->y0, "dx", g->dx, "dy", g->dy, "crs", g->crs);
 }
 
-/* tiles.bin and the index, from the finished run. */
-static td_status finish(td_prep_run *r, const td_src_rows *src, td_err *err)
+/* Layer k's tile records (as td_grid_finish computes them), written to its tiles file;
+ * their checksum into *sum. */
+static td_status tiles_write(td_prep_run *r, int k, uint64_t *sum, td_err *err)
 {
     td_status rc;
-    td_grid tg;
-    size_t nt = (size_t)r->st.tiles_x * (size_t)r->st.tiles_y;
-    td_tile *tiles = calloc(nt, sizeof *tiles);
-    json_t *root = NULL, *sums = json_array();
-    char *text = NULL, hx[17];
+    const td_layer *m = &r->st.layer[k];
     const int32_t T = (int32_t)1 << r->st.tile_log2;
-    uint64_t tsum;
-
-    if (!tiles || !sums) {
+    size_t nt = layer_tiles_n(m);
+    td_tile *tiles = calloc(nt, sizeof *tiles);
+    char name[32];
+    if (!tiles) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for %zu tile records", nt);
         goto out;
     }
-    memset(&tg, 0, sizeof tg);
-    tg.w = r->st.w;
-    tg.h = r->st.h;
     for (size_t t = 0; t < nt; t++) {
         td_tile *x = &tiles[t];
-        x->i0 = (int32_t)(t % (size_t)r->st.tiles_x) * T;
-        x->j0 = (int32_t)(t / (size_t)r->st.tiles_x) * T;
-        x->nx = r->st.w - 1 - x->i0 < T ? r->st.w - 1 - x->i0 : T;
-        x->ny = r->st.h - 1 - x->j0 < T ? r->st.h - 1 - x->j0 : T;
-        x->zmin = r->lo[t];
-        x->zmax = r->hi[t];
+        x->i0 = (int32_t)(t % (size_t)m->tiles_x) * T;
+        x->j0 = (int32_t)(t / (size_t)m->tiles_x) * T;
+        x->nx = m->w - 1 - x->i0 < T ? m->w - 1 - x->i0 : T;
+        x->ny = m->h - 1 - x->j0 < T ? m->h - 1 - x->j0 : T;
+        x->zmin = r->b[k].lo[t];
+        x->zmax = r->b[k].hi[t];
     }
-    tsum = td_fnv1a(TD_FNV1A_INIT, tiles, nt * sizeof *tiles);
+    *sum = td_fnv1a(TD_FNV1A_INIT, tiles, nt * sizeof *tiles);
     {
         const void *parts[1] = {tiles};
         size_t lens[1] = {nt * sizeof *tiles};
-        rc = write_file(r->dir, TD_PREPARED_TILES, parts, lens, 1, err);
+        rc = write_file(r->dir, layer_tiles(k, name, sizeof name), parts, lens, 1, err);
     }
-    if (rc)
-        goto out;
-    for (int32_t c = 0; c < r->st.nchunks; c++) {
-        hex64(hx, r->sums[c]);
+out:
+    free(tiles);
+    return rc;
+}
+
+/* A layer's index fields: chunks, height range, voids, the tile records' checksum. */
+static json_t *layer_json(const td_prep_run *r, int k, uint64_t tsum)
+{
+    const td_layer *m = &r->st.layer[k];
+    int allvoid = m->voids == (int64_t)m->w * m->h;
+    json_t *sums = json_array();
+    char hx[17];
+    for (int32_t c = 0; sums && c < m->nchunks; c++) {
+        hex64(hx, r->b[k].sums[c]);
         json_array_append_new(sums, json_string(hx));
     }
     hex64(hx, tsum);
-    {
-        int allvoid = r->st.voids == (int64_t)r->st.w * r->st.h;
-        root = json_pack("{s:s, s:i, s:I, s:I, s:[f,f], s:i, s:o, s:o, s:I, s:o, s:i, s:O, s:s, s:{s:s, s:I, s:I}}",
-                         "format", TD_PREPARED_FORMAT, "version", TD_PREPARED_VERSION,
-                         "width", (json_int_t)r->st.w, "height", (json_int_t)r->st.h,
-                         "spacing", src->shape.sx, src->shape.sy, "tile_log2", r->st.tile_log2,
-                         "zmin", allvoid ? json_null() : json_real((double)r->st.zmin),
-                         "zmax", allvoid ? json_null() : json_real((double)r->st.zmax),
-                         "voids", (json_int_t)r->st.voids, "georef", geo_json(&src->shape.geo),
-                         "chunk_rows", r->st.chunk_rows, "chunks", sums, "tiles_fnv", hx,
-                         "source", "name", td_demutil_basename(src->path),
-                         "bytes", (json_int_t)src->size, "mtime", (json_int_t)src->mtime);
+    return json_pack("{s:I, s:I, s:o, s:o, s:I, s:o, s:s}", "width", (json_int_t)m->w, "height", (json_int_t)m->h,
+                     "zmin", allvoid ? json_null() : json_real((double)m->zmin),
+                     "zmax", allvoid ? json_null() : json_real((double)m->zmax), "voids", (json_int_t)m->voids,
+                     "chunks", sums ? sums : json_null(), "tiles_fnv", hx);
+}
+
+/* The tile records of every layer and the index, from the finished run. */
+static td_status finish(td_prep_run *r, const td_src_rows *src, td_err *err)
+{
+    td_status rc = TD_OK;
+    json_t *root = NULL, *levels = json_array(), *base = NULL;
+    char *text = NULL;
+    uint64_t tsum = 0;
+
+    for (int k = 0; k < r->st.nlayers && rc == TD_OK; k++) {
+        rc = tiles_write(r, k, &tsum, err);
+        if (rc == TD_OK && k == 0)
+            base = layer_json(r, 0, tsum);
+        else if (rc == TD_OK && levels)
+            json_array_append_new(levels, layer_json(r, k, tsum));
     }
+    if (rc)
+        goto out;
+    root = base && levels ? json_pack("{s:s, s:i, s:[f,f], s:i, s:o, s:i, s:{s:s, s:I, s:I}, s:O}",
+                                      "format", TD_PREPARED_FORMAT, "version", TD_PREPARED_VERSION,
+                                      "spacing", src->shape.sx, src->shape.sy, "tile_log2", r->st.tile_log2,
+                                      "georef", geo_json(&src->shape.geo), "chunk_rows", r->st.chunk_rows,
+                                      "source", "name", td_demutil_basename(src->path),
+                                      "bytes", (json_int_t)src->size, "mtime", (json_int_t)src->mtime,
+                                      "levels", levels)
+                              : NULL;
+    if (root && json_object_update(root, base))
+        json_decref(root), root = NULL;
     text = root ? json_dumps(root, JSON_INDENT(1) | JSON_COMPACT) : NULL;
     if (!text) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for the index");
@@ -374,9 +580,29 @@ static td_status finish(td_prep_run *r, const td_src_rows *src, td_err *err)
 out:
     free(text);
     json_decref(root);
-    json_decref(sums);
-    free(tiles);
+    json_decref(levels);
+    json_decref(base);
     return rc;
+}
+
+/* The layers' shapes: the heights, then lod.c's levels (halved while both sides exceed 2
+ * samples, at most TD_LOD_MAX). */
+static void layers_plan(td_state_hdr *st, int32_t w, int32_t h)
+{
+    const int32_t T = (int32_t)1 << st->tile_log2;
+    for (int k = 0; k <= TD_LOD_MAX; k++) {
+        td_layer *m = &st->layer[k];
+        if (k > 0 && (st->layer[k - 1].w <= 2 || st->layer[k - 1].h <= 2))
+            break;
+        m->w = k == 0 ? w : st->layer[k - 1].w / 2 + 1; /* lod.c: ceil((n-1)/2) + 1 */
+        m->h = k == 0 ? h : st->layer[k - 1].h / 2 + 1;
+        m->tiles_x = (m->w - 1 + T - 1) / T;
+        m->tiles_y = (m->h - 1 + T - 1) / T;
+        m->nchunks = (m->h + st->chunk_rows - 1) / st->chunk_rows;
+        m->zmin = INFINITY;
+        m->zmax = -INFINITY;
+        st->nlayers = k + 1;
+    }
 }
 
 /* The run's buffers and its state: fresh, or continued from a matching state file. */
@@ -386,41 +612,72 @@ static td_status run_init(td_prep_run *r, const td_src_rows *src, const td_prepa
     td_status rc = TD_OK;
     td_state_hdr want;
     const int32_t T = (int32_t)1 << src->shape.tile_log2;
-    size_t nt;
+    int ok;
 
     memset(&want, 0, sizeof want);
     memcpy(want.magic, TD_STATE_MAGIC, 8);
     want.version = TD_PREPARED_VERSION;
-    want.w = src->shape.w;
-    want.h = src->shape.h;
     want.tile_log2 = src->shape.tile_log2;
     want.chunk_rows = o->chunk_rows > 0 ? o->chunk_rows : T;
-    want.chunk_rows = want.chunk_rows < want.h ? want.chunk_rows : want.h;
-    want.nchunks = (want.h + want.chunk_rows - 1) / want.chunk_rows;
-    want.tiles_x = (want.w - 1 + T - 1) / T;
-    want.tiles_y = (want.h - 1 + T - 1) / T;
+    want.chunk_rows = want.chunk_rows < src->shape.h ? want.chunk_rows : src->shape.h;
     want.src_size = src->size;
     want.src_mtime = src->mtime;
-    want.zmin = INFINITY;
-    want.zmax = -INFINITY;
-    nt = (size_t)want.tiles_x * (size_t)want.tiles_y;
-    r->sums = calloc((size_t)want.nchunks, 8);
-    r->lo = malloc(nt * 4);
-    r->hi = malloc(nt * 4);
-    r->buf = malloc((size_t)want.chunk_rows * (size_t)want.w * 8); /* south + file order */
-    if (!r->sums || !r->lo || !r->hi || !r->buf) {
+    layers_plan(&want, src->shape.w, src->shape.h);
+    r->buf = malloc((size_t)want.chunk_rows * (size_t)src->shape.w * 8); /* south + file order */
+    ok = r->buf != NULL;
+    for (int k = 0; k < want.nlayers && ok; k++) {
+        const td_layer *m = &want.layer[k];
+        td_layer_buf *b = &r->b[k];
+        b->sums = calloc((size_t)m->nchunks, 8);
+        b->lo = malloc(layer_tiles_n(m) * 4);
+        b->hi = malloc(layer_tiles_n(m) * 4);
+        b->ring = k ? malloc((size_t)want.layer[k - 1].w * 3 * 4) : NULL;
+        b->row = k ? malloc((size_t)m->w * 4) : NULL;
+        ok = b->sums && b->lo && b->hi && (!k || (b->ring && b->row));
+    }
+    if (!ok) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for chunks of %ld rows of %ld samples",
-                        (long)want.chunk_rows, (long)want.w);
+                        (long)want.chunk_rows, (long)src->shape.w);
         goto out;
     }
     if (!state_load(r, &want)) {
         r->st = want;
-        for (size_t t = 0; t < nt; t++) {
-            r->lo[t] = INFINITY;
-            r->hi[t] = -INFINITY;
-        }
+        for (int k = 0; k < want.nlayers; k++)
+            for (size_t t = 0; t < layer_tiles_n(&want.layer[k]); t++) {
+                r->b[k].lo[t] = INFINITY;
+                r->b[k].hi[t] = -INFINITY;
+            }
     }
 out:
+    return rc;
+}
+
+static void run_free(td_prep_run *r)
+{
+    for (int k = 0; k <= TD_LOD_MAX; k++) {
+        if (r->b[k].fd >= 0)
+            close(r->b[k].fd);
+        free(r->b[k].sums);
+        free(r->b[k].lo);
+        free(r->b[k].hi);
+        free(r->b[k].ring);
+        free(r->b[k].row);
+    }
+    free(r->buf);
+}
+
+/* Every layer's file, of its final size (kept as they are when continuing). */
+static td_status files_open(td_prep_run *r, td_err *err)
+{
+    td_status rc = TD_OK;
+    char path[PATH_MAX], name[32];
+    for (int k = 0; k < r->st.nlayers && rc == TD_OK; k++) {
+        const td_layer *m = &r->st.layer[k];
+        if (!path_in(path, sizeof path, r->dir, layer_file(k, name, sizeof name)) ||
+            (r->b[k].fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644)) < 0 ||
+            ftruncate(r->b[k].fd, (off_t)m->w * (off_t)m->h * 4))
+            rc = td_err_set(err, TD_EIO, "%s: cannot create (%s)", path, strerror(errno));
+    }
     return rc;
 }
 
@@ -444,6 +701,26 @@ static int already_done(const char *dir, const td_src_rows *src)
     return same;
 }
 
+/* The chunks left, each followed by the state that counts it and the progress call. */
+static td_status chunks_run(td_prep_run *r, td_src_rows *src, const td_prepare_opts *o, td_err *err)
+{
+    td_status rc = TD_OK;
+    const td_layer *m = &r->st.layer[0];
+    while (r->st.done < m->nchunks && rc == TD_OK) {
+        rc = chunk_write(r, src, r->st.done, err);
+        if (rc == TD_OK) {
+            r->st.done++;
+            rc = state_save(r, err);
+        }
+        if (rc == TD_OK && o->progress &&
+            o->progress(o->cls, r->st.done == m->nchunks ? m->h : (int64_t)r->st.done * r->st.chunk_rows, m->h,
+                        m->w))
+            rc = td_err_set(err, TD_ECANCELED, "%s: prepare stopped after %ld of %ld chunks (run it again to continue)",
+                            r->dir, (long)r->st.done, (long)m->nchunks);
+    }
+    return rc;
+}
+
 td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opts *o,
                      td_prepare_result *res, td_err *err)
 {
@@ -451,21 +728,20 @@ td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opt
     td_src_rows src;
     td_prep_run r;
     char path[PATH_MAX];
-    off_t total;
     int lock = -1;
 
     memset(res, 0, sizeof *res);
     memset(&r, 0, sizeof r);
     r.dir = dir;
-    r.fd = -1;
+    for (int k = 0; k <= TD_LOD_MAX; k++)
+        r.b[k].fd = -1;
     rc = src_open(&src, src_path, &o->dem, err);
     if (rc)
         goto out;
     res->w = src.shape.w;
     res->h = src.shape.h;
     res->streamed = src.whole == NULL;
-    total = (off_t)src.shape.w * (off_t)src.shape.h * 4;
-    res->bytes = (uint64_t)total;
+    res->bytes = (uint64_t)src.shape.w * (uint64_t)src.shape.h * 4u;
     if (mkdir(dir, 0755) && errno != EEXIST) {
         rc = td_err_set(err, TD_EIO, "%s: cannot create (%s)", dir, strerror(errno));
         goto out;
@@ -485,38 +761,22 @@ td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opt
     if (rc)
         goto out;
     res->resumed_rows = (int64_t)r.st.done * r.st.chunk_rows;
+    res->levels = r.st.nlayers - 1;
     if (path_in(path, sizeof path, dir, TD_PREPARED_INDEX))
         unlink(path); /* a stale index must not describe half-rewritten heights */
-    if (!path_in(path, sizeof path, dir, TD_PREPARED_HEIGHTS) ||
-        (r.fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644)) < 0 || ftruncate(r.fd, total)) {
-        rc = td_err_set(err, TD_EIO, "%s: cannot create (%s)", path, strerror(errno));
-        goto out;
-    }
-    while (r.st.done < r.st.nchunks && rc == TD_OK) {
-        rc = chunk_write(&r, &src, r.st.done, err);
-        if (rc == TD_OK) {
-            r.st.done++;
-            rc = state_save(&r, err);
-        }
-        if (rc == TD_OK && o->progress &&
-            o->progress(o->cls, r.st.done == r.st.nchunks ? r.st.h : (int64_t)r.st.done * r.st.chunk_rows, r.st.h,
-                        r.st.w))
-            rc = td_err_set(err, TD_ECANCELED, "%s: prepare stopped after %ld of %ld chunks (run it again to continue)",
-                            dir, (long)r.st.done, (long)r.st.nchunks);
-    }
+    rc = files_open(&r, err);
+    if (rc == TD_OK)
+        rc = rings_load(&r, err);
+    if (rc == TD_OK)
+        rc = chunks_run(&r, &src, o, err);
     if (rc == TD_OK)
         rc = finish(&r, &src, err);
     if (rc == TD_OK && path_in(path, sizeof path, dir, TD_PREPARED_STATE))
         unlink(path);
 out:
-    if (r.fd >= 0)
-        close(r.fd);
+    run_free(&r);
     if (lock >= 0)
         close(lock);
-    free(r.sums);
-    free(r.lo);
-    free(r.hi);
-    free(r.buf);
     src_close(&src);
     return rc;
 }
@@ -566,16 +826,93 @@ out:
     return rc;
 }
 
-/* The index's fields into p and a grid record (no heights, no tiles yet). */
-static td_status index_read(td_prepared *p, const char *path, td_grid *g, uint64_t *tiles_fnv,
-                            td_err *err)
+/* One layer's fields of the index (o: the root for the heights, an entry of "levels"):
+ * its shape must be (w, h); height range, voids, chunk checksums and tile checksum into
+ * g, p->sums[k] and p->tiles_fnv[k]. */
+static td_status layer_read(td_prepared *p, const char *path, json_t *o, int k, int32_t w, int32_t h,
+                            td_grid *g, td_err *err)
+{
+    td_status rc = TD_OK;
+    json_t *chunks = json_object_get(o, "chunks");
+    size_t nc = json_array_size(chunks);
+    char name[32];
+    layer_file(k, name, sizeof name);
+    if (json_integer_value(json_object_get(o, "width")) != w || json_integer_value(json_object_get(o, "height")) != h ||
+        nc != (size_t)((h + p->chunk_rows - 1) / p->chunk_rows) ||
+        !hex_parse(json_string_value(json_object_get(o, "tiles_fnv")), &p->tiles_fnv[k])) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: %s's width, height, chunks or tiles_fnv missing or inconsistent",
+                        path, name);
+        goto out;
+    }
+    g->w = w;
+    g->h = h;
+    g->zmin = json_is_number(json_object_get(o, "zmin")) ? (float)json_number_value(json_object_get(o, "zmin")) : NAN;
+    g->zmax = json_is_number(json_object_get(o, "zmax")) ? (float)json_number_value(json_object_get(o, "zmax")) : NAN;
+    g->voids = json_integer_value(json_object_get(o, "voids"));
+    p->lw[k] = w;
+    p->lh[k] = h;
+    p->lchunks[k] = (int32_t)nc;
+    p->sums[k] = calloc(nc, 8);
+    if (!p->sums[k]) {
+        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory", path);
+        goto out;
+    }
+    for (size_t c = 0; c < nc && rc == TD_OK; c++)
+        if (!hex_parse(json_string_value(json_array_get(chunks, c)), &p->sums[k][c]))
+            rc = td_err_set(err, TD_EFORMAT, "%s: %s chunks[%zu] is not a 16-digit hex checksum", path, name, c);
+out:
+    return rc;
+}
+
+/* The coarse levels of the index: as many, and of the shapes, lod.c's rule gives for the
+ * grid g; each gets g's tiling and georeference at its spacing. */
+static td_status levels_read(td_prepared *p, const char *path, json_t *levels, const td_grid *g, td_err *err)
+{
+    td_status rc = TD_OK;
+    int32_t w = g->w, h = g->h;
+    int n = 0;
+    while (n < TD_LOD_MAX && w > 2 && h > 2) {
+        w = w / 2 + 1;
+        h = h / 2 + 1;
+        n++;
+    }
+    if (!json_is_array(levels) || json_array_size(levels) != (size_t)n) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: levels missing or not the %d coarse levels of a %ld x %ld grid",
+                        path, n, (long)g->w, (long)g->h);
+        goto out;
+    }
+    w = g->w;
+    h = g->h;
+    for (int k = 1; k <= n && rc == TD_OK; k++) {
+        td_grid *l = calloc(1, sizeof *l);
+        p->lev[k] = l;
+        if (!l) {
+            rc = td_err_set(err, TD_ENOMEM, "%s: out of memory", path);
+            break;
+        }
+        w = w / 2 + 1;
+        h = h / 2 + 1;
+        rc = layer_read(p, path, json_array_get(levels, (size_t)k - 1), k, w, h, l, err);
+        l->sx = ldexp(g->sx, k);
+        l->sy = ldexp(g->sy, k);
+        l->tile_log2 = g->tile_log2;
+        l->geo = g->geo;
+        l->geo.dx = ldexp(g->geo.dx, k);
+        l->geo.dy = ldexp(g->geo.dy, k);
+        p->nlev = k;
+    }
+out:
+    return rc;
+}
+
+/* The index's fields into p and the grid records (no heights, no tiles yet). */
+static td_status index_read(td_prepared *p, const char *path, td_grid *g, td_err *err)
 {
     td_status rc = TD_OK;
     json_error_t je;
-    json_t *root = json_load_file(path, JSON_REJECT_DUPLICATES, &je), *chunks, *sp;
+    json_t *root = json_load_file(path, JSON_REJECT_DUPLICATES, &je), *sp;
     const char *fmt;
     json_int_t ver, w, h, tl, cr;
-    size_t nc;
 
     if (!root) {
         rc = td_err_set(err, access(path, F_OK) ? TD_ENOTFOUND : TD_EFORMAT, "%s: %s", path, je.text);
@@ -594,50 +931,43 @@ static td_status index_read(td_prepared *p, const char *path, td_grid *g, uint64
     tl = json_integer_value(json_object_get(root, "tile_log2"));
     cr = json_integer_value(json_object_get(root, "chunk_rows"));
     sp = json_object_get(root, "spacing");
-    chunks = json_object_get(root, "chunks");
-    nc = json_array_size(chunks);
     if (w < 2 || h < 2 || w > INT32_MAX || h > INT32_MAX || tl < 1 || tl > 16 || cr < 1 || cr > h ||
-        json_array_size(sp) != 2 || nc != (size_t)((h + cr - 1) / cr) ||
-        !hex_parse(json_string_value(json_object_get(root, "tiles_fnv")), tiles_fnv)) {
-        rc = td_err_set(err, TD_EFORMAT, "%s: width, height, tile_log2, chunk_rows, spacing, chunks or "
-                        "tiles_fnv missing or inconsistent", path);
+        json_array_size(sp) != 2) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: width, height, tile_log2, chunk_rows or spacing missing or "
+                        "inconsistent", path);
         goto out;
     }
-    g->w = (int32_t)w;
-    g->h = (int32_t)h;
+    p->chunk_rows = (int32_t)cr;
     g->tile_log2 = (int)tl;
     g->sx = json_number_value(json_array_get(sp, 0));
     g->sy = json_number_value(json_array_get(sp, 1));
-    g->zmin = json_is_number(json_object_get(root, "zmin")) ? (float)json_number_value(json_object_get(root, "zmin")) : NAN;
-    g->zmax = json_is_number(json_object_get(root, "zmax")) ? (float)json_number_value(json_object_get(root, "zmax")) : NAN;
-    g->voids = json_integer_value(json_object_get(root, "voids"));
     if (!(g->sx > 0) || !(g->sy > 0) || !isfinite(g->sx) || !isfinite(g->sy)) {
         rc = td_err_set(err, TD_EFORMAT, "%s: spacing is not positive and finite", path);
         goto out;
     }
-    rc = geo_parse(path, json_object_get(root, "georef"), &g->geo, err);
-    p->chunk_rows = (int32_t)cr;
-    p->nchunks = (int32_t)nc;
-    p->sums = rc ? NULL : calloc(nc, 8);
-    if (!rc && !p->sums)
-        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory", path);
-    for (size_t c = 0; c < nc && rc == TD_OK; c++)
-        if (!hex_parse(json_string_value(json_array_get(chunks, c)), &p->sums[c]))
-            rc = td_err_set(err, TD_EFORMAT, "%s: chunks[%zu] is not a 16-digit hex checksum", path, c);
+    rc = layer_read(p, path, root, 0, (int32_t)w, (int32_t)h, g, err);
+    if (rc == TD_OK)
+        rc = geo_parse(path, json_object_get(root, "georef"), &g->geo, err);
+    if (rc == TD_OK)
+        rc = levels_read(p, path, json_object_get(root, "levels"), g, err);
 out:
     json_decref(root);
     return rc;
 }
 
-/* tiles.bin: size, checksum, and records that fit the grid (a tracer indexes with them). */
+/* A layer's tile records: size, checksum, and records that fit the grid (a tracer
+ * indexes with them). */
 static td_status tiles_read(const char *path, td_grid *g, uint64_t want, td_err *err)
 {
     td_status rc = TD_OK;
     const int32_t T = (int32_t)1 << g->tile_log2;
-    size_t nt = (size_t)g->tiles_x * (size_t)g->tiles_y;
+    size_t nt;
     FILE *f = fopen(path, "rb");
     struct stat st;
 
+    g->tiles_x = (g->w - 1 + T - 1) >> g->tile_log2;
+    g->tiles_y = (g->h - 1 + T - 1) >> g->tile_log2;
+    nt = (size_t)g->tiles_x * (size_t)g->tiles_y;
     g->tiles = calloc(nt, sizeof *g->tiles);
     if (!f || fstat(fileno(f), &st)) {
         rc = td_err_set(err, TD_EIO, "%s: cannot open (%s)", path, strerror(errno));
@@ -664,7 +994,7 @@ static td_status tiles_read(const char *path, td_grid *g, uint64_t want, td_err 
     return rc;
 }
 
-/* heights.f32: exactly w*h*4 bytes, mapped read-only into g. */
+/* A layer's heights: exactly w*h*4 bytes, mapped read-only into g. */
 static td_status heights_map(const char *path, td_grid *g, td_err *err)
 {
     td_status rc = TD_OK;
@@ -691,16 +1021,30 @@ static td_status heights_map(const char *path, td_grid *g, td_err *err)
     return rc;
 }
 
+/* Layer k (0: the heights) of p: its tile records read, its heights mapped. */
+static td_status layer_open(td_prepared *p, int k, td_err *err)
+{
+    td_status rc;
+    char path[PATH_MAX], name[32];
+    td_grid *g = k ? p->lev[k] : p->grid;
+    if (!path_in(path, sizeof path, p->dir, layer_tiles(k, name, sizeof name)))
+        return td_err_set(err, TD_EINVAL, "%s: path too long", p->dir);
+    rc = tiles_read(path, g, p->tiles_fnv[k], err);
+    if (rc == TD_OK && path_in(path, sizeof path, p->dir, layer_file(k, name, sizeof name)))
+        rc = heights_map(path, g, err);
+    return rc;
+}
+
 td_status td_prepared_open(const char *dir, td_prepared **out, td_err *err)
 {
     td_status rc = TD_OK;
     td_prepared *p = calloc(1, sizeof *p);
     char path[PATH_MAX];
-    uint64_t tiles_fnv = 0;
     td_grid *g = calloc(1, sizeof *g);
 
     *out = NULL;
     if (!p || !g) {
+        free(g);
         rc = td_err_set(err, TD_ENOMEM, "%s: out of memory", dir);
         goto out;
     }
@@ -710,23 +1054,17 @@ td_status td_prepared_open(const char *dir, td_prepared **out, td_err *err)
         rc = td_err_set(err, TD_EINVAL, "%s: path too long", dir);
         goto out;
     }
-    rc = index_read(p, path, g, &tiles_fnv, err);
+    rc = index_read(p, path, g, err);
+    for (int k = 0; k <= p->nlev && rc == TD_OK; k++)
+        rc = layer_open(p, k, err);
     if (rc)
         goto out;
-    g->tiles_x = (g->w - 1 + (1 << g->tile_log2) - 1) >> g->tile_log2;
-    g->tiles_y = (g->h - 1 + (1 << g->tile_log2) - 1) >> g->tile_log2;
-    path_in(path, sizeof path, dir, TD_PREPARED_TILES);
-    rc = tiles_read(path, g, tiles_fnv, err);
-    if (rc)
-        goto out;
-    path_in(path, sizeof path, dir, TD_PREPARED_HEIGHTS);
-    rc = heights_map(path, g, err);
-    if (rc)
-        goto out;
-    p->w = g->w;
-    p->h = g->h;
-    p->fingerprint = td_fnv1a(TD_FNV1A_INIT, p->sums, (size_t)p->nchunks * 8);
-    p->fingerprint = td_fnv1a(p->fingerprint, &tiles_fnv, sizeof tiles_fnv);
+    p->fingerprint = TD_FNV1A_INIT;
+    for (int k = 0; k <= p->nlev; k++) {
+        p->fingerprint = td_fnv1a(p->fingerprint, p->sums[k], (size_t)p->lchunks[k] * 8);
+        p->fingerprint = td_fnv1a(p->fingerprint, &p->tiles_fnv[k], 8);
+        p->nchunks += p->lchunks[k];
+    }
     *out = p;
     p = NULL;
 out:
@@ -741,6 +1079,22 @@ td_grid *td_prepared_take_grid(td_prepared *p)
     return g;
 }
 
+td_lod *td_prepared_take_lod(td_prepared *p)
+{
+    td_lod *l = calloc(1, sizeof *l);
+    for (int k = 1; l && k <= p->nlev; k++) {
+        l->grid[k] = p->lev[k];
+        p->lev[k] = NULL;
+        l->view[k].grid = l->grid[k];
+        l->view[k].accel = NULL; /* the tracers skip by the tile records alone */
+        l->bytes += (uint64_t)l->grid[k]->tiles_x * (uint64_t)l->grid[k]->tiles_y * sizeof(td_tile);
+        l->levels = k;
+    }
+    return l;
+}
+
+int td_prepared_levels(const td_prepared *p) { return p->nlev; }
+
 uint64_t td_prepared_fingerprint(const td_prepared *p) { return p->fingerprint; }
 
 int32_t td_prepared_chunks(const td_prepared *p) { return p->nchunks; }
@@ -748,35 +1102,36 @@ int32_t td_prepared_chunks(const td_prepared *p) { return p->nchunks; }
 td_status td_prepared_verify_chunk(const td_prepared *p, int32_t c, td_err *err)
 {
     td_status rc = TD_OK;
-    char path[PATH_MAX];
-    const int32_t w = p->w, h = p->h;
-    int32_t r0 = c * p->chunk_rows, n;
+    char path[PATH_MAX], name[32];
+    int32_t n, k = 0, cc = c;
     int fd = -1;
     unsigned char *buf = NULL;
     size_t bytes;
     off_t at;
     uint64_t sum;
 
-    path_in(path, sizeof path, p->dir, TD_PREPARED_HEIGHTS);
-    if (c < 0 || c >= p->nchunks) {
-        rc = td_err_set(err, TD_EINVAL, "%s: no chunk %ld", path, (long)c);
+    while (k <= p->nlev && cc >= p->lchunks[k])
+        cc -= p->lchunks[k++];
+    if (c < 0 || k > p->nlev) {
+        rc = td_err_set(err, TD_EINVAL, "%s: no chunk %ld", p->dir, (long)c);
         goto out;
     }
-    n = h - r0 < p->chunk_rows ? h - r0 : p->chunk_rows;
-    bytes = (size_t)n * (size_t)w * 4;
-    at = (off_t)(h - r0 - n) * (off_t)w * 4;
+    path_in(path, sizeof path, p->dir, layer_file(k, name, sizeof name));
+    at = chunk_span(p->lw[k], p->lh[k], p->chunk_rows, cc, &n);
+    bytes = (size_t)n * (size_t)p->lw[k] * 4;
     buf = malloc(bytes);
     fd = open(path, O_RDONLY | O_CLOEXEC);
     if (!buf || fd < 0 || pread(fd, buf, bytes, at) != (ssize_t)bytes) {
-        rc = td_err_set(err, TD_EIO, "%s: cannot read chunk %ld (%s)", path, (long)c,
+        rc = td_err_set(err, TD_EIO, "%s: cannot read chunk %ld (%s)", path, (long)cc,
                         buf ? strerror(errno) : "out of memory");
         goto out;
     }
     sum = td_fnv1a(TD_FNV1A_INIT, buf, bytes);
-    if (sum != p->sums[c])
+    if (sum != p->sums[k][cc])
         rc = td_err_set(err, TD_EFORMAT, "%s: chunk %ld (file rows %ld..%ld) has checksum %016llx, the index "
-                        "says %016llx (corrupted)", path, (long)c, (long)r0, (long)(r0 + n - 1),
-                        (unsigned long long)sum, (unsigned long long)p->sums[c]);
+                        "says %016llx (corrupted)", path, (long)cc, (long)(cc * p->chunk_rows),
+                        (long)(cc * p->chunk_rows + n - 1), (unsigned long long)sum,
+                        (unsigned long long)p->sums[k][cc]);
     posix_fadvise(fd, at, (off_t)bytes, POSIX_FADV_DONTNEED);
 out:
     if (fd >= 0)
@@ -789,7 +1144,10 @@ void td_prepared_free(td_prepared *p)
 {
     if (p) {
         td_grid_free(p->grid);
-        free(p->sums);
+        for (int k = 0; k <= TD_LOD_MAX; k++) {
+            td_grid_free(k ? p->lev[k] : NULL);
+            free(p->sums[k]);
+        }
         free(p);
     }
 }

@@ -16,12 +16,22 @@
  *                 read an in-memory grid, with no change in any hot loop
  *   tiles.bin     the td_tile records (grid.h), tiles_x*tiles_y of them, as
  *                 td_grid_finish computes them (so opening never scans the heights)
- *   prepare.state only while a prepare is unfinished: how many chunks are written, their
- *                 checksums and the running tile statistics (a re-run continues there)
+ *   lodK.f32      coarse level K = 1 .. n (n as td_lod_build makes them: halved while both
+ *   lodK.tiles    sides exceed 2 samples, at most TD_LOD_MAX): the heights and tile records
+ *                 of td_lod_build's level K, bit for bit (lod.c's 1-2-1 filter, the same
+ *                 sums in the same order), in the same layout; "levels" in the index has
+ *                 each one's shape, statistics, chunk checksums and tile checksum. They are
+ *                 made while the heights stream (each level keeps three rows of the finer
+ *                 one), so a far ray of quality.lod reads a small file, not the heights
+ *   prepare.state only while a prepare is unfinished: how many chunks are written, every
+ *                 layer's rows written, checksums and running tile statistics (a re-run
+ *                 continues there; the levels' three-row windows are read back from the
+ *                 files)
  *   prepare.lock  held (flock) by the prepare writing the folder: a second one is refused
  *
  * Chunk c holds the file's rows [c*R, c*R + R) (row 0 north, R = chunk_rows), which are
- * one contiguous byte range of heights.f32 (south rows h-c*R-n .. h-1-c*R).
+ * one contiguous byte range of heights.f32 (south rows h-c*R-n .. h-1-c*R); a level's
+ * chunks are R of its rows alike.
  *
  * Why one mapped array and not tiles of heights (the issue's alternative): every tracer,
  * the edit code and the accelerations index td_grid.z as one row-major array; per-tile
@@ -38,12 +48,16 @@
 #include <stdint.h>
 
 #include "dem.h"
+#include "lod.h"
 
-#define TD_PREPARED_VERSION 1
+/* 2: the coarse levels (lodK.f32, lodK.tiles, "levels" in the index) */
+#define TD_PREPARED_VERSION 2
 #define TD_PREPARED_INDEX "terrad.json"
 #define TD_PREPARED_HEIGHTS "heights.f32"
 #define TD_PREPARED_TILES "tiles.bin"
 #define TD_PREPARED_STATE "prepare.state"
+#define TD_PREPARED_LEVEL_FMT "lod%d.f32"
+#define TD_PREPARED_LEVEL_TILES_FMT "lod%d.tiles"
 
 /* Called after each chunk: rows of the file done of total, and the samples a row; non-zero
  * cancels (the state written so far stays, so a later run continues). */
@@ -61,6 +75,7 @@ typedef struct td_prepare_result {
     int64_t resumed_rows; /* rows already written by an earlier run (0: from the start) */
     int already;          /* the index was there and matches the source: nothing done */
     int streamed;         /* 1: read row by row; 0: the format's loader read it whole */
+    int levels;           /* coarse levels written */
     uint64_t bytes;       /* of heights.f32 */
 } td_prepare_result;
 
@@ -85,10 +100,16 @@ typedef struct td_prepared td_prepared;
 td_status td_prepared_open(const char *dir, td_prepared **out, td_err *err);
 /* The mapped grid: the caller owns it from now on (td_grid_free unmaps it). Once. */
 td_grid *td_prepared_take_grid(td_prepared *p);
+/* The coarse levels, mapped (td_lod with no acceleration: view[k].accel NULL, the
+ * tracers skip by the tile records): the caller owns them from now on (td_lod_free
+ * unmaps them). Once; NULL when out of memory. */
+td_lod *td_prepared_take_lod(td_prepared *p);
+int td_prepared_levels(const td_prepared *p);
 /* A hash of the index's checksums, shape and version (the disk cache's fingerprint). */
 uint64_t td_prepared_fingerprint(const td_prepared *p);
+/* Chunks of every layer: the heights' first, then level 1's, ... */
 int32_t td_prepared_chunks(const td_prepared *p);
-/* Reads chunk c from the file (not through the mapping, and dropping it from the page
+/* Reads chunk c (of td_prepared_chunks) from its file (not through the mapping, and dropping it from the page
  * cache after) and compares its checksum: TD_EFORMAT naming the file, the chunk, its rows
  * and both checksums when it differs; TD_EIO when it cannot be read. */
 td_status td_prepared_verify_chunk(const td_prepared *p, int32_t c, td_err *err);

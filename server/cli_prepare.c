@@ -142,10 +142,11 @@ int td_cli_prepare(int argc, char **argv)
     }
     {
         double mib = (double)(res.bytes - (uint64_t)res.resumed_rows * (uint64_t)res.w * 4u) / 1048576.0;
-        json_t *j = json_pack("{s:s, s:s, s:I, s:I, s:I, s:b, s:I, s:b, s:f, s:f}", "dem", pos[0], "out", pos[1],
+        json_t *j = json_pack("{s:s, s:s, s:I, s:I, s:I, s:b, s:I, s:b, s:i, s:f, s:f}", "dem", pos[0], "out", pos[1],
                               "width", (json_int_t)res.w, "height", (json_int_t)res.h,
                               "bytes", (json_int_t)res.bytes, "already", res.already,
                               "resumed_rows", (json_int_t)res.resumed_rows, "streamed", res.streamed,
+                              "levels", res.levels,
                               "seconds", t, "mib_per_s", t > 0 && !res.already ? mib / t : 0.0);
         char *text = j ? json_dumps(j, JSON_COMPACT) : NULL;
         if (text)

@@ -269,9 +269,9 @@ static json_t *dataset_json(td_app *app, size_t idx)
         "grid_bytes", (json_int_t)di.grid_bytes, "accel_bytes", (json_int_t)di.accel_bytes,
         "drapes", drapes_json(&di),
         "prepared", !di.prepared ? json_null()
-                    : json_pack("{s:s,s:i,s:i,s:I}", "state",
+                    : json_pack("{s:s,s:i,s:i,s:i,s:I}", "state",
                                 di.refused ? "refused" : di.chunks_checked < di.chunks ? "checking" : "ok",
-                                "chunks", (int)di.chunks, "checked", (int)di.chunks_checked,
+                                "chunks", (int)di.chunks, "checked", (int)di.chunks_checked, "levels", di.levels,
                                 "heights_resident_bytes", (json_int_t)di.heights_resident));
 }
 

@@ -788,9 +788,9 @@ td_status td_store_add_prepared(td_store *s, const char *id, const char *origin,
         rc = td_prepared_open(dir, &p, err);
     if (rc)
         goto out;
-    /* no coarse levels: they would be built from every height at start (quality.lod and
-       map tiles trace the full grid instead) */
-    lod = calloc(1, sizeof *lod);
+    /* the coarse levels written by the prepare, mapped as the heights are (no
+       acceleration: the tracers skip by their tile records) */
+    lod = td_prepared_take_lod(p);
     if (!lod) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory");
         goto out;
@@ -798,11 +798,12 @@ td_status td_store_add_prepared(td_store *s, const char *id, const char *origin,
     g = td_prepared_take_grid(p);
     /* read-around (8 MiB a fault here) pays while the file fits the budget: 1 GiB under
        1 GiB, first render 1.6 s against 12.7 s one page a fault; beyond, it read 392 GB
-       and mapped 9 GB for one view of a 16 GiB grid */
+       and mapped 9 GB for one view of a 16 GiB grid. Each level is judged alone. */
     td_prepared_advise(g, g->map_bytes > s->o.budget_bytes);
-    rc = ds_append(s, id, origin, g, lod,
-                   td_prepared_fingerprint(p), sizeof *g + (uint64_t)g->tiles_x * (uint64_t)g->tiles_y * sizeof(td_tile),
-                   err);
+    for (int k = 1; k <= lod->levels; k++)
+        td_prepared_advise(lod->grid[k], lod->grid[k]->map_bytes > s->o.budget_bytes);
+    rc = ds_append(s, id, origin, g, lod, td_prepared_fingerprint(p),
+                   sizeof *g + (uint64_t)g->tiles_x * (uint64_t)g->tiles_y * sizeof(td_tile) + lod->bytes, err);
     lod = NULL;
     if (rc)
         goto out;
@@ -854,16 +855,30 @@ static int verify_step(td_store *s)
     return 1;
 }
 
-/* Heights of prepared datasets resident in the process, and their mapped size. */
+/* The mapped grids of a prepared dataset's heights: the full grid and its levels. */
+static int mapped_grids(const td_hver *hv, const td_grid **out)
+{
+    int n = 0;
+    out[n++] = hv->grid;
+    for (int k = 1; hv->lod && k <= hv->lod->levels; k++)
+        if (hv->lod->grid[k]->map)
+            out[n++] = hv->lod->grid[k];
+    return n;
+}
+
+/* Heights (and levels) of prepared datasets resident in the process, and their mapped
+ * size. */
 static uint64_t mapped_resident(const td_store *s, uint64_t *mapped)
 {
     uint64_t res = 0;
+    const td_grid *gs[TD_LOD_MAX + 1];
     *mapped = 0;
     for (size_t k = 0; k < s->nds; k++)
-        if (s->ds[k].prep) {
-            res += td_prepared_resident(s->ds[k].cur->grid);
-            *mapped += s->ds[k].cur->grid->map_bytes;
-        }
+        if (s->ds[k].prep)
+            for (int n = mapped_grids(s->ds[k].cur, gs), i = 0; i < n; i++) {
+                res += td_prepared_resident(gs[i]);
+                *mapped += gs[i]->map_bytes;
+            }
     return res;
 }
 
@@ -872,13 +887,15 @@ static uint64_t mapped_resident(const td_store *s, uint64_t *mapped)
 static void trim_mapped(td_store *s)
 {
     uint64_t mapped, res = mapped_resident(s, &mapped), other;
+    const td_grid *gs[TD_LOD_MAX + 1];
     pthread_mutex_lock(&s->mu);
     other = s->resident_bytes;
     pthread_mutex_unlock(&s->mu);
     if (res && other + res > s->o.budget_bytes) {
         for (size_t k = 0; k < s->nds; k++)
             if (s->ds[k].prep)
-                td_prepared_trim(s->ds[k].cur->grid);
+                for (int n = mapped_grids(s->ds[k].cur, gs), i = 0; i < n; i++)
+                    td_prepared_trim(gs[i]);
         pthread_mutex_lock(&s->mu);
         s->heights_trims++;
         pthread_mutex_unlock(&s->mu);
@@ -1117,7 +1134,12 @@ void td_store_info(td_store *s, size_t idx, td_dataset_info *out)
     out->refused = d->vstate == TD_VERIFY_REFUSED;
     out->snapshots = d->snapshots;
     pthread_mutex_unlock(&s->mu);
-    out->heights_resident = d->prep ? td_prepared_resident(d->cur->grid) : 0;
+    out->levels = d->cur->lod ? d->cur->lod->levels : 0;
+    if (d->prep) {
+        const td_grid *gs[TD_LOD_MAX + 1];
+        for (int n = mapped_grids(d->cur, gs), i = 0; i < n; i++)
+            out->heights_resident += td_prepared_resident(gs[i]);
+    }
 }
 
 void td_store_stats_get(td_store *s, td_store_stats *st)

@@ -105,7 +105,8 @@ typedef struct td_dataset_info {
     uint64_t grid_bytes, accel_bytes;
     uint64_t drape_bytes;   /* decoded drapes kept with the dataset */
     int prepared;           /* served from a prepared folder (td_store_add_prepared) */
-    int32_t chunks, chunks_checked; /* its chunks, and how many the background check passed */
+    int32_t chunks, chunks_checked; /* its chunks (heights and levels), and how many the background check passed */
+    int levels;             /* coarse levels (quality.lod) */
     int refused;            /* a chunk failed its check: never served */
     uint64_t heights_resident; /* bytes of its mapped heights resident in the process */
     uint64_t snapshots;     /* requests that traced it since start (renders, tiles, picks,

@@ -1,6 +1,6 @@
 /* test_prepared_http.c: prepared datasets served by a live terrad (`terrad prepare`, then
  * `terrad serve --data`). A prepared dataset answers the same picture, byte for byte, as its
- * source file served beside it; it is listed with its check state and its mapped heights are
+ * source file served beside it, with levels of detail too; it is listed with its check state and its mapped heights are
  * in /metrics; edits are refused; a corrupted chunk, a truncated heights file and an
  * unfinished prepare are never served, and the log names the file and the reason. */
 #include <setjmp.h>
@@ -22,7 +22,7 @@
 #define SCENE                                                                                    \
     "{\"dataset\":\"%s\",\"camera\":{\"position\":{\"x\":7000,\"y\":-2000,\"z\":2600},"          \
     "\"heading\":0,\"pitch\":-10,\"fov\":60},\"image\":{\"width\":160,\"height\":100},"           \
-    "\"quality\":{\"method\":\"%s\",\"surface\":\"%s\"}}"
+    "\"quality\":{\"method\":\"%s\",\"surface\":\"%s\",\"lod\":%s}}"
 
 static char root[256], data[300];
 static th_server srv;
@@ -67,13 +67,14 @@ static int setup(void **state)
            data))
         return -1;
     /* good, bad (a chunk corrupted), short (truncated), half (an unfinished prepare) */
-    if (sh("for d in good bad short; do '%s' prepare '%s/crop.f32' '%s/'\"$d\" --chunk-rows 16 --tile-size 64 "
+    if (sh("for d in good bad short badlod; do '%s' prepare '%s/crop.f32' '%s/'\"$d\" --chunk-rows 16 --tile-size 64 "
            "--quiet >/dev/null || exit 1; done", TERRAD_BIN, data, data))
         return -1;
     if (sh("'%s' prepare '%s/crop.f32' '%s/half' --chunk-rows 16 --stop-after 2 --quiet >/dev/null 2>&1; "
            "test -f '%s/half/prepare.state'", TERRAD_BIN, data, data, data))
         return -1;
     flip("bad", "heights.f32", (long)(120 * 200 + 3) * 4 + 1); /* south row 120: file row 29, chunk 1 */
+    flip("badlod", "lod1.f32", (long)(40 * 101 + 3) * 4 + 1); /* level 1 (101 x 76): file row 35, chunk 2 */
     if (sh("truncate -s 119000 '%s/short/heights.f32'", data))
         return -1;
     return th_start(&srv, TERRAD_BIN, args, env);
@@ -117,12 +118,18 @@ static const char *wait_checked(const char *id, char *state, size_t n)
     return state;
 }
 
-static void render(const char *id, const char *method, const char *surface, th_resp *r)
+/* lod: "false", or the pixels a coarse cell may span (quality.lod) */
+static void render_lod(const char *id, const char *method, const char *surface, const char *lod, th_resp *r)
 {
     char body[512];
     const char *h[] = {"Content-Type: application/json", NULL};
-    snprintf(body, sizeof body, SCENE, id, method, surface);
+    snprintf(body, sizeof body, SCENE, id, method, surface, lod);
     assert_int_equal(th_request(&srv, "POST", "/v1/render", h, body, strlen(body), r), 0);
+}
+
+static void render(const char *id, const char *method, const char *surface, th_resp *r)
+{
+    render_lod(id, method, surface, "false", r);
 }
 
 static void test_same_picture(void **state)
@@ -146,6 +153,34 @@ static void test_same_picture(void **state)
         }
 }
 
+/* Levels of detail (quality.lod, 8 pixels a coarse cell so that most far pixels of this
+ * small grid end on coarse levels): the prepared dataset's mapped levels, traced with no
+ * acceleration, give the picture the in-memory levels (with theirs) give, byte for byte;
+ * and a different one from lod off (the levels were used). */
+static void test_same_picture_lod(void **state)
+{
+    static const char *const methods[] = {"incremental", "hierarchical", "parametric", "auto"};
+    static const char *const surfaces[] = {"plane", "linear", "triangle", "bilinear"};
+    char st[32];
+    (void)state;
+    assert_string_equal(wait_checked("good", st, sizeof st), "ok");
+    for (int m = 0; m < 4; m++)
+        for (int s = 0; s < 4; s++) {
+            th_resp a, b, c;
+            render_lod("crop", methods[m], surfaces[s], "8", &a);
+            render_lod("good", methods[m], surfaces[s], "8", &b);
+            render("good", methods[m], surfaces[s], &c);
+            assert_int_equal(a.status, 200);
+            assert_int_equal(b.status, 200);
+            assert_int_equal(a.len, b.len);
+            assert_memory_equal(a.body, b.body, a.len);
+            assert_true(b.len != c.len || memcmp(b.body, c.body, b.len) != 0);
+            th_resp_free(&a);
+            th_resp_free(&b);
+            th_resp_free(&c);
+        }
+}
+
 static void test_listed_and_metrics(void **state)
 {
     json_t *j;
@@ -155,16 +190,19 @@ static void test_listed_and_metrics(void **state)
     assert_string_equal(wait_checked("good", st, sizeof st), "ok");
     j = get_json("/v1/datasets/good", 200);
     assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "size"), "width")), 200);
-    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "chunks")), 10);
-    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "checked")), 10);
+    /* 10 chunks of heights, 15 of the 8 levels (test_prepared.c counts them) */
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "chunks")), 25);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "checked")), 25);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "levels")), 8);
     json_decref(j);
     j = get_json("/v1/datasets/crop", 200);
     assert_true(json_is_null(json_object_get(j, "prepared")));
     json_decref(j);
     assert_int_equal(th_request(&srv, "GET", "/metrics", NULL, NULL, 0, &r), 0);
     assert_int_equal(r.status, 200);
-    /* good and bad are mapped (short and half are not served at all): 2 x 200 x 150 x 4 */
-    assert_non_null(strstr(r.body, "\nterrad_heights_mapped_bytes 240000\n"));
+    /* good, bad and badlod are mapped (short and half are not served at all): 3 x (200 x
+       150 + the levels' 10420 samples) x 4 */
+    assert_non_null(strstr(r.body, "\nterrad_heights_mapped_bytes 485040\n"));
     assert_non_null(strstr(r.body, "\nterrad_heights_resident_bytes "));
     th_resp_free(&r);
 }
@@ -179,7 +217,13 @@ static void test_bad_never_served(void **state)
     assert_int_equal(r.status, 404);
     assert_non_null(strstr(r.body, "heights.f32: chunk 1 (file rows 16..31)"));
     th_resp_free(&r);
-    assert_true(th_log_has(&srv, "event=dataset_refused id=bad"));
+    assert_true(th_log_has(&srv, "event=dataset_refused id=bad "));
+    /* a corrupted chunk of a level: refused the same way */
+    assert_string_equal(wait_checked("badlod", st, sizeof st), "refused");
+    render_lod("badlod", "auto", "bilinear", "8", &r);
+    assert_int_equal(r.status, 404);
+    assert_non_null(strstr(r.body, "lod1.f32: chunk 2 (file rows 32..47)"));
+    th_resp_free(&r);
     /* truncated: not even listed; the log names the file and the reason */
     render("short", "auto", "bilinear", &r);
     assert_int_equal(r.status, 404);
@@ -210,6 +254,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_same_picture),
+        cmocka_unit_test(test_same_picture_lod),
         cmocka_unit_test(test_listed_and_metrics),
         cmocka_unit_test(test_bad_never_served),
         cmocka_unit_test(test_edit_refused),

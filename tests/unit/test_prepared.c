@@ -18,7 +18,9 @@
 
 #include <cmocka.h>
 
+#include "accel.h"
 #include "dem.h"
+#include "lod.h"
 #include "prepared.h"
 
 #ifdef TERRAD_HAVE_GDAL
@@ -60,7 +62,44 @@ static void opts(td_prepare_opts *o, int tile_log2, int32_t chunk_rows)
     o->chunk_rows = chunk_rows;
 }
 
-/* The prepared grid in dir equals the loader's grid of src, bit for bit. */
+/* The prepared levels of p equal td_lod_build's levels of the loaded grid ref, bit for bit
+ * (heights, tile records, statistics, spacing, georeference): the levels the LOD oracle
+ * holds to the references are the ones a prepared dataset serves. */
+static void assert_same_levels(td_prepared *p, const td_grid *ref)
+{
+    td_lod *want = NULL, *got;
+    td_accel_opts ao;
+    td_err e = {0};
+    td_accel_opts_default(&ao);
+    ao.maxmip = ao.planes = 0;
+    assert_int_equal(td_lod_build(ref, TD_LOD_MAX, &ao, &want, &e), TD_OK);
+    got = td_prepared_take_lod(p);
+    assert_non_null(got);
+    assert_true(want->levels >= 1);
+    assert_int_equal(got->levels, want->levels);
+    for (int k = 1; k <= want->levels; k++) {
+        const td_grid *a = got->grid[k], *b = want->grid[k];
+        assert_non_null(a->map);
+        assert_null(got->view[k].accel);
+        assert_ptr_equal(got->view[k].grid, a);
+        assert_int_equal(a->w, b->w);
+        assert_int_equal(a->h, b->h);
+        assert_true(a->sx == b->sx && a->sy == b->sy);
+        assert_int_equal(a->tile_log2, b->tile_log2);
+        assert_int_equal(a->tiles_x, b->tiles_x);
+        assert_int_equal(a->tiles_y, b->tiles_y);
+        assert_true((a->zmin == b->zmin && a->zmax == b->zmax) || (isnan(a->zmin) && isnan(b->zmin)));
+        assert_int_equal(a->voids, b->voids);
+        assert_true(a->geo.dx == b->geo.dx && a->geo.dy == b->geo.dy && a->geo.x0 == b->geo.x0);
+        assert_memory_equal(a->z, b->z, (size_t)a->w * (size_t)a->h * sizeof(float));
+        assert_memory_equal(a->tiles, b->tiles, (size_t)a->tiles_x * (size_t)a->tiles_y * sizeof(td_tile));
+    }
+    td_lod_free(got);
+    td_lod_free(want);
+}
+
+/* The prepared grid in dir equals the loader's grid of src, bit for bit, and so do its
+ * coarse levels td_lod_build's. */
 static void assert_same_as_loaded(const char *src, const char *dir, int tile_log2)
 {
     td_dem_opts lo;
@@ -89,6 +128,7 @@ static void assert_same_as_loaded(const char *src, const char *dir, int tile_log
     assert_memory_equal(g->z, ref->z, (size_t)g->w * (size_t)g->h * sizeof(float));
     nt = (size_t)g->tiles_x * (size_t)g->tiles_y;
     assert_memory_equal(g->tiles, ref->tiles, nt * sizeof(td_tile));
+    assert_same_levels(p, ref);
     td_grid_free(g);
     td_grid_free(ref);
     td_prepared_free(p);
@@ -263,6 +303,13 @@ static void test_resume(void **state)
     assert_same_file(dir, ref, TD_PREPARED_HEIGHTS);
     assert_same_file(dir, ref, TD_PREPARED_TILES);
     assert_same_file(dir, ref, TD_PREPARED_INDEX);
+    for (int k = 1; k <= 8; k++) {
+        char name[32];
+        snprintf(name, sizeof name, TD_PREPARED_LEVEL_FMT, k);
+        assert_same_file(dir, ref, name);
+        snprintf(name, sizeof name, TD_PREPARED_LEVEL_TILES_FMT, k);
+        assert_same_file(dir, ref, name);
+    }
     /* a third run finds it done */
     prepare_ok(src, dir, 5, 16, &res);
     assert_int_equal(res.already, 1);
@@ -330,7 +377,7 @@ static void test_other_version(void **state)
     fresh("version", dir, sizeof dir);
     file_bytes(dir, TD_PREPARED_INDEX, &buf, &n);
     buf[n] = '\0';
-    v = strstr((char *)buf, "\"version\":1");
+    v = strstr((char *)buf, "\"version\":2");
     assert_non_null(v);
     v[strlen("\"version\":")] = '7';
     snprintf(p, sizeof p, "%s/%s", dir, TD_PREPARED_INDEX);
@@ -351,6 +398,9 @@ static void test_corrupt_tiles(void **state)
     assert_refused(dir, TD_EFORMAT, "tiles.bin", "checksum");
 }
 
+/* The heights' chunks come first, then each level's: 10 + 5 + 3 + 2 + 1 + 1 + 1 + 1 + 1
+ * for the 200 x 150 crop in chunks of 16 rows (levels 101 x 76, 51 x 39, 26 x 20, 14 x 11,
+ * 8 x 6, 5 x 4, 3 x 3, 2 x 2). */
 static void test_corrupt_chunk(void **state)
 {
     char dir[512];
@@ -360,20 +410,65 @@ static void test_corrupt_chunk(void **state)
     fresh("chunk", dir, sizeof dir);
     /* file rows 48..63 are chunk 3: south rows 86..101 */
     flip_byte(dir, TD_PREPARED_HEIGHTS, (long)(90 * 200 + 7) * 4 + 2);
+    /* lod2.f32 (51 x 39): its file rows 16..31 (chunk 1, chunk 16 of all) are south rows 7..22 */
+    flip_byte(dir, "lod2.f32", (long)(10 * 51 + 5) * 4 + 2);
     assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK); /* open reads no heights */
-    assert_int_equal(td_prepared_chunks(p), 10);
-    for (int32_t c = 0; c < 10; c++) {
+    assert_int_equal(td_prepared_levels(p), 8);
+    assert_int_equal(td_prepared_chunks(p), 25);
+    for (int32_t c = 0; c < 25; c++) {
         td_status rc = td_prepared_verify_chunk(p, c, &e);
         if (c == 3) {
             assert_int_equal(rc, TD_EFORMAT);
             assert_non_null(strstr(e.msg, "heights.f32: chunk 3 (file rows 48..63)"));
             assert_non_null(strstr(e.msg, "corrupted"));
+        } else if (c == 16) {
+            assert_int_equal(rc, TD_EFORMAT);
+            if (!strstr(e.msg, "lod2.f32: chunk 1 (file rows 16..31)") || !strstr(e.msg, "corrupted"))
+                fail_msg("%s", e.msg);
         } else {
             assert_int_equal(rc, TD_OK);
         }
     }
-    assert_int_equal(td_prepared_verify_chunk(p, 10, &e), TD_EINVAL);
+    assert_int_equal(td_prepared_verify_chunk(p, 25, &e), TD_EINVAL);
     td_prepared_free(p);
+}
+
+/* A level's files are checked at open as the heights' are: truncated heights, corrupted
+ * tile records, an index whose levels do not match the grid. */
+static void test_levels_refused(void **state)
+{
+    char dir[512], p[600];
+    unsigned char *buf;
+    size_t n;
+    char *v;
+    FILE *f;
+    (void)state;
+    fresh("lod-trunc", dir, sizeof dir);
+    snprintf(p, sizeof p, "%s/lod1.f32", dir);
+    assert_int_equal(truncate(p, 101 * 76 * 4 - 8), 0);
+    assert_refused(dir, TD_EFORMAT, "lod1.f32", "truncated");
+    fresh("lod-tiles", dir, sizeof dir);
+    flip_byte(dir, "lod3.tiles", 17); /* tile 0's zmin */
+    assert_refused(dir, TD_EFORMAT, "lod3.tiles", "checksum");
+    fresh("lod-missing", dir, sizeof dir);
+    snprintf(p, sizeof p, "%s/lod5.f32", dir);
+    assert_int_equal(unlink(p), 0);
+    assert_refused(dir, TD_EIO, "lod5.f32", "cannot open");
+    /* one level fewer in the index than the grid has */
+    fresh("lod-count", dir, sizeof dir);
+    file_bytes(dir, TD_PREPARED_INDEX, &buf, &n);
+    buf[n] = '\0';
+    v = strstr((char *)buf, "\"levels\":[");
+    assert_non_null(v);
+    v += strlen("\"levels\":[");
+    memmove(v, strchr(v, '}') + 2, strlen(strchr(v, '}') + 2) + 1); /* drops level 1's entry */
+    snprintf(p, sizeof p, "%s/%s", dir, TD_PREPARED_INDEX);
+    f = fopen(p, "wb");
+    assert_non_null(f);
+    fputs((char *)buf, f);
+    fclose(f);
+    free(buf);
+    assert_refused(dir, TD_EFORMAT, "terrad.json", "coarse levels");
 }
 
 /* Residency: a mapped grid's pages count once touched, and none after a trim. */
@@ -405,7 +500,8 @@ int main(void)
         cmocka_unit_test(test_asc_whole),          cmocka_unit_test(test_geotiff_streamed),
         cmocka_unit_test(test_resume),             cmocka_unit_test(test_truncated),
         cmocka_unit_test(test_other_version),      cmocka_unit_test(test_corrupt_tiles),
-        cmocka_unit_test(test_corrupt_chunk),      cmocka_unit_test(test_resident),
+        cmocka_unit_test(test_corrupt_chunk),      cmocka_unit_test(test_levels_refused),
+        cmocka_unit_test(test_resident),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
