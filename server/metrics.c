@@ -32,6 +32,7 @@ struct td_metrics {
     atomic_uint_least64_t *requests; /* (nroutes + 1) x (TD_HTTP_STATUS_COUNT + 1) */
     td_metrics_hist render[TD_METHOD_COUNT];
     atomic_uint_least64_t rays, steps;
+    atomic_uint_least64_t pagein_faults, pagein_ns; /* td_metrics_pagein */
 };
 
 td_metrics *td_metrics_create(const char *const *route_names, int nroutes)
@@ -171,6 +172,12 @@ static void put_render_seconds(td_buf *b, td_metrics *m)
     }
 }
 
+void td_metrics_pagein(td_metrics *m, uint64_t faults, double seconds)
+{
+    atomic_fetch_add_explicit(&m->pagein_faults, faults, memory_order_relaxed);
+    atomic_fetch_add_explicit(&m->pagein_ns, (uint64_t)(seconds > 0 ? seconds * 1e9 : 0), memory_order_relaxed);
+}
+
 /* The counters of the tracer and the gauges of the queue, the store and the jobs. */
 static void put_totals(td_buf *b, td_metrics *m, const td_metrics_ext *e)
 {
@@ -206,6 +213,13 @@ static void put_totals(td_buf *b, td_metrics *m, const td_metrics_ext *e)
             "in memory): each one a ray's wait.\n"
             "# TYPE terrad_major_page_faults_total counter\nterrad_major_page_faults_total %llu\n",
         (unsigned long long)e->major_faults);
+    put(b, "# HELP terrad_render_major_faults_total Major page faults of renders, picks and map tiles "
+            "(their worker thread's).\n"
+            "# TYPE terrad_render_major_faults_total counter\nterrad_render_major_faults_total %llu\n"
+            "# HELP terrad_render_pagein_seconds_total Time their worker was blocked (not on a CPU nor "
+            "waiting for one): reading the pages it faulted on.\n"
+            "# TYPE terrad_render_pagein_seconds_total counter\nterrad_render_pagein_seconds_total %.6f\n",
+        LD(m->pagein_faults), (double)LD(m->pagein_ns) * 1e-9);
     put(b, "# HELP terrad_memory_budget_bytes The memory budget (--memory-mb).\n"
             "# TYPE terrad_memory_budget_bytes gauge\nterrad_memory_budget_bytes %llu\n",
         (unsigned long long)e->budget_bytes);

@@ -46,6 +46,8 @@ void td_metrics_free(td_metrics *m);
 void td_metrics_request(td_metrics *m, int route, int status);
 void td_metrics_render(td_metrics *m, td_method method, double seconds, uint64_t rays,
                        uint64_t steps);
+/* A render's (pick's, map tile's) wait for pages of mapped heights (pagein.h). */
+void td_metrics_pagein(td_metrics *m, uint64_t faults, double seconds);
 
 /* Returns a malloc'ed text/plain; version=0.0.4 body and its length, or NULL. */
 char *td_metrics_format(const td_metrics *m, const td_metrics_ext *ext, size_t *len);

@@ -44,6 +44,7 @@
 #include "maps.h"
 #include "viewshed_api.h"
 #include "pano.h"
+#include "pagein.h"
 #include "solar.h"
 
 const char *const td_route_names[TD_ROUTE_COUNT] = {
@@ -913,8 +914,10 @@ static void method_label(td_method m, const td_render_stats *st, char *out, size
     }
 }
 
+/* pagein: what the worker waited for pages of mapped heights (pagein.h); with no major
+ * fault it is left out. */
 static void timing_header(td_http_resp *r, const td_rjob *j, double queue_ms,
-                          const td_render_stats *st)
+                          const td_render_stats *st, uint64_t faults, double pagein_ms)
 {
     char v[512];
     size_t n = 0;
@@ -935,6 +938,9 @@ static void timing_header(td_http_resp *r, const td_rjob *j, double queue_ms,
                 n += (size_t)w;
         }
     }
+    if (faults)
+        snprintf(v + n, sizeof v - n, ", pagein;dur=%.3f;desc=\"%llu major faults\"", pagein_ms,
+                 (unsigned long long)faults);
     td_http_resp_header(r, "Server-Timing", "%s", v);
 }
 
@@ -1054,9 +1060,12 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     td_render_result res;
     td_render_stats pst;
     const td_view *v;
-    double queue_ms = td_http_req_queue_wait(q) * 1e3, t0 = td_clock_s();
+    double queue_ms = td_http_req_queue_wait(q) * 1e3, t0 = td_clock_s(), pagein_ms;
     const td_render_stats *st = NULL;
+    td_pagein pi;
+    uint64_t faults;
 
+    td_pagein_begin(&pi);
     memset(&res, 0, sizeof res);
     memset(&pst, 0, sizeof pst);
     if (cancelled) {
@@ -1082,7 +1091,9 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         td_metrics_render(app->metrics, j->scene.quality.method, td_clock_s() - t0, rays, st->steps);
     }
 out:
-    timing_header(r, j, queue_ms, st);
+    td_pagein_end(&pi, &faults, &pagein_ms);
+    td_metrics_pagein(app->metrics, faults, pagein_ms * 1e-3);
+    timing_header(r, j, queue_ms, st, faults, pagein_ms);
     td_render_result_free(&res);
     td_snapshot_release(snap);
     free(j);

@@ -67,7 +67,7 @@ static int setup(void **state)
            data))
         return -1;
     /* good, bad (a chunk corrupted), short (truncated), half (an unfinished prepare) */
-    if (sh("for d in good bad short badlod; do '%s' prepare '%s/crop.f32' '%s/'\"$d\" --chunk-rows 16 --tile-size 64 "
+    if (sh("for d in good bad short badlod cold; do '%s' prepare '%s/crop.f32' '%s/'\"$d\" --chunk-rows 16 --tile-size 64 "
            "--quiet >/dev/null || exit 1; done", TERRAD_BIN, data, data))
         return -1;
     if (sh("'%s' prepare '%s/crop.f32' '%s/half' --chunk-rows 16 --stop-after 2 --quiet >/dev/null 2>&1; "
@@ -200,9 +200,9 @@ static void test_listed_and_metrics(void **state)
     json_decref(j);
     assert_int_equal(th_request(&srv, "GET", "/metrics", NULL, NULL, 0, &r), 0);
     assert_int_equal(r.status, 200);
-    /* good, bad and badlod are mapped (short and half are not served at all): 3 x (200 x
-       150 + the levels' 10420 samples) x 4 */
-    assert_non_null(strstr(r.body, "\nterrad_heights_mapped_bytes 485040\n"));
+    /* good, bad, badlod and cold are mapped (short and half are not served at all): 4 x
+       (200 x 150 + the levels' 10420 samples) x 4 */
+    assert_non_null(strstr(r.body, "\nterrad_heights_mapped_bytes 646720\n"));
     assert_non_null(strstr(r.body, "\nterrad_heights_resident_bytes "));
     th_resp_free(&r);
 }
@@ -236,6 +236,35 @@ static void test_bad_never_served(void **state)
     assert_true(th_log_has(&srv, "an unfinished prepare"));
 }
 
+/* "cold" is rendered here first, with its files dropped from the page cache: the render
+ * waits for pages, and says so in Server-Timing (pagein: blocked time and major faults of
+ * its worker thread) and /metrics. */
+static void test_pagein_reported(void **state)
+{
+    th_resp r;
+    char st[32], timing[512], *m;
+    (void)state;
+    assert_string_equal(wait_checked("cold", st, sizeof st), "ok");
+    /* fadvise DONTNEED on every file of the folder (clean: the prepare synced them) */
+    assert_int_equal(sh("python3 -c \"import os,sys\n"
+                        "for f in os.listdir(sys.argv[1]):\n"
+                        "  fd=os.open(os.path.join(sys.argv[1],f),os.O_RDONLY); "
+                        "os.posix_fadvise(fd,0,0,os.POSIX_FADV_DONTNEED); os.close(fd)\" '%s/cold'", data),
+                     0);
+    render_lod("cold", "auto", "bilinear", "8", &r);
+    assert_int_equal(r.status, 200);
+    assert_int_equal(th_header(&r, "Server-Timing", timing, sizeof timing), 1);
+    if (!strstr(timing, ", pagein;dur=") || !strstr(timing, " major faults\""))
+        fail_msg("Server-Timing: %s", timing);
+    th_resp_free(&r);
+    assert_int_equal(th_request(&srv, "GET", "/metrics", NULL, NULL, 0, &r), 0);
+    m = strstr(r.body, "\nterrad_render_major_faults_total ");
+    assert_non_null(m);
+    assert_true(strtoull(m + strlen("\nterrad_render_major_faults_total "), NULL, 10) >= 1);
+    assert_non_null(strstr(r.body, "\nterrad_render_pagein_seconds_total "));
+    th_resp_free(&r);
+}
+
 static void test_edit_refused(void **state)
 {
     th_resp r;
@@ -257,6 +286,7 @@ int main(void)
         cmocka_unit_test(test_same_picture_lod),
         cmocka_unit_test(test_listed_and_metrics),
         cmocka_unit_test(test_bad_never_served),
+        cmocka_unit_test(test_pagein_reported),
         cmocka_unit_test(test_edit_refused),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
