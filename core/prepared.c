@@ -28,6 +28,7 @@
 #include <jansson.h>
 #include <limits.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -184,7 +185,6 @@ typedef struct td_prep_run {
     const char *dir;
     td_state_hdr st;
     td_layer_buf b[TD_LOD_MAX + 1];
-    float *buf; /* chunk_rows * w * 2: a chunk in south order, then in file order (and scratch) */
 } td_prep_run;
 
 /* dir/name into out (n bytes); 0 if it does not fit. */
@@ -445,40 +445,6 @@ static td_status rings_load(td_prep_run *r, td_err *err)
     return rc;
 }
 
-/* Chunk c: read, reverse into south order, statistics, checksum, one pwrite, the levels
- * it completes, then every file synced (before the state that counts it is saved). */
-static td_status chunk_write(td_prep_run *r, td_src_rows *src, int32_t c, td_err *err)
-{
-    td_status rc;
-    td_layer *m = &r->st.layer[0];
-    const size_t w = (size_t)m->w;
-    int32_t n;
-    off_t at = chunk_span(m->w, m->h, r->st.chunk_rows, c, &n);
-    int32_t r0 = c * r->st.chunk_rows;
-    float *tmp = r->buf + (size_t)r->st.chunk_rows * w; /* the second half: file order */
-    size_t bytes = (size_t)n * w * 4;
-
-    rc = src_rows(src, r0, n, tmp, err);
-    for (int32_t k = 0; k < n && rc == TD_OK; k++) {
-        float *dst = r->buf + (size_t)(n - 1 - k) * w;
-        memcpy(dst, tmp + (size_t)k * w, w * 4);
-        stats_row(m, &r->b[0], r->st.tile_log2, m->h - 1 - (r0 + k), dst);
-    }
-    if (rc == TD_OK) {
-        r->b[0].sums[c] = td_fnv1a(TD_FNV1A_INIT, r->buf, bytes);
-        if (pwrite(r->b[0].fd, r->buf, bytes, at) != (ssize_t)bytes)
-            rc = td_err_set(err, TD_EIO, "%s/%s: cannot write chunk %ld (%s)", r->dir,
-                            TD_PREPARED_HEIGHTS, (long)c, strerror(errno));
-    }
-    for (int32_t k = 0; k < n && rc == TD_OK && r->st.nlayers > 1; k++)
-        rc = level_feed(r, 1, m->h - 1 - (r0 + k), r->buf + (size_t)(n - 1 - k) * w, (unsigned char *)tmp, err);
-    m->emitted += rc == TD_OK ? n : 0;
-    for (int k = 0; k < r->st.nlayers && rc == TD_OK; k++)
-        if (fdatasync(r->b[k].fd))
-            rc = td_err_set(err, TD_EIO, "%s: cannot sync layer %d (%s)", r->dir, k, strerror(errno));
-    return rc;
-}
-
 static void hex64(char out[17], uint64_t v) { snprintf(out, 17, "%016llx", (unsigned long long)v); }
 
 static json_t *geo_json(const td_georef *g)
@@ -623,8 +589,7 @@ static td_status run_init(td_prep_run *r, const td_src_rows *src, const td_prepa
     want.src_size = src->size;
     want.src_mtime = src->mtime;
     layers_plan(&want, src->shape.w, src->shape.h);
-    r->buf = malloc((size_t)want.chunk_rows * (size_t)src->shape.w * 8); /* south + file order */
-    ok = r->buf != NULL;
+    ok = 1;
     for (int k = 0; k < want.nlayers && ok; k++) {
         const td_layer *m = &want.layer[k];
         td_layer_buf *b = &r->b[k];
@@ -663,7 +628,6 @@ static void run_free(td_prep_run *r)
         free(r->b[k].ring);
         free(r->b[k].row);
     }
-    free(r->buf);
 }
 
 /* Every layer's file, of its final size (kept as they are when continuing). */
@@ -701,23 +665,226 @@ static int already_done(const char *dir, const td_src_rows *src)
     return same;
 }
 
-/* The chunks left, each followed by the state that counts it and the progress call. */
+/* --- the pipeline: the caller's thread reads, a worker makes the levels -------------- */
+
+/* A chunk between the two threads: its rows in south order, its own statistics (merged
+ * into the run's by the worker, in chunk order, so the state saved counts exactly the
+ * chunks done) and checksum. */
+typedef struct td_pchunk {
+    int32_t c, n;
+    int full;     /* read and written; the worker's until it empties it */
+    float *rows;  /* chunk_rows * w */
+    td_layer m;   /* zmin, zmax, voids of its rows */
+    td_layer_buf b; /* lo, hi per tile of its rows (sums, ring, row unused) */
+    uint64_t sum;
+} td_pchunk;
+
+typedef struct td_pipe {
+    td_prep_run *r;
+    const td_prepare_opts *o;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    td_pchunk ch[2];          /* chunk c in ch[c % 2] */
+    unsigned char *scratch;   /* the worker's: a chunk of level 1, read back for its checksum */
+    int stop, eof;            /* under mu: the worker failed or was stopped; nothing more to read */
+    td_status wrc;            /* the worker's failure */
+    td_err werr;
+} td_pipe;
+
+/* The caller's part of chunk c: read, reverse into south order (in place, a row swap at a
+ * time), its statistics, checksum and one pwrite. */
+static td_status chunk_read(td_prep_run *r, td_src_rows *src, td_pchunk *p, int32_t c, td_err *err)
+{
+    td_status rc;
+    const td_layer *m = &r->st.layer[0];
+    const size_t w = (size_t)m->w;
+    off_t at = chunk_span(m->w, m->h, r->st.chunk_rows, c, &p->n);
+    int32_t r0 = c * r->st.chunk_rows;
+    size_t bytes = (size_t)p->n * w * 4;
+
+    p->c = c;
+    /* the shape only: the worker is updating the statistics of *m meanwhile */
+    p->m.w = m->w;
+    p->m.h = m->h;
+    p->m.tiles_x = m->tiles_x;
+    p->m.tiles_y = m->tiles_y;
+    p->m.zmin = INFINITY;
+    p->m.zmax = -INFINITY;
+    p->m.voids = 0;
+    for (size_t t = 0; t < layer_tiles_n(m); t++) {
+        p->b.lo[t] = INFINITY;
+        p->b.hi[t] = -INFINITY;
+    }
+    rc = src_rows(src, r0, p->n, p->rows, err);
+    for (int32_t k = 0; k < p->n / 2 && rc == TD_OK; k++) {
+        float *a = p->rows + (size_t)k * w, *b = p->rows + (size_t)(p->n - 1 - k) * w;
+        for (size_t i = 0; i < w; i++) {
+            float t = a[i];
+            a[i] = b[i];
+            b[i] = t;
+        }
+    }
+    for (int32_t k = 0; k < p->n && rc == TD_OK; k++)
+        stats_row(&p->m, &p->b, r->st.tile_log2, m->h - 1 - (r0 + k), p->rows + (size_t)(p->n - 1 - k) * w);
+    if (rc == TD_OK) {
+        p->sum = td_fnv1a(TD_FNV1A_INIT, p->rows, bytes);
+        if (pwrite(r->b[0].fd, p->rows, bytes, at) != (ssize_t)bytes)
+            rc = td_err_set(err, TD_EIO, "%s/%s: cannot write chunk %ld (%s)", r->dir,
+                            TD_PREPARED_HEIGHTS, (long)c, strerror(errno));
+    }
+    return rc;
+}
+
+/* The worker's part of chunk p->c (the next in order): its statistics and checksum into
+ * the run's, the levels its rows complete, every file synced, the state saved, progress. */
+static td_status chunk_finish(td_pipe *pp, td_pchunk *p, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_prep_run *r = pp->r;
+    td_layer *m = &r->st.layer[0];
+    const size_t w = (size_t)m->w;
+    int32_t r0 = p->c * r->st.chunk_rows;
+
+    m->zmin = p->m.zmin < m->zmin ? p->m.zmin : m->zmin;
+    m->zmax = p->m.zmax > m->zmax ? p->m.zmax : m->zmax;
+    m->voids += p->m.voids;
+    for (size_t t = 0; t < layer_tiles_n(m); t++) {
+        r->b[0].lo[t] = p->b.lo[t] < r->b[0].lo[t] ? p->b.lo[t] : r->b[0].lo[t];
+        r->b[0].hi[t] = p->b.hi[t] > r->b[0].hi[t] ? p->b.hi[t] : r->b[0].hi[t];
+    }
+    r->b[0].sums[p->c] = p->sum;
+    for (int32_t k = 0; k < p->n && rc == TD_OK && r->st.nlayers > 1; k++)
+        rc = level_feed(r, 1, m->h - 1 - (r0 + k), p->rows + (size_t)(p->n - 1 - k) * w, pp->scratch, err);
+    for (int k = 0; k < r->st.nlayers && rc == TD_OK; k++)
+        if (fdatasync(r->b[k].fd))
+            rc = td_err_set(err, TD_EIO, "%s: cannot sync layer %d (%s)", r->dir, k, strerror(errno));
+    if (rc == TD_OK) {
+        m->emitted += p->n;
+        r->st.done = p->c + 1;
+        rc = state_save(r, err);
+    }
+    if (rc == TD_OK && pp->o->progress &&
+        pp->o->progress(pp->o->cls, r->st.done == m->nchunks ? m->h : (int64_t)r->st.done * r->st.chunk_rows,
+                        m->h, m->w))
+        rc = td_err_set(err, TD_ECANCELED, "%s: prepare stopped after %ld of %ld chunks (run it again to continue)",
+                        r->dir, (long)r->st.done, (long)m->nchunks);
+    return rc;
+}
+
+static void *pipe_worker(void *arg)
+{
+    td_pipe *pp = arg;
+    for (int32_t c = pp->r->st.done;; c++) {
+        td_pchunk *p = &pp->ch[c % 2];
+        td_status rc;
+        td_err e = {0};
+        int go;
+        pthread_mutex_lock(&pp->mu);
+        while (!p->full && !pp->stop && !pp->eof)
+            pthread_cond_wait(&pp->cv, &pp->mu);
+        go = p->full && !pp->stop;
+        pthread_mutex_unlock(&pp->mu);
+        if (!go)
+            break;
+        rc = chunk_finish(pp, p, &e);
+        pthread_mutex_lock(&pp->mu);
+        p->full = 0;
+        if (rc) {
+            pp->stop = 1;
+            pp->wrc = rc;
+            pp->werr = e;
+        }
+        pthread_cond_broadcast(&pp->cv);
+        pthread_mutex_unlock(&pp->mu);
+        if (rc)
+            break;
+    }
+    return NULL;
+}
+
+static int pipe_alloc(td_pipe *pp, const td_prep_run *r)
+{
+    const td_layer *m = &r->st.layer[0];
+    size_t rows = (size_t)r->st.chunk_rows * (size_t)m->w;
+    int ok = (pp->scratch = malloc(r->st.nlayers > 1 ? (size_t)r->st.chunk_rows * (size_t)r->st.layer[1].w * 4 : 1)) != NULL;
+    for (int k = 0; k < 2 && ok; k++) {
+        pp->ch[k].rows = malloc(rows * 4);
+        pp->ch[k].b.lo = malloc(layer_tiles_n(m) * 4);
+        pp->ch[k].b.hi = malloc(layer_tiles_n(m) * 4);
+        ok = pp->ch[k].rows && pp->ch[k].b.lo && pp->ch[k].b.hi;
+    }
+    return ok;
+}
+
+static void pipe_free(td_pipe *pp)
+{
+    for (int k = 0; k < 2; k++) {
+        free(pp->ch[k].rows);
+        free(pp->ch[k].b.lo);
+        free(pp->ch[k].b.hi);
+    }
+    free(pp->scratch);
+}
+
+/* The chunks left: this thread reads, checks, checksums and writes chunk c + 1 while the
+ * worker makes the levels of chunk c, syncs and saves the state that counts it (each
+ * part about half the work: the two cores of this machine). Stopped by the progress
+ * callback, the worker saves no chunk after the one it was told at. */
 static td_status chunks_run(td_prep_run *r, td_src_rows *src, const td_prepare_opts *o, td_err *err)
 {
     td_status rc = TD_OK;
-    const td_layer *m = &r->st.layer[0];
-    while (r->st.done < m->nchunks && rc == TD_OK) {
-        rc = chunk_write(r, src, r->st.done, err);
-        if (rc == TD_OK) {
-            r->st.done++;
-            rc = state_save(r, err);
-        }
-        if (rc == TD_OK && o->progress &&
-            o->progress(o->cls, r->st.done == m->nchunks ? m->h : (int64_t)r->st.done * r->st.chunk_rows, m->h,
-                        m->w))
-            rc = td_err_set(err, TD_ECANCELED, "%s: prepare stopped after %ld of %ld chunks (run it again to continue)",
-                            r->dir, (long)r->st.done, (long)m->nchunks);
+    td_pipe pp;
+    pthread_t th;
+    int started = 0;
+
+    memset(&pp, 0, sizeof pp);
+    pp.r = r;
+    pp.o = o;
+    pthread_mutex_init(&pp.mu, NULL);
+    pthread_cond_init(&pp.cv, NULL);
+    if (!pipe_alloc(&pp, r)) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for chunks of %ld rows of %ld samples",
+                        (long)r->st.chunk_rows, (long)r->st.layer[0].w);
+        goto out;
     }
+    if (pthread_create(&th, NULL, pipe_worker, &pp)) {
+        rc = td_err_set(err, TD_ENOMEM, "cannot start the prepare's worker thread");
+        goto out;
+    }
+    started = 1;
+    for (int32_t c = r->st.done; c < r->st.layer[0].nchunks && rc == TD_OK; c++) {
+        td_pchunk *p = &pp.ch[c % 2];
+        int stop;
+        pthread_mutex_lock(&pp.mu);
+        while (p->full && !pp.stop)
+            pthread_cond_wait(&pp.cv, &pp.mu);
+        stop = pp.stop;
+        pthread_mutex_unlock(&pp.mu);
+        if (stop)
+            break;
+        rc = chunk_read(r, src, p, c, err);
+        pthread_mutex_lock(&pp.mu);
+        p->full = rc == TD_OK;
+        pp.stop |= rc != TD_OK;
+        pthread_cond_broadcast(&pp.cv);
+        pthread_mutex_unlock(&pp.mu);
+    }
+out:
+    if (started) {
+        pthread_mutex_lock(&pp.mu);
+        pp.eof = 1;
+        pthread_cond_broadcast(&pp.cv);
+        pthread_mutex_unlock(&pp.mu);
+        pthread_join(th, NULL);
+    }
+    if (rc == TD_OK && pp.wrc) {
+        rc = pp.wrc;
+        if (err)
+            *err = pp.werr;
+    }
+    pipe_free(&pp);
+    pthread_mutex_destroy(&pp.mu);
+    pthread_cond_destroy(&pp.cv);
     return rc;
 }
 
