@@ -126,6 +126,9 @@ uint64_t td_prepared_cached(const td_grid *g);
  * development machine). The tile store picks random when the heights exceed its budget
  * (README "Datasets larger than memory" has the measurements). */
 void td_prepared_advise(const td_grid *g, int random);
+/* Asks the kernel to read a mapped grid into the page cache ahead of its first touch
+ * (MADV_WILLNEED; nothing is mapped into the process). */
+void td_prepared_willneed(const td_grid *g);
 /* Drops this process's pages of a mapped grid (MADV_DONTNEED): the page cache keeps them
  * while memory allows (clean pages the kernel reclaims under pressure), so the next touch
  * is a minor fault, not a read. */
