@@ -9,14 +9,19 @@
  * loader's whole grid), checked (NaN / infinities as the loaders do), reversed into
  * south-based order, checksummed and written with one pwrite at its place; the per-tile
  * min/max (td_tile, as td_grid_finish computes them: edge samples count in both tiles)
- * are accumulated row by row. After each chunk the heights are synced and the state file
- * (chunks done, their checksums, the running statistics) is replaced by rename, so a
- * killed prepare continues from its last chunk, and never from a chunk whose heights
- * were not on disk. The index is written last, by rename.
+ * are accumulated row by row. Each row then feeds the coarse levels: level k keeps the
+ * last three rows of level k-1 and makes each of its rows (lod.c's filter) as soon as the
+ * rows around it have arrived, passing it on to level k+1 (rows arrive north first, so a
+ * level's rows are made in the same order; the whole pyramid needs three rows a level).
+ * Two threads (chunks_run): the caller reads, checks, checksums and writes chunk c+1
+ * while a worker makes the levels of chunk c. After each chunk every file is synced and
+ * the state file (chunks done, every layer's rows and checksums, the running statistics)
+ * is replaced by rename, so a killed prepare continues from its last chunk, and never
+ * from a chunk whose rows were not on disk. The index is written last, by rename.
  *
- * Reading: td_prepared_open reads only the index (a few hundred bytes a chunk) and
- * tiles.bin (24 bytes a tile), stats heights.f32 and maps it: 16 GiB of heights open in
- * the time of 1 GiB's. Chunks are checked on demand (td_prepared_verify_chunk): the
+ * Reading: td_prepared_open reads only the index (a few hundred bytes a chunk) and the
+ * tile records (24 bytes a tile), stats the heights and levels and maps them: 16 GiB of
+ * heights open in the time of 1 GiB's. Chunks are checked on demand (td_prepared_verify_chunk): the
  * server checks every chunk once, in the background, before it serves the dataset
  * (the tracers read the mapping directly, so "on first touch" has no hook short of
  * trapping page faults). */
@@ -200,24 +205,17 @@ static int path_in(char *out, size_t n, const char *dir, const char *name)
     return ok;
 }
 
-/* The heights and tile records' file names of layer k. */
-static const char *layer_file(int k, char *out, size_t n)
+/* The name of layer k's heights (tiles 0) or tile records (tiles 1). */
+static const char *layer_name(int k, int tiles, char *out, size_t n)
 {
     if (k == 0)
-        snprintf(out, n, "%s", TD_PREPARED_HEIGHTS);
+        snprintf(out, n, "%s", tiles ? TD_PREPARED_TILES : TD_PREPARED_HEIGHTS);
     else
-        snprintf(out, n, TD_PREPARED_LEVEL_FMT, k);
+        snprintf(out, n, tiles ? TD_PREPARED_LEVEL_TILES_FMT : TD_PREPARED_LEVEL_FMT, k);
     return out;
 }
 
-static const char *layer_tiles(int k, char *out, size_t n)
-{
-    if (k == 0)
-        snprintf(out, n, "%s", TD_PREPARED_TILES);
-    else
-        snprintf(out, n, TD_PREPARED_LEVEL_TILES_FMT, k);
-    return out;
-}
+static const char *layer_file(int k, char *out, size_t n) { return layer_name(k, 0, out, n); }
 
 static td_status write_file(const char *dir, const char *name, const void *const *parts,
                             const size_t *lens, int nparts, td_err *err)
@@ -481,7 +479,7 @@ static td_status tiles_write(td_prep_run *r, int k, uint64_t *sum, td_err *err)
     {
         const void *parts[1] = {tiles};
         size_t lens[1] = {nt * sizeof *tiles};
-        rc = write_file(r->dir, layer_tiles(k, name, sizeof name), parts, lens, 1, err);
+        rc = write_file(r->dir, layer_name(k, 1, name, sizeof name), parts, lens, 1, err);
     }
 out:
     free(tiles);
@@ -531,9 +529,7 @@ static td_status finish(td_prep_run *r, const td_src_rows *src, td_err *err)
                                       "bytes", (json_int_t)src->size, "mtime", (json_int_t)src->mtime,
                                       "levels", levels)
                               : NULL;
-    if (root && json_object_update(root, base))
-        json_decref(root), root = NULL;
-    text = root ? json_dumps(root, JSON_INDENT(1) | JSON_COMPACT) : NULL;
+    text = root && json_object_update(root, base) == 0 ? json_dumps(root, JSON_INDENT(1) | JSON_COMPACT) : NULL;
     if (!text) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for the index");
         goto out;
@@ -1194,7 +1190,7 @@ static td_status layer_open(td_prepared *p, int k, td_err *err)
     td_status rc;
     char path[PATH_MAX], name[32];
     td_grid *g = k ? p->lev[k] : p->grid;
-    if (!path_in(path, sizeof path, p->dir, layer_tiles(k, name, sizeof name)))
+    if (!path_in(path, sizeof path, p->dir, layer_name(k, 1, name, sizeof name)))
         return td_err_set(err, TD_EINVAL, "%s: path too long", p->dir);
     rc = tiles_read(path, g, p->tiles_fnv[k], err);
     if (rc == TD_OK && path_in(path, sizeof path, p->dir, layer_file(k, name, sizeof name)))

@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include <cmocka.h>
+#include <jansson.h>
 
 #include "accel.h"
 #include "dem.h"
@@ -62,6 +63,26 @@ static void opts(td_prepare_opts *o, int tile_log2, int32_t chunk_rows)
     o->chunk_rows = chunk_rows;
 }
 
+/* A mapped grid a equals grid b bit for bit: shape, spacing, tiling, statistics,
+ * georeference, heights and tile records. */
+static void assert_same_grid(const td_grid *a, const td_grid *b)
+{
+    assert_non_null(a->map);
+    assert_int_equal(a->w, b->w);
+    assert_int_equal(a->h, b->h);
+    assert_true(a->sx == b->sx && a->sy == b->sy);
+    assert_int_equal(a->tile_log2, b->tile_log2);
+    assert_int_equal(a->tiles_x, b->tiles_x);
+    assert_int_equal(a->tiles_y, b->tiles_y);
+    assert_true((a->zmin == b->zmin && a->zmax == b->zmax) || (isnan(a->zmin) && isnan(b->zmin)));
+    assert_int_equal(a->voids, b->voids);
+    assert_int_equal(a->geo.kind, b->geo.kind);
+    assert_true(a->geo.x0 == b->geo.x0 && a->geo.y0 == b->geo.y0);
+    assert_true(a->geo.dx == b->geo.dx && a->geo.dy == b->geo.dy);
+    assert_memory_equal(a->z, b->z, (size_t)a->w * (size_t)a->h * sizeof(float));
+    assert_memory_equal(a->tiles, b->tiles, (size_t)a->tiles_x * (size_t)a->tiles_y * sizeof(td_tile));
+}
+
 /* The prepared levels of p equal td_lod_build's levels of the loaded grid ref, bit for bit
  * (heights, tile records, statistics, spacing, georeference): the levels the LOD oracle
  * holds to the references are the ones a prepared dataset serves. */
@@ -78,21 +99,9 @@ static void assert_same_levels(td_prepared *p, const td_grid *ref)
     assert_true(want->levels >= 1);
     assert_int_equal(got->levels, want->levels);
     for (int k = 1; k <= want->levels; k++) {
-        const td_grid *a = got->grid[k], *b = want->grid[k];
-        assert_non_null(a->map);
         assert_null(got->view[k].accel);
-        assert_ptr_equal(got->view[k].grid, a);
-        assert_int_equal(a->w, b->w);
-        assert_int_equal(a->h, b->h);
-        assert_true(a->sx == b->sx && a->sy == b->sy);
-        assert_int_equal(a->tile_log2, b->tile_log2);
-        assert_int_equal(a->tiles_x, b->tiles_x);
-        assert_int_equal(a->tiles_y, b->tiles_y);
-        assert_true((a->zmin == b->zmin && a->zmax == b->zmax) || (isnan(a->zmin) && isnan(b->zmin)));
-        assert_int_equal(a->voids, b->voids);
-        assert_true(a->geo.dx == b->geo.dx && a->geo.dy == b->geo.dy && a->geo.x0 == b->geo.x0);
-        assert_memory_equal(a->z, b->z, (size_t)a->w * (size_t)a->h * sizeof(float));
-        assert_memory_equal(a->tiles, b->tiles, (size_t)a->tiles_x * (size_t)a->tiles_y * sizeof(td_tile));
+        assert_ptr_equal(got->view[k].grid, got->grid[k]);
+        assert_same_grid(got->grid[k], want->grid[k]);
     }
     td_lod_free(got);
     td_lod_free(want);
@@ -106,28 +115,13 @@ static void assert_same_as_loaded(const char *src, const char *dir, int tile_log
     td_grid *ref = NULL, *g;
     td_prepared *p = NULL;
     td_err e = {0};
-    size_t nt;
 
     td_dem_opts_default(&lo);
     lo.tile_log2 = tile_log2;
     assert_int_equal(td_dem_load(src, &lo, &ref, &e), TD_OK);
     assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK);
     g = td_prepared_take_grid(p);
-    assert_non_null(g->map);
-    assert_int_equal(g->w, ref->w);
-    assert_int_equal(g->h, ref->h);
-    assert_true(g->sx == ref->sx && g->sy == ref->sy);
-    assert_int_equal(g->tile_log2, ref->tile_log2);
-    assert_int_equal(g->tiles_x, ref->tiles_x);
-    assert_int_equal(g->tiles_y, ref->tiles_y);
-    assert_true(g->zmin == ref->zmin && g->zmax == ref->zmax);
-    assert_int_equal(g->voids, ref->voids);
-    assert_int_equal(g->geo.kind, ref->geo.kind);
-    assert_true(g->geo.x0 == ref->geo.x0 && g->geo.y0 == ref->geo.y0);
-    assert_true(g->geo.dx == ref->geo.dx && g->geo.dy == ref->geo.dy);
-    assert_memory_equal(g->z, ref->z, (size_t)g->w * (size_t)g->h * sizeof(float));
-    nt = (size_t)g->tiles_x * (size_t)g->tiles_y;
-    assert_memory_equal(g->tiles, ref->tiles, nt * sizeof(td_tile));
+    assert_same_grid(g, ref);
     assert_same_levels(p, ref);
     td_grid_free(g);
     td_grid_free(ref);
@@ -366,26 +360,42 @@ static void test_truncated(void **state)
     assert_refused(dir, TD_EFORMAT, "tiles.bin", "truncated");
 }
 
-static void test_other_version(void **state)
+/* The index of dir as text (the caller frees it), and written back. */
+static char *index_text(const char *dir)
 {
-    char dir[512], p[600];
-    unsigned char *buf;
-    size_t n;
-    char *v;
+    char p[600], *text;
+    json_t *j;
+    snprintf(p, sizeof p, "%s/%s", dir, TD_PREPARED_INDEX);
+    j = json_load_file(p, 0, NULL);
+    assert_non_null(j);
+    text = json_dumps(j, JSON_COMPACT | JSON_PRESERVE_ORDER);
+    json_decref(j);
+    assert_non_null(text);
+    return text;
+}
+
+static void index_put(const char *dir, char *text)
+{
+    char p[600];
     FILE *f;
-    (void)state;
-    fresh("version", dir, sizeof dir);
-    file_bytes(dir, TD_PREPARED_INDEX, &buf, &n);
-    buf[n] = '\0';
-    v = strstr((char *)buf, "\"version\":2");
-    assert_non_null(v);
-    v[strlen("\"version\":")] = '7';
     snprintf(p, sizeof p, "%s/%s", dir, TD_PREPARED_INDEX);
     f = fopen(p, "wb");
     assert_non_null(f);
-    fwrite(buf, 1, n, f);
+    fputs(text, f);
     fclose(f);
-    free(buf);
+    free(text);
+}
+
+static void test_other_version(void **state)
+{
+    char dir[512], *text, *v;
+    (void)state;
+    fresh("version", dir, sizeof dir);
+    text = index_text(dir);
+    v = strstr(text, "\"version\":2");
+    assert_non_null(v);
+    v[strlen("\"version\":")] = '7';
+    index_put(dir, text);
     assert_refused(dir, TD_EUNSUPPORTED, "terrad.json", "version 7");
 }
 
@@ -437,11 +447,7 @@ static void test_corrupt_chunk(void **state)
  * tile records, an index whose levels do not match the grid. */
 static void test_levels_refused(void **state)
 {
-    char dir[512], p[600];
-    unsigned char *buf;
-    size_t n;
-    char *v;
-    FILE *f;
+    char dir[512], p[600], *text, *v;
     (void)state;
     fresh("lod-trunc", dir, sizeof dir);
     snprintf(p, sizeof p, "%s/lod1.f32", dir);
@@ -456,18 +462,12 @@ static void test_levels_refused(void **state)
     assert_refused(dir, TD_EIO, "lod5.f32", "cannot open");
     /* one level fewer in the index than the grid has */
     fresh("lod-count", dir, sizeof dir);
-    file_bytes(dir, TD_PREPARED_INDEX, &buf, &n);
-    buf[n] = '\0';
-    v = strstr((char *)buf, "\"levels\":[");
+    text = index_text(dir);
+    v = strstr(text, "\"levels\":[");
     assert_non_null(v);
     v += strlen("\"levels\":[");
     memmove(v, strchr(v, '}') + 2, strlen(strchr(v, '}') + 2) + 1); /* drops level 1's entry */
-    snprintf(p, sizeof p, "%s/%s", dir, TD_PREPARED_INDEX);
-    f = fopen(p, "wb");
-    assert_non_null(f);
-    fputs((char *)buf, f);
-    fclose(f);
-    free(buf);
+    index_put(dir, text);
     assert_refused(dir, TD_EFORMAT, "terrad.json", "coarse levels");
 }
 
