@@ -919,12 +919,14 @@ static uint64_t process_rss(uint64_t *file)
     return (uint64_t)res * (uint64_t)page;
 }
 
-/* Over the budget: drop the process's pages of the mapped heights (the page cache keeps
- * them while memory allows). Over means the tile store's own bytes plus the resident
- * file pages (the mapped heights, and the binary's few MB), or the whole process. Asked
- * every TD_TRIM_MS while there are prepared datasets: a render maps pages at up to a
- * few hundred MB a second from the page cache, so a 250 ms period let the peak reach
- * 2.2 GB under a 1 GiB budget (bench-prepared, 4 GiB grid). */
+/* Near the budget: drop the process's pages of the mapped heights (the page cache keeps
+ * them while memory allows). Near means the tile store's own bytes plus the resident
+ * file pages (the mapped heights, and the binary's few MB), or the whole process, over
+ * 7/8 of the budget. Asked every TD_TRIM_MS while there are prepared datasets: renders
+ * map pages back from the page cache fast, so a 250 ms period against the whole budget
+ * let the peak reach 2.2 GB under a 1 GiB budget, and 25 ms against the whole budget
+ * still 1.27 GB (bench-prepared, 4 GiB grid, shared 2-core machine: the trimming thread
+ * waits for a core too). */
 static void trim_mapped(td_store *s)
 {
     uint64_t file, rss = process_rss(&file), other;
@@ -932,7 +934,8 @@ static void trim_mapped(td_store *s)
     pthread_mutex_lock(&s->mu);
     other = s->resident_bytes;
     pthread_mutex_unlock(&s->mu);
-    if (file && (other + file > s->o.budget_bytes || rss > s->o.budget_bytes)) {
+    uint64_t high = s->o.budget_bytes - s->o.budget_bytes / 8; /* renders map more before the next look */
+    if (file && (other + file > high || rss > high)) {
         for (size_t k = 0; k < s->nds; k++)
             if (s->ds[k].prep)
                 for (int n = mapped_grids(s->ds[k].cur, gs), i = 0; i < n; i++)
