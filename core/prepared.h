@@ -39,9 +39,13 @@
  * gain that the kernel's page cache gives anyway at page granularity (a 256-cell tile of
  * a 16384-wide grid touches 257 runs of 1 KiB, i.e. 257 pages of 4 KiB: 4x the bytes of
  * a tiled layout for rays that stay in one tile, the same for rays that cross rows of
- * tiles). Resident heights are what rays touched: measured with mincore
- * (td_prepared_resident) and dropped from the process (madvise, td_prepared_trim) when
- * over the budget; the page cache keeps them for the next touch while memory allows. */
+ * tiles). What made far views slow (a long ray reads a page a step of one row) is
+ * answered by the coarse levels instead: with quality.lod, only rays nearer than the
+ * first level's distance read the full-resolution pages (README "Datasets larger than
+ * memory" has the measurements). Resident heights are what rays touched: measured from
+ * the mapping's Rss (td_prepared_resident) and dropped from the process (madvise,
+ * td_prepared_trim) when over the budget; the page cache keeps them for the next touch
+ * while memory allows. */
 #ifndef TD_PREPARED_H
 #define TD_PREPARED_H
 
