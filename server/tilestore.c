@@ -142,6 +142,7 @@ struct td_store {
     int bg_on, bg_stop;     /* bg_stop under `mu` */
     pthread_cond_t bg_wake;
     uint64_t heights_trims;
+    uint64_t trim_rss, trim_grow; /* trim_mapped's: the process at its last look, its growth */
 };
 
 struct td_snapshot {
@@ -921,25 +922,32 @@ static uint64_t process_rss(uint64_t *file)
 
 /* Near the budget: drop the process's pages of the mapped heights (the page cache keeps
  * them while memory allows). Near means the tile store's own bytes plus the resident
- * file pages (the mapped heights, and the binary's few MB), or the whole process, over
- * 7/8 of the budget. Asked every TD_TRIM_MS while there are prepared datasets: renders
- * map pages back from the page cache fast, so a 250 ms period against the whole budget
- * let the peak reach 2.2 GB under a 1 GiB budget, and 25 ms against the whole budget
- * still 1.27 GB (bench-prepared, 4 GiB grid, shared 2-core machine: the trimming thread
- * waits for a core too). */
+ * file pages (the mapped heights, and the binary's few MB), or the whole process, within
+ * a margin of the budget: the most the process grew between two looks lately, twice (at
+ * least an eighth of the budget, at most half). Asked every TD_TRIM_MS while there are
+ * prepared datasets: renders map pages back from the page cache fast (hundreds of MB
+ * between two looks when the looking thread waits for a core), so a 250 ms period against
+ * the whole budget let the peak reach 2.2 GB under a 1 GiB budget, 25 ms against the
+ * whole budget 1.27 GB, 25 ms against 7/8 of it 1.23 GB (bench-prepared, 4 GiB grid,
+ * without quality.lod, shared 2-core machine). s->trim_* are this thread's alone. */
 static void trim_mapped(td_store *s)
 {
-    uint64_t file, rss = process_rss(&file), other;
+    uint64_t file, rss = process_rss(&file), other, margin, grow = rss > s->trim_rss ? rss - s->trim_rss : 0;
     const td_grid *gs[TD_LOD_MAX + 1];
     pthread_mutex_lock(&s->mu);
     other = s->resident_bytes;
     pthread_mutex_unlock(&s->mu);
-    uint64_t high = s->o.budget_bytes - s->o.budget_bytes / 8; /* renders map more before the next look */
-    if (file && (other + file > high || rss > high)) {
+    s->trim_grow = grow > s->trim_grow ? grow : s->trim_grow - s->trim_grow / 64; /* forgets in a few s */
+    margin = 2 * s->trim_grow;
+    margin = margin < s->o.budget_bytes / 8 ? s->o.budget_bytes / 8 : margin;
+    margin = margin > s->o.budget_bytes / 2 ? s->o.budget_bytes / 2 : margin;
+    s->trim_rss = rss;
+    if (file && (other + file + margin > s->o.budget_bytes || rss + margin > s->o.budget_bytes)) {
         for (size_t k = 0; k < s->nds; k++)
             if (s->ds[k].prep)
                 for (int n = mapped_grids(s->ds[k].cur, gs), i = 0; i < n; i++)
                     td_prepared_trim(gs[i]);
+        s->trim_rss = process_rss(&file);
         pthread_mutex_lock(&s->mu);
         s->heights_trims++;
         pthread_mutex_unlock(&s->mu);
