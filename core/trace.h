@@ -109,6 +109,19 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
 void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r, double t_clear,
                    td_hit *hit);
 
+/* A camera ray of a fan: its direction and where it may start (td_trace_from's t_clear;
+ * +inf: a miss known without tracing). */
+typedef struct td_fan_ray {
+    double d[3];
+    double t_clear;
+} td_fan_ray;
+
+/* td_trace_from for n rays from one origin o, each over [0, +inf): the camera rays of a
+ * render, which share the walk's setup of the grid and the origin. hits[k] is the hit
+ * td_trace_from gives rays[k], bit for bit. */
+void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3], int n,
+                  const td_fan_ray *rays, td_hit *hits);
+
 /* Whether the ray meets the surface in [tmin, tmax] (td_trace's hit is finite), for rays
  * that leave the surface (shadow and ambient-occlusion rays): it climbs the max-mipmap
  * from small blocks up, and computes no hit point or normal. A shadow ray (direction the
