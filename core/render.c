@@ -907,10 +907,28 @@ static int on_water(const ctx *c)
 }
 
 /* One ray toward the sun per dry hit facing it: 1 lit, 0 shadowed, into the scratch. */
+/* The batched shadow rays of a block (np of them, from o[k], sample at[k]): one
+ * td_occluded_par along the sun with the sun bound, as occluded() asks each. Returns 0. */
+static int shadows_flush(worker *w, const double (*o)[3], const int *at, int np, float *lit)
+{
+    const ctx *c = w->c;
+    uint8_t hit[TD_FAN];
+    uint32_t steps = 0;
+    td_occluded_par(c->v, c->s->quality.method, c->s->quality.surface, c->sun, np, o, c->sunlit,
+                    hit, &steps);
+    for (int k = 0; k < np; k++)
+        lit[at[k]] = hit[k] ? 0.0f : 1.0f;
+    w->st.steps += steps;
+    w->st.kind_steps[TD_RAY_SHADOW] += steps;
+    return 0;
+}
+
 static void stage_shadows(worker *w, const blk *b)
 {
     const ctx *c = w->c;
     float *lit = w->scratch[TD_STAGE_SHADOWS];
+    double o[TD_FAN][3];
+    int at[TD_FAN], np = 0;
     td_ray r;
     for (int i = 0; i < b->ns; i++) {
         smp *sm = &w->s[i];
@@ -930,8 +948,17 @@ static void stage_shadows(worker *w, const blk *b)
         r.tmax = INFINITY;
         keep_ray(c, c->shadow_rays, b, i, &r);
         w->st.rays[TD_RAY_SHADOW]++;
-        lit[i] = occluded(c, w, TD_RAY_SHADOW, c->views[sm->level], &r) ? 0.0f : 1.0f;
+        if (sm->level == 0 && !c->plain_secondary && !(c->curv2 && needs_curve(c, r.o, r.d, c->curv_smin2))) {
+            memcpy(o[np], r.o, sizeof o[np]); /* a straight ray on the full grid: batched */
+            at[np++] = i;
+            if (np == TD_FAN)
+                np = shadows_flush(w, o, at, np, lit);
+        } else {
+            lit[i] = occluded(c, w, TD_RAY_SHADOW, c->views[sm->level], &r) ? 0.0f : 1.0f;
+        }
     }
+    if (np > 0)
+        shadows_flush(w, o, at, np, lit);
 }
 
 static int on_shadows(const ctx *c)

@@ -332,7 +332,7 @@ static double linear_under(const walk *w, const cell_seg *s, double t)
  * ends there), the surface's own height under the ray. */
 typedef double (*under_fn)(const walk *w, const cell_seg *s, double t);
 
-static void seg_f(const walk *w, cell_seg *s, under_fn under)
+TD_HOT void seg_f(const walk *w, cell_seg *s, under_fn under)
 {
     if (isnan(s->fa))
         s->fa = ray_z(w, s->ta) - (s->entry == ENTRY_START
@@ -891,18 +891,6 @@ TD_HOT void start_cell(const walk *w, walk_state *st)
     st->cj = cell_along(ray_v(w, st->t), w->sv, 0, w->cmax_j);
 }
 
-/* The whole setup of one ray. Returns 0 if nothing is left of it. */
-static int walk_setup(walk *w, const td_grid *g, td_surface s, const td_ray *r, double *scale,
-                      walk_state *st)
-{
-    walk_grid(w, g, s);
-    walk_origin(w, r->o);
-    int ok = walk_dir(w, r->d, scale) && walk_clip(w, st, r->tmin, r->tmax, *scale);
-    if (ok)
-        start_cell(w, st);
-    return ok;
-}
-
 /* The walk enters a new tile (one step): skips it whole if the ray passes above it (or
  * below it, for the two-sided surfaces) or it holds no sample; else says which method
  * crosses it. Returns STEP_CONTINUE with *tile set, or what leaving the tile gave. */
@@ -1083,24 +1071,55 @@ void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3]
     }
 }
 
-int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r,
-                const td_sunlit *lit, uint32_t *steps)
+/* One any-hit query from where w's grid and direction are set (see td_occluded). */
+static int occluded_one(const td_view *v, td_method m, walk *w, const double o[3], double tmin,
+                        double tmax, double scale, uint32_t *steps)
 {
-    walk w;
     walk_state st;
     hit_rec hr = {.t = INFINITY};
     td_method used = m == TD_METHOD_AUTO || m == TD_METHOD_SILHOUETTE ? TD_METHOD_INCREMENTAL : m;
-    double scale = 1.0;
     int hit = 0;
-    if (valid_call(v->grid, m, s) && walk_setup(&w, v->grid, s, r, &scale, &st)) {
-        w.lit = lit;
+    walk_origin(w, o);
+    if (walk_clip(w, &st, tmin, tmax, scale)) {
+        start_cell(w, &st);
         /* from the surface: blocks of 4 x 4 cells first, then up (measured on the
            baseline's shadow rays: 20% fewer steps than from the tile's top, 30% fewer
            than cell by cell) */
         st.level = 2;
-        hit = run_walk(v, m, &w, &st, &hr, steps, &used) == STEP_HIT;
+        hit = run_walk(v, m, w, &st, &hr, steps, &used) == STEP_HIT;
     }
     return hit;
+}
+
+int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r,
+                const td_sunlit *lit, uint32_t *steps)
+{
+    walk w;
+    double scale = 1.0;
+    int hit = 0;
+    if (valid_call(v->grid, m, s)) {
+        walk_grid(&w, v->grid, s);
+        if (walk_dir(&w, r->d, &scale)) {
+            w.lit = lit;
+            hit = occluded_one(v, m, &w, r->o, r->tmin, r->tmax, scale, steps);
+        }
+    }
+    return hit;
+}
+
+void td_occluded_par(const td_view *v, td_method m, td_surface s, const double d[3], int n,
+                     const double (*o)[3], const td_sunlit *lit, uint8_t *hit, uint32_t *steps)
+{
+    walk w;
+    double scale = 1.0;
+    int ok = valid_call(v->grid, m, s);
+    if (ok) {
+        walk_grid(&w, v->grid, s);
+        ok = walk_dir(&w, d, &scale);
+        w.lit = lit;
+    }
+    for (int k = 0; k < n; k++)
+        hit[k] = ok && occluded_one(v, m, &w, o[k], 0.0, INFINITY, scale, steps);
 }
 
 /* ------------------------------------------------------------------------------------ */

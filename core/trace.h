@@ -130,6 +130,12 @@ void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3]
 int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r,
                 const td_sunlit *lit, uint32_t *steps);
 
+/* td_occluded for n parallel rays over [0, +inf): from o[k] along d (the shadow rays of a
+ * render, which share the walk's setup of the grid and the direction). hit[k] is what
+ * td_occluded says of ray k. Adds their steps to *steps. */
+void td_occluded_par(const td_view *v, td_method m, td_surface s, const double d[3], int n,
+                     const double (*o)[3], const td_sunlit *lit, uint8_t *hit, uint32_t *steps);
+
 /* An upper bound of every surface over the cells [i0, i1] x [j0, j1] (clamped to the
  * grid; -inf if no cell is left or all are holes): the highest corner, read from at
  * most 16 samples or max-mipmap blocks per tile it touches (a tile's zmax where neither
