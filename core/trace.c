@@ -134,7 +134,7 @@ typedef struct walk {
     const surface_ops *surf;
     double ou, ov, oz; /* origin: cell units (u = x/sx, v = y/sy), metres */
     double du, dv, dz; /* direction per unit of internal t */
-    double iu, iv;     /* reciprocals (+inf where the component is zero) */
+    double iu, iv, iz; /* reciprocals (+inf where the component is zero) */
     int su, sv;        /* signs of du, dv: -1, 0, +1 */
     double hs;         /* horizontal metres per unit t (for cone steps) */
     double t_end;      /* end of the search, internal t */
@@ -864,6 +864,7 @@ TD_HOT int walk_dir(walk *w, const double dir[3], double *scale)
     w->sv = w->dv > 0.0 ? 1 : (w->dv < 0.0 ? -1 : 0);
     w->iu = w->su ? 1.0 / w->du : INFINITY;
     w->iv = w->sv ? 1.0 / w->dv : INFINITY;
+    w->iz = 1.0 / w->dz; /* clip_slab's, unused where dz is 0 */
     w->hs = sqrt(d[0] * d[0] + d[1] * d[1]); /* no overflow: |d| <= 2^21 after scaling */
     return 1;
 }
@@ -877,7 +878,7 @@ TD_HOT int walk_clip(walk *w, walk_state *st, double tmin, double tmax, double s
     double t0 = tmin / scale, t1 = tmax / scale;
     clip_slab(w->ou, w->du, w->iu, 0.0, (double)(g->w - 1), &t0, &t1);
     clip_slab(w->ov, w->dv, w->iv, 0.0, (double)(g->h - 1), &t0, &t1);
-    clip_slab(w->oz, w->dz, 1.0 / w->dz, w->surf->solid ? -INFINITY : (double)g->zmin - w->zeps,
+    clip_slab(w->oz, w->dz, w->iz, w->surf->solid ? -INFINITY : (double)g->zmin - w->zeps,
               (double)g->zmax + w->zeps, &t0, &t1);
     w->t_end = t1;
     st->t = t0;
