@@ -660,16 +660,15 @@ static void camera_trace(worker *w, smp *sm, double t_clear)
 {
     const ctx *c = w->c;
     td_hit hit;
-    td_ray r = {.tmin = 0.0, .tmax = INFINITY};
-    memcpy(r.o, sm->o, sizeof r.o);
-    memcpy(r.d, sm->d, sizeof r.d);
     if (t_clear == INFINITY) {
-        memset(&hit, 0, sizeof hit);
         hit.t = INFINITY;
         hit.method = c->s->quality.method == TD_METHOD_AUTO ? TD_METHOD_INCREMENTAL : c->s->quality.method;
         w->st.rays[TD_RAY_PRIMARY]++;
         sm->level = 0;
     } else {
+        td_ray r = {.tmin = 0.0, .tmax = INFINITY};
+        memcpy(r.o, sm->o, sizeof r.o);
+        memcpy(r.d, sm->d, sizeof r.d);
         trace_camera(c, &r, 0, t_clear, &hit, &sm->level, &w->st);
     }
     camera_keep(w, sm, &hit);
@@ -698,10 +697,10 @@ static void fan_flush(worker *w, fan *f)
 }
 
 /* A sample's camera ray from t_clear on: into the fan when the render has one (the
- * full grid, no levels of detail), else traced now. */
+ * full grid, no levels of detail), else traced now; a known miss (+inf) is kept at once. */
 static void fan_add(worker *w, fan *f, smp *sm, double t_clear)
 {
-    if (!f) {
+    if (!f || t_clear == INFINITY) { /* a miss known without tracing costs nothing more */
         camera_trace(w, sm, t_clear);
     } else {
         f->sm[f->n] = sm;
