@@ -1128,9 +1128,10 @@ static void stage_resolve(worker *w, const blk *b)
                         acc[ch] += sm[k].alpha * sm[k].rgb[ch];
                 }
                 uint8_t *dst = c->rgba + 4 * o;
-                for (int ch = 0; ch < 3; ch++) {
-                    double v = a > 0.0 ? sqrt(fmax(acc[ch] / a, 0.0)) : 0.0;
-                    dst[ch] = (uint8_t)(fmin(v, 1.0) * 255.0 + 0.5);
+                for (int ch = 0; ch < 3; ch++) { /* compares, not libm's fmax/fmin calls */
+                    double q = a > 0.0 ? acc[ch] / a : 0.0;
+                    double v = sqrt(q > 0.0 ? q : 0.0);
+                    dst[ch] = (uint8_t)((v < 1.0 ? v : 1.0) * 255.0 + 0.5);
                 }
                 dst[3] = (uint8_t)(a / (n * n) * 255.0 + 0.5);
             }
