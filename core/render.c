@@ -98,7 +98,10 @@
  * stats): 0.2-0.45x Embree's packets of 16 on the same rays. Tried and dropped:
  * slices cut by each sample's azimuth with an exact sort by elevation (fewer steps on
  * rolled views, 2-7% slower overall); 8 or 16 slices (narrower wedges, more bins: 10-35%
- * more instructions).
+ * more instructions). Once the batches below had cut the rays' own cost, the bins' share
+ * grew and 2 slices a block beat 4 (primary-stage instructions on the bench views of
+ * trinidad -3 to -7%, picos -2 to -3% and +1.8% rolled; time -2 to -6% on trinidad's); 1
+ * slice is no better than 2.
  *
  * Batches (issue 12): what rays share is set up once. A block's camera rays come a sample
  * row at a time (td_camera_dirs, vectorised), the straight ones on the full grid are
@@ -130,7 +133,7 @@
 #include "shade.h"
 
 #define TD_BLOCK 16
-#define TD_SLICES 4 /* wedges a block's camera rays are cut into for the horizon device */
+#define TD_SLICES 2 /* wedges a block's camera rays are cut into for the horizon device */
 #define TD_SAMPLES_MAX 8 /* quality.samples at most (limit.h's core column, check_scene) */
 #define TD_DEG (M_PI / 180.0)
 
@@ -1128,9 +1131,10 @@ static void stage_resolve(worker *w, const blk *b)
                         acc[ch] += sm[k].alpha * sm[k].rgb[ch];
                 }
                 uint8_t *dst = c->rgba + 4 * o;
-                for (int ch = 0; ch < 3; ch++) {
-                    double v = a > 0.0 ? sqrt(fmax(acc[ch] / a, 0.0)) : 0.0;
-                    dst[ch] = (uint8_t)(fmin(v, 1.0) * 255.0 + 0.5);
+                for (int ch = 0; ch < 3; ch++) { /* compares, not libm's fmax/fmin calls */
+                    double q = a > 0.0 ? acc[ch] / a : 0.0;
+                    double v = sqrt(q > 0.0 ? q : 0.0);
+                    dst[ch] = (uint8_t)((v < 1.0 ? v : 1.0) * 255.0 + 0.5);
                 }
                 dst[3] = (uint8_t)(a / (n * n) * 255.0 + 0.5);
             }
