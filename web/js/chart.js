@@ -2,7 +2,9 @@
 // (no chart library): one bar per stage the server ran (parse, queue, trace, each
 // effect, encode...), in header order, all charts of a comparison on one scale so
 // their bars can be compared by eye. A `total` entry, when the server sends one, is the
-// caption rather than a bar (it would dwarf the stages it sums).
+// caption rather than a bar (it would dwarf the stages it sums). A `pagein` entry (the
+// wait for pages of a prepared dataset) is a bar but not added to the total: it is part
+// of the stages' time, mostly trace's.
 
 const SVG = 'http://www.w3.org/2000/svg';
 const PALETTE = ['#4e79a7', '#f28e2b', '#59a14f', '#e15759', '#76b7b2', '#edc948',
@@ -27,7 +29,7 @@ export function stagesOf(info) {
 
 export function totalOf(info) {
   const t = info.timing.find((e) => e.name === 'total' && e.dur != null);
-  return t ? t.dur : stagesOf(info).reduce((s, e) => s + e.dur, 0);
+  return t ? t.dur : stagesOf(info).filter((e) => e.name !== 'pagein').reduce((s, e) => s + e.dur, 0);
 }
 
 export function fmtMs(ms) {

@@ -17,6 +17,7 @@ import {
   recolourViewshed, overlayBounds, sampleAt, viewshedBody, VISIBLE_RGBA, HIDDEN_RGBA, OUTSIDE_RGBA,
 } from '../js/viewshed.js';
 import { panoramaScene, peaksBody, peakText, placeLabels } from '../js/peaks.js';
+import { stagesOf, totalOf } from '../js/chart.js';
 
 const near = (a, b, eps = 1e-9) => Math.abs(a - b) <= eps;
 
@@ -38,6 +39,12 @@ test('Server-Timing: entries in order, durations, quoted descriptions with comma
   assert.deepEqual(parseServerTiming(null), []);
   const odd = parseServerTiming('cache, miss;dur=abc');
   assert.deepEqual(odd, [{ name: 'cache', dur: null, desc: '' }, { name: 'miss', dur: null, desc: '' }]);
+});
+
+test('chart: a pagein entry is a bar, not added to the total (it is inside trace)', () => {
+  const info = { timing: parseServerTiming('parse;dur=1, trace;dur=100, encode;dur=4, pagein;dur=60;desc="9 major faults"') };
+  assert.deepEqual(stagesOf(info).map((s) => s.name), ['parse', 'trace', 'encode', 'pagein']);
+  assert.equal(totalOf(info), 105);
 });
 
 test('render headers: steps per ray from X-Terrad-Steps over X-Terrad-Rays', () => {
