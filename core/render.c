@@ -1132,7 +1132,7 @@ static void stage_resolve(worker *w, const blk *b)
                 }
                 uint8_t *dst = c->rgba + 4 * o;
                 for (int ch = 0; ch < 3; ch++) { /* compares, not libm's fmax/fmin calls */
-                    double q = a > 0.0 ? acc[ch] / a : 0.0;
+                    double q = a == 1.0 ? acc[ch] : (a > 0.0 ? acc[ch] / a : 0.0); /* x/1 is x */
                     double v = sqrt(q > 0.0 ? q : 0.0);
                     dst[ch] = (uint8_t)((v < 1.0 ? v : 1.0) * 255.0 + 0.5);
                 }
