@@ -150,6 +150,14 @@ int td_viewshed_ray(const td_grid *g, td_surface s, double ex, double ey, double
 int td_viewshed_cast(const td_view *v, td_surface s, td_method m, double ex, double ey, double ez,
                      int32_t i, int32_t j, double target_height, uint32_t *steps);
 
+/* Whether ray r (a viewshed's or line of sight's segment) starts under surface s: at
+ * r->tmin, where the tracer starts, the segment is below the surface there (the linear
+ * surface: the chord along the ray's line through that cell) by more than 2^-48 of the
+ * eye's height (rounding). The tracer counts crossings, so such a segment that stays
+ * under the surface all the way to its target (an eye on the ground looking through
+ * the hill it stands on) has none; td_viewshed_cast and td_los call it blocked. Never
+ * for the plane surface (a solid column: the tracer hits at tmin) nor over a hole. */
+int td_viewshed_starts_under(const td_grid *g, td_surface s, const td_ray *r);
 /* The surface under (x, y) on surface s (NaN on a hole, or outside the grid). */
 double td_viewshed_ground(const td_grid *g, td_surface s, double x, double y);
 
