@@ -50,7 +50,7 @@ typedef struct asc_reader {
     char buf[1 << 16];
 } asc_reader;
 
-static int asc_getc(asc_reader *r)
+static inline int asc_getc(asc_reader *r)
 {
     int c = EOF;
     if (r->pos == r->len) {
@@ -63,6 +63,9 @@ static int asc_getc(asc_reader *r)
     return c;
 }
 
+/* isspace in the C locale (terrad sets no other), without its table lookup per byte. */
+static inline int asc_space(int c) { return c == ' ' || (c >= '\t' && c <= '\r'); }
+
 /* Next whitespace-separated token: 1 found, 0 end of file, -1 longer than the buffer. */
 static int asc_token(asc_reader *r, char *tok)
 {
@@ -71,8 +74,8 @@ static int asc_token(asc_reader *r, char *tok)
         c = asc_getc(r);
         if (c == '\n')
             r->line++;
-    } while (c != EOF && isspace(c));
-    while (c != EOF && !isspace(c)) {
+    } while (c != EOF && asc_space(c));
+    while (c != EOF && !asc_space(c)) {
         if (k < TD_ASC_TOKEN_MAX - 1)
             tok[k] = (char)c;
         k++;
@@ -414,16 +417,15 @@ out:
  * caller then takes strtod's path). Up to 15 digits: the digits as an integer below 2^53
  * over an exact power of ten, one correctly rounded division, is strtod's double
  * (Clinger's fast path). Longer ones (picos has "2244.5900000000001455"): the first 18
- * significant digits over the power of ten in long double (64-bit mantissa) are within
- * 2^-55 of the decimal, so the decimal and strtod's double (within 2^-53 of it) both
- * round to the float of that value whenever it is 2^-50 away from a midpoint between
- * floats. NODATA is compared likewise (too close: not sure). Several times faster than
- * strtod; tests/unit/test_dem.c holds it to strtod on a million random tokens. */
+ * significant digits over the power of ten, in double, are within 2^-51.9 of the decimal
+ * (two roundings and the digits cut, under 1e-17), so the decimal and strtod's double
+ * (within 2^-53 of it) both round to the float of that value whenever it is 2^-49 of
+ * itself away from a midpoint between floats. NODATA is compared likewise (too close: not
+ * sure). Several times faster than strtod; tests/unit/test_dem.c holds it to strtod. */
 static int asc_fast_value(const char *tok, const asc_header *hd, float *out)
 {
-    static const long double p10[19] = {1e0L,  1e1L,  1e2L,  1e3L,  1e4L,  1e5L,  1e6L,
-                                        1e7L,  1e8L,  1e9L,  1e10L, 1e11L, 1e12L, 1e13L,
-                                        1e14L, 1e15L, 1e16L, 1e17L, 1e18L};
+    static const double p10[19] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8, 1e9,
+                                   1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18};
     const char *p = tok + (*tok == '-' || *tok == '+');
     uint64_t m = 0;
     int nd = 0, nf = -1, ok, cut = 0;
@@ -440,21 +442,25 @@ static int asc_fast_value(const char *tok, const asc_header *hd, float *out)
             break;
         }
     }
-    ok = *p == '\0' && p > tok + (*tok == '-' || *tok == '+') + (nf == 0) && nf <= 18 && LDBL_MANT_DIG >= 64;
-    if (ok && nd <= 15 && !cut) {
-        double v = (double)m / (double)p10[nf > 0 ? nf : 0];
-        v = *tok == '-' ? -v : v;
-        *out = hd->seen[K_NODATA] && v == hd->kv[K_NODATA] ? NAN : (float)v;
-    } else if (ok) {
-        long double x = (long double)m / p10[nf > 0 ? nf : 0], tol, nd_v = hd->kv[K_NODATA];
-        float f;
+    ok = *p == '\0' && p > tok + (*tok == '-' || *tok == '+') + (nf == 0) && nf <= 18;
+    if (ok) {
+        double x = (double)m / p10[nf > 0 ? nf : 0], tol = fabs(x) * 0x1p-49, nv = hd->kv[K_NODATA];
         x = *tok == '-' ? -x : x;
-        tol = fabsl(x) * 0x1p-50L;
-        f = (float)x;
-        ok = x > ((long double)f + nextafterf(f, -INFINITY)) / 2 + tol &&
-             x < ((long double)f + nextafterf(f, INFINITY)) / 2 - tol &&
-             !(hd->seen[K_NODATA] && fabsl(x - nd_v) <= tol + fabsl(nd_v) * 0x1p-50L);
-        *out = f;
+        if (nd <= 15 && !cut) { /* exact: strtod's double */
+            *out = hd->seen[K_NODATA] && x == nv ? NAN : (float)x;
+        } else {
+            float f = (float)x, n0, n1;
+            uint32_t b;
+            memcpy(&b, &f, sizeof b);
+            b--; /* the floats on either side of f (f is finite, not 0: checked below) */
+            memcpy(&n0, &b, sizeof b);
+            b += 2;
+            memcpy(&n1, &b, sizeof b);
+            ok = f != 0.0f && fabs(x - ((double)f + (double)n0) / 2) > tol &&
+                 fabs(x - ((double)f + (double)n1) / 2) > tol &&
+                 !(hd->seen[K_NODATA] && fabs(x - nv) <= tol + fabs(nv) * 0x1p-49);
+            *out = f;
+        }
     }
     return ok;
 }
