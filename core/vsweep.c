@@ -57,6 +57,9 @@
  * at m = 1 whose only edge lies outside the cone is kept (an edge of zero width would
  * not be). */
 #define VS_MDOM 1.5
+/* From this u on, every sample of a column (|V - ev| <= u + 2) has |m| < VS_MDOM: the
+ * column pass's shortcuts hold there (nearer columns take the general path). */
+#define VS_PASS_U 8.0
 
 typedef struct piece {
     double m;      /* start; the piece ends where the next one starts */
@@ -95,8 +98,20 @@ typedef struct sweep {
     uint8_t *vis;
     double *zcol[3]; /* columns U-1, U, U+1 (rows vlo.., NaN where not loaded) */
     double *mcol[3], *qcol[3]; /* their samples projected (columns east of the eye) */
+    /* column U against F before its edges go in (col_pass): the piece holding each
+     * sample's m, F's minimum over each interval [m_V, m_V+1], and a lower bound of F
+     * once column U is in (lcol: that minimum, or the column edge's lower end when the
+     * edge counts); valid while pass_ok (u >= VS_PASS_U) */
+    int *kcol;
+    double *fmin, *lcol;
+    uint8_t *colok; /* column U's edge [V, V+1] counts (a cell beside it is not a hole) */
+    int pass_ok;
     uint64_t swept, rays, steps;
 } sweep;
+
+/* max and min of values that are never NaN here, inline (fmax, fmin are calls to libm) */
+static inline double dmax(double a, double b) { return a > b ? a : b; }
+static inline double dmin(double a, double b) { return a < b ? a : b; }
 
 static const piece empty_piece = {0.0, 0.0, -INFINITY, 0.0, 0.0, 0.0};
 
@@ -279,8 +294,8 @@ static void load_next(sweep *sw, int32_t U)
 {
     const cone *c = &sw->c;
     double un = U + 1 - c->eu, iu = 1.0 / un, ez = sw->job->ez;
-    int32_t V0 = (int32_t)fmax(floor(c->ev - un) - 3.0, (double)c->vlo);
-    int32_t V1 = (int32_t)fmin(ceil(c->ev + un) + 3.0, (double)c->vhi);
+    int32_t V0 = (int32_t)dmax(floor(c->ev - un) - 3.0, (double)c->vlo);
+    int32_t V1 = (int32_t)dmin(ceil(c->ev + un) + 3.0, (double)c->vhi);
     double *t[3] = {sw->zcol[0], sw->mcol[0], sw->qcol[0]};
     for (int b = 0; b < 2; b++) {
         sw->zcol[b] = sw->zcol[b + 1];
@@ -452,14 +467,91 @@ static void mark_hole(sweep *sw, double ua, double ub, double va, double vb)
 {
     double mlo, mhi;
     if (ua > 0.0) {
-        mlo = fmin(va / ua, va / ub);
-        mhi = fmax(vb / ua, vb / ub);
+        mlo = dmin(va / ua, va / ub);
+        mhi = dmax(vb / ua, vb / ub);
     } else { /* the cell reaches back to the eye's column: m = v / u with u in (0, ub] */
         mlo = va >= 0.0 ? va / ub : -1.0;
         mhi = vb <= 0.0 ? vb / ub : 1.0;
     }
     for (int b = bin_of(mlo), e = bin_of(mhi); b <= e && mhi >= -1.0 && mlo <= 1.0; b++)
-        sw->hole_u[b] = fmin(sw->hole_u[b], fmax(ua, 0.0));
+        sw->hole_u[b] = dmin(sw->hole_u[b], dmax(ua, 0.0));
+}
+
+/* The column pass over column U's rows V0..V1 (m increasing with V): kcol[V] the piece of
+ * F holding m_V (as find), fmin[V] F's minimum over [m_V, m_V+1] (at its ends and the
+ * breaks between: F is linear in between), one walk along F instead of a search per
+ * target and per edge. Called after load_next(U), before column U's targets and edges. */
+static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
+{
+    const pvec *F = &sw->F;
+    const double *mc = sw->mcol[1] - sw->c.vlo;
+    int *kc = sw->kcol - sw->c.vlo;
+    double *fm = sw->fmin - sw->c.vlo;
+    int k = 0;
+    sw->pass_ok = U - sw->c.eu >= VS_PASS_U;
+    if (!sw->pass_ok)
+        return;
+    for (int32_t V = V0; V <= V1; V++) {
+        double m = mc[V];
+        while (k + 1 < F->n && F->p[k + 1].m <= m)
+            k++;
+        kc[V] = k;
+    }
+    for (int32_t V = V0; V < V1; V++) {
+        int a = kc[V], b = kc[V + 1];
+        double lo = dmin(pval(&F->p[a], mc[V]), pval(&F->p[b], mc[V + 1]));
+        if (a > 0 && F->p[a].m == mc[V]) /* on a break: the piece ending there holds m_V too */
+            lo = dmin(lo, pval(&F->p[a - 1], mc[V]));
+        for (int q = a; q < b; q++)
+            lo = dmin(lo, dmin(pval(&F->p[q], F->p[q + 1].m), pval(&F->p[q + 1], F->p[q + 1].m)));
+        fm[V] = lo;
+    }
+}
+
+/* The interval [m_k, m_k+1] of column U that holds m (k in V0..V1-1), or -1. */
+static inline int col_interval(const double *mc, int32_t V0, int32_t V1, int32_t near, double m)
+{
+    int32_t k = near < V0 ? V0 : (near >= V1 ? V1 - 1 : near);
+    while (k > V0 && mc[k] > m)
+        k--;
+    while (k + 1 < V1 && mc[k + 1] <= m)
+        k++;
+    return mc[k] <= m && m <= mc[k + 1] ? k : -1;
+}
+
+/* Whether the projected edge (ma, qa)-(mb, qb) of the strip between columns U-1 and U
+ * is under F once column U is in: under lcol over the intervals it spans (at most two),
+ * or under the column's polyline there (where the terrain faces the eye, rows and
+ * diagonals are). Only a shortcut before add_seg's exact test (under_f): 0 is "not
+ * known". */
+static int under_new(const sweep *sw, int32_t V, int32_t V0, int32_t V1, double ma, double qa, double mb, double qb)
+{
+    const double *mc = sw->mcol[1] - sw->c.vlo, *qc = sw->qcol[1] - sw->c.vlo, *lc = sw->lcol - sw->c.vlo;
+    int a, b, under = 0;
+    if (ma > mb) {
+        double t = ma;
+        ma = mb;
+        mb = t;
+        t = qa;
+        qa = qb;
+        qb = t;
+    }
+    a = col_interval(mc, V0, V1, V, ma);
+    b = a < 0 ? -1 : col_interval(mc, V0, V1, a, mb);
+    if (a >= 0 && b >= 0 && b - a <= 1) {
+        double top = dmax(qa, qb);
+        under = top <= lc[a] && top <= lc[b];
+        if (!under && sw->colok[a - sw->c.vlo] && sw->colok[b - sw->c.vlo]) {
+            /* the polyline through (m_k, q_k): at both ends of the edge, and the edge
+             * at the polyline's vertex between them */
+            double ca = qc[a] + (qc[a + 1] - qc[a]) * ((ma - mc[a]) / (mc[a + 1] - mc[a]));
+            double cb = qc[b] + (qc[b + 1] - qc[b]) * ((mb - mc[b]) / (mc[b + 1] - mc[b]));
+            under = qa <= ca && qb <= cb;
+            if (under && b > a)
+                under = qa + (qb - qa) * ((mc[b] - ma) / (mb - ma)) <= qc[b];
+        }
+    }
+    return under;
 }
 
 /* Column U's edges, and with `strip` those between columns U-1 and U, into F. */
@@ -470,14 +562,24 @@ static void add_column(sweep *sw, int32_t U, int strip)
     const double *mp = sw->mcol[0] - c->vlo, *qp = sw->qcol[0] - c->vlo;
     const double *mc = sw->mcol[1] - c->vlo, *qc = sw->qcol[1] - c->vlo;
     double u = U - c->eu, z[4], zl[4], zb[4], slack;
-    int32_t V0 = (int32_t)fmax(floor(c->ev - u) - 1.0, (double)c->vlo);
-    int32_t V1 = (int32_t)fmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
+    int32_t V0 = (int32_t)dmax(floor(c->ev - u) - 1.0, (double)c->vlo);
+    int32_t V1 = (int32_t)dmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
     sw->umax = u;
     /* the column first (in m order, so G is appended to): the strip's rows and diagonals
      * are then tested against F with it, and where the terrain faces the eye they are
      * under it. An edge whose two ends are under one piece of F is under F. */
     pv_clear(&sw->G);
-    {
+    if (sw->pass_ok) {
+        const double *fm = sw->fmin - c->vlo;
+        double *lc = sw->lcol - c->vlo;
+        uint8_t *ok = sw->colok - c->vlo;
+        for (int32_t V = V0; V < V1 && !sw->oom; V++) {
+            ok[V] = (uint8_t)((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl));
+            lc[V] = ok[V] ? dmax(fm[V], dmin(qc[V], qc[V + 1])) : fm[V];
+            if (ok[V] && !(dmax(qc[V], qc[V + 1]) <= fm[V]))
+                add_seg(sw, mc[V], qc[V], mc[V + 1], qc[V + 1], 0.0, 0);
+        }
+    } else {
         int hint = sw->hint_s, k0 = find(&sw->F, mc[V0], &hint), k1;
         int under0 = qc[V0] <= pval(&sw->F.p[k0], mc[V0]), under1;
         for (int32_t V = V0; V < V1 && !sw->oom; V++, k0 = k1, under0 = under1) {
@@ -494,14 +596,16 @@ static void add_column(sweep *sw, int32_t U, int strip)
         int left = cellz(sw, zp, zc, V, zl);
         if (!left && sw->holes && V >= c->vlo && V + 1 <= c->vhi)
             mark_hole(sw, u - 1.0, u, V - c->ev, V + 1 - c->ev);
-        if (left || below)
+        if ((left || below) && !(sw->pass_ok && under_new(sw, V, V0, V1, mp[V], qp[V], mc[V], qc[V])))
             add_seg(sw, mp[V], qp[V], mc[V], qc[V], 0.0, 1);
         below = left;
         if (left && !sw->lin) {
-            if (upper_main(sw, zl, u - 1.0, &slack))
-                add_seg(sw, mp[V], qp[V], mc[V + 1], qc[V + 1], slack, 1);
-            else
+            if (upper_main(sw, zl, u - 1.0, &slack)) {
+                if (!(sw->pass_ok && under_new(sw, V, V0, V1, mp[V], qp[V], mc[V + 1], qc[V + 1])))
+                    add_seg(sw, mp[V], qp[V], mc[V + 1], qc[V + 1], slack, 1);
+            } else if (!(sw->pass_ok && under_new(sw, V, V0, V1, mc[V], qc[V], mp[V + 1], qp[V + 1]))) {
                 add_seg(sw, mc[V], qc[V], mp[V + 1], qp[V + 1], slack, 1);
+            }
         }
     }
     merge_g(sw);
@@ -521,9 +625,9 @@ static void add_clipped(sweep *sw, double ua, double va, double za, double ub, d
         if (df[k] == 0.0)
             t1 = f0[k] < 0.0 ? -1.0 : t1; /* parallel to the side, outside: nothing */
         else if (df[k] > 0.0)
-            t0 = fmax(t0, -f0[k] / df[k]);
+            t0 = dmax(t0, -f0[k] / df[k]);
         else
-            t1 = fmin(t1, -f0[k] / df[k]);
+            t1 = dmin(t1, -f0[k] / df[k]);
     }
     u0 = ua + t0 * du;
     u1 = ua + t1 * du;
@@ -540,7 +644,7 @@ static void eye_cell_bound(sweep *sw, double ga, double gb, double kh, double k,
                            double hi)
 {
     /* lo or hi is 0; below |m| = a the peak u = sqrt(h / |k m|) is past u0 */
-    double a = kh / (k * k * u0 * u0), b = fmax(fabs(lo), fabs(hi)), sg = hi > 0.0 ? 1.0 : -1.0;
+    double a = kh / (k * k * u0 * u0), b = dmax(fabs(lo), fabs(hi)), sg = hi > 0.0 ? 1.0 : -1.0;
     for (int i = 0; i < 16 && a < b; i++) {
         double f0 = (double)i / 16.0, f1 = (double)(i + 1) / 16.0;
         double m0 = sg * (a + (b - a) * f0 * f0), m1 = sg * (a + (b - a) * f1 * f1);
@@ -585,15 +689,15 @@ static void near_strip(sweep *sw, int32_t U0)
             continue;
         if (c->eu <= Uc + 1 && c->eu >= Uc && c->ev >= V && c->ev <= V + 1) { /* holds the eye */
             double k = z[0] - z[1] - z[2] + z[3], ae = c->eu - Uc, be = c->ev - V;
-            twist = fmax(twist, fabs(k));
+            twist = dmax(twist, fabs(k));
             if (sw->bil && k != 0.0) {
                 double ga = (z[1] - z[0]) + k * be, gb = (z[2] - z[0]) + k * ae;
                 /* rays that enter the cell from the eye, and k m < 0 */
                 double lo = be <= 0.0 ? 0.0 : -1.0, hi = be >= 1.0 ? 0.0 : 1.0;
                 if (k > 0.0)
-                    hi = fmin(hi, 0.0);
+                    hi = dmin(hi, 0.0);
                 else
-                    lo = fmax(lo, 0.0);
+                    lo = dmax(lo, 0.0);
                 if (hi > lo) {
                     swap_gn(sw);
                     eye_cell_bound(sw, ga, gb, fabs(k) * h, k, u0, lo, hi);
@@ -645,9 +749,9 @@ static void last_cell(const sweep *sw, int32_t V, double u, double m, double hu,
         h = z[0] + (z[3] - z[0]) * s; /* from the north-west: the main diagonal (U-1, V)-(U, V+1) */
     if (!isnan(h)) {
         q = (h - sw->job->ez) / (u - 1.0 + s);
-        *hi = fmax(*hi, q);
+        *hi = dmax(*hi, q);
         if (u - 1.0 + s < hu)
-            *lo = fmax(*lo, q - slack);
+            *lo = dmax(*lo, q - slack);
     }
 }
 
@@ -660,26 +764,29 @@ static void target(sweep *sw, int32_t U, int32_t V)
     double u = U - c->eu, m = sw->mcol[1][V - c->vlo], zt = sw->zcol[1][V - c->vlo], q, hi, lo, eps, hu;
     int k;
     q = j->target_height > 0.0 ? (zt + j->target_height - j->ez) / u : sw->qcol[1][V - c->vlo];
-    k = find(F, m, &sw->hint_q);
+    k = sw->pass_ok ? sw->kcol[V - c->vlo] : find(F, m, &sw->hint_q);
     hu = sw->holes ? sw->hole_u[bin_of(m)] : INFINITY;
     hi = pval(&F->p[k], m);
     lo = F->p[k].umax < hu ? hi - F->p[k].slack : -INFINITY;
     if (k > 0 && F->p[k].m == m) { /* on a break: the piece ending here holds m too */
         double v = pval(&F->p[k - 1], m);
-        hi = fmax(hi, v);
+        hi = dmax(hi, v);
         if (F->p[k - 1].umax < hu)
-            lo = fmax(lo, v - F->p[k - 1].slack);
+            lo = dmax(lo, v - F->p[k - 1].slack);
     }
+    eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
+    if (q < lo - eps && sw->hidden_ok) /* proved hidden already: the rest only raises lo */
+        goto decide;
     {
         int kn = find(&sw->N, m, &sw->hint_n);
-        hi = fmax(hi, pval(&sw->N.p[kn], m));
+        hi = dmax(hi, pval(&sw->N.p[kn], m));
         if (kn > 0 && sw->N.p[kn].m == m) /* on a break: the piece ending here too */
-            hi = fmax(hi, pval(&sw->N.p[kn - 1], m));
+            hi = dmax(hi, pval(&sw->N.p[kn - 1], m));
     }
     if (j->target_height > 0.0)
-        hi = fmax(hi, (zt - j->ez) / u);
+        hi = dmax(hi, (zt - j->ez) / u);
     last_cell(sw, V, u, m, hu, &hi, &lo);
-    eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
+decide:
 #ifdef TD_VSWEEP_DEBUG /* every proof checked against the cast */
     if (((q > hi + eps && sw->visible_ok) || (q < lo - eps && sw->hidden_ok))) {
         uint32_t st = 0;
@@ -731,11 +838,12 @@ static void sweep_cone(sweep *sw)
     }
     for (int32_t U = U0; U <= c->uhi && !sw->oom; U++) {
         double u = U - c->eu;
-        int32_t V0 = (int32_t)fmax(floor(c->ev - u) - 1.0, (double)c->vlo);
-        int32_t V1 = (int32_t)fmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
+        int32_t V0 = (int32_t)dmax(floor(c->ev - u) - 1.0, (double)c->vlo);
+        int32_t V1 = (int32_t)dmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
         if (sw->job->cancel && atomic_load_explicit(sw->job->cancel, memory_order_relaxed))
             break;
         load_next(sw, U);
+        col_pass(sw, U, V0, V1);
         sw->hint_q = sw->hint_n = 0;
         for (int32_t V = V0; V <= V1; V++) {
             if (!owned(sw, U, V, u) || isnan(sw->zcol[1][V - c->vlo]))
@@ -768,21 +876,29 @@ static void *cone_worker(void *arg)
             break;
         sw = &t->sw[k];
         size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
-        double *zb = malloc(9 * nv * sizeof *zb);
-        if (zb && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
+        double *zb = malloc(11 * nv * sizeof *zb);
+        int *kb = malloc(nv * sizeof *kb);
+        uint8_t *ob = calloc(nv, 1);
+        if (zb && kb && ob && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
             pv_reserve(sw, &sw->N, 16)) {
-            for (size_t q = 0; q < 9 * nv; q++)
+            for (size_t q = 0; q < 11 * nv; q++)
                 zb[q] = NAN;
             for (int b = 0; b < 3; b++) {
                 sw->zcol[b] = zb + (size_t)b * nv;
                 sw->mcol[b] = zb + (size_t)(3 + b) * nv;
                 sw->qcol[b] = zb + (size_t)(6 + b) * nv;
             }
+            sw->fmin = zb + 9 * nv;
+            sw->lcol = zb + 10 * nv;
+            sw->kcol = kb;
+            sw->colok = ob;
             sweep_cone(sw);
         } else {
             sw->oom = 1;
         }
         free(zb);
+        free(kb);
+        free(ob);
     }
     return NULL;
 }
