@@ -103,7 +103,7 @@ typedef struct sweep {
      * once column U is in (lcol: that minimum, or the column edge's lower end when the
      * edge counts); valid while pass_ok (u >= VS_PASS_U) */
     int *kcol;
-    double *fmin, *lcol;
+    double *fmin, *lcol, *cslope;
     uint8_t *colok; /* column U's edge [V, V+1] counts (a cell beside it is not a hole) */
     int pass_ok;
     uint64_t swept, rays, steps;
@@ -508,50 +508,60 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     }
 }
 
-/* The interval [m_k, m_k+1] of column U that holds m (k in V0..V1-1), or -1. */
-static inline int col_interval(const double *mc, int32_t V0, int32_t V1, int32_t near, double m)
+/* Whether an edge of the strip between columns U-1 and U, from (m_a, q_a) on column U
+ * (a row's or diagonal's end there, sample Va) to (m_b, q_b) on column U-1, is under F
+ * once column U is in. The column's intervals [m_V, m_V+1] it spans are k and k + 1
+ * (k + 1 only when `two`); under lcol there, or under the column's polyline: at the
+ * far end (the column's line through (m_Va, q_Va) of slope cslope[k] when the far end is
+ * in interval k, else through the vertex k + 1) and, spanning two intervals, the edge at
+ * the vertex between them. A shortcut before add_seg's exact test (under_f): 0 is "not
+ * known". No division: the slopes are per interval, the vertex test cross-multiplied. */
+static inline int under_strip(const sweep *sw, int32_t k, int two, int32_t Va, double mb, double qb)
 {
-    int32_t k = near < V0 ? V0 : (near >= V1 ? V1 - 1 : near);
-    while (k > V0 && mc[k] > m)
-        k--;
-    while (k + 1 < V1 && mc[k + 1] <= m)
-        k++;
-    return mc[k] <= m && m <= mc[k + 1] ? k : -1;
-}
-
-/* Whether the projected edge (ma, qa)-(mb, qb) of the strip between columns U-1 and U
- * is under F once column U is in: under lcol over the intervals it spans (at most two),
- * or under the column's polyline there (where the terrain faces the eye, rows and
- * diagonals are). Only a shortcut before add_seg's exact test (under_f): 0 is "not
- * known". */
-static int under_new(const sweep *sw, int32_t V, int32_t V0, int32_t V1, double ma, double qa, double mb, double qb)
-{
-    const double *mc = sw->mcol[1] - sw->c.vlo, *qc = sw->qcol[1] - sw->c.vlo, *lc = sw->lcol - sw->c.vlo;
-    int a, b, under = 0;
-    if (ma > mb) {
-        double t = ma;
-        ma = mb;
-        mb = t;
-        t = qa;
-        qa = qb;
-        qb = t;
-    }
-    a = col_interval(mc, V0, V1, V, ma);
-    b = a < 0 ? -1 : col_interval(mc, V0, V1, a, mb);
-    if (a >= 0 && b >= 0 && b - a <= 1) {
-        double top = dmax(qa, qb);
-        under = top <= lc[a] && top <= lc[b];
-        if (!under && sw->colok[a - sw->c.vlo] && sw->colok[b - sw->c.vlo]) {
-            /* the polyline through (m_k, q_k): at both ends of the edge, and the edge
-             * at the polyline's vertex between them */
-            double ca = qc[a] + (qc[a + 1] - qc[a]) * ((ma - mc[a]) / (mc[a + 1] - mc[a]));
-            double cb = qc[b] + (qc[b + 1] - qc[b]) * ((mb - mc[b]) / (mc[b + 1] - mc[b]));
-            under = qa <= ca && qb <= cb;
-            if (under && b > a)
-                under = qa + (qb - qa) * ((mc[b] - ma) / (mb - ma)) <= qc[b];
-        }
+    const int32_t o = sw->c.vlo;
+    const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o, *lc = sw->lcol - o, *cs = sw->cslope - o;
+    const uint8_t *ok = sw->colok - o;
+    double ma = mc[Va], qa = qc[Va], top = dmax(qa, qb);
+    int under = top <= lc[k] && (!two || top <= lc[k + 1]);
+    if (!under && ok[k] && (!two || ok[k + 1])) {
+        int32_t kb = two ? (mb < ma ? k : k + 1) : k; /* the interval of the far end */
+        int32_t vx = two ? k + 1 : Va;                /* a vertex on the line of interval kb */
+        under = qb <= qc[vx] + cs[kb] * (mb - mc[vx]);
+        if (under && two) /* the edge at the vertex m_k+1 at or under q_k+1 */
+            under = ((qa - qc[k + 1]) * (mb - mc[k + 1]) - (qb - qc[k + 1]) * (ma - mc[k + 1]) <= 0.0) ==
+                    (mb > ma);
     }
     return under;
+}
+
+/* The intervals the strip edge from sample Va of column U to m_b (column U-1) spans, for
+ * under_strip: 1 and *k (with *two) when they are known, 0 when m_b is past the next
+ * interval or the column's rows (the general path then). */
+static inline int strip_span(const sweep *sw, int32_t V0, int32_t V1, int32_t Va, double mb, int32_t *k, int *two)
+{
+    const double *mc = sw->mcol[1] - sw->c.vlo;
+    int found;
+    if (mb >= mc[Va]) { /* interval Va, or Va and Va + 1 */
+        *k = Va;
+        found = Va + 1 <= V1;
+        *two = found && mb > mc[Va + 1];
+        found = found && (!*two || (Va + 2 <= V1 && mb <= mc[Va + 2]));
+    } else { /* interval Va - 1, or Va - 2 and Va - 1 */
+        found = Va - 1 >= V0;
+        *two = found && mb < mc[Va - 1];
+        *k = *two ? Va - 2 : Va - 1;
+        found = found && (!*two || (Va - 2 >= V0 && mb >= mc[Va - 2]));
+    }
+    return found;
+}
+
+/* The strip edge from sample Va of column U to (m_b, q_b) on column U-1: under F once
+ * column U is in, as far as the column pass can tell cheaply. */
+static inline int strip_under(const sweep *sw, int32_t V0, int32_t V1, int32_t Va, double mb, double qb)
+{
+    int32_t k;
+    int two;
+    return sw->pass_ok && strip_span(sw, V0, V1, Va, mb, &k, &two) && under_strip(sw, k, two, Va, mb, qb);
 }
 
 /* Column U's edges, and with `strip` those between columns U-1 and U, into F. */
@@ -571,11 +581,12 @@ static void add_column(sweep *sw, int32_t U, int strip)
     pv_clear(&sw->G);
     if (sw->pass_ok) {
         const double *fm = sw->fmin - c->vlo;
-        double *lc = sw->lcol - c->vlo;
+        double *lc = sw->lcol - c->vlo, *cs = sw->cslope - c->vlo;
         uint8_t *ok = sw->colok - c->vlo;
         for (int32_t V = V0; V < V1 && !sw->oom; V++) {
             ok[V] = (uint8_t)((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl));
             lc[V] = ok[V] ? dmax(fm[V], dmin(qc[V], qc[V + 1])) : fm[V];
+            cs[V] = (qc[V + 1] - qc[V]) * u; /* m_V+1 - m_V = 1 / u */
             if (ok[V] && !(dmax(qc[V], qc[V + 1]) <= fm[V]))
                 add_seg(sw, mc[V], qc[V], mc[V + 1], qc[V + 1], 0.0, 0);
         }
@@ -596,14 +607,14 @@ static void add_column(sweep *sw, int32_t U, int strip)
         int left = cellz(sw, zp, zc, V, zl);
         if (!left && sw->holes && V >= c->vlo && V + 1 <= c->vhi)
             mark_hole(sw, u - 1.0, u, V - c->ev, V + 1 - c->ev);
-        if ((left || below) && !(sw->pass_ok && under_new(sw, V, V0, V1, mp[V], qp[V], mc[V], qc[V])))
+        if ((left || below) && !strip_under(sw, V0, V1, V, mp[V], qp[V]))
             add_seg(sw, mp[V], qp[V], mc[V], qc[V], 0.0, 1);
         below = left;
         if (left && !sw->lin) {
             if (upper_main(sw, zl, u - 1.0, &slack)) {
-                if (!(sw->pass_ok && under_new(sw, V, V0, V1, mp[V], qp[V], mc[V + 1], qc[V + 1])))
+                if (!strip_under(sw, V0, V1, V + 1, mp[V], qp[V]))
                     add_seg(sw, mp[V], qp[V], mc[V + 1], qc[V + 1], slack, 1);
-            } else if (!(sw->pass_ok && under_new(sw, V, V0, V1, mc[V], qc[V], mp[V + 1], qp[V + 1]))) {
+            } else if (!strip_under(sw, V0, V1, V, mp[V + 1], qp[V + 1])) {
                 add_seg(sw, mc[V], qc[V], mp[V + 1], qp[V + 1], slack, 1);
             }
         }
@@ -876,12 +887,12 @@ static void *cone_worker(void *arg)
             break;
         sw = &t->sw[k];
         size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
-        double *zb = malloc(11 * nv * sizeof *zb);
+        double *zb = malloc(12 * nv * sizeof *zb);
         int *kb = malloc(nv * sizeof *kb);
         uint8_t *ob = calloc(nv, 1);
         if (zb && kb && ob && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
             pv_reserve(sw, &sw->N, 16)) {
-            for (size_t q = 0; q < 11 * nv; q++)
+            for (size_t q = 0; q < 12 * nv; q++)
                 zb[q] = NAN;
             for (int b = 0; b < 3; b++) {
                 sw->zcol[b] = zb + (size_t)b * nv;
@@ -890,6 +901,7 @@ static void *cone_worker(void *arg)
             }
             sw->fmin = zb + 9 * nv;
             sw->lcol = zb + 10 * nv;
+            sw->cslope = zb + 11 * nv;
             sw->kcol = kb;
             sw->colok = ob;
             sweep_cone(sw);
