@@ -90,6 +90,7 @@ typedef struct sweep {
     int hidden_ok;  /* the segments start above the surface (see near_strip) */
     int visible_ok; /* the eye's strip is bounded (see near_strip) */
     pvec F, G, T;
+    pvec C; /* column U's edges (add_column_pass) */
     pvec N; /* bounds of the eye's strip with no real point (slack infinite): hi only */
     int hint_q, hint_s, hint_n;
     double umax;              /* of the edges being added */
@@ -428,17 +429,23 @@ static void add_edge_uv(sweep *sw, double ua, double va, double za, double ub, d
     add_seg(sw, va / ua, (za - ez) / ua, vb / ub, (zb - ez) / ub, slack, 1);
 }
 
+/* *dst = max(*dst, *src) (through T; nothing to do when src is empty). */
+static void merge_into(sweep *sw, pvec *dst, const pvec *src)
+{
+    if ((src->n > 1 || src->p[0].qr != -INFINITY) && pv_reserve(sw, &sw->T, 2 * (dst->n + src->n) + 1)) {
+        pvec t;
+        merge(dst->p, dst->n, src->p, src->n, &sw->T);
+        t = *dst;
+        *dst = sw->T;
+        sw->T = t;
+    }
+}
+
 /* F = max(F, G). */
 static void merge_g(sweep *sw)
 {
-    if ((sw->G.n > 1 || sw->G.p[0].qr != -INFINITY) && pv_reserve(sw, &sw->T, 2 * (sw->F.n + sw->G.n) + 1)) {
-        pvec t;
-        merge(sw->F.p, sw->F.n, sw->G.p, sw->G.n, &sw->T);
-        t = sw->F;
-        sw->F = sw->T;
-        sw->T = t;
-        sw->hint_q = sw->hint_s = 0;
-    }
+    merge_into(sw, &sw->F, &sw->G);
+    sw->hint_q = sw->hint_s = 0;
 }
 
 /* The bilinear cell's upper diagonal (main when its twist k >= 0) and its slack at
@@ -488,7 +495,7 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     int *kc = sw->kcol - sw->c.vlo;
     double *fm = sw->fmin - sw->c.vlo;
     int k = 0;
-    sw->pass_ok = U - sw->c.eu >= VS_PASS_U;
+    sw->pass_ok = U - sw->c.eu >= VS_PASS_U && U - sw->c.eu < 0.5 / VS_NARROW;
     if (!sw->pass_ok)
         return;
     for (int32_t V = V0; V <= V1; V++) {
@@ -564,46 +571,16 @@ static inline int strip_under(const sweep *sw, int32_t V0, int32_t V1, int32_t V
     return sw->pass_ok && strip_span(sw, V0, V1, Va, mb, &k, &two) && under_strip(sw, k, two, Va, mb, qb);
 }
 
-/* Column U's edges, and with `strip` those between columns U-1 and U, into F. */
-static void add_column(sweep *sw, int32_t U, int strip)
+/* The edges of the strip between columns U-1 and U (rows, diagonals) into G, but those
+ * the column pass shows under F once column U is in; marks the strip's holes. */
+static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
 {
     const cone *c = &sw->c;
-    const double *zp = sw->zcol[0], *zc = sw->zcol[1], *zn = sw->zcol[2];
+    const double *zp = sw->zcol[0], *zc = sw->zcol[1];
     const double *mp = sw->mcol[0] - c->vlo, *qp = sw->qcol[0] - c->vlo;
     const double *mc = sw->mcol[1] - c->vlo, *qc = sw->qcol[1] - c->vlo;
-    double u = U - c->eu, z[4], zl[4], zb[4], slack;
-    int32_t V0 = (int32_t)dmax(floor(c->ev - u) - 1.0, (double)c->vlo);
-    int32_t V1 = (int32_t)dmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
-    sw->umax = u;
-    /* the column first (in m order, so G is appended to): the strip's rows and diagonals
-     * are then tested against F with it, and where the terrain faces the eye they are
-     * under it. An edge whose two ends are under one piece of F is under F. */
-    pv_clear(&sw->G);
-    if (sw->pass_ok) {
-        const double *fm = sw->fmin - c->vlo;
-        double *lc = sw->lcol - c->vlo, *cs = sw->cslope - c->vlo;
-        uint8_t *ok = sw->colok - c->vlo;
-        for (int32_t V = V0; V < V1 && !sw->oom; V++) {
-            ok[V] = (uint8_t)((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl));
-            lc[V] = ok[V] ? dmax(fm[V], dmin(qc[V], qc[V + 1])) : fm[V];
-            cs[V] = (qc[V + 1] - qc[V]) * u; /* m_V+1 - m_V = 1 / u */
-            if (ok[V] && !(dmax(qc[V], qc[V + 1]) <= fm[V]))
-                add_seg(sw, mc[V], qc[V], mc[V + 1], qc[V + 1], 0.0, 0);
-        }
-    } else {
-        int hint = sw->hint_s, k0 = find(&sw->F, mc[V0], &hint), k1;
-        int under0 = qc[V0] <= pval(&sw->F.p[k0], mc[V0]), under1;
-        for (int32_t V = V0; V < V1 && !sw->oom; V++, k0 = k1, under0 = under1) {
-            k1 = find(&sw->F, mc[V + 1], &hint);
-            under1 = qc[V + 1] <= pval(&sw->F.p[k1], mc[V + 1]);
-            if ((k0 != k1 || !under0 || !under1) &&
-                ((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl)))
-                add_seg(sw, mc[V], qc[V], mc[V + 1], qc[V + 1], 0.0, 0);
-        }
-    }
-    merge_g(sw);
-    pv_clear(&sw->G);
-    for (int32_t V = V0, below = cellz(sw, zp, zc, V0 - 1, zb); strip && V <= V1 && !sw->oom; V++) {
+    double zl[4], zb[4], slack;
+    for (int32_t V = V0, below = cellz(sw, zp, zc, V0 - 1, zb); V <= V1 && !sw->oom; V++) {
         int left = cellz(sw, zp, zc, V, zl);
         if (!left && sw->holes && V >= c->vlo && V + 1 <= c->vhi)
             mark_hole(sw, u - 1.0, u, V - c->ev, V + 1 - c->ev);
@@ -619,7 +596,100 @@ static void add_column(sweep *sw, int32_t U, int strip)
             }
         }
     }
+}
+
+/* Column U's edges, and with `strip` those between columns U-1 and U, into F, without
+ * the column pass (the columns nearest the eye): the column first, merged, then the
+ * strip's rows and diagonals tested against F with it (where the terrain faces the eye
+ * they are under it). An edge whose two ends are under one piece of F is under F. */
+static void add_column_near(sweep *sw, int32_t U, int strip, int32_t V0, int32_t V1)
+{
+    const cone *c = &sw->c;
+    const double *zp = sw->zcol[0], *zc = sw->zcol[1], *zn = sw->zcol[2];
+    const double *mc = sw->mcol[1] - c->vlo, *qc = sw->qcol[1] - c->vlo;
+    double z[4], zl[4];
+    int hint = sw->hint_s, k0 = find(&sw->F, mc[V0], &hint), k1;
+    int under0 = qc[V0] <= pval(&sw->F.p[k0], mc[V0]), under1;
+    pv_clear(&sw->G);
+    for (int32_t V = V0; V < V1 && !sw->oom; V++, k0 = k1, under0 = under1) {
+        k1 = find(&sw->F, mc[V + 1], &hint);
+        under1 = qc[V + 1] <= pval(&sw->F.p[k1], mc[V + 1]);
+        if ((k0 != k1 || !under0 || !under1) && ((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl)))
+            add_seg(sw, mc[V], qc[V], mc[V + 1], qc[V + 1], 0.0, 0);
+    }
     merge_g(sw);
+    pv_clear(&sw->G);
+    if (strip)
+        add_strip(sw, V0, V1, U - c->eu);
+    merge_g(sw);
+}
+
+/* Column U's edges as pieces of C, from -VS_MDOM to VS_MDOM: each counted interval
+ * [m_V, m_V+1] not under F (fmin) is its edge's line (they meet end to end, in m
+ * order: no search, no insertion), the rest empty. */
+static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
+{
+    const int32_t o = sw->c.vlo;
+    const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o, *fm = sw->fmin - o, *cs = sw->cslope - o;
+    const uint8_t *ok = sw->colok - o;
+    pvec *C = &sw->C;
+    if (!pv_reserve(sw, C, 2 * (V1 - V0) + 4))
+        return;
+    pv_clear(C);
+    C->n = 1;
+    for (int32_t V = V0; V < V1; V++) {
+        if (!ok[V] || dmax(qc[V], qc[V + 1]) <= fm[V])
+            continue;
+        if (C->p[C->n - 1].qr == -INFINITY && C->p[C->n - 1].m >= mc[V]) /* empty, zero width */
+            C->n--;
+        C->p[C->n] = (piece){mc[V], mc[V], qc[V], cs[V], 0.0, u};
+        C->p[C->n + 1] = empty_piece;
+        C->p[C->n + 1].m = mc[V + 1];
+        C->n += 2;
+    }
+    C->p[C->n] = empty_piece;
+    C->p[C->n].m = VS_MDOM;
+}
+
+/* Column U's edges and with `strip` the strip's into F, with the column pass: the
+ * column's bounds per interval (colok, lcol, cslope) first, so the strip's edges are
+ * tested against F with the column in before it is; then one merge of F with the
+ * column's pieces and the strip's survivors. */
+static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t V1)
+{
+    const cone *c = &sw->c;
+    const double *zp = sw->zcol[0], *zc = sw->zcol[1], *zn = sw->zcol[2];
+    const double *mc = sw->mcol[1] - c->vlo, *qc = sw->qcol[1] - c->vlo, *fm = sw->fmin - c->vlo;
+    double *lc = sw->lcol - c->vlo, *cs = sw->cslope - c->vlo, u = U - c->eu, z[4], zl[4];
+    uint8_t *ok = sw->colok - c->vlo;
+    for (int32_t V = V0; V < V1; V++) {
+        ok[V] = (uint8_t)((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl));
+        lc[V] = ok[V] ? dmax(fm[V], dmin(qc[V], qc[V + 1])) : fm[V];
+        cs[V] = ok[V] ? (qc[V + 1] - qc[V]) / (mc[V + 1] - mc[V]) : 0.0;
+    }
+    pv_clear(&sw->G);
+    if (strip)
+        add_strip(sw, V0, V1, u);
+    col_pieces(sw, V0, V1, u);
+    if (!sw->oom) {
+        merge_into(sw, &sw->C, &sw->G);
+        merge_into(sw, &sw->F, &sw->C);
+    }
+    sw->hint_q = sw->hint_s = 0;
+}
+
+/* Column U's edges, and with `strip` those between columns U-1 and U, into F. */
+static void add_column(sweep *sw, int32_t U, int strip)
+{
+    const cone *c = &sw->c;
+    double u = U - c->eu;
+    int32_t V0 = (int32_t)dmax(floor(c->ev - u) - 1.0, (double)c->vlo);
+    int32_t V1 = (int32_t)dmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
+    sw->umax = u;
+    if (sw->pass_ok)
+        add_column_pass(sw, U, strip, V0, V1);
+    else
+        add_column_near(sw, U, strip, V0, V1);
 }
 
 /* Adds the edge from (ua, va, za) to (ub, vb, zb) (u, v from the eye), clipped to the
@@ -891,7 +961,7 @@ static void *cone_worker(void *arg)
         int *kb = malloc(nv * sizeof *kb);
         uint8_t *ob = calloc(nv, 1);
         if (zb && kb && ob && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
-            pv_reserve(sw, &sw->N, 16)) {
+            pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
             for (size_t q = 0; q < 12 * nv; q++)
                 zb[q] = NAN;
             for (int b = 0; b < 3; b++) {
@@ -966,6 +1036,7 @@ td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st,
         free(sw->G.p);
         free(sw->T.p);
         free(sw->N.p);
+        free(sw->C.p);
     }
     if (oom)
         rc = td_err_set(err, TD_ENOMEM, "viewshed: out of memory for the horizon");
