@@ -450,10 +450,15 @@ static void merge_g(sweep *sw)
 
 /* The bilinear cell's upper diagonal (main when its twist k >= 0) and its slack at
  * distance u0 (nearest point of the cell); the triangle's is fixed per cone. */
+static inline double upper_slack(const sweep *sw, const double z[4], double u0)
+{
+    return sw->bil ? fabs(z[0] - z[1] - z[2] + z[3]) / (4.0 * u0) : 0.0;
+}
+
 static int upper_main(const sweep *sw, const double z[4], double u0, double *slack)
 {
     double k = z[0] - z[1] - z[2] + z[3];
-    *slack = sw->bil ? fabs(k) / (4.0 * u0) : 0.0;
+    *slack = upper_slack(sw, z, u0);
     return sw->bil ? k >= 0.0 : !sw->c.anti;
 }
 
@@ -579,7 +584,7 @@ static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
     const double *zp = sw->zcol[0], *zc = sw->zcol[1];
     const double *mp = sw->mcol[0] - c->vlo, *qp = sw->qcol[0] - c->vlo;
     const double *mc = sw->mcol[1] - c->vlo, *qc = sw->qcol[1] - c->vlo;
-    double zl[4], zb[4], slack;
+    double zl[4], zb[4];
     for (int32_t V = V0, below = cellz(sw, zp, zc, V0 - 1, zb); V <= V1 && !sw->oom; V++) {
         int left = cellz(sw, zp, zc, V, zl);
         if (!left && sw->holes && V >= c->vlo && V + 1 <= c->vhi)
@@ -587,12 +592,13 @@ static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
         if ((left || below) && !strip_under(sw, V0, V1, V, mp[V], qp[V]))
             add_seg(sw, mp[V], qp[V], mc[V], qc[V], 0.0, 1);
         below = left;
-        if (left && !sw->lin) {
-            if (upper_main(sw, zl, u - 1.0, &slack)) {
+        if (left && !sw->lin) { /* upper_main's diagonal; its slack (a division) if kept */
+            double k = zl[0] - zl[1] - zl[2] + zl[3];
+            if (sw->bil ? k >= 0.0 : !sw->c.anti) {
                 if (!strip_under(sw, V0, V1, V + 1, mp[V], qp[V]))
-                    add_seg(sw, mp[V], qp[V], mc[V + 1], qc[V + 1], slack, 1);
+                    add_seg(sw, mp[V], qp[V], mc[V + 1], qc[V + 1], upper_slack(sw, zl, u - 1.0), 1);
             } else if (!strip_under(sw, V0, V1, V, mp[V + 1], qp[V + 1])) {
-                add_seg(sw, mc[V], qc[V], mp[V + 1], qp[V + 1], slack, 1);
+                add_seg(sw, mc[V], qc[V], mp[V + 1], qp[V + 1], upper_slack(sw, zl, u - 1.0), 1);
             }
         }
     }
