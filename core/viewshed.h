@@ -8,14 +8,18 @@
  * target is the point `target_height` metres above the surface at a grid sample (for the
  * `plane` surface the top of the sample's column, the one north-east of it, else the
  * sample's own height). The target is visible when the segment E -> T does not meet the
- * surface strictly between its ends: the ray o = E, d = T - E is searched over
- * t in [TD_LOS_TEPS, 1 - TD_LOS_TEPS] with td_occluded (viewsheds) or td_trace (line of
- * sight). So:
+ * surface strictly between its ends and does not run under it: the ray o = E, d = T - E
+ * is searched over t in [TD_LOS_TEPS, 1 - TD_LOS_TEPS] with td_occluded (viewsheds) or
+ * td_trace (line of sight), which find where it meets (crosses or touches) the surface,
+ * and a segment that starts under the surface there is blocked too
+ * (td_viewshed_starts_under: the tracer counts crossings, and an eye on the ground whose
+ * segment goes into the hill it stands on and stays under it has none). So:
  *   - touching counts as blocking (as in every tracer: a segment that grazes a ridge
  *     exactly is not a clear line), but the two ends are not looked at: an observer
- *     standing on the ground (height 0) is not blocked by the ground under his feet, a
- *     target on the ground by the ground it stands on. The gap at each end is 2^-30 of
- *     the segment (0.1 mm on 100 km), far below what float heights resolve;
+ *     standing on the ground (height 0) is not blocked by the ground under his feet where
+ *     the segment leaves it upwards or along it, a target on the ground not by the ground
+ *     it stands on. The gap at each end is 2^-30 of the segment (0.1 mm on 100 km), far
+ *     below what float heights resolve;
  *   - the observer's own cell is traced like any other; a sample at horizontal distance 0
  *     (the observer stands exactly on it) is visible;
  *   - a void sample, a plane column with a void corner, and a sample farther than
