@@ -66,8 +66,8 @@ static inline int asc_getc(asc_reader *r)
 /* isspace in the C locale (terrad sets no other), without its table lookup per byte. */
 static inline int asc_space(int c) { return c == ' ' || (c >= '\t' && c <= '\r'); }
 
-/* Next whitespace-separated token: 1 found, 0 end of file, -1 longer than the buffer. */
-static int asc_token(asc_reader *r, char *tok)
+/* The byte-by-byte path of asc_token (a token that reaches the buffer's end). */
+static int asc_token_slow(asc_reader *r, char *tok)
 {
     int c, k = 0, res = 0;
     do {
@@ -86,6 +86,29 @@ static int asc_token(asc_reader *r, char *tok)
     if (k > 0) {
         res = k < TD_ASC_TOKEN_MAX ? 1 : -1;
         tok[k < TD_ASC_TOKEN_MAX ? k : TD_ASC_TOKEN_MAX - 1] = '\0';
+    }
+    return res;
+}
+
+/* Next whitespace-separated token: 1 found, 0 end of file, -1 longer than the buffer.
+ * The common case, a token and the byte after it inside the buffer, is scanned in place;
+ * one that reaches the buffer's end takes the byte-by-byte path. */
+static int asc_token(asc_reader *r, char *tok)
+{
+    int res = 1;
+    size_t p = r->pos, s;
+    while (p < r->len && asc_space((unsigned char)r->buf[p]))
+        r->line += r->buf[p++] == '\n';
+    for (s = p; p < r->len && !asc_space((unsigned char)r->buf[p]); p++)
+        ;
+    if (p < r->len && p > s && p - s < TD_ASC_TOKEN_MAX) {
+        memcpy(tok, r->buf + s, p - s);
+        tok[p - s] = '\0';
+        r->line += r->buf[p] == '\n';
+        r->pos = p + 1;
+    } else {
+        r->pos = s; /* the spaces before it are counted */
+        res = asc_token_slow(r, tok);
     }
     return res;
 }
