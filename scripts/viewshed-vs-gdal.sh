@@ -7,6 +7,9 @@
 #
 #   scripts/viewshed-vs-gdal.sh BUILD DEM COL ROW HEIGHT [RUNS]
 #
+# TIMES_ONLY=1 skips the agreement (the reference re-traces every disagreement: minutes on
+# the whole trinidad).
+#
 # COL, ROW: the observer's sample in the file's order (row 0 north), so both tools put the
 # eye at the same place: the sample's height plus HEIGHT. GDAL reads the heights through
 # an ESRI .hdr beside a raw float32 copy, in a local metric frame whose pixel centres are
@@ -53,8 +56,8 @@ echo "DEM $DEM: $W x $HH samples, spacing $SX x $SY m; observer sample col $COL 
 # float32 copy; terrad viewshed on the DEM as given and on the same float32 copy (read
 # through its GDAL loader: like with like); each tool's start-up alone (`gdalinfo
 # --version`, `terrad --help`: dynamic linking, GDAL's drivers), so "work" = command -
-# start-up; terrad's own split from --stats (loading, max-mipmaps, the viewshed itself: one
-# thread, wall time).
+# start-up; terrad's own split from --stats (cpu_ms: loading, max-mipmaps, the viewshed
+# itself, the PNG).
 python3 - "$RUNS" "$TERRAD" "$DEM" "$T" "$X" "$Y" "$H" "$W" "$HH" <<'EOF'
 import json, os, statistics, subprocess, sys
 runs, terrad, dem, t, x, y, h, w, hh = sys.argv[1:]
@@ -77,8 +80,9 @@ def ours(src):
     for _ in range(runs):
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         j = json.load(open(f"{t}/st.json"))
-        parts.append((j["load_ms"], j["accel_ms"], j["timings_ms"]["trace"], j["swept"], j["rays"]))
-    return c, [statistics.median(p[k] for p in parts) for k in range(3)], parts[0][3], parts[0][4]
+        cp = j["cpu_ms"]
+        parts.append((cp["load"], cp["accel"], cp["viewshed"], cp["encode"], j["swept"], j["rays"]))
+    return c, [statistics.median(p[k] for p in parts) for k in range(4)], parts[0][4], parts[0][5]
 
 g_up = cpu(["gdalinfo", "--version"])
 t_up = cpu([terrad, "--help"])
@@ -87,13 +91,14 @@ g = cpu(["gdal_viewshed", "-q", "-ox", x, "-oy", y, "-oz", h, "-tz", "0", "-cc",
 print(f"CPU ms, median of {runs}: start-up alone: gdal {g_up:.0f}, terrad {t_up:.0f}")
 print(f"  gdal_viewshed (float32 copy): {g:.0f} whole command, {g - g_up:.0f} work")
 for label, src in (("DEM as given", dem), ("float32 copy", f"{t}/dem.bil")):
-    c, (ld, ac, tr), swept, rays = ours(src)
+    c, (ld, ac, tr, en), swept, rays = ours(src)
     print(f"  terrad viewshed ({label}): {c:.0f} whole command, {c - t_up:.0f} work (load {ld:.0f}, "
-          f"max-mipmaps {ac:.0f}, viewshed {tr:.0f} = {n / tr / 1e3:.1f} M samples/s, {swept} swept, "
-          f"{rays} cast): terrad/gdal {c / g:.2f}x whole command, {(c - t_up) / (g - g_up):.2f}x work")
+          f"max-mipmaps {ac:.0f}, viewshed {tr:.0f} = {n / tr / 1e3:.1f} M samples/s, PNG {en:.0f}; {swept} "
+          f"swept, {rays} cast): terrad/gdal {c / g:.2f}x whole command, {(c - t_up) / (g - g_up):.2f}x work")
 EOF
 gdal_translate -q -of ENVI "$T/gdal.tif" "$T/gdal.raw"
 
+[ "${TIMES_ONLY:-0}" = 1 ] && exit 0
 for s in bilinear triangle linear plane; do
   "$ORACLE" "$DEM" --gdal "$T/gdal.raw" "$X" "$Y" "$H" --surface "$s"
 done
