@@ -771,7 +771,7 @@ static void near_strip(sweep *sw, int32_t U0)
     const cone *c = &sw->c;
     const td_vsweep_job *j = sw->job;
     int32_t Uc = U0 - 1;
-    double u0 = U0 - c->eu, uc = Uc - c->eu, z[4], twist = 0.0, h = j->ez - j->ground;
+    double u0 = U0 - c->eu, uc = Uc - c->eu, z[4] = {0.0, 0.0, 0.0, 0.0}, twist = 0.0, h = j->ez - j->ground;
     pv_clear(&sw->G);
     pv_clear(&sw->N);
     sw->umax = u0;
