@@ -21,6 +21,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "simd.h"
+
 #define TD_DEG (M_PI / 180.0)
 
 double td_camera_ground(const td_grid *g, double x, double y)
@@ -242,6 +244,25 @@ void td_camera_ray(const td_camera *cam, double px, double py, td_ray *r)
     }
     r->tmin = 0.0;
     r->tmax = INFINITY;
+}
+
+TD_ROW_CLONES
+void td_camera_dirs(const td_camera *cam, double py, const double *px, int n, double *dx,
+                    double *dy, double *dz)
+{
+    /* td_camera_ray's perspective branch, term for term (no contraction: -ffp-contract=off) */
+    const double b = (py + 0.5 - 0.5 * cam->height) / cam->focal_px;
+    const double f0 = cam->fwd[0], f1 = cam->fwd[1], f2 = cam->fwd[2];
+    const double r0 = cam->right[0], r1 = cam->right[1], r2 = cam->right[2];
+    const double u0 = cam->up[0] * b, u1 = cam->up[1] * b, u2 = cam->up[2] * b;
+    for (int k = 0; k < n; k++) {
+        double a = (px[k] + 0.5 - 0.5 * cam->width) / cam->focal_px;
+        double x = f0 + r0 * a - u0, y = f1 + r1 * a - u1, z = f2 + r2 * a - u2;
+        double inv = 1.0 / sqrt(x * x + y * y + z * z);
+        dx[k] = x * inv;
+        dy[k] = y * inv;
+        dz[k] = z * inv;
+    }
 }
 
 /* Is the image of the vertical direction s (+1 up, -1 down) in front of the camera and

@@ -48,6 +48,13 @@ td_status td_camera_setup(const td_scene_camera *c, int32_t width, int32_t heigh
 /* The ray through pixel coordinates (px, py); tmin = 0, tmax = +inf. */
 void td_camera_ray(const td_camera *cam, double px, double py, td_ray *r);
 
+/* The unit directions of the rays through pixels (px[k], py), k < n, of a perspective
+ * camera, the same bits as td_camera_ray's, into dx, dy, dz (the rays start at cam->o).
+ * One loop over a row that the compiler vectorises: the render's camera rays come a
+ * sample row at a time. */
+void td_camera_dirs(const td_camera *cam, double py, const double *px, int n, double *dx,
+                    double *dy, double *dz);
+
 /* Bounds the azimuths (atan2(d_y, d_x), radians) of the rays through the rectangle of
  * pixel coordinates [px0, px1] x [py0, py1]: [*az0, *az1], az1 - az0 < pi. The rays of
  * one azimuth pass through one half-line from the image of the vertical (the vanishing

@@ -29,29 +29,7 @@ void td_edt_scratch_free(td_edt_scratch *s);
  * wx*(x-qx)^2 + wy*(y-qy)^2 (+inf if there is none). nx, ny <= s->n. */
 #define TD_EDT_NONE ((uint32_t)1 << 30)
 
-/* The transform's and the planes' row loops vectorise. On x86-64 their functions are built
- * twice (put TD_ROW_CLONES on the definition), for the baseline (SSE2) and for AVX2, and
- * the loader picks the one the processor runs (GCC/clang function multiversioning): twice
- * the width, 35% fewer instructions for the planes of trinidad. Never FMA (not in the list,
- * and C11 mode contracts nothing), so both give the same results bit for bit. */
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || __has_feature(memory_sanitizer)
-#define TD_SANITIZED 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define TD_SANITIZED 1
-#endif
-/* Not under a sanitizer: the loader runs the resolvers before the sanitizer's runtime is
- * up, and their instrumentation crashes (seen with ThreadSanitizer). */
-#if defined(__x86_64__) && defined(__has_attribute) && !defined(TD_SANITIZED)
-#if __has_attribute(target_clones) && defined(__ELF__)
-#define TD_ROW_CLONES __attribute__((target_clones("avx2", "default")))
-#endif
-#endif
-#ifndef TD_ROW_CLONES
-#define TD_ROW_CLONES
-#endif
+#include "simd.h" /* TD_ROW_CLONES */
 
 void td_edt_columns(const float *h, double z, int32_t nx, int32_t ny, uint32_t *col);
 void td_edt_row(const uint32_t *colrow, int32_t nx, double wx, double wy, double *out,

@@ -109,6 +109,19 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
 void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r, double t_clear,
                    td_hit *hit);
 
+/* A camera ray of a fan: its direction and where it may start (td_trace_from's t_clear;
+ * +inf: a miss known without tracing). */
+typedef struct td_fan_ray {
+    double d[3];
+    double t_clear;
+} td_fan_ray;
+
+/* td_trace_from for n rays from one origin o, each over [0, +inf): the camera rays of a
+ * render, which share the walk's setup of the grid and the origin. hits[k] is the hit
+ * td_trace_from gives rays[k], bit for bit. */
+void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3], int n,
+                  const td_fan_ray *rays, td_hit *hits);
+
 /* Whether the ray meets the surface in [tmin, tmax] (td_trace's hit is finite), for rays
  * that leave the surface (shadow and ambient-occlusion rays): it climbs the max-mipmap
  * from small blocks up, and computes no hit point or normal. A shadow ray (direction the
@@ -116,6 +129,12 @@ void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r,
  * (sunlit.h). Adds its steps to *steps. */
 int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r,
                 const td_sunlit *lit, uint32_t *steps);
+
+/* td_occluded for n parallel rays over [0, +inf): from o[k] along d (the shadow rays of a
+ * render, which share the walk's setup of the grid and the direction). hit[k] is what
+ * td_occluded says of ray k. Adds their steps to *steps. */
+void td_occluded_par(const td_view *v, td_method m, td_surface s, const double d[3], int n,
+                     const double (*o)[3], const td_sunlit *lit, uint8_t *hit, uint32_t *steps);
 
 /* An upper bound of every surface over the cells [i0, i1] x [j0, j1] (clamped to the
  * grid; -inf if no cell is left or all are holes): the highest corner, read from at

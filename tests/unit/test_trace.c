@@ -499,6 +499,82 @@ static void test_steps_fewer(void **state)
     td_grid_free(g);
 }
 
+/* A fan from one origin (td_trace_fan) and parallel rays (td_occluded_par) give, bit for
+ * bit, what td_trace_from and td_occluded give each ray, on every method and surface: from
+ * above, from below the crests, with t_clear 0, a real bound (just before the hit), +inf,
+ * and with a grazing direction; a grid with voids; more rays than one batch holds. */
+static void test_batches_same(void **state)
+{
+    (void)state;
+    td_grid *g = procedural(193, 161, 33, 5);
+    for (int32_t i = 40; i < 60; i++)
+        g->z[(size_t)70 * (size_t)g->w + (size_t)i] = NAN; /* a void across the middle */
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel *a = build_all(g, 8);
+    td_view v = {g, a->tiles};
+    uint64_t seed = 77;
+    const double origins[2][3] = {{-300.0, -250.0, g->zmax + 400.0},
+                                  {2400.0, 2000.0, 0.5 * (g->zmin + g->zmax)}};
+    enum { N = 150 };
+    static td_fan_ray fan[N];
+    static td_hit hits[N];
+    static double po[N][3];
+    uint8_t occ[N];
+    for (int oi = 0; oi < 2; oi++) {
+        for (int k = 0; k < N; k++) { /* toward a point of the relief's box; every 7th grazing */
+            double t[3] = {(g->w - 1) * g->sx * rnd(&seed), (g->h - 1) * g->sy * rnd(&seed),
+                           g->zmin + (g->zmax - g->zmin) * rnd(&seed)};
+            if (k % 7 == 0)
+                t[2] = origins[oi][2] - 1e-3 * hypot(t[0] - origins[oi][0], t[1] - origins[oi][1]);
+            for (int i = 0; i < 3; i++)
+                fan[k].d[i] = t[i] - origins[oi][i];
+            po[k][0] = (g->w - 1) * g->sx * rnd(&seed);
+            po[k][1] = (g->h - 1) * g->sy * rnd(&seed);
+            po[k][2] = g->zmin + (g->zmax - g->zmin) * rnd(&seed);
+        }
+        for (int m = 0; m < TD_METHOD_COUNT; m++) {
+            for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
+                for (int k = 0; k < N; k++) { /* t_clear: 0, +inf, or just before the hit */
+                    td_ray r = {{origins[oi][0], origins[oi][1], origins[oi][2]},
+                                {fan[k].d[0], fan[k].d[1], fan[k].d[2]}, 0.0, INFINITY};
+                    td_hit h;
+                    td_trace(&v, (td_method)m, (td_surface)sf, &r, &h);
+                    fan[k].t_clear = k % 3 == 0 ? 0.0 : (k % 3 == 1 ? INFINITY : 0.9 * h.t);
+                    if (!isfinite(fan[k].t_clear))
+                        fan[k].t_clear = k % 3 == 1 ? INFINITY : 0.0;
+                }
+                td_trace_fan(&v, (td_method)m, (td_surface)sf, origins[oi], N, fan, hits);
+                int hit_count = 0;
+                for (int k = 0; k < N; k++) {
+                    td_ray r = {{origins[oi][0], origins[oi][1], origins[oi][2]},
+                                {fan[k].d[0], fan[k].d[1], fan[k].d[2]}, 0.0, INFINITY};
+                    td_hit h;
+                    td_trace_from(&v, (td_method)m, (td_surface)sf, &r, fan[k].t_clear, &h);
+                    assert_memory_equal(&h, &hits[k], sizeof h);
+                    hit_count += h.t < INFINITY;
+                }
+                assert_true(hit_count > N / 6); /* the rays do meet the terrain */
+                /* parallel rays along the fan's first direction, from points of the relief */
+                uint32_t s1 = 0, s2 = 0;
+                td_occluded_par(&v, (td_method)m, (td_surface)sf, fan[1].d, N, (const double(*)[3])po, NULL,
+                                occ, &s1);
+                int occluded = 0;
+                for (int k = 0; k < N; k++) {
+                    td_ray r = {{po[k][0], po[k][1], po[k][2]}, {fan[1].d[0], fan[1].d[1], fan[1].d[2]}, 0.0,
+                                INFINITY};
+                    int o1 = td_occluded(&v, (td_method)m, (td_surface)sf, &r, NULL, &s2);
+                    assert_int_equal(o1, occ[k]);
+                    occluded += o1;
+                }
+                assert_int_equal(s1, s2);
+                assert_true(occluded > 0 && occluded < N);
+            }
+        }
+    }
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -506,7 +582,7 @@ int main(void)
         cmocka_unit_test(test_methods_vs_reference), cmocka_unit_test(test_planes_bound),
         cmocka_unit_test(test_planes_degenerate),   cmocka_unit_test(test_maxmip_and_edt),
         cmocka_unit_test(test_plane_walls),         cmocka_unit_test(test_validate),
-        cmocka_unit_test(test_steps_fewer),
+        cmocka_unit_test(test_steps_fewer),         cmocka_unit_test(test_batches_same),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
