@@ -180,7 +180,7 @@ int td_viewshed_cast(const td_view *v, td_surface s, td_method m, double ex, dou
     td_ray r;
     int kind = td_viewshed_ray(v->grid, s, ex, ey, ez, i, j, target_height, &r);
     if (kind == 0)
-        kind = !td_occluded(v, m, s, &r, NULL, steps) && !td_viewshed_starts_under(v->grid, s, &r);
+        kind = !td_viewshed_starts_under(v->grid, s, &r) && !td_occluded(v, m, s, &r, NULL, steps);
     else if (kind > 0)
         kind = 2;
     return kind;

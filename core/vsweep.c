@@ -163,10 +163,11 @@ static void pv_clear(pvec *v)
     v->n = 1;
 }
 
-/* Appends src's line from m (a piece of zero width is replaced; equal lines join). */
-static void emit(pvec *o, double m, const piece *src)
+/* Appends src's line from m (a piece of zero width is replaced; equal lines join). *last
+ * is the source of o's last piece (NULL: not known): the same source joins at once. */
+static inline void emit(pvec *o, double m, const piece *src, const piece **last)
 {
-    int join = o->n > 0 && same_line(&o->p[o->n - 1], src);
+    int join = o->n > 0 && (src == *last || same_line(&o->p[o->n - 1], src));
     if (!join && o->n > 0 && o->p[o->n - 1].m >= m) {
         o->n--;
         join = o->n > 0 && same_line(&o->p[o->n - 1], src);
@@ -176,6 +177,7 @@ static void emit(pvec *o, double m, const piece *src)
         o->p[o->n].m = m;
         o->n++;
     }
+    *last = src;
 }
 
 /* out = max(a, b), both covering [a[0].m, end] with a[na].m = b[nb].m = end; out needs
@@ -184,6 +186,7 @@ static void merge(const piece *a, int na, const piece *b, int nb, pvec *out)
 {
     int ia = 0, ib = 0;
     double cur = a[0].m, end = a[na].m;
+    const piece *last = NULL;
     out->n = 0;
     while (cur < end && ia < na && ib < nb) {
         double ea = a[ia + 1].m, eb = b[ib + 1].m, nx = ea < eb ? ea : eb;
@@ -194,13 +197,14 @@ static void merge(const piece *a, int na, const piece *b, int nb, pvec *out)
             if (pb->qr == -INFINITY) {
                 /* b empty up to eb: a's pieces that start before it, copied whole */
                 int k = ia + 1;
-                emit(out, cur, pa);
+                emit(out, cur, pa, &last);
                 while (k < na && a[k].m < eb)
                     k++;
                 if (k > ia + 1) {
-                    emit(out, a[ia + 1].m, &a[ia + 1]);
+                    emit(out, a[ia + 1].m, &a[ia + 1], &last);
                     memcpy(&out->p[out->n], &a[ia + 2], (size_t)(k - ia - 2) * sizeof *a);
                     out->n += k - ia - 2;
+                    last = &a[k - 1];
                     ia = k - 1;
                     ea = a[ia + 1].m;
                     nx = ea < eb ? ea : eb;
@@ -208,17 +212,17 @@ static void merge(const piece *a, int na, const piece *b, int nb, pvec *out)
                         nx = end;
                 }
             } else if (pa->qr == -INFINITY) {
-                emit(out, cur, pb);
+                emit(out, cur, pb, &last);
             } else {
                 double d0 = pval(pa, cur) - pval(pb, cur), d1 = pval(pa, nx) - pval(pb, nx);
                 if (d0 >= 0.0 && d1 >= 0.0) {
-                    emit(out, cur, pa);
+                    emit(out, cur, pa, &last);
                 } else if (d0 <= 0.0 && d1 <= 0.0) {
-                    emit(out, cur, pb);
+                    emit(out, cur, pb, &last);
                 } else {
                     double c = cur + (nx - cur) * (d0 / (d0 - d1));
-                    emit(out, cur, d0 > 0.0 ? pa : pb);
-                    emit(out, c > cur ? (c < nx ? c : nx) : cur, d0 > 0.0 ? pb : pa);
+                    emit(out, cur, d0 > 0.0 ? pa : pb, &last);
+                    emit(out, c > cur ? (c < nx ? c : nx) : cur, d0 > 0.0 ? pb : pa, &last);
                 }
             }
             cur = nx;
@@ -854,6 +858,23 @@ static void last_cell(const sweep *sw, int32_t V, double u, double m, double hu,
     }
 }
 
+/* An upper bound of what last_cell may add to hi for target (U, V): its diagonal's point
+ * lies on the edge between two samples, so its q is at most theirs (+inf when a sample is
+ * off the grid: then last_cell decides). */
+static inline double diag_bound(const sweep *sw, int32_t V, double m)
+{
+    const cone *c = &sw->c;
+    const double *qc = sw->qcol[1] - c->vlo, *qp = sw->qcol[0] - c->vlo;
+    double b = -INFINITY;
+    if (sw->lin || m == 0.0)
+        b = -INFINITY;
+    else if (m > 0.0)
+        b = V - 1 >= c->vlo ? dmax(qc[V - 1], qp[V]) : INFINITY;
+    else
+        b = V + 1 <= c->vhi ? dmax(qp[V], qc[V + 1]) : INFINITY;
+    return isnan(b) ? INFINITY : b;
+}
+
 /* Decides target (U, V) of column U (not a void) against F, or casts it. */
 static void target(sweep *sw, int32_t U, int32_t V)
 {
@@ -884,7 +905,9 @@ static void target(sweep *sw, int32_t U, int32_t V)
     }
     if (j->target_height > 0.0)
         hi = dmax(hi, (zt - j->ez) / u);
-    last_cell(sw, V, u, m, hu, &hi, &lo);
+    /* clear of everything nearer and of its last cell's diagonal's ends: visible without it */
+    if (!(sw->visible_ok && q > dmax(hi, diag_bound(sw, V, m)) + eps))
+        last_cell(sw, V, u, m, hu, &hi, &lo);
 decide:
 #ifdef TD_VSWEEP_DEBUG /* every proof checked against the cast */
     if (((q > hi + eps && sw->visible_ok) || (q < lo - eps && sw->hidden_ok))) {
