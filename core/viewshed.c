@@ -161,17 +161,19 @@ static double linear_along(const td_grid *g, int32_t ci, int32_t cj, const td_ra
     return h;
 }
 
+double td_viewshed_start_gap(const td_grid *g, td_surface s, const td_ray *r)
+{
+    double t = r->tmin, x = r->o[0] + t * r->d[0], y = r->o[1] + t * r->d[1], z = NAN;
+    int32_t ci = cell_of(x, g->sx, g->w), cj = cell_of(y, g->sy, g->h);
+    if (s != TD_SURFACE_PLANE)
+        z = s == TD_SURFACE_LINEAR ? linear_along(g, ci, cj, r, t) : td_surface_height(g, s, ci, cj, x, y);
+    return r->o[2] + t * r->d[2] - z;
+}
+
 int td_viewshed_starts_under(const td_grid *g, td_surface s, const td_ray *r)
 {
-    double t = r->tmin, x = r->o[0] + t * r->d[0], y = r->o[1] + t * r->d[1], z;
-    int32_t ci = cell_of(x, g->sx, g->w), cj = cell_of(y, g->sy, g->h);
-    int under = 0;
-    if (s != TD_SURFACE_PLANE) {
-        z = s == TD_SURFACE_LINEAR ? linear_along(g, ci, cj, r, t) : td_surface_height(g, s, ci, cj, x, y);
-        /* a hole (NaN) is nothing to be under */
-        under = r->o[2] + t * r->d[2] - z < -0x1p-48 * (1.0 + fabs(r->o[2]));
-    }
-    return under;
+    /* NaN (the plane, a hole: nothing to be under) compares false */
+    return td_viewshed_start_gap(g, s, r) < -0x1p-48 * (1.0 + fabs(r->o[2]));
 }
 
 int td_viewshed_cast(const td_view *v, td_surface s, td_method m, double ex, double ey, double ez,

@@ -162,6 +162,11 @@ int td_viewshed_cast(const td_view *v, td_surface s, td_method m, double ex, dou
  * the hill it stands on) has none; td_viewshed_cast and td_los call it blocked. Never
  * for the plane surface (a solid column: the tracer hits at tmin) nor over a hole. */
 int td_viewshed_starts_under(const td_grid *g, td_surface s, const td_ray *r);
+/* The segment's height over surface s where the tracer starts it (r->tmin), as
+ * td_viewshed_starts_under measures it; NaN for the plane surface or over a hole. The
+ * sweep proves an eye on the ground's targets hidden only where this is clearly above 0
+ * (the tracer then meets the surface before any point above the segment). */
+double td_viewshed_start_gap(const td_grid *g, td_surface s, const td_ray *r);
 /* The surface under (x, y) on surface s (NaN on a hole, or outside the grid). */
 double td_viewshed_ground(const td_grid *g, td_surface s, double x, double y);
 

@@ -875,6 +875,21 @@ static inline double diag_bound(const sweep *sw, int32_t V, double m)
     return isnan(b) ? INFINITY : b;
 }
 
+/* Whether the segment to (U, V) starts clearly above the surface where the tracer starts
+ * it (by 2^-44 of the eye's height, 16 times what starts_under tolerates): then a real
+ * surface point above it later proves it hidden, as for an eye above the ground (the
+ * tracer meets a crossing before that point). For eyes hidden_ok does not cover: on the
+ * ground, or under a linear cell's chord. */
+static int starts_clear(const sweep *sw, int32_t U, int32_t V)
+{
+    const td_vsweep_job *j = sw->job;
+    const cone *c = &sw->c;
+    int32_t i = c->ui * U + c->vi * V, jj = c->uj * U + c->vj * V;
+    td_ray r;
+    return td_viewshed_ray(j->v->grid, j->surface, j->ex, j->ey, j->ez, i, jj, j->target_height, &r) == 0 &&
+           td_viewshed_start_gap(j->v->grid, j->surface, &r) > 0x1p-44 * (1.0 + fabs(j->ez));
+}
+
 /* Decides target (U, V) of column U (not a void) against F, or casts it. */
 static void target(sweep *sw, int32_t U, int32_t V)
 {
@@ -910,7 +925,7 @@ static void target(sweep *sw, int32_t U, int32_t V)
         last_cell(sw, V, u, m, hu, &hi, &lo);
 decide:
 #ifdef TD_VSWEEP_DEBUG /* every proof checked against the cast */
-    if (((q > hi + eps && sw->visible_ok) || (q < lo - eps && sw->hidden_ok))) {
+    if (((q > hi + eps && sw->visible_ok) || (q < lo - eps && (sw->hidden_ok || starts_clear(sw, U, V))))) {
         uint32_t st = 0;
         int32_t i = c->ui * U + c->vi * V, jj = c->uj * U + c->vj * V;
         int r = td_viewshed_cast(j->v, j->surface, j->method, j->ex, j->ey, j->ez, i, jj, j->target_height, &st);
@@ -922,7 +937,7 @@ decide:
     if (q > hi + eps && sw->visible_ok) {
         sw->vis[cidx(c, U, V)] = 1;
         sw->swept++;
-    } else if (q < lo - eps && sw->hidden_ok) {
+    } else if (q < lo - eps && (sw->hidden_ok || starts_clear(sw, U, V))) {
         sw->vis[cidx(c, U, V)] = 0;
         sw->swept++;
     } else {
