@@ -40,7 +40,7 @@
  * column's polyline (facing slopes), else tested exactly by add_seg; then one merge puts
  * the column and the strip's survivors into F. The answers do not change (an edge left
  * out is under F, as add_seg's own test decides); the work does (docs/viewshed.md
- * "Speed"): picos's sweep went from 376 M to 234 M instructions (callgrind), and F, about
+ * "Speed"): picos's sweep went from 376 M to 198 M instructions (callgrind), and F, about
  * two pieces a row, is copied once a column instead of twice.
  *
  * Rounding: the envelope is computed in double from float heights; a crossing put off
