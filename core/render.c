@@ -98,7 +98,10 @@
  * stats): 0.2-0.45x Embree's packets of 16 on the same rays. Tried and dropped:
  * slices cut by each sample's azimuth with an exact sort by elevation (fewer steps on
  * rolled views, 2-7% slower overall); 8 or 16 slices (narrower wedges, more bins: 10-35%
- * more instructions).
+ * more instructions). Once the batches below had cut the rays' own cost, the bins' share
+ * grew and 2 slices a block beat 4 (primary-stage instructions on the bench views of
+ * trinidad -3 to -7%, picos -2 to -3% and +1.8% rolled; time -2 to -6% on trinidad's); 1
+ * slice is no better than 2.
  *
  * Batches (issue 12): what rays share is set up once. A block's camera rays come a sample
  * row at a time (td_camera_dirs, vectorised), the straight ones on the full grid are
@@ -130,7 +133,7 @@
 #include "shade.h"
 
 #define TD_BLOCK 16
-#define TD_SLICES 4 /* wedges a block's camera rays are cut into for the horizon device */
+#define TD_SLICES 2 /* wedges a block's camera rays are cut into for the horizon device */
 #define TD_SAMPLES_MAX 8 /* quality.samples at most (limit.h's core column, check_scene) */
 #define TD_DEG (M_PI / 180.0)
 
@@ -660,16 +663,15 @@ static void camera_trace(worker *w, smp *sm, double t_clear)
 {
     const ctx *c = w->c;
     td_hit hit;
-    td_ray r = {.tmin = 0.0, .tmax = INFINITY};
-    memcpy(r.o, sm->o, sizeof r.o);
-    memcpy(r.d, sm->d, sizeof r.d);
     if (t_clear == INFINITY) {
-        memset(&hit, 0, sizeof hit);
         hit.t = INFINITY;
         hit.method = c->s->quality.method == TD_METHOD_AUTO ? TD_METHOD_INCREMENTAL : c->s->quality.method;
         w->st.rays[TD_RAY_PRIMARY]++;
         sm->level = 0;
     } else {
+        td_ray r = {.tmin = 0.0, .tmax = INFINITY};
+        memcpy(r.o, sm->o, sizeof r.o);
+        memcpy(r.d, sm->d, sizeof r.d);
         trace_camera(c, &r, 0, t_clear, &hit, &sm->level, &w->st);
     }
     camera_keep(w, sm, &hit);
@@ -698,10 +700,10 @@ static void fan_flush(worker *w, fan *f)
 }
 
 /* A sample's camera ray from t_clear on: into the fan when the render has one (the
- * full grid, no levels of detail), else traced now. */
+ * full grid, no levels of detail), else traced now; a known miss (+inf) is kept at once. */
 static void fan_add(worker *w, fan *f, smp *sm, double t_clear)
 {
-    if (!f) {
+    if (!f || t_clear == INFINITY) { /* a miss known without tracing costs nothing more */
         camera_trace(w, sm, t_clear);
     } else {
         f->sm[f->n] = sm;
@@ -1129,9 +1131,10 @@ static void stage_resolve(worker *w, const blk *b)
                         acc[ch] += sm[k].alpha * sm[k].rgb[ch];
                 }
                 uint8_t *dst = c->rgba + 4 * o;
-                for (int ch = 0; ch < 3; ch++) {
-                    double v = a > 0.0 ? sqrt(fmax(acc[ch] / a, 0.0)) : 0.0;
-                    dst[ch] = (uint8_t)(fmin(v, 1.0) * 255.0 + 0.5);
+                for (int ch = 0; ch < 3; ch++) { /* compares, not libm's fmax/fmin calls */
+                    double q = a > 0.0 ? acc[ch] / a : 0.0;
+                    double v = sqrt(q > 0.0 ? q : 0.0);
+                    dst[ch] = (uint8_t)((v < 1.0 ? v : 1.0) * 255.0 + 0.5);
                 }
                 dst[3] = (uint8_t)(a / (n * n) * 255.0 + 0.5);
             }
