@@ -50,7 +50,7 @@ typedef struct asc_reader {
     char buf[1 << 16];
 } asc_reader;
 
-static int asc_getc(asc_reader *r)
+static inline int asc_getc(asc_reader *r)
 {
     int c = EOF;
     if (r->pos == r->len) {
@@ -63,16 +63,19 @@ static int asc_getc(asc_reader *r)
     return c;
 }
 
-/* Next whitespace-separated token: 1 found, 0 end of file, -1 longer than the buffer. */
-static int asc_token(asc_reader *r, char *tok)
+/* isspace in the C locale (terrad sets no other), without its table lookup per byte. */
+static inline int asc_space(int c) { return c == ' ' || (c >= '\t' && c <= '\r'); }
+
+/* The byte-by-byte path of asc_token (a token that reaches the buffer's end). */
+static int asc_token_slow(asc_reader *r, char *tok)
 {
     int c, k = 0, res = 0;
     do {
         c = asc_getc(r);
         if (c == '\n')
             r->line++;
-    } while (c != EOF && isspace(c));
-    while (c != EOF && !isspace(c)) {
+    } while (c != EOF && asc_space(c));
+    while (c != EOF && !asc_space(c)) {
         if (k < TD_ASC_TOKEN_MAX - 1)
             tok[k] = (char)c;
         k++;
@@ -83,6 +86,29 @@ static int asc_token(asc_reader *r, char *tok)
     if (k > 0) {
         res = k < TD_ASC_TOKEN_MAX ? 1 : -1;
         tok[k < TD_ASC_TOKEN_MAX ? k : TD_ASC_TOKEN_MAX - 1] = '\0';
+    }
+    return res;
+}
+
+/* Next whitespace-separated token: 1 found, 0 end of file, -1 longer than the buffer.
+ * The common case, a token and the byte after it inside the buffer, is scanned in place;
+ * one that reaches the buffer's end takes the byte-by-byte path. */
+static int asc_token(asc_reader *r, char *tok)
+{
+    int res = 1;
+    size_t p = r->pos, s;
+    while (p < r->len && asc_space((unsigned char)r->buf[p]))
+        r->line += r->buf[p++] == '\n';
+    for (s = p; p < r->len && !asc_space((unsigned char)r->buf[p]); p++)
+        ;
+    if (p < r->len && p > s && p - s < TD_ASC_TOKEN_MAX) {
+        memcpy(tok, r->buf + s, p - s);
+        tok[p - s] = '\0';
+        r->line += r->buf[p] == '\n';
+        r->pos = p + 1;
+    } else {
+        r->pos = s; /* the spaces before it are counted */
+        res = asc_token_slow(r, tok);
     }
     return res;
 }
@@ -409,13 +435,68 @@ out:
     return rc;
 }
 
+/* The common data token, [-+]digits[.digits] (18 significant digits taken), as the float
+ * asc_value stores ((float) of strtod's double), without strtod; 0 when not sure (the
+ * caller then takes strtod's path). Up to 15 digits: the digits as an integer below 2^53
+ * over an exact power of ten, one correctly rounded division, is strtod's double
+ * (Clinger's fast path). Longer ones (picos has "2244.5900000000001455"): the first 18
+ * significant digits over the power of ten, in double, are within 2^-51.9 of the decimal
+ * (two roundings and the digits cut, under 1e-17), so the decimal and strtod's double
+ * (within 2^-53 of it) both round to the float of that value whenever it is 2^-49 of
+ * itself away from a midpoint between floats. NODATA is compared likewise (too close: not
+ * sure). Several times faster than strtod; tests/unit/test_dem.c holds it to strtod. */
+static int asc_fast_value(const char *tok, const asc_header *hd, float *out)
+{
+    static const double p10[19] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8, 1e9,
+                                   1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18};
+    const char *p = tok + (*tok == '-' || *tok == '+');
+    uint64_t m = 0;
+    int nd = 0, nf = -1, ok, cut = 0;
+    for (; *p; p++) {
+        if (*p >= '0' && *p <= '9' && nd < 18) { /* leading zeros are not counted */
+            m = m * 10 + (uint64_t)(*p - '0');
+            nd += m > 0;
+            nf += nf >= 0;
+        } else if (*p >= '0' && *p <= '9' && nf >= 0) {
+            cut = 1; /* a fraction digit past the 18th */
+        } else if (*p == '.' && nf < 0) {
+            nf = 0;
+        } else {
+            break;
+        }
+    }
+    ok = *p == '\0' && p > tok + (*tok == '-' || *tok == '+') + (nf == 0) && nf <= 18;
+    if (ok) {
+        double x = (double)m / p10[nf > 0 ? nf : 0], tol = fabs(x) * 0x1p-49, nv = hd->kv[K_NODATA];
+        x = *tok == '-' ? -x : x;
+        if (nd <= 15 && !cut) { /* exact: strtod's double */
+            *out = hd->seen[K_NODATA] && x == nv ? NAN : (float)x;
+        } else {
+            float f = (float)x, n0, n1;
+            uint32_t b;
+            memcpy(&b, &f, sizeof b);
+            b--; /* the floats on either side of f (f is finite, not 0: checked below) */
+            memcpy(&n0, &b, sizeof b);
+            b += 2;
+            memcpy(&n1, &b, sizeof b);
+            ok = f != 0.0f && fabs(x - ((double)f + (double)n0) / 2) > tol &&
+                 fabs(x - ((double)f + (double)n1) / 2) > tol &&
+                 !(hd->seen[K_NODATA] && fabs(x - nv) <= tol + fabs(nv) * 0x1p-49);
+            *out = f;
+        }
+    }
+    return ok;
+}
+
 /* One data value: a finite decimal; NODATA_value becomes NaN; it must fit a float. */
 static td_status asc_value(const char *path, const asc_reader *r, const asc_header *hd, int t,
                            const char *tok, float *out, td_err *err)
 {
     td_status rc = TD_OK;
     double v;
-    if (t < 0 || !td_demutil_parse_double(tok, &v))
+    if (t > 0 && asc_fast_value(tok, hd, out))
+        rc = TD_OK; /* the common token, without strtod */
+    else if (t < 0 || !td_demutil_parse_double(tok, &v))
         rc = td_err_set(err, TD_EFORMAT, "%s: line %ld: '%s' is not a finite number", path, r->line,
                         tok);
     else if (hd->seen[K_NODATA] && v == hd->kv[K_NODATA])

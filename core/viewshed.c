@@ -134,13 +134,55 @@ int td_viewshed_ray(const td_grid *g, td_surface s, double ex, double ey, double
     return rc;
 }
 
+/* The linear surface along the ray's line through cell (ci, cj) at t: the chord between
+ * the line's entry and exit heights (as the tracer's linear_under), or the bilinear
+ * patch under a vertical line or one that only touches the cell. */
+static double linear_along(const td_grid *g, int32_t ci, int32_t cj, const td_ray *r, double t)
+{
+    double a0 = r->o[0] / g->sx - ci, b0 = r->o[1] / g->sy - cj, da = r->d[0] / g->sx, db = r->d[1] / g->sy;
+    double tin = -INFINITY, tout = INFINITY, h;
+    if (da != 0.0) {
+        tin = fmax(tin, fmin(-a0 / da, (1.0 - a0) / da));
+        tout = fmin(tout, fmax(-a0 / da, (1.0 - a0) / da));
+    }
+    if (db != 0.0) {
+        tin = fmax(tin, fmin(-b0 / db, (1.0 - b0) / db));
+        tout = fmin(tout, fmax(-b0 / db, (1.0 - b0) / db));
+    }
+    if (!(tout > tin) || !isfinite(tin) || !isfinite(tout)) {
+        h = td_surface_height(g, TD_SURFACE_BILINEAR, ci, cj, r->o[0] + t * r->d[0], r->o[1] + t * r->d[1]);
+    } else {
+        double hin = td_surface_height(g, TD_SURFACE_BILINEAR, ci, cj, r->o[0] + tin * r->d[0],
+                                       r->o[1] + tin * r->d[1]);
+        double hout = td_surface_height(g, TD_SURFACE_BILINEAR, ci, cj, r->o[0] + tout * r->d[0],
+                                        r->o[1] + tout * r->d[1]);
+        h = hin + (hout - hin) * ((t - tin) / (tout - tin));
+    }
+    return h;
+}
+
+double td_viewshed_start_gap(const td_grid *g, td_surface s, const td_ray *r)
+{
+    double t = r->tmin, x = r->o[0] + t * r->d[0], y = r->o[1] + t * r->d[1], z = NAN;
+    int32_t ci = cell_of(x, g->sx, g->w), cj = cell_of(y, g->sy, g->h);
+    if (s != TD_SURFACE_PLANE)
+        z = s == TD_SURFACE_LINEAR ? linear_along(g, ci, cj, r, t) : td_surface_height(g, s, ci, cj, x, y);
+    return r->o[2] + t * r->d[2] - z;
+}
+
+int td_viewshed_starts_under(const td_grid *g, td_surface s, const td_ray *r)
+{
+    /* NaN (the plane, a hole: nothing to be under) compares false */
+    return td_viewshed_start_gap(g, s, r) < -0x1p-48 * (1.0 + fabs(r->o[2]));
+}
+
 int td_viewshed_cast(const td_view *v, td_surface s, td_method m, double ex, double ey, double ez,
                      int32_t i, int32_t j, double target_height, uint32_t *steps)
 {
     td_ray r;
     int kind = td_viewshed_ray(v->grid, s, ex, ey, ez, i, j, target_height, &r);
     if (kind == 0)
-        kind = !td_occluded(v, m, s, &r, NULL, steps);
+        kind = !td_viewshed_starts_under(v->grid, s, &r) && !td_occluded(v, m, s, &r, NULL, steps);
     else if (kind > 0)
         kind = 2;
     return kind;
@@ -625,6 +667,12 @@ td_status td_los(const td_view *v, const td_los_opts *o, td_los_result *res, td_
     r.tmax = 1.0 - TD_LOS_TEPS;
     td_trace(&e->view, o->method, o->surface, &r, &hit);
     res->steps = hit.steps;
+    if (!isfinite(hit.t) && td_viewshed_starts_under(e->view.grid, o->surface, &r)) {
+        /* under the surface from the eye on, and no crossing: blocked where it starts */
+        hit.t = r.tmin;
+        for (int k = 0; k < 3; k++)
+            hit.p[k] = r.o[k] + r.tmin * r.d[k];
+    }
     if (isfinite(hit.t)) {
         double s = hit.t * res->distance;
         res->visible = 0;

@@ -8,14 +8,18 @@
  * target is the point `target_height` metres above the surface at a grid sample (for the
  * `plane` surface the top of the sample's column, the one north-east of it, else the
  * sample's own height). The target is visible when the segment E -> T does not meet the
- * surface strictly between its ends: the ray o = E, d = T - E is searched over
- * t in [TD_LOS_TEPS, 1 - TD_LOS_TEPS] with td_occluded (viewsheds) or td_trace (line of
- * sight). So:
+ * surface strictly between its ends and does not run under it: the ray o = E, d = T - E
+ * is searched over t in [TD_LOS_TEPS, 1 - TD_LOS_TEPS] with td_occluded (viewsheds) or
+ * td_trace (line of sight), which find where it meets (crosses or touches) the surface,
+ * and a segment that starts under the surface there is blocked too
+ * (td_viewshed_starts_under: the tracer counts crossings, and an eye on the ground whose
+ * segment goes into the hill it stands on and stays under it has none). So:
  *   - touching counts as blocking (as in every tracer: a segment that grazes a ridge
  *     exactly is not a clear line), but the two ends are not looked at: an observer
- *     standing on the ground (height 0) is not blocked by the ground under his feet, a
- *     target on the ground by the ground it stands on. The gap at each end is 2^-30 of
- *     the segment (0.1 mm on 100 km), far below what float heights resolve;
+ *     standing on the ground (height 0) is not blocked by the ground under his feet where
+ *     the segment leaves it upwards or along it, a target on the ground not by the ground
+ *     it stands on. The gap at each end is 2^-30 of the segment (0.1 mm on 100 km), far
+ *     below what float heights resolve;
  *   - the observer's own cell is traced like any other; a sample at horizontal distance 0
  *     (the observer stands exactly on it) is visible;
  *   - a void sample, a plane column with a void corner, and a sample farther than
@@ -150,6 +154,19 @@ int td_viewshed_ray(const td_grid *g, td_surface s, double ex, double ey, double
 int td_viewshed_cast(const td_view *v, td_surface s, td_method m, double ex, double ey, double ez,
                      int32_t i, int32_t j, double target_height, uint32_t *steps);
 
+/* Whether ray r (a viewshed's or line of sight's segment) starts under surface s: at
+ * r->tmin, where the tracer starts, the segment is below the surface there (the linear
+ * surface: the chord along the ray's line through that cell) by more than 2^-48 of the
+ * eye's height (rounding). The tracer counts crossings, so such a segment that stays
+ * under the surface all the way to its target (an eye on the ground looking through
+ * the hill it stands on) has none; td_viewshed_cast and td_los call it blocked. Never
+ * for the plane surface (a solid column: the tracer hits at tmin) nor over a hole. */
+int td_viewshed_starts_under(const td_grid *g, td_surface s, const td_ray *r);
+/* The segment's height over surface s where the tracer starts it (r->tmin), as
+ * td_viewshed_starts_under measures it; NaN for the plane surface or over a hole. The
+ * sweep proves an eye on the ground's targets hidden only where this is clearly above 0
+ * (the tracer then meets the surface before any point above the segment). */
+double td_viewshed_start_gap(const td_grid *g, td_surface s, const td_ray *r);
 /* The surface under (x, y) on surface s (NaN on a hole, or outside the grid). */
 double td_viewshed_ground(const td_grid *g, td_surface s, double x, double y);
 

@@ -2,9 +2,13 @@
 # viewshed-vs-gdal.sh: terrad's viewshed against gdal_viewshed (Debian's gdal-bin) on the
 # same DEM and observer: agreement in per cent of the samples both answer, each
 # disagreement judged by the double-precision reference (tests/oracle/viewshed_oracle),
-# and the time of each, one thread, median of RUNS runs. docs/viewshed.md has the figures.
+# and the CPU time of each (whole command, start-up, terrad's split), one thread, median of
+# RUNS runs. docs/viewshed.md has the figures.
 #
 #   scripts/viewshed-vs-gdal.sh BUILD DEM COL ROW HEIGHT [RUNS]
+#
+# TIMES_ONLY=1 skips the agreement (the reference re-traces every disagreement: minutes on
+# the whole trinidad).
 #
 # COL, ROW: the observer's sample in the file's order (row 0 north), so both tools put the
 # eye at the same place: the sample's height plus HEIGHT. GDAL reads the heights through
@@ -46,35 +50,55 @@ XDIM $SX
 YDIM $SY
 NODATA -9999
 EOF
-
-median() { sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
 echo "DEM $DEM: $W x $HH samples, spacing $SX x $SY m; observer sample col $COL row $ROW (x $X, y $Y), eye $H m up"
 
-for r in $(seq "$RUNS"); do
-  s=$(date +%s.%N)
-  gdal_viewshed -q -ox "$X" -oy "$Y" -oz "$H" -tz 0 -cc 0 -vv 255 -iv 0 -ov 128 -om NORMAL \
-    "$T/dem.bil" "$T/gdal.tif" > /dev/null
-  e=$(date +%s.%N)
-  python3 -c "import sys; print(float(sys.argv[2])-float(sys.argv[1]))" "$s" "$e"
-done | median > "$T/gdal_s"
+# CPU time (user + system: the child's own rusage), median of RUNS runs: gdal_viewshed on the
+# float32 copy; terrad viewshed on the DEM as given and on the same float32 copy (read
+# through its GDAL loader: like with like); each tool's start-up alone (`gdalinfo
+# --version`, `terrad --help`: dynamic linking, GDAL's drivers), so "work" = command -
+# start-up; terrad's own split from --stats (cpu_ms: loading, max-mipmaps, the viewshed
+# itself, the PNG).
+python3 - "$RUNS" "$TERRAD" "$DEM" "$T" "$X" "$Y" "$H" "$W" "$HH" <<'EOF'
+import json, os, statistics, subprocess, sys
+runs, terrad, dem, t, x, y, h, w, hh = sys.argv[1:]
+runs, n = int(runs), int(w) * int(hh)
+
+def cpu(cmd):
+    ts = []
+    for _ in range(runs):
+        p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        _, status, ru = os.wait4(p.pid, 0)
+        if status != 0:
+            sys.exit("failed: " + " ".join(cmd))
+        ts.append((ru.ru_utime + ru.ru_stime) * 1e3)
+    return statistics.median(ts)
+
+def ours(src):
+    cmd = [terrad, "viewshed", "--dem", src, "--observer", f"{x},{y}", "--height", h, "--threads", "1",
+           "-o", f"{t}/ours.png", "--stats", f"{t}/st.json"]
+    c, parts = cpu(cmd), []
+    for _ in range(runs):
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+        j = json.load(open(f"{t}/st.json"))
+        cp = j["cpu_ms"]
+        parts.append((cp["load"], cp["accel"], cp["viewshed"], cp["encode"], j["swept"], j["rays"]))
+    return c, [statistics.median(p[k] for p in parts) for k in range(4)], parts[0][4], parts[0][5]
+
+g_up = cpu(["gdalinfo", "--version"])
+t_up = cpu([terrad, "--help"])
+g = cpu(["gdal_viewshed", "-q", "-ox", x, "-oy", y, "-oz", h, "-tz", "0", "-cc", "0", "-vv", "255", "-iv", "0",
+         "-ov", "128", "-om", "NORMAL", f"{t}/dem.bil", f"{t}/gdal.tif"])
+print(f"CPU ms, median of {runs}: start-up alone: gdal {g_up:.0f}, terrad {t_up:.0f}")
+print(f"  gdal_viewshed (float32 copy): {g:.0f} whole command, {g - g_up:.0f} work")
+for label, src in (("DEM as given", dem), ("float32 copy", f"{t}/dem.bil")):
+    c, (ld, ac, tr, en), swept, rays = ours(src)
+    print(f"  terrad viewshed ({label}): {c:.0f} whole command, {c - t_up:.0f} work (load {ld:.0f}, "
+          f"max-mipmaps {ac:.0f}, viewshed {tr:.0f} = {n / tr / 1e3:.1f} M samples/s, PNG {en:.0f}; {swept} "
+          f"swept, {rays} cast): terrad/gdal {c / g:.2f}x whole command, {(c - t_up) / (g - g_up):.2f}x work")
+EOF
 gdal_translate -q -of ENVI "$T/gdal.tif" "$T/gdal.raw"
 
-for r in $(seq "$RUNS"); do
-  s=$(date +%s.%N)
-  "$TERRAD" viewshed --dem "$DEM" --observer "$X,$Y" --height "$H" --threads 1 -o "$T/ours.png" --stats "$T/st.json"
-  e=$(date +%s.%N)
-  python3 -c "import sys,json; j=json.load(open(sys.argv[3])); print(float(sys.argv[2])-float(sys.argv[1]), j['timings_ms']['trace']/1e3, j['mean_steps'])" "$s" "$e" "$T/st.json"
-done | sort -g -k2 > "$T/ours"
-read -r WALL TRACE STEPS < <(awk -v n="$RUNS" 'NR==int((n+1)/2)' "$T/ours")
-G=$(cat "$T/gdal_s")
-N=$((W * HH))
-python3 - "$G" "$WALL" "$TRACE" "$STEPS" "$N" <<'EOF'
-import sys
-g, wall, trace, steps, n = map(float, sys.argv[1:])
-print(f"time, one thread, median: gdal_viewshed {g*1e3:.0f} ms ({n/g/1e6:.2f} M samples/s, whole command); "
-      f"terrad viewshed {wall*1e3:.0f} ms whole command, {trace*1e3:.0f} ms tracing "
-      f"({n/trace/1e6:.2f} M samples/s, {steps:.1f} steps a segment): terrad/gdal {trace/g:.2f}x (tracing), {wall/g:.2f}x (whole)")
-EOF
+[ "${TIMES_ONLY:-0}" = 1 ] && exit 0
 for s in bilinear triangle linear plane; do
   "$ORACLE" "$DEM" --gdal "$T/gdal.raw" "$X" "$Y" "$H" --surface "$s"
 done

@@ -1218,6 +1218,71 @@ static void bomb_png(const char *path, uint32_t w, uint32_t h, int interlace)
     free(px);
 }
 
+/* The .asc values as (float) strtod gives them, token by token: the loader's fast path
+ * (demasc.c's asc_fast_value) must agree with it on 120,000 tokens: short decimals,
+ * 20-digit ones as in picos ("2244.5900000000001455"), exact midpoints between floats
+ * and the doubles next to them (the fast path must give up there), leading zeros, signs,
+ * tiny fractions, and values a hair off NODATA. */
+static void asc_token_of(uint64_t *st, int kind, char *buf, size_t n)
+{
+    uint64_t r;
+    *st = *st * 6364136223846793005ULL + 1442695040888963407ULL;
+    r = *st >> 11;
+    if (kind == 0) {
+        snprintf(buf, n, "%s%llu.%02llu", r & 1 ? "-" : "", (unsigned long long)(r % 5000),
+                 (unsigned long long)(r >> 20) % 100);
+    } else if (kind == 1) {
+        snprintf(buf, n, "%.16f", (double)(r % 4000000) / 1000.0 + 1e-13 * (double)(r >> 40));
+    } else if (kind <= 3) { /* a float midpoint, or the double just off it */
+        float f = (float)(r % 3000000) / 997.0f;
+        double mid = ((double)f + (double)nextafterf(f, INFINITY)) / 2.0;
+        if (kind == 3)
+            mid = nextafter(mid, (r >> 40) & 1 ? INFINITY : -INFINITY);
+        snprintf(buf, n, "%.24f", mid);
+    } else if (kind == 4) {
+        snprintf(buf, n, "000%llu.000000%llu", (unsigned long long)(r % 100),
+                 (unsigned long long)(r >> 30) % 1000000);
+    } else if (kind == 5) {
+        snprintf(buf, n, "0.%020llu", (unsigned long long)(r % 100000000000ULL));
+    } else {
+        snprintf(buf, n, "%.17g", -9999.0 + ((r & 3) == 0 ? 0.0 : ((r & 1) ? 1e-12 : -1e-13)));
+    }
+}
+
+static void test_asc_values_as_strtod(void **state)
+{
+    enum { W = 300, H = 400 };
+    char p[512], tok[64];
+    uint64_t st = 12345;
+    size_t cap = (size_t)W * H * 40 + 256, len = 0;
+    char *text = malloc(cap);
+    td_grid *g;
+    (void)state;
+    assert_non_null(text);
+    len += (size_t)snprintf(text, cap, "ncols %d\nnrows %d\nxllcorner 0\nyllcorner 0\ncellsize 10\n"
+                                       "NODATA_value -9999\n", W, H);
+    for (int k = 0; k < W * H; k++) {
+        asc_token_of(&st, k % 7, tok, sizeof tok);
+        len += (size_t)snprintf(text + len, cap - len, "%s%c", tok, k % W == W - 1 ? '\n' : ' ');
+    }
+    tmpfile_path("strtod.asc", p, sizeof p);
+    spit(p, text, len);
+    g = load_ok(p, NULL);
+    st = 12345;
+    for (int k = 0; k < W * H; k++) {
+        double v;
+        float got = at_file_row(g, k % W, k / W);
+        asc_token_of(&st, k % 7, tok, sizeof tok);
+        v = strtod(tok, NULL);
+        if (v == -9999.0)
+            assert_true(isnan(got));
+        else if (memcmp(&got, &(float){(float)v}, sizeof got) != 0)
+            fail_msg("token %s: loaded %.9g, (float) strtod %.9g", tok, (double)got, (double)(float)v);
+    }
+    td_grid_free(g);
+    free(text);
+}
+
 /* A 65-byte .asc claiming 16000 x 16000 (1 GB of grid, within the default budget) is
  * refused for what its bytes can hold, not allocated and then found truncated. The
  * boundary: 2 x 2 values in exactly 7 bytes ("1 2 3 4") load. */
@@ -1652,6 +1717,7 @@ int main(void)
         cmocka_unit_test(test_asc_volcano),
         cmocka_unit_test(test_asc_picos),
         cmocka_unit_test(test_asc_variants),
+        cmocka_unit_test(test_asc_values_as_strtod),
         cmocka_unit_test(test_asc_refusals),
         cmocka_unit_test(test_hgt),
         cmocka_unit_test(test_hgt_refusals),

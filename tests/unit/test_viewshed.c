@@ -246,6 +246,85 @@ static void test_target_on_cliff_edge(void **state)
     unmake(&fx);
 }
 
+/* An eye on the ground (height 0): a segment that runs under the surface is no line of
+ * sight even when it never crosses it (the tracer counts crossings, and one that leaves
+ * the eye into the ground and stays there until its target has none: such targets read
+ * visible before td_viewshed_starts_under). Where the segment lies in the surface (to a
+ * neighbour along a straight edge) a touch is decided by rounding: not asserted.
+ *   Dome: z = 10i - i^2 along x (0, 9, 16, 21, 24, 25, 24, 21, 16 m; every row alike),
+ *   strictly concave, so from the eye on sample (1, 2) the segment to any sample two or
+ *   more columns away is under the surface between (to (3, j): 15 m at x = 20, ground
+ *   16 m), uphill, over the top and down the far side: hidden.
+ *   Pit (above), eye on its bottom: beyond the ring every segment is under the 100 m
+ *   ground from x = 40 (or y) on (to (5, 3): 50 m there), hidden; so are the diagonal
+ *   neighbours on the bilinear surface (ground 100(2t - t^2) over the line's 100t) and
+ *   the NE and SW ones on the triangle surface (200t over 100t).
+ *   Cliff (below), eye at its foot (40, 10): to the plateau's (2, 1) the segment is at
+ *   50 m at x = 30 where the ground is 100: hidden (and (1, 1), (0, 1)). From the edge
+ *   (30, 10) the foot (50, 10), (60, 10) is seen: the face falls faster than the line.
+ * td_los agrees: from the dome's eye to (40, 20), blocked at the eye (s = 0). */
+static double dome(int32_t i, int32_t j) { (void)j; return 10.0 * i - (double)i * i; }
+
+static void test_eye_on_ground(void **state)
+{
+    fixture fx;
+    uint8_t out[63];
+    td_viewshed_stats st;
+    td_vs_point on_dome = {10, 20}, in_pit = {30, 30}, foot = {40, 10}, edge = {30, 10};
+    (void)state;
+    for (int a = 0; a < TD_VS_ALGO_COUNT; a++)
+        for (int s = TD_SURFACE_LINEAR; s < TD_SURFACE_COUNT; s++)
+            for (int m = 0; m < TD_METHOD_COUNT; m++) {
+                td_surface S = (td_surface)s;
+                td_method M = (td_method)m;
+                run_algo = (td_vs_algo)a;
+                make(&fx, 9, 5, dome);
+                assert_int_equal(run(&fx, &on_dome, 1, 0.0, 0.0, S, M, out, &st, NULL), TD_OK);
+                for (int32_t j = 0; j < 5; j++)
+                    for (int32_t i = 3; i < 9; i++)
+                        assert_int_equal(at(&fx, out, i, j), 0);
+                unmake(&fx);
+                make(&fx, 7, 7, pit);
+                assert_int_equal(run(&fx, &in_pit, 1, 0.0, 0.0, S, M, out, &st, NULL), TD_OK);
+                for (int32_t j = 0; j < 7; j++)
+                    for (int32_t i = 0; i < 7; i++)
+                        if (abs(i - 3) > 1 || abs(j - 3) > 1)
+                            assert_int_equal(at(&fx, out, i, j), 0);
+                if (S != TD_SURFACE_LINEAR) {
+                    assert_int_equal(at(&fx, out, 4, 4), 0);
+                    assert_int_equal(at(&fx, out, 2, 2), 0);
+                }
+                if (S == TD_SURFACE_BILINEAR) {
+                    assert_int_equal(at(&fx, out, 2, 4), 0);
+                    assert_int_equal(at(&fx, out, 4, 2), 0);
+                }
+                unmake(&fx);
+                make(&fx, 7, 3, cliff);
+                assert_int_equal(run(&fx, &foot, 1, 0.0, 0.0, S, M, out, &st, NULL), TD_OK);
+                for (int32_t i = 0; i <= 2; i++)
+                    assert_int_equal(at(&fx, out, i, 1), 0);
+                assert_int_equal(run(&fx, &edge, 1, 0.0, 0.0, S, M, out, &st, NULL), TD_OK);
+                assert_int_equal(at(&fx, out, 5, 1), 1);
+                assert_int_equal(at(&fx, out, 6, 1), 1);
+                unmake(&fx);
+            }
+    run_algo = TD_VS_ALGO_SWEEP;
+    {
+        td_los_opts o;
+        td_los_result *r = malloc(sizeof *r);
+        assert_non_null(r);
+        make(&fx, 9, 5, dome);
+        td_los_opts_default(&o);
+        o.a = on_dome;
+        o.b = (td_vs_point){40, 20};
+        assert_int_equal(td_los(&fx.v, &o, r, NULL), TD_OK);
+        assert_false(r->visible);
+        assert_true(r->block_s < 1e-6);
+        free(r);
+        unmake(&fx);
+    }
+}
+
 /* max_distance 15 m from the centre of flat ground: the centre, its 4 edge neighbours
  * (10 m) and 4 diagonal ones (14.1 m) are inside, the rest outside. */
 static void test_max_distance(void **state)
@@ -479,6 +558,7 @@ int main(void)
         cmocka_unit_test(test_observer_at_corner),
         cmocka_unit_test(test_observer_on_void_edge),
         cmocka_unit_test(test_target_on_cliff_edge),
+        cmocka_unit_test(test_eye_on_ground),
         cmocka_unit_test(test_max_distance),
         cmocka_unit_test(test_curvature),
         cmocka_unit_test(test_refusals),
