@@ -93,9 +93,10 @@
  * where most tiles lack a max-mipmap (a cold dataset), since the horizon's bins there fall
  * back to tiles' zmax (auto_silhouette). Its secondary rays are the plain walk's.
  * Measured (docs/accuracy-vs-time.md, camera views): steps per camera ray fall from 9-25
- * to 1.1-8, camera rays get up to 2x and shadow rays up to 1.6x faster, but a camera ray
- * still costs about 1,300 instructions (walk setup, the cell tests near the hit, the
- * stats): 0.2-0.45x Embree's packets of 16 on the same rays. Tried and dropped:
+ * to 1.1-8 and camera rays get up to 2x and shadow rays up to 1.6x faster (with the
+ * batches below: 0.32-0.56x and 0.28-1.00x Embree's packets of 16 on the same rays). A
+ * camera ray that hits still costs about 1,550 instructions, a known miss about 380: per-ray
+ * cost, not steps (see the batches). Tried and dropped:
  * slices cut by each sample's azimuth with an exact sort by elevation (fewer steps on
  * rolled views, 2-7% slower overall); 8 or 16 slices (narrower wedges, more bins: 10-35%
  * more instructions). Once the batches below had cut the rays' own cost, the bins' share
@@ -109,10 +110,13 @@
  * normalised in one loop after the walks), and its straight shadow rays on the full grid
  * as parallel rays along the sun (td_occluded_par: grid and direction set up once). Each
  * gives the bits the ray-by-ray calls give (same pictures and stats). Measured with
- * callgrind on trinidad's level bench view (triangle): primary stage 325.7 -> 292.1 M
- * instructions, shadows 164.4 -> 139.5 M; the cycles fell further than the instructions
- * (perf: two stalls gone, a store-forwarding one in the walk's setup and the square root
- * and divisions of each hit's normal). */
+ * callgrind on trinidad's level bench view (triangle), the batches alone: primary stage
+ * 325.7 -> 292.1 M instructions, shadows 164.4 -> 139.5 M; with 2 slices, known misses kept
+ * at once and shadow rays from 2 x 2 blocks (trace.c): 264.8 M and 131.0 M. The cycles fell
+ * further than the instructions (perf: two stalls gone, a store-forwarding one in the walk's
+ * setup and the square root and divisions of each hit's normal): `make bench`, camera rays
+ * 1.23-1.37x and shadow rays 1.15-1.35x the rates before. Tried and dropped: a fan in three
+ * passes (starts, walks, normals) to overlap the divisions (no faster). */
 #include "render.h"
 #include "clock.h"
 

@@ -23,7 +23,11 @@
  *                  neighbour across a crossing, leave_box_at() past a skipped box;
  *   cell_test()    the one cell intersection, walk_cell() its quick rejection;
  *   method_runs[]  how each method crosses a tile; tile_enter() enters a tile (skip it
- *                  whole, or pick the method); td_trace() ends the walk off the grid.
+ *                  whole, or pick the method); td_trace() ends the walk off the grid;
+ *   walk_grid() .. walk_clip()  the walk's setup in the parts rays share (grid, origin,
+ *                  direction) and each ray's clip: td_trace_fan (a render's camera rays)
+ *                  and td_occluded_par (its shadow rays) set up the shared part once, and
+ *                  every ray still takes the one walk, so its answer is the one-ray call's.
  *
  * Watertightness. The crossing test is a sign test on f(t) = z_ray(t) - surface(t).
  * Inside a cell the triangle and linear surfaces make f linear in t (on each side of
