@@ -926,8 +926,8 @@ static int on_water(const ctx *c)
 
 /* One ray toward the sun per dry hit facing it: 1 lit, 0 shadowed, into the scratch. */
 /* The batched shadow rays of a block (np of them, from o[k], sample at[k]): one
- * td_occluded_par along the sun with the sun bound, as occluded() asks each. Returns 0. */
-static int shadows_flush(worker *w, const double (*o)[3], const int *at, int np, float *lit)
+ * td_occluded_par along the sun with the sun bound, as occluded() asks each. */
+static void shadows_flush(worker *w, const double (*o)[3], const int *at, int np, float *lit)
 {
     const ctx *c = w->c;
     uint8_t hit[TD_FAN];
@@ -938,7 +938,6 @@ static int shadows_flush(worker *w, const double (*o)[3], const int *at, int np,
         lit[at[k]] = hit[k] ? 0.0f : 1.0f;
     w->st.steps += steps;
     w->st.kind_steps[TD_RAY_SHADOW] += steps;
-    return 0;
 }
 
 static void stage_shadows(worker *w, const blk *b)
@@ -969,8 +968,10 @@ static void stage_shadows(worker *w, const blk *b)
         if (sm->level == 0 && !c->plain_secondary && !(c->curv2 && needs_curve(c, r.o, r.d, c->curv_smin2))) {
             memcpy(o[np], r.o, sizeof o[np]); /* a straight ray on the full grid: batched */
             at[np++] = i;
-            if (np == TD_FAN)
-                np = shadows_flush(w, o, at, np, lit);
+            if (np == TD_FAN) {
+                shadows_flush(w, o, at, np, lit);
+                np = 0;
+            }
         } else {
             lit[i] = occluded(c, w, TD_RAY_SHADOW, c->views[sm->level], &r) ? 0.0f : 1.0f;
         }

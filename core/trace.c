@@ -1020,6 +1020,13 @@ static int run_walk(const td_view *v, td_method m, const walk *w, walk_state *st
     return rc;
 }
 
+/* The method a walk starts with: auto and silhouette walk incrementally until a tile
+ * says otherwise (auto) or always (silhouette). */
+static inline td_method walk_method(td_method m)
+{
+    return m == TD_METHOD_AUTO || m == TD_METHOD_SILHOUETTE ? TD_METHOD_INCREMENTAL : m;
+}
+
 static int valid_call(const td_grid *g, td_method m, td_surface s)
 {
     return !isnan(g->zmin) && (unsigned)m < TD_METHOD_COUNT && (unsigned)s < TD_SURFACE_COUNT;
@@ -1034,7 +1041,7 @@ static void trace_one(const td_view *v, td_method m, walk *w, const double o[3],
     walk_state st;
     hit_rec hr = {.t = INFINITY};
     uint32_t steps = 0;
-    td_method used = m == TD_METHOD_AUTO || m == TD_METHOD_SILHOUETTE ? TD_METHOD_INCREMENTAL : m;
+    td_method used = walk_method(m);
     double scale = 1.0;
 
     hit->t = INFINITY;
@@ -1060,19 +1067,17 @@ void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r,
                    td_hit *hit)
 {
     walk w;
+    double nv[3];
+    int ok = valid_call(v->grid, m, s);
     memset(hit, 0, sizeof *hit);
-    if (valid_call(v->grid, m, s)) {
+    if (ok) {
         walk_grid(&w, v->grid, s);
-        double nv[3];
         walk_origin(&w, r->o);
-        trace_one(v, m, &w, r->o, r->d, r->tmin, r->tmax, t_clear, hit, nv);
-        if (hit->t < INFINITY)
-            unit_normal(nv, hit->n);
-    } else {
-        hit->t = INFINITY;
-        hit->ci = hit->cj = -1;
-        hit->method = m == TD_METHOD_AUTO || m == TD_METHOD_SILHOUETTE ? TD_METHOD_INCREMENTAL : m;
     }
+    /* an invalid call is a miss (+inf: trace_one then reads nothing of w) */
+    trace_one(v, m, &w, r->o, r->d, r->tmin, r->tmax, ok ? t_clear : INFINITY, hit, nv);
+    if (hit->t < INFINITY)
+        unit_normal(nv, hit->n);
 }
 
 /* Fan rays whose normals wait for one loop (unit_normal) */
@@ -1107,7 +1112,7 @@ static int occluded_one(const td_view *v, td_method m, walk *w, const double o[3
 {
     walk_state st;
     hit_rec hr = {.t = INFINITY};
-    td_method used = m == TD_METHOD_AUTO || m == TD_METHOD_SILHOUETTE ? TD_METHOD_INCREMENTAL : m;
+    td_method used = walk_method(m);
     int hit = 0;
     walk_origin(w, o);
     if (walk_clip(w, &st, tmin, tmax, scale)) {
