@@ -376,9 +376,7 @@ static json_t *peaks_answer(const pano_req *q, const td_grid *g, const td_peak_s
 /* ---- the work ------------------------------------------------------------------------------ */
 
 typedef struct pano_job {
-    td_app *app;
-    td_snapshot *snap;
-    double parse_ms;
+    td_json_job h; /* first: app, snapshot, parse time (routes.h) */
     pano_req q;
 } pano_job;
 
@@ -398,7 +396,7 @@ static td_status observer_at(const td_grid *g, pano_req *q, double *lon, double 
 
 static td_status work_horizon(pano_job *j, td_http_req *hq, td_http_resp *r, td_err *e)
 {
-    const td_view *v = td_snapshot_view(j->snap);
+    const td_view *v = td_snapshot_view(j->h.snap);
     td_skyline sk = {0};
     td_skyline_sun *sun = NULL;
     json_t *sj = NULL;
@@ -424,13 +422,13 @@ static td_status work_horizon(pano_job *j, td_http_req *hq, td_http_resp *r, td_
 
 static td_status work_peaks(pano_job *j, td_http_resp *r, td_err *e)
 {
-    const td_view *v = td_snapshot_view(j->snap);
+    const td_view *v = td_snapshot_view(j->h.snap);
     pano_entry *ent = NULL;
     td_peak_seen *seen = calloc((size_t)j->q.max_peaks, sizeof *seen);
     size_t n = 0;
     uint64_t rays = 0;
     int fresh = 0;
-    td_status rc = seen ? cache_get(j->q.dataset, j->snap, &ent, &fresh, e) : td_err_set(e, TD_ENOMEM, "out of memory");
+    td_status rc = seen ? cache_get(j->q.dataset, j->h.snap, &ent, &fresh, e) : td_err_set(e, TD_ENOMEM, "out of memory");
     if (!rc)
         rc = td_peaks_visible(v, &j->q.scene, ent->s, j->q.min_prominence, seen, (size_t)j->q.max_peaks, &n, &rays, e);
     if (!rc)
@@ -453,42 +451,31 @@ static void pano_work(void *cls, td_http_req *hq, td_http_resp *r, int cancelled
     } else {
         rc = j->q.peaks ? work_peaks(j, r, &e) : work_horizon(j, hq, r, &e);
         if (rc)
-            td_routes_work_error(j->app, r, rc, &e, j->q.peaks ? "the summits" : "the horizon");
+            td_routes_work_error(j->h.app, r, rc, &e, j->q.peaks ? "the summits" : "the horizon");
         else
             td_http_resp_header(r, "Cache-Control", "no-store");
     }
-    td_http_resp_header(r, "Server-Timing", "parse;dur=%.3f, queue;dur=%.3f, trace;dur=%.3f", j->parse_ms, queue_ms,
+    td_http_resp_header(r, "Server-Timing", "parse;dur=%.3f, queue;dur=%.3f, trace;dur=%.3f", j->h.parse_ms, queue_ms,
                         1e3 * (td_clock_s() - t0));
-    td_snapshot_release(j->snap);
+    td_snapshot_release(j->h.snap);
     free(j);
+}
+
+/* The body into the job on the HTTP thread (td_routes_json_job's parse). */
+static int pano_parse(const char *body, size_t len, td_json_job *job, const char **dataset, td_err *e)
+{
+    pano_job *j = (pano_job *)job;
+    *dataset = j->q.dataset;
+    return parse_body(body, len, j->h.app, &j->q, e);
 }
 
 /* Parses on the HTTP thread, resolves the dataset, queues the work (or answers). */
 static void pano_handle(td_app *app, td_http_req *hq, td_http_resp *r, int peaks)
 {
     pano_job *j = calloc(1, sizeof *j);
-    td_err e = {0};
-    const char *body;
-    size_t len;
-    double t0 = td_clock_s();
-    if (!j) {
-        td_routes_error(r, "internal", NULL, "out of memory");
-        goto out;
-    }
-    if (td_routes_json_body(hq, r))
-        goto out;
-    body = td_http_req_body(hq, &len);
-    j->q.peaks = peaks;
-    if (parse_body(body, len, app, &j->q, &e)) {
-        td_routes_error(r, "bad_request", e.field[0] ? e.field : NULL, e.msg);
-        goto out;
-    }
-    j->app = app;
-    j->parse_ms = 1e3 * (td_clock_s() - t0);
-    if (td_routes_defer_dataset(app, hq, r, j->q.dataset, &j->snap, pano_work, j) == 0)
-        j = NULL; /* the worker frees it */
-out:
-    free(j);
+    if (j)
+        j->q.peaks = peaks;
+    td_routes_json_job(app, hq, r, j ? &j->h : NULL, pano_parse, pano_work);
 }
 
 void td_horizon_route(td_app *app, td_http_req *q, td_http_resp *r, char **seg)

@@ -1549,10 +1549,11 @@ void td_routes_error(td_http_resp *r, const char *code, const char *field, const
 
 void td_routes_json(td_http_resp *r, int status, json_t *j) { send_json(r, status, j); }
 
-int td_routes_json_body(td_http_req *q, td_http_resp *r) { return json_body_check(q, r); }
-
-int td_routes_defer_dataset(td_app *app, td_http_req *q, td_http_resp *r, const char *id, td_snapshot **snap,
-                            td_http_work_fn fn, void *job)
+/* Takes the snapshot of dataset id into *snap and queues fn(job) (td_routes_json_job). 0 when
+ * queued; else the answer is set, *snap is released and NULL, and job is still the
+ * caller's. */
+static int defer_dataset(td_app *app, td_http_req *q, td_http_resp *r, const char *id, td_snapshot **snap,
+                         td_http_work_fn fn, void *job)
 {
     td_err e = {0};
     td_status rc;
@@ -1576,6 +1577,29 @@ int td_routes_defer_dataset(td_app *app, td_http_req *q, td_http_resp *r, const 
         td_routes_error(r, atomic_load(&app->ready) ? "busy" : "stopping", NULL, "the work queue is full; retry later");
     }
     return queued ? 0 : -1;
+}
+
+void td_routes_json_job(td_app *app, td_http_req *q, td_http_resp *r, td_json_job *job,
+                        td_json_parse_fn parse, td_http_work_fn fn)
+{
+    td_err e = {0};
+    const char *body, *dataset = NULL;
+    size_t len;
+    double t0 = td_clock_s();
+    if (!job) {
+        td_routes_error(r, "internal", NULL, "out of memory");
+    } else if (json_body_check(q, r) == 0) {
+        body = td_http_req_body(q, &len);
+        job->app = app;
+        if (parse(body, len, job, &dataset, &e)) {
+            td_routes_error(r, "bad_request", e.field[0] ? e.field : NULL, e.msg);
+        } else {
+            job->parse_ms = 1e3 * (td_clock_s() - t0);
+            if (defer_dataset(app, q, r, dataset, &job->snap, fn, job) == 0)
+                job = NULL; /* the worker frees it */
+        }
+    }
+    free(job);
 }
 
 void td_routes_work_error(td_app *app, td_http_resp *r, td_status rc, const td_err *e, const char *what)

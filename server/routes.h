@@ -67,21 +67,32 @@ typedef struct td_app {
 void td_routes_handle(void *cls, td_http_req *q, td_http_resp *resp);
 void td_routes_done(void *cls, int route, int status, size_t bytes, double seconds);
 
-/* For handlers in other files (viewshed.c): a JSON error with one of routes.c's codes
- * ("bad_request", "unknown_dataset", "internal", "busy", "stopping", "render_timeout";
- * an unknown code is "internal"), a JSON body (taken, NULL: 500), and the Content-Type
- * check of POST bodies (0 when JSON, else answered 415). */
+/* For handlers in other files (viewshed.c, pano.c): a JSON error with one of routes.c's
+ * codes ("bad_request", "unknown_dataset", "internal", "busy", "stopping",
+ * "render_timeout"; an unknown code is "internal") and a JSON body (taken, NULL: 500). */
 void td_routes_error(td_http_resp *r, const char *code, const char *field, const char *msg);
 void td_routes_json(td_http_resp *r, int status, json_t *j);
-int td_routes_json_body(td_http_req *q, td_http_resp *r);
 
-/* For deferred handlers in other files (viewshed.c, pano.c): takes the snapshot of dataset
- * id into *snap (404 unknown_dataset, or 500), then queues fn(job) on the HTTP layer's
- * worker queue (503 busy, or stopping, with Retry-After when it is full). 0 when queued:
- * the worker owns job and *snap; else the answer is set, *snap is released and NULL, and
- * job is still the caller's. */
-int td_routes_defer_dataset(td_app *app, td_http_req *q, td_http_resp *r, const char *id, td_snapshot **snap,
-                            td_http_work_fn fn, void *job);
+/* What every deferred JSON job of another file starts with (its first member). */
+typedef struct td_json_job {
+    td_app *app;
+    td_snapshot *snap; /* the dataset, held until the worker releases it */
+    double parse_ms;
+} td_json_job;
+
+/* Parses a POST body into job (its first member a td_json_job; app is set) and names the
+ * dataset it asks for in *dataset: 0, or the error in e. */
+typedef int (*td_json_parse_fn)(const char *body, size_t len, td_json_job *job, const char **dataset,
+                                td_err *e);
+
+/* A POST with a JSON body as deferred work (viewshed.c, pano.c): 415 unless the body is
+ * JSON, parse on the HTTP thread (400 with its field; timed into job->parse_ms), the
+ * snapshot of the dataset it names (404 unknown_dataset, 503 loading, or 500), then fn(job)
+ * queued on the HTTP layer's worker queue (503 busy or stopping, with Retry-After, when
+ * it is full). job is calloc'd by the caller (NULL: 500) and owned here: the worker owns
+ * it and its snapshot once queued, else it is freed here. */
+void td_routes_json_job(td_app *app, td_http_req *q, td_http_resp *r, td_json_job *job,
+                        td_json_parse_fn parse, td_http_work_fn fn);
 /* A core failure of deferred work as the answer: the deadline or shutdown (TD_ECANCELED:
  * 503 render_timeout or stopping; `what` names the work, e.g. "the viewshed"), ours
  * (TD_ENOMEM, TD_EIO: 500), else the input at fault (400 with core's field). */

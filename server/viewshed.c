@@ -289,9 +289,7 @@ out:
 /* ---- the work --------------------------------------------------------------------------- */
 
 typedef struct vs_job {
-    td_app *app;
-    td_snapshot *snap;
-    double parse_ms;
+    td_json_job h; /* first: app, snapshot, parse time (routes.h) */
     vs_req q;
 } vs_job;
 
@@ -312,7 +310,7 @@ static td_status resolve(const td_grid *g, vs_req *q, td_vs_point *out, td_err *
 static td_status work_viewshed(vs_job *j, td_http_req *hq, td_http_resp *r, td_viewshed_stats *st,
                                double *encode_ms, td_err *e)
 {
-    const td_view *v = td_snapshot_view(j->snap);
+    const td_view *v = td_snapshot_view(j->h.snap);
     td_vs_point *pts = calloc((size_t)j->q.npts, sizeof *pts);
     uint8_t *counts = malloc((size_t)v->grid->w * (size_t)v->grid->h);
     td_buf png = {0};
@@ -356,7 +354,7 @@ out:
 
 static td_status work_los(vs_job *j, td_http_resp *r, td_err *e)
 {
-    const td_view *v = td_snapshot_view(j->snap);
+    const td_view *v = td_snapshot_view(j->h.snap);
     td_los_result *res = malloc(sizeof *res);
     td_vs_point pts[2];
     td_los_opts o;
@@ -400,48 +398,38 @@ static void vs_work(void *cls, td_http_req *hq, td_http_resp *r, int cancelled)
     }
     rc = j->q.los ? work_los(j, r, &e) : work_viewshed(j, hq, r, &st, &encode_ms, &e);
     if (rc)
-        td_routes_work_error(j->app, r, rc, &e, "the viewshed");
+        td_routes_work_error(j->h.app, r, rc, &e, "the viewshed");
     else
         td_http_resp_header(r, "Cache-Control", "no-store");
 out:
     if (j->q.los)
-        td_http_resp_header(r, "Server-Timing", "parse;dur=%.3f, queue;dur=%.3f, trace;dur=%.3f", j->parse_ms,
+        td_http_resp_header(r, "Server-Timing", "parse;dur=%.3f, queue;dur=%.3f, trace;dur=%.3f", j->h.parse_ms,
                             queue_ms, 1e3 * (td_clock_s() - t0));
     else
         td_http_resp_header(r, "Server-Timing",
                             "parse;dur=%.3f, queue;dur=%.3f, setup;dur=%.3f, trace;dur=%.3f, encode;dur=%.3f",
-                            j->parse_ms, queue_ms, st.setup_ms, st.trace_ms, encode_ms);
-    td_snapshot_release(j->snap);
+                            j->h.parse_ms, queue_ms, st.setup_ms, st.trace_ms, encode_ms);
+    td_snapshot_release(j->h.snap);
     free(j);
+}
+
+/* The body into the job on the HTTP thread (td_routes_json_job's parse). */
+static int vs_parse(const char *body, size_t len, td_json_job *job, const char **dataset, td_err *e)
+{
+    vs_job *j = (vs_job *)job;
+    *dataset = j->q.dataset;
+    return parse_body(body, len, &j->q, e);
 }
 
 /* Parses on the HTTP thread, resolves the dataset, queues the work (or answers). */
 static void vs_handle(td_app *app, td_http_req *hq, td_http_resp *r, int los)
 {
     vs_job *j = calloc(1, sizeof *j);
-    td_err e = {0};
-    const char *body;
-    size_t len;
-    double t0 = td_clock_s();
-    if (!j) {
-        td_routes_error(r, "internal", NULL, "out of memory");
-        goto out;
+    if (j) {
+        j->q.los = los;
+        td_viewshed_opts_default(&j->q.o);
     }
-    if (td_routes_json_body(hq, r))
-        goto out;
-    body = td_http_req_body(hq, &len);
-    j->q.los = los;
-    td_viewshed_opts_default(&j->q.o);
-    if (parse_body(body, len, &j->q, &e)) {
-        td_routes_error(r, "bad_request", e.field[0] ? e.field : NULL, e.msg);
-        goto out;
-    }
-    j->app = app;
-    j->parse_ms = 1e3 * (td_clock_s() - t0);
-    if (td_routes_defer_dataset(app, hq, r, j->q.dataset, &j->snap, vs_work, j) == 0)
-        j = NULL; /* the worker frees it */
-out:
-    free(j);
+    td_routes_json_job(app, hq, r, j ? &j->h : NULL, vs_parse, vs_work);
 }
 
 void td_vs_route(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
