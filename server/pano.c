@@ -261,28 +261,6 @@ static td_status parse_peaks(json_t *root, const td_app *app, pano_req *q, td_er
     return rc;
 }
 
-static td_status parse_body(const char *body, size_t len, const td_app *app, pano_req *q, td_err *err)
-{
-    json_error_t je;
-    json_t *root = json_loadb(body, len, JSON_REJECT_DUPLICATES, &je), *ds;
-    td_status rc = TD_OK;
-    if (!root || !json_is_object(root)) {
-        rc = td_err_set(err, TD_EFORMAT, "the body must be a JSON object%s%s", root ? "" : ": ",
-                        root ? "" : je.text);
-        goto out;
-    }
-    ds = json_object_get(root, "dataset");
-    if (!json_is_string(ds) || !json_string_length(ds) || json_string_length(ds) >= sizeof q->dataset) {
-        rc = td_err_field(err, TD_EINVAL, "dataset", "required: a dataset id");
-        goto out;
-    }
-    snprintf(q->dataset, sizeof q->dataset, "%s", json_string_value(ds));
-    rc = q->peaks ? parse_peaks(root, app, q, err) : parse_horizon(root, q, err);
-out:
-    json_decref(root);
-    return rc;
-}
-
 /* ---- answers ---------------------------------------------------------------------------- */
 
 /* An instant as ISO 8601 UTC to the second; null for NaN. */
@@ -461,12 +439,13 @@ static void pano_work(void *cls, td_http_req *hq, td_http_resp *r, int cancelled
     free(j);
 }
 
-/* The body into the job on the HTTP thread (td_routes_json_job's parse). */
-static int pano_parse(const char *body, size_t len, td_json_job *job, const char **dataset, td_err *e)
+/* td_routes_json_job's parse: the dataset, then the endpoint's fields. */
+static td_status pano_parse(json_t *root, const char *dataset, td_json_job *job, td_err *err)
 {
     pano_job *j = (pano_job *)job;
-    *dataset = j->q.dataset;
-    return parse_body(body, len, j->h.app, &j->q, e);
+    pano_req *q = &j->q;
+    snprintf(q->dataset, sizeof q->dataset, "%s", dataset);
+    return q->peaks ? parse_peaks(root, j->h.app, q, err) : parse_horizon(root, q, err);
 }
 
 /* Parses on the HTTP thread, resolves the dataset, queues the work (or answers). */

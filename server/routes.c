@@ -1583,22 +1583,34 @@ void td_routes_json_job(td_app *app, td_http_req *q, td_http_resp *r, td_json_jo
                         td_json_parse_fn parse, td_http_work_fn fn)
 {
     td_err e = {0};
-    const char *body, *dataset = NULL;
-    size_t len;
+    json_t *root = NULL, *ds = NULL;
+    json_error_t je;
     double t0 = td_clock_s();
     if (!job) {
         td_routes_error(r, "internal", NULL, "out of memory");
     } else if (json_body_check(q, r) == 0) {
-        body = td_http_req_body(q, &len);
+        size_t len;
+        const char *body = td_http_req_body(q, &len);
+        td_status rc;
         job->app = app;
-        if (parse(body, len, job, &dataset, &e)) {
+        root = json_loadb(body, len, JSON_REJECT_DUPLICATES, &je);
+        ds = json_is_object(root) ? json_object_get(root, "dataset") : NULL;
+        if (!json_is_object(root))
+            rc = td_err_set(&e, TD_EFORMAT, "the body must be a JSON object%s%s", root ? "" : ": ",
+                            root ? "" : je.text);
+        else if (!json_is_string(ds) || !json_string_length(ds) || json_string_length(ds) >= TD_SCENE_DATASET_MAX)
+            rc = td_err_field(&e, TD_EINVAL, "dataset", "required: a dataset id");
+        else
+            rc = parse(root, json_string_value(ds), job, &e);
+        if (rc) {
             td_routes_error(r, "bad_request", e.field[0] ? e.field : NULL, e.msg);
         } else {
             job->parse_ms = 1e3 * (td_clock_s() - t0);
-            if (defer_dataset(app, q, r, dataset, &job->snap, fn, job) == 0)
+            if (defer_dataset(app, q, r, json_string_value(ds), &job->snap, fn, job) == 0)
                 job = NULL; /* the worker frees it */
         }
     }
+    json_decref(root);
     free(job);
 }
 

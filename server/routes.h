@@ -80,13 +80,14 @@ typedef struct td_json_job {
     double parse_ms;
 } td_json_job;
 
-/* Parses a POST body into job (its first member a td_json_job; app is set) and names the
- * dataset it asks for in *dataset: 0, or the error in e. */
-typedef int (*td_json_parse_fn)(const char *body, size_t len, td_json_job *job, const char **dataset,
-                                td_err *e);
+/* Reads a POST body's JSON object into job (its first member a td_json_job; app is set):
+ * dataset is its "dataset", a string of 1 to TD_SCENE_DATASET_MAX - 1 bytes. TD_OK, or the
+ * error in e (with the field at fault). */
+typedef td_status (*td_json_parse_fn)(json_t *root, const char *dataset, td_json_job *job, td_err *e);
 
 /* A POST with a JSON body as deferred work (viewshed.c, pano.c): 415 unless the body is
- * JSON, parse on the HTTP thread (400 with its field; timed into job->parse_ms), the
+ * JSON, 400 unless it is a JSON object with a "dataset" string, then parse on the HTTP
+ * thread (400 with its field; all timed into job->parse_ms), the
  * snapshot of the dataset it names (404 unknown_dataset, 503 loading, or 500), then fn(job)
  * queued on the HTTP layer's worker queue (503 busy or stopping, with Retry-After, when
  * it is full). job is calloc'd by the caller (NULL: 500) and owned here: the worker owns

@@ -98,7 +98,7 @@ typedef struct vs_pt {
 typedef struct vs_req {
     int los;
     int json; /* format */
-    char dataset[128];
+    char dataset[TD_SCENE_DATASET_MAX];
     vs_pt pts[TD_VS_MAX_OBSERVERS];
     int npts;
     td_viewshed_opts o; /* height, target_height, max_distance, curvature, k, surface, method */
@@ -262,30 +262,6 @@ static td_status parse_los(json_t *root, vs_req *q, td_err *err)
     return rc;
 }
 
-static td_status parse_body(const char *body, size_t len, vs_req *q, td_err *err)
-{
-    json_error_t je;
-    json_t *root = json_loadb(body, len, JSON_REJECT_DUPLICATES, &je), *ds;
-    td_status rc = TD_OK;
-    if (!root || !json_is_object(root)) {
-        rc = td_err_set(err, TD_EFORMAT, "the body must be a JSON object%s%s", root ? "" : ": ",
-                        root ? "" : je.text);
-        goto out;
-    }
-    ds = json_object_get(root, "dataset");
-    if (!json_is_string(ds) || !json_string_length(ds) || json_string_length(ds) >= sizeof q->dataset) {
-        rc = td_err_field(err, TD_EINVAL, "dataset", "required: a dataset id");
-        goto out;
-    }
-    snprintf(q->dataset, sizeof q->dataset, "%s", json_string_value(ds));
-    rc = parse_quality(root, &q->o, err);
-    if (!rc)
-        rc = q->los ? parse_los(root, q, err) : parse_viewshed(root, q, err);
-out:
-    json_decref(root);
-    return rc;
-}
-
 /* ---- the work --------------------------------------------------------------------------- */
 
 typedef struct vs_job {
@@ -413,12 +389,16 @@ out:
     free(j);
 }
 
-/* The body into the job on the HTTP thread (td_routes_json_job's parse). */
-static int vs_parse(const char *body, size_t len, td_json_job *job, const char **dataset, td_err *e)
+/* td_routes_json_job's parse: the dataset, then the endpoint's fields. */
+static td_status vs_parse(json_t *root, const char *dataset, td_json_job *job, td_err *err)
 {
-    vs_job *j = (vs_job *)job;
-    *dataset = j->q.dataset;
-    return parse_body(body, len, &j->q, e);
+    vs_req *q = &((vs_job *)job)->q;
+    td_status rc;
+    snprintf(q->dataset, sizeof q->dataset, "%s", dataset);
+    rc = parse_quality(root, &q->o, err);
+    if (!rc)
+        rc = q->los ? parse_los(root, q, err) : parse_viewshed(root, q, err);
+    return rc;
 }
 
 /* Parses on the HTTP thread, resolves the dataset, queues the work (or answers). */
