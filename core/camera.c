@@ -36,8 +36,8 @@ double td_camera_ground(const td_grid *g, double x, double y)
         if (j > g->h - 2)
             j = g->h - 2;
         double u = fx - i, v = fy - j;
-        double z00 = td_grid_at(g, i, j), z10 = td_grid_at(g, i + 1, j);
-        double z01 = td_grid_at(g, i, j + 1), z11 = td_grid_at(g, i + 1, j + 1);
+        double z00 = td_grid_sample(g, i, j), z10 = td_grid_sample(g, i + 1, j);
+        double z01 = td_grid_sample(g, i, j + 1), z11 = td_grid_sample(g, i + 1, j + 1);
         h = (1 - v) * ((1 - u) * z00 + u * z10) + v * ((1 - u) * z01 + u * z11);
     }
     return h;

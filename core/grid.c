@@ -94,6 +94,7 @@ td_status td_grid_create(int32_t w, int32_t h, double sx, double sy, int tile_lo
         rc = td_err_set(err, TD_ENOMEM, "out of memory for %d x %d samples", (int)w, (int)h);
         goto out;
     }
+    td_grid_corners_flat(g);
 out:
     if (rc != TD_OK) {
         td_grid_free(g);
@@ -158,9 +159,18 @@ out:
     return rc;
 }
 
+void td_grid_corners_flat(td_grid *g)
+{
+    td_corners c = {g->z, 1, 0, (size_t)g->w, ((uint32_t)1 << TD_CORNERS_FLAT_LOG2) - 1u,
+                    TD_CORNERS_FLAT_LOG2};
+    g->cz = c;
+}
+
 void td_grid_free(td_grid *g)
 {
     if (g) {
+        if (g->bmap)
+            munmap(g->bmap, g->bmap_bytes);
         if (g->map)
             munmap(g->map, g->map_bytes);
         else
@@ -193,8 +203,8 @@ out:
 int td_grid_bilinear_cell(const td_grid *g, int32_t ci, int32_t cj, double x, double y, double *z,
                           double n[3])
 {
-    double z00 = td_grid_at(g, ci, cj), z10 = td_grid_at(g, ci + 1, cj);
-    double z01 = td_grid_at(g, ci, cj + 1), z11 = td_grid_at(g, ci + 1, cj + 1);
+    const float *s0 = td_grid_corner(&g->cz, ci, cj);
+    double z00 = s0[0], z10 = s0[1], z01 = s0[g->cz.stride], z11 = s0[g->cz.stride + 1];
     double u = x / g->sx - ci, v = y / g->sy - cj;
     int ok = !(isnan(z00) || isnan(z10) || isnan(z01) || isnan(z11));
     if (ok) {
@@ -223,14 +233,20 @@ int td_grid_bilinear(const td_grid *g, double x, double y, double *z, double n[3
 
 void td_grid_cell_max(const td_grid *g, const td_tile *t, float *out)
 {
+    const size_t W = g->cz.stride;
     for (int32_t cj = 0; cj < t->ny; cj++) {
-        const float *s0 = g->z + (size_t)(t->j0 + cj) * (size_t)g->w + (size_t)t->i0;
-        const float *s1 = s0 + g->w;
         float *o = out + (size_t)cj * (size_t)t->nx;
-        for (int32_t ci = 0; ci < t->nx; ci++) {
-            float a = s0[ci], b = s0[ci + 1], c = s1[ci], d = s1[ci + 1];
-            float ab = a > b ? a : b, cd = c > d ? c : d;
-            o[ci] = isnan(a + b + c + d) ? -INFINITY : (ab > cd ? ab : cd);
+        /* runs of cells inside one block of g->cz (a whole row of an in-memory grid) */
+        for (int32_t ci = 0, n; ci < t->nx; ci += n, o += n) {
+            int32_t i = t->i0 + ci;
+            const float *s0 = td_grid_corner(&g->cz, i, t->j0 + cj), *s1 = s0 + W;
+            int64_t left = (int64_t)g->cz.mask + 1 - (int64_t)((uint32_t)i & g->cz.mask);
+            n = left < t->nx - ci ? (int32_t)left : t->nx - ci;
+            for (int32_t k = 0; k < n; k++) {
+                float a = s0[k], b = s0[k + 1], c = s1[k], d = s1[k + 1];
+                float ab = a > b ? a : b, cd = c > d ? c : d;
+                o[k] = isnan(a + b + c + d) ? -INFINITY : (ab > cd ? ab : cd);
+            }
         }
     }
 }

@@ -50,6 +50,28 @@ typedef struct td_grid_limits {
     uint64_t max_bytes;            /* heights + tile records; 0 = no budget (default 4 GiB) */
 } td_grid_limits;
 
+/* Where the samples of cell corners are (the render path's one accessor, td_grid_corner):
+ * the samples are kept in blocks of B x B cells, (B+1) x (B+1) samples each (the edge
+ * samples shared with the neighbours duplicated), so the four corners of any cell are in
+ * one block: sample (i, j) of block (i >> log2, j >> log2) is at
+ *   base + ((j >> log2) * blocks_x + (i >> log2)) * block_floats
+ *        + (j & mask) * stride + (i & mask)
+ * and the cell's other corners at +1, +stride, +stride+1. An in-memory grid is one block
+ * (log2 30, mask all ones, stride w: the row-major address of z, at no branch); a prepared
+ * grid's blocked file (prepared.h, B = 64) has log2 6, stride 65, and a block row for every
+ * 64 cells plus one where the last sample starts a block (every sample, not only every
+ * cell corner, is addressable). */
+typedef struct td_corners {
+    const float *base;
+    size_t blocks_x;     /* blocks along a row */
+    size_t block_floats; /* floats from one block to the next */
+    size_t stride;       /* floats from one sample row of a block to the next */
+    uint32_t mask;       /* B - 1 */
+    int log2;            /* log2 B */
+} td_corners;
+
+#define TD_CORNERS_FLAT_LOG2 30 /* one block: any index of an int32 grid < 2^30 */
+
 typedef struct td_grid {
     int32_t w, h;      /* samples */
     double sx, sy;     /* spacing in metres */
@@ -63,6 +85,10 @@ typedef struct td_grid {
     void *map;         /* when z is a read-only file mapping (prepared.h): its base, which
                           td_grid_free unmaps instead of freeing z; NULL otherwise */
     size_t map_bytes;
+    td_corners cz;     /* where the render path reads samples (td_grid_corner): z itself,
+                          or a prepared grid's blocked copy of it */
+    void *bmap;        /* that blocked copy's file mapping (unmapped by td_grid_free), or NULL */
+    size_t bmap_bytes;
 } td_grid;
 
 void td_grid_limits_default(td_grid_limits *lim);
@@ -86,6 +112,25 @@ static inline float td_grid_at(const td_grid *g, int32_t i, int32_t j)
 {
     return g->z[(size_t)j * (size_t)g->w + (size_t)i];
 }
+
+/* Sample (i, j) through g->cz (any 0 <= i < w, 0 <= j < h): a cell (i, j)'s corners
+ * are p[0], p[1], p[stride], p[stride + 1] for p = td_grid_corner(&g->cz, i, j). The
+ * tracers, the hit shading and the tiles' acceleration builds read heights this way (so a
+ * prepared grid's render touches its blocked pages only); td_grid_at reads z, row-major. */
+static inline const float *td_grid_corner(const td_corners *c, int32_t i, int32_t j)
+{
+    return c->base +
+           ((size_t)(j >> c->log2) * c->blocks_x + (size_t)(i >> c->log2)) * c->block_floats +
+           (size_t)((uint32_t)j & c->mask) * c->stride + (size_t)((uint32_t)i & c->mask);
+}
+
+static inline float td_grid_sample(const td_grid *g, int32_t i, int32_t j)
+{
+    return *td_grid_corner(&g->cz, i, j);
+}
+
+/* g->cz as the row-major address of g->z (what td_grid_create sets). */
+void td_grid_corners_flat(td_grid *g);
 
 static inline int32_t td_grid_tile_size(const td_grid *g) { return (int32_t)1 << g->tile_log2; }
 

@@ -48,10 +48,19 @@
 #include "hash.h"
 
 #define TD_PREPARED_FORMAT "terrad-prepared"
-#define TD_STATE_MAGIC "TDPREP2"
+#define TD_STATE_MAGIC "TDPREP3"
 #define TD_INDEX_MAX (16u << 20) /* 16 MiB of JSON: 65536 chunks of checksums */
 
 _Static_assert(sizeof(td_tile) == 24, "tiles.bin holds td_tile records of 24 bytes");
+
+/* heights.blk (grid.h's td_corners, prepared.h): blocks of B x B cells, (B+1)^2 samples,
+ * a row of them (a band: blocks_x blocks, one contiguous range) per B sample rows. */
+typedef struct td_blocks {
+    int log2;
+    int32_t bx, by;          /* blocks a band, bands */
+    size_t stride, floats;   /* B + 1, (B + 1)^2 */
+    size_t band_bytes;
+} td_blocks;
 
 /* Layer k: 0 the heights (grid), 1 .. nlev the coarse levels (lev[k]); their shapes,
  * chunks and checksums are kept when the grids are taken. */
@@ -63,7 +72,9 @@ struct td_prepared {
     int32_t lw[TD_LOD_MAX + 1], lh[TD_LOD_MAX + 1], lchunks[TD_LOD_MAX + 1];
     uint64_t *sums[TD_LOD_MAX + 1];
     uint64_t tiles_fnv[TD_LOD_MAX + 1];
-    int32_t chunk_rows, nchunks; /* nchunks: of every layer */
+    int32_t chunk_rows, nchunks; /* nchunks: of every layer, then heights.blk's bands */
+    td_blocks k;                 /* heights.blk */
+    uint64_t *bsums;             /* a checksum per band */
     uint64_t fingerprint;
 };
 
@@ -173,6 +184,7 @@ typedef struct td_state_hdr {
     char magic[8];
     uint32_t version;
     int32_t tile_log2, chunk_rows, done, nlayers; /* done: chunks of heights.f32 */
+    int32_t block_log2, bands;                    /* heights.blk: B = 2^block_log2, band rows */
     uint64_t src_size;
     int64_t src_mtime;
     td_layer layer[TD_LOD_MAX + 1];
@@ -190,6 +202,10 @@ typedef struct td_prep_run {
     const char *dir;
     td_state_hdr st;
     td_layer_buf b[TD_LOD_MAX + 1];
+    td_blocks k;
+    float *band;     /* the band being filled (the worker's) */
+    uint64_t *bsums; /* a checksum per band */
+    int bfd;
 } td_prep_run;
 
 /* dir/name into out (n bytes); 0 if it does not fit. */
@@ -216,6 +232,27 @@ static const char *layer_name(int k, int tiles, char *out, size_t n)
 }
 
 static const char *layer_file(int k, char *out, size_t n) { return layer_name(k, 0, out, n); }
+
+/* The blocked layout of a w x h grid with blocks of 2^log2 cells (every sample addressable,
+ * grid.h). */
+static td_blocks blocks_plan(int32_t w, int32_t h, int log2)
+{
+    td_blocks k;
+    k.log2 = log2;
+    k.bx = ((w - 1) >> log2) + 1;
+    k.by = ((h - 1) >> log2) + 1;
+    k.stride = ((size_t)1 << log2) + 1;
+    k.floats = k.stride * k.stride;
+    k.band_bytes = (size_t)k.bx * k.floats * 4;
+    return k;
+}
+
+/* g->cz for heights.blk mapped at m. */
+static void blocks_corners(const td_blocks *k, const float *m, td_grid *g)
+{
+    td_corners c = {m, (size_t)k->bx, k->floats, k->stride, ((uint32_t)1 << k->log2) - 1u, k->log2};
+    g->cz = c;
+}
 
 static td_status write_file(const char *dir, const char *name, const void *const *parts,
                             const size_t *lens, int nparts, td_err *err)
@@ -247,8 +284,8 @@ static size_t layer_tiles_n(const td_layer *m) { return (size_t)m->tiles_x * (si
 
 static td_status state_save(td_prep_run *r, td_err *err)
 {
-    const void *parts[1 + 3 * (TD_LOD_MAX + 1)] = {&r->st};
-    size_t lens[1 + 3 * (TD_LOD_MAX + 1)] = {sizeof r->st};
+    const void *parts[2 + 3 * (TD_LOD_MAX + 1)] = {&r->st};
+    size_t lens[2 + 3 * (TD_LOD_MAX + 1)] = {sizeof r->st};
     int n = 1;
     for (int k = 0; k < r->st.nlayers; k++) {
         const td_layer *m = &r->st.layer[k];
@@ -259,6 +296,8 @@ static td_status state_save(td_prep_run *r, td_err *err)
         parts[n] = r->b[k].hi;
         lens[n++] = layer_tiles_n(m) * 4;
     }
+    parts[n] = r->bsums;
+    lens[n++] = (size_t)r->st.bands * 8;
     return write_file(r->dir, TD_PREPARED_STATE, parts, lens, n, err);
 }
 
@@ -279,13 +318,14 @@ static int state_load(td_prep_run *r, const td_state_hdr *want)
              h.version == want->version && h.tile_log2 == want->tile_log2 &&
              h.chunk_rows == want->chunk_rows && h.nlayers == want->nlayers &&
              h.src_size == want->src_size && h.src_mtime == want->src_mtime && h.done >= 0 &&
-             h.done <= want->layer[0].nchunks;
+             h.done <= want->layer[0].nchunks && h.block_log2 == want->block_log2 && h.bands == want->bands;
     for (int k = 0; ok && k < want->nlayers; k++) {
         size_t nt = layer_tiles_n(&want->layer[k]);
         ok = same_layer(&h.layer[k], &want->layer[k]) &&
              fread(r->b[k].sums, 8, (size_t)want->layer[k].nchunks, f) == (size_t)want->layer[k].nchunks &&
              fread(r->b[k].lo, 4, nt, f) == nt && fread(r->b[k].hi, 4, nt, f) == nt;
     }
+    ok = ok && fread(r->bsums, 8, (size_t)want->bands, f) == (size_t)want->bands;
     if (ok)
         r->st = h;
     if (f)
@@ -443,6 +483,79 @@ static td_status rings_load(td_prep_run *r, td_err *err)
     return rc;
 }
 
+/* --- the blocked copy of the heights, made while they stream ------------------------ */
+
+/* A band of voids: what a band's blocks hold past the grid's last samples. */
+static void band_clear(td_prep_run *r)
+{
+    size_t n = r->k.band_bytes / 4;
+    for (size_t i = 0; i < n; i++)
+        r->band[i] = NAN;
+}
+
+/* South row `row` of the heights as local row lr of every block of the band. */
+static void band_put(td_prep_run *r, const float *row, size_t lr)
+{
+    const int32_t w = r->st.layer[0].w;
+    for (int32_t x = 0; x < r->k.bx; x++) {
+        int32_t i0 = x << r->k.log2, n = w - i0 < (int32_t)r->k.stride ? w - i0 : (int32_t)r->k.stride;
+        memcpy(r->band + (size_t)x * r->k.floats + lr * r->k.stride, row + i0, (size_t)n * 4);
+    }
+}
+
+/* South row j of the heights arrives (north first): into the band it belongs to; its
+ * lowest row completes the band (checksummed and written with one pwrite) and is also the
+ * top row of the band below, which starts with it. */
+static td_status band_feed(td_prep_run *r, int32_t j, const float *row, td_err *err)
+{
+    td_status rc = TD_OK;
+    const uint32_t mask = ((uint32_t)1 << r->k.log2) - 1u;
+    int32_t bj = j >> r->k.log2;
+    band_put(r, row, (uint32_t)j & mask);
+    if (((uint32_t)j & mask) == 0) {
+        r->bsums[bj] = td_fnv1a(TD_FNV1A_INIT, r->band, r->k.band_bytes);
+        if (pwrite(r->bfd, r->band, r->k.band_bytes, (off_t)bj * (off_t)r->k.band_bytes) !=
+            (ssize_t)r->k.band_bytes)
+            rc = td_err_set(err, TD_EIO, "%s/%s: cannot write band %ld (%s)", r->dir, TD_PREPARED_BLOCKS,
+                            (long)bj, strerror(errno));
+        band_clear(r);
+        if (j > 0)
+            band_put(r, row, mask + 1u);
+    }
+    return rc;
+}
+
+/* The band in progress when continuing: the rows of it already written, read back from
+ * heights.f32 (synced before the state that counts them was saved). */
+static td_status band_load(td_prep_run *r, td_err *err)
+{
+    td_status rc = TD_OK;
+    const td_layer *m = &r->st.layer[0];
+    const size_t bytes = (size_t)m->w * 4;
+    int32_t next = m->h - 1 - m->emitted, top;
+    float *row = NULL;
+    band_clear(r);
+    if (next < 0)
+        goto out;
+    top = ((next >> r->k.log2) << r->k.log2) + (1 << r->k.log2);
+    top = top < m->h - 1 ? top : m->h - 1;
+    row = malloc(bytes);
+    if (!row && top > next) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for a row of %ld samples", (long)m->w);
+        goto out;
+    }
+    for (int32_t j = top; j > next && rc == TD_OK; j--) {
+        if (pread(r->b[0].fd, row, bytes, (off_t)j * (off_t)bytes) != (ssize_t)bytes)
+            rc = td_err_set(err, TD_EIO, "%s/%s: cannot read row %ld to continue (%s)", r->dir,
+                            TD_PREPARED_HEIGHTS, (long)j, strerror(errno));
+        else
+            band_put(r, row, (size_t)(j - ((next >> r->k.log2) << r->k.log2)));
+    }
+out:
+    free(row);
+    return rc;
+}
+
 static void hex64(char out[17], uint64_t v) { snprintf(out, 17, "%016llx", (unsigned long long)v); }
 
 static json_t *geo_json(const td_georef *g)
@@ -508,8 +621,8 @@ static json_t *layer_json(const td_prep_run *r, int k, uint64_t tsum)
 static td_status finish(td_prep_run *r, const td_src_rows *src, td_err *err)
 {
     td_status rc = TD_OK;
-    json_t *root = NULL, *levels = json_array(), *base = NULL;
-    char *text = NULL;
+    json_t *root = NULL, *levels = json_array(), *base = NULL, *bands = json_array();
+    char *text = NULL, hx[17];
     uint64_t tsum = 0;
 
     for (int k = 0; k < r->st.nlayers && rc == TD_OK; k++) {
@@ -519,15 +632,19 @@ static td_status finish(td_prep_run *r, const td_src_rows *src, td_err *err)
         else if (rc == TD_OK && levels)
             json_array_append_new(levels, layer_json(r, k, tsum));
     }
+    for (int32_t b = 0; bands && b < r->st.bands; b++) {
+        hex64(hx, r->bsums[b]);
+        json_array_append_new(bands, json_string(hx));
+    }
     if (rc)
         goto out;
-    root = base && levels ? json_pack("{s:s, s:i, s:[f,f], s:i, s:o, s:i, s:{s:s, s:I, s:I}, s:O}",
+    root = base && levels && bands ? json_pack("{s:s, s:i, s:[f,f], s:i, s:o, s:i, s:{s:s, s:I, s:I}, s:O, s:{s:i, s:O}}",
                                       "format", TD_PREPARED_FORMAT, "version", TD_PREPARED_VERSION,
                                       "spacing", src->shape.sx, src->shape.sy, "tile_log2", r->st.tile_log2,
                                       "georef", geo_json(&src->shape.geo), "chunk_rows", r->st.chunk_rows,
                                       "source", "name", td_demutil_basename(src->path),
                                       "bytes", (json_int_t)src->size, "mtime", (json_int_t)src->mtime,
-                                      "levels", levels)
+                                      "levels", levels, "blocks", "log2", r->st.block_log2, "bands", bands)
                               : NULL;
     text = root && json_object_update(root, base) == 0 ? json_dumps(root, JSON_INDENT(1) | JSON_COMPACT) : NULL;
     if (!text) {
@@ -544,6 +661,7 @@ out:
     json_decref(root);
     json_decref(levels);
     json_decref(base);
+    json_decref(bands);
     return rc;
 }
 
@@ -585,7 +703,12 @@ static td_status run_init(td_prep_run *r, const td_src_rows *src, const td_prepa
     want.src_size = src->size;
     want.src_mtime = src->mtime;
     layers_plan(&want, src->shape.w, src->shape.h);
-    ok = 1;
+    want.block_log2 = o->block_log2 ? o->block_log2 : TD_PREPARED_BLOCK_LOG2;
+    r->k = blocks_plan(src->shape.w, src->shape.h, want.block_log2);
+    want.bands = r->k.by;
+    r->band = malloc(r->k.band_bytes);
+    r->bsums = calloc((size_t)r->k.by, 8);
+    ok = r->band && r->bsums;
     for (int k = 0; k < want.nlayers && ok; k++) {
         const td_layer *m = &want.layer[k];
         td_layer_buf *b = &r->b[k];
@@ -615,6 +738,10 @@ out:
 
 static void run_free(td_prep_run *r)
 {
+    if (r->bfd >= 0)
+        close(r->bfd);
+    free(r->band);
+    free(r->bsums);
     for (int k = 0; k <= TD_LOD_MAX; k++) {
         if (r->b[k].fd >= 0)
             close(r->b[k].fd);
@@ -638,11 +765,15 @@ static td_status files_open(td_prep_run *r, td_err *err)
             ftruncate(r->b[k].fd, (off_t)m->w * (off_t)m->h * 4))
             rc = td_err_set(err, TD_EIO, "%s: cannot create (%s)", path, strerror(errno));
     }
+    if (rc == TD_OK && (!path_in(path, sizeof path, r->dir, TD_PREPARED_BLOCKS) ||
+                        (r->bfd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644)) < 0 ||
+                        ftruncate(r->bfd, (off_t)r->k.by * (off_t)r->k.band_bytes)))
+        rc = td_err_set(err, TD_EIO, "%s: cannot create (%s)", path, strerror(errno));
     return rc;
 }
 
 /* An index already there for this very source and chunking: nothing to do. */
-static int already_done(const char *dir, const td_src_rows *src)
+static int already_done(const char *dir, const td_src_rows *src, int block_log2)
 {
     td_prepared *p = NULL;
     char path[PATH_MAX];
@@ -651,7 +782,7 @@ static int already_done(const char *dir, const td_src_rows *src)
     if (td_prepared_open(dir, &p, NULL) == TD_OK && path_in(path, sizeof path, dir, TD_PREPARED_INDEX) &&
         (root = json_load_file(path, 0, NULL)) != NULL) {
         json_t *s = json_object_get(root, "source");
-        same = p->grid->w == src->shape.w && p->grid->h == src->shape.h &&
+        same = p->grid->w == src->shape.w && p->grid->h == src->shape.h && p->k.log2 == block_log2 &&
                p->grid->tile_log2 == src->shape.tile_log2 &&
                json_integer_value(json_object_get(s, "bytes")) == (json_int_t)src->size &&
                json_integer_value(json_object_get(s, "mtime")) == (json_int_t)src->mtime;
@@ -749,11 +880,15 @@ static td_status chunk_finish(td_pipe *pp, td_pchunk *p, td_err *err)
         r->b[0].hi[t] = p->b.hi[t] > r->b[0].hi[t] ? p->b.hi[t] : r->b[0].hi[t];
     }
     r->b[0].sums[p->c] = p->sum;
+    for (int32_t k = 0; k < p->n && rc == TD_OK; k++)
+        rc = band_feed(r, m->h - 1 - (r0 + k), p->rows + (size_t)(p->n - 1 - k) * w, err);
     for (int32_t k = 0; k < p->n && rc == TD_OK && r->st.nlayers > 1; k++)
         rc = level_feed(r, 1, m->h - 1 - (r0 + k), p->rows + (size_t)(p->n - 1 - k) * w, pp->scratch, err);
     for (int k = 0; k < r->st.nlayers && rc == TD_OK; k++)
         if (fdatasync(r->b[k].fd))
             rc = td_err_set(err, TD_EIO, "%s: cannot sync layer %d (%s)", r->dir, k, strerror(errno));
+    if (rc == TD_OK && fdatasync(r->bfd))
+        rc = td_err_set(err, TD_EIO, "%s/%s: cannot sync (%s)", r->dir, TD_PREPARED_BLOCKS, strerror(errno));
     if (rc == TD_OK) {
         m->emitted += p->n;
         r->st.done = p->c + 1;
@@ -896,8 +1031,15 @@ td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opt
     memset(res, 0, sizeof *res);
     memset(&r, 0, sizeof r);
     r.dir = dir;
+    r.bfd = -1;
     for (int k = 0; k <= TD_LOD_MAX; k++)
         r.b[k].fd = -1;
+    if (o->block_log2 && (o->block_log2 < TD_PREPARED_BLOCK_LOG2_MIN || o->block_log2 > TD_PREPARED_BLOCK_LOG2_MAX)) {
+        memset(&src, 0, sizeof src);
+        rc = td_err_field(err, TD_EINVAL, "block_log2", "blocks of 2^%d cells: outside 2^%d .. 2^%d", o->block_log2,
+                          TD_PREPARED_BLOCK_LOG2_MIN, TD_PREPARED_BLOCK_LOG2_MAX);
+        goto out;
+    }
     rc = src_open(&src, src_path, &o->dem, err);
     if (rc)
         goto out;
@@ -916,7 +1058,7 @@ td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opt
                         errno == EWOULDBLOCK ? "another terrad prepare is writing this folder" : strerror(errno));
         goto out;
     }
-    if (already_done(dir, &src)) {
+    if (already_done(dir, &src, o->block_log2 ? o->block_log2 : TD_PREPARED_BLOCK_LOG2)) {
         res->already = 1;
         goto out;
     }
@@ -930,6 +1072,8 @@ td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opt
     rc = files_open(&r, err);
     if (rc == TD_OK)
         rc = rings_load(&r, err);
+    if (rc == TD_OK)
+        rc = band_load(&r, err);
     if (rc == TD_OK)
         rc = chunks_run(&r, &src, o, err);
     if (rc == TD_OK)
@@ -1068,6 +1212,35 @@ out:
     return rc;
 }
 
+/* heights.blk's block size and band checksums (the index's "blocks"). */
+static td_status blocks_read(td_prepared *p, const char *path, json_t *o, const td_grid *g, td_err *err)
+{
+    td_status rc = TD_OK;
+    json_t *bands = json_object_get(o, "bands");
+    json_int_t l2 = json_integer_value(json_object_get(o, "log2"));
+    if (l2 < TD_PREPARED_BLOCK_LOG2_MIN || l2 > TD_PREPARED_BLOCK_LOG2_MAX) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: blocks.log2 missing or outside %d..%d", path,
+                        TD_PREPARED_BLOCK_LOG2_MIN, TD_PREPARED_BLOCK_LOG2_MAX);
+        goto out;
+    }
+    p->k = blocks_plan(g->w, g->h, (int)l2);
+    if (json_array_size(bands) != (size_t)p->k.by) {
+        rc = td_err_set(err, TD_EFORMAT, "%s: blocks.bands is not %ld checksums (bands of %d rows of a %ld-row grid)",
+                        path, (long)p->k.by, 1 << (int)l2, (long)g->h);
+        goto out;
+    }
+    p->bsums = calloc((size_t)p->k.by, 8);
+    if (!p->bsums) {
+        rc = td_err_set(err, TD_ENOMEM, "%s: out of memory", path);
+        goto out;
+    }
+    for (int32_t b = 0; b < p->k.by && rc == TD_OK; b++)
+        if (!hex_parse(json_string_value(json_array_get(bands, (size_t)b)), &p->bsums[b]))
+            rc = td_err_set(err, TD_EFORMAT, "%s: blocks.bands[%ld] is not a 16-digit hex checksum", path, (long)b);
+out:
+    return rc;
+}
+
 /* The index's fields into p and the grid records (no heights, no tiles yet). */
 static td_status index_read(td_prepared *p, const char *path, td_grid *g, td_err *err)
 {
@@ -1113,6 +1286,8 @@ static td_status index_read(td_prepared *p, const char *path, td_grid *g, td_err
         rc = geo_parse(path, json_object_get(root, "georef"), &g->geo, err);
     if (rc == TD_OK)
         rc = levels_read(p, path, json_object_get(root, "levels"), g, err);
+    if (rc == TD_OK)
+        rc = blocks_read(p, path, json_object_get(root, "blocks"), g, err);
 out:
     json_decref(root);
     return rc;
@@ -1157,30 +1332,63 @@ static td_status tiles_read(const char *path, td_grid *g, uint64_t want, td_err 
     return rc;
 }
 
-/* A layer's heights: exactly w*h*4 bytes, mapped read-only into g. */
-static td_status heights_map(const char *path, td_grid *g, td_err *err)
+/* A file of exactly `want` bytes (`what`: how the index makes them so), mapped read-only. */
+static td_status file_map(const char *path, uint64_t want, const char *what, void **out, td_err *err)
 {
     td_status rc = TD_OK;
-    uint64_t want = (uint64_t)g->w * (uint64_t)g->h * 4u;
     struct stat st;
     int fd = open(path, O_RDONLY | O_CLOEXEC);
     void *m = MAP_FAILED;
     if (fd < 0 || fstat(fd, &st)) {
         rc = td_err_set(err, TD_EIO, "%s: cannot open (%s)", path, strerror(errno));
     } else if ((uint64_t)st.st_size != want) {
-        rc = td_err_set(err, TD_EFORMAT, "%s: %lld bytes, the index says %ld x %ld float32 = %llu bytes (%s)",
-                        path, (long long)st.st_size, (long)g->w, (long)g->h, (unsigned long long)want,
+        rc = td_err_set(err, TD_EFORMAT, "%s: %lld bytes, the index says %s = %llu bytes (%s)", path,
+                        (long long)st.st_size, what, (unsigned long long)want,
                         (uint64_t)st.st_size < want ? "truncated" : "too long");
     } else if (want > SIZE_MAX || (m = mmap(NULL, (size_t)want, PROT_READ, MAP_SHARED, fd, 0)) == MAP_FAILED) {
         rc = td_err_set(err, TD_EIO, "%s: cannot map %llu bytes (%s)", path, (unsigned long long)want,
                         strerror(errno));
-    } else {
-        g->map = m;
-        g->map_bytes = (size_t)want;
-        g->z = m;
     }
+    *out = rc == TD_OK ? m : NULL;
     if (fd >= 0)
         close(fd);
+    return rc;
+}
+
+/* A layer's heights: exactly w*h*4 bytes, mapped read-only into g (and g->cz row-major). */
+static td_status heights_map(const char *path, td_grid *g, td_err *err)
+{
+    char what[96];
+    void *m = NULL;
+    td_status rc;
+    snprintf(what, sizeof what, "%ld x %ld float32", (long)g->w, (long)g->h);
+    rc = file_map(path, (uint64_t)g->w * (uint64_t)g->h * 4u, what, &m, err);
+    if (rc == TD_OK) {
+        g->map = m;
+        g->map_bytes = (size_t)g->w * (size_t)g->h * 4;
+        g->z = m;
+        td_grid_corners_flat(g);
+    }
+    return rc;
+}
+
+/* heights.blk: p->k's bands, mapped read-only as g->cz (what the render path reads). */
+static td_status blocks_map(const td_prepared *p, td_grid *g, td_err *err)
+{
+    char path[PATH_MAX], what[96];
+    void *m = NULL;
+    td_status rc = TD_OK;
+    uint64_t want = (uint64_t)p->k.by * (uint64_t)p->k.band_bytes;
+    snprintf(what, sizeof what, "%ld bands of %ld blocks of %zu float32", (long)p->k.by, (long)p->k.bx, p->k.floats);
+    if (!path_in(path, sizeof path, p->dir, TD_PREPARED_BLOCKS))
+        rc = td_err_set(err, TD_EINVAL, "%s: path too long", p->dir);
+    if (rc == TD_OK)
+        rc = file_map(path, want, what, &m, err);
+    if (rc == TD_OK) {
+        g->bmap = m;
+        g->bmap_bytes = (size_t)want;
+        blocks_corners(&p->k, m, g);
+    }
     return rc;
 }
 
@@ -1195,6 +1403,8 @@ static td_status layer_open(td_prepared *p, int k, td_err *err)
     rc = tiles_read(path, g, p->tiles_fnv[k], err);
     if (rc == TD_OK && path_in(path, sizeof path, p->dir, layer_file(k, name, sizeof name)))
         rc = heights_map(path, g, err);
+    if (rc == TD_OK && k == 0)
+        rc = blocks_map(p, g, err);
     return rc;
 }
 
@@ -1228,6 +1438,9 @@ td_status td_prepared_open(const char *dir, td_prepared **out, td_err *err)
         p->fingerprint = td_fnv1a(p->fingerprint, &p->tiles_fnv[k], 8);
         p->nchunks += p->lchunks[k];
     }
+    p->fingerprint = td_fnv1a(p->fingerprint, p->bsums, (size_t)p->k.by * 8);
+    p->fingerprint = td_fnv1a(p->fingerprint, &p->k.log2, sizeof p->k.log2);
+    p->nchunks += p->k.by;
     *out = p;
     p = NULL;
 out:
@@ -1262,39 +1475,58 @@ uint64_t td_prepared_fingerprint(const td_prepared *p) { return p->fingerprint; 
 
 int32_t td_prepared_chunks(const td_prepared *p) { return p->nchunks; }
 
+/* Chunk c of td_prepared_chunks: its file, byte range, checksum and a name for messages. */
+static int chunk_where(const td_prepared *p, int32_t c, char *path, size_t n, off_t *at, size_t *bytes,
+                       uint64_t *sum, char *what, size_t wn)
+{
+    int32_t k = 0, cc = c, rows;
+    char name[32];
+    while (k <= p->nlev && cc >= p->lchunks[k])
+        cc -= p->lchunks[k++];
+    if (c < 0 || (k > p->nlev && cc >= p->k.by))
+        return 0;
+    if (k <= p->nlev) {
+        path_in(path, n, p->dir, layer_file(k, name, sizeof name));
+        *at = chunk_span(p->lw[k], p->lh[k], p->chunk_rows, cc, &rows);
+        *bytes = (size_t)rows * (size_t)p->lw[k] * 4;
+        *sum = p->sums[k][cc];
+        snprintf(what, wn, "chunk %ld (file rows %ld..%ld)", (long)cc, (long)(cc * p->chunk_rows),
+                 (long)(cc * p->chunk_rows + rows - 1));
+    } else {
+        int32_t j0 = cc << p->k.log2, j1 = j0 + (1 << p->k.log2) < p->lh[0] - 1 ? j0 + (1 << p->k.log2) : p->lh[0] - 1;
+        path_in(path, n, p->dir, TD_PREPARED_BLOCKS);
+        *at = (off_t)cc * (off_t)p->k.band_bytes;
+        *bytes = p->k.band_bytes;
+        *sum = p->bsums[cc];
+        snprintf(what, wn, "band %ld (south rows %ld..%ld)", (long)cc, (long)j0, (long)j1);
+    }
+    return 1;
+}
+
 td_status td_prepared_verify_chunk(const td_prepared *p, int32_t c, td_err *err)
 {
     td_status rc = TD_OK;
-    char path[PATH_MAX], name[32];
-    int32_t n, k = 0, cc = c;
+    char path[PATH_MAX], what[96];
     int fd = -1;
     unsigned char *buf = NULL;
-    size_t bytes;
-    off_t at;
-    uint64_t sum;
+    size_t bytes = 0;
+    off_t at = 0;
+    uint64_t sum, want = 0;
 
-    while (k <= p->nlev && cc >= p->lchunks[k])
-        cc -= p->lchunks[k++];
-    if (c < 0 || k > p->nlev) {
+    if (!chunk_where(p, c, path, sizeof path, &at, &bytes, &want, what, sizeof what)) {
         rc = td_err_set(err, TD_EINVAL, "%s: no chunk %ld", p->dir, (long)c);
         goto out;
     }
-    path_in(path, sizeof path, p->dir, layer_file(k, name, sizeof name));
-    at = chunk_span(p->lw[k], p->lh[k], p->chunk_rows, cc, &n);
-    bytes = (size_t)n * (size_t)p->lw[k] * 4;
     buf = malloc(bytes);
     fd = open(path, O_RDONLY | O_CLOEXEC);
     if (!buf || fd < 0 || pread(fd, buf, bytes, at) != (ssize_t)bytes) {
-        rc = td_err_set(err, TD_EIO, "%s: cannot read chunk %ld (%s)", path, (long)cc,
-                        buf ? strerror(errno) : "out of memory");
+        rc = td_err_set(err, TD_EIO, "%s: cannot read %s (%s)", path, what, buf ? strerror(errno) : "out of memory");
         goto out;
     }
     sum = td_fnv1a(TD_FNV1A_INIT, buf, bytes);
-    if (sum != p->sums[k][cc])
-        rc = td_err_set(err, TD_EFORMAT, "%s: chunk %ld (file rows %ld..%ld) has checksum %016llx, the index "
-                        "says %016llx (corrupted)", path, (long)cc, (long)(cc * p->chunk_rows),
-                        (long)(cc * p->chunk_rows + n - 1), (unsigned long long)sum,
-                        (unsigned long long)p->sums[k][cc]);
+    if (sum != want)
+        rc = td_err_set(err, TD_EFORMAT, "%s: %s has checksum %016llx, the index says %016llx (corrupted)", path,
+                        what, (unsigned long long)sum, (unsigned long long)want);
     posix_fadvise(fd, at, (off_t)bytes, POSIX_FADV_DONTNEED);
 out:
     if (fd >= 0)
@@ -1311,8 +1543,24 @@ void td_prepared_free(td_prepared *p)
             td_grid_free(k ? p->lev[k] : NULL);
             free(p->sums[k]);
         }
+        free(p->bsums);
         free(p);
     }
+}
+
+/* The mappings of g: its row-major heights and, for a prepared full grid, heights.blk. */
+static int grid_maps(const td_grid *g, void *base[2], size_t len[2])
+{
+    int n = 0;
+    if (g->map) {
+        base[n] = g->map;
+        len[n++] = g->map_bytes;
+    }
+    if (g->bmap) {
+        base[n] = g->bmap;
+        len[n++] = g->bmap_bytes;
+    }
+    return n;
 }
 
 uint64_t td_prepared_resident(const td_grid *g)
@@ -1321,13 +1569,19 @@ uint64_t td_prepared_resident(const td_grid *g)
     char line[256];
     unsigned long lo, hi;
     int in = 0;
-    FILE *f = g->map ? fopen("/proc/self/smaps", "r") : NULL;
+    void *base[2];
+    size_t len[2];
+    int n = grid_maps(g, base, len);
+    FILE *f = n ? fopen("/proc/self/smaps", "r") : NULL;
     while (f && fgets(line, sizeof line, f)) {
         unsigned long long v;
-        if (sscanf(line, "%lx-%lx ", &lo, &hi) == 2) /* a mapping's first line */
-            in = (uintptr_t)lo >= (uintptr_t)g->map && (uintptr_t)hi <= (uintptr_t)g->map + g->map_bytes + 4096;
-        else if (in && sscanf(line, "Rss: %llu kB", &v) == 1)
+        if (sscanf(line, "%lx-%lx ", &lo, &hi) == 2) { /* a mapping's first line */
+            in = 0;
+            for (int k = 0; k < n; k++)
+                in |= (uintptr_t)lo >= (uintptr_t)base[k] && (uintptr_t)hi <= (uintptr_t)base[k] + len[k] + 4096;
+        } else if (in && sscanf(line, "Rss: %llu kB", &v) == 1) {
             kb += v;
+        }
     }
     if (f)
         fclose(f);
@@ -1338,26 +1592,32 @@ uint64_t td_prepared_cached(const td_grid *g)
 {
     uint64_t bytes = 0;
     long page = sysconf(_SC_PAGESIZE);
-    size_t npages = g->map ? (g->map_bytes + (size_t)page - 1) / (size_t)page : 0;
-    unsigned char *vec = npages ? malloc(npages) : NULL;
-    if (vec && mincore(g->map, g->map_bytes, vec) == 0)
-        for (size_t k = 0; k < npages; k++)
-            bytes += (vec[k] & 1u) ? (uint64_t)page : 0;
-    free(vec);
+    void *base[2];
+    size_t len[2];
+    int n = grid_maps(g, base, len);
+    for (int k = 0; k < n; k++) {
+        size_t npages = (len[k] + (size_t)page - 1) / (size_t)page;
+        unsigned char *vec = malloc(npages);
+        if (vec && mincore(base[k], len[k], vec) == 0)
+            for (size_t i = 0; i < npages; i++)
+                bytes += (vec[i] & 1u) ? (uint64_t)page : 0;
+        free(vec);
+    }
     return bytes;
 }
 
-void td_prepared_advise(const td_grid *g, int random)
+static void grid_madvise(const td_grid *g, int advice)
 {
-    if (g->map)
-        madvise(g->map, g->map_bytes, random ? MADV_RANDOM : MADV_NORMAL);
+    void *base[2];
+    size_t len[2];
+    int n = grid_maps(g, base, len);
+    for (int k = 0; k < n; k++)
+        madvise(base[k], len[k], advice);
 }
 
-void td_prepared_willneed(const td_grid *g)
-{
-    if (g->map)
-        madvise(g->map, g->map_bytes, MADV_WILLNEED);
-}
+void td_prepared_advise(const td_grid *g, int random) { grid_madvise(g, random ? MADV_RANDOM : MADV_NORMAL); }
+
+void td_prepared_willneed(const td_grid *g) { grid_madvise(g, MADV_WILLNEED); }
 
 void td_prepared_trim(const td_grid *g)
 {
@@ -1366,6 +1626,5 @@ void td_prepared_trim(const td_grid *g)
        budget, every trim threw away what the view was reading, and 392 GB were read in
        8 minutes without finishing the first view. The page cache's clean pages are the
        kernel's to reclaim. */
-    if (g->map)
-        madvise(g->map, g->map_bytes, MADV_DONTNEED);
+    grid_madvise(g, MADV_DONTNEED);
 }

@@ -54,10 +54,15 @@
 #include "dem.h"
 #include "lod.h"
 
-/* 2: the coarse levels (lodK.f32, lodK.tiles, "levels" in the index) */
-#define TD_PREPARED_VERSION 2
+/* 2: the coarse levels (lodK.f32, lodK.tiles, "levels" in the index);
+ * 3: heights.blk, the heights in blocks (the render path's copy; "blocks" in the index) */
+#define TD_PREPARED_VERSION 3
 #define TD_PREPARED_INDEX "terrad.json"
 #define TD_PREPARED_HEIGHTS "heights.f32"
+#define TD_PREPARED_BLOCKS "heights.blk"
+#define TD_PREPARED_BLOCK_LOG2 6 /* B = 64 cells a block side (README: 32 and 64 measured) */
+#define TD_PREPARED_BLOCK_LOG2_MIN 2
+#define TD_PREPARED_BLOCK_LOG2_MAX 8
 #define TD_PREPARED_TILES "tiles.bin"
 #define TD_PREPARED_STATE "prepare.state"
 #define TD_PREPARED_LEVEL_FMT "lod%d.f32"
@@ -70,6 +75,7 @@ typedef int (*td_prepare_progress)(void *cls, int64_t rows_done, int64_t rows_to
 typedef struct td_prepare_opts {
     td_dem_opts dem;     /* loader options (spacing, encoding...); tile_log2 from here */
     int32_t chunk_rows;  /* 0: the tile size */
+    int block_log2;      /* heights.blk's blocks: 2^block_log2 cells a side; 0: TD_PREPARED_BLOCK_LOG2 */
     td_prepare_progress progress;
     void *cls;
 } td_prepare_opts;

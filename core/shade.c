@@ -48,8 +48,8 @@ static void vertex_normal(const td_grid *g, int32_t i, int32_t j, double n[3])
 {
     int32_t i0 = i > 0 ? i - 1 : i, i1 = i < g->w - 1 ? i + 1 : i;
     int32_t j0 = j > 0 ? j - 1 : j, j1 = j < g->h - 1 ? j + 1 : j;
-    double zx0 = td_grid_at(g, i0, j), zx1 = td_grid_at(g, i1, j);
-    double zy0 = td_grid_at(g, i, j0), zy1 = td_grid_at(g, i, j1);
+    double zx0 = td_grid_sample(g, i0, j), zx1 = td_grid_sample(g, i1, j);
+    double zy0 = td_grid_sample(g, i, j0), zy1 = td_grid_sample(g, i, j1);
     double gx = (zx1 - zx0) / ((i1 - i0) * g->sx), gy = (zy1 - zy0) / ((j1 - j0) * g->sy);
     if (!isfinite(gx))
         gx = 0.0;

@@ -199,16 +199,9 @@ static float tiles_max(const td_grid *g, int axis, int32_t c, int32_t j0, int32_
 static float samples_max(const td_grid *g, int axis, int32_t c, int32_t j0, int32_t j1)
 {
     float m = -INFINITY;
-    if (axis) {
-        const float *a = g->z + (size_t)c * (size_t)g->w, *b = a + g->w;
-        for (int32_t x = j0; x <= j1 + 1; x++)
-            m = fmax_nan(fmax_nan(m, a[x]), b[x]);
-    } else {
-        for (int32_t x = j0; x <= j1 + 1; x++) {
-            const float *a = g->z + (size_t)x * (size_t)g->w + (size_t)c;
-            m = fmax_nan(fmax_nan(m, a[0]), a[1]);
-        }
-    }
+    for (int32_t x = j0; x <= j1 + 1; x++) /* through g->cz: a prepared grid's blocked copy */
+        m = axis ? fmax_nan(fmax_nan(m, td_grid_sample(g, x, c)), td_grid_sample(g, x, c + 1))
+                 : fmax_nan(fmax_nan(m, td_grid_sample(g, c, x)), td_grid_sample(g, c + 1, x));
     return m;
 }
 

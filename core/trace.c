@@ -133,8 +133,7 @@ typedef struct surface_ops surface_ops;
 
 typedef struct walk {
     const td_grid *g;
-    const float *z;    /* g->z, and its row stride g->w */
-    size_t stride;
+    td_corners cz;     /* g->cz: where a cell's corners are (grid.h) */
     const surface_ops *surf;
     double ou, ov, oz; /* origin: cell units (u = x/sx, v = y/sy), metres */
     double du, dv, dz; /* direction per unit of internal t */
@@ -192,15 +191,16 @@ static inline double dmax(double a, double b) { return a > b ? a : b; }
 
 static inline double sample(const td_grid *g, int32_t i, int32_t j)
 {
-    return (double)g->z[(size_t)j * (size_t)g->w + (size_t)i];
+    return (double)td_grid_sample(g, i, j);
 }
 
 static inline void corners(const td_grid *g, int32_t ci, int32_t cj, double c[4])
 {
-    c[0] = sample(g, ci, cj);
-    c[1] = sample(g, ci + 1, cj);
-    c[2] = sample(g, ci, cj + 1);
-    c[3] = sample(g, ci + 1, cj + 1);
+    const float *s0 = td_grid_corner(&g->cz, ci, cj);
+    c[0] = s0[0];
+    c[1] = s0[1];
+    c[2] = s0[g->cz.stride];
+    c[3] = s0[g->cz.stride + 1];
 }
 
 /* Time the ray reaches the sample line u = k (or v = k). */
@@ -574,8 +574,8 @@ TD_HOT int walk_cell(const walk *restrict w, walk_state *restrict st, hit_rec *h
     int rc;
     double tu = exit_u(w, st->ci), tv = exit_v(w, st->cj);
     double tb = dmin(tu, tv);
-    const size_t W = w->stride;
-    const float *s0 = w->z + (size_t)st->cj * W + (size_t)st->ci;
+    const size_t W = w->cz.stride;
+    const float *s0 = td_grid_corner(&w->cz, st->ci, st->cj);
     if (tb < w->t_end &&
         dmin(ray_z(w, st->t), ray_z(w, tb)) >
             dmax(dmax((double)s0[0], (double)s0[1]), dmax((double)s0[W], (double)s0[W + 1])))
@@ -825,8 +825,7 @@ static void clip_slab(double o, double d, double inv, double lo, double hi, doub
 TD_HOT void walk_grid(walk *w, const td_grid *g, td_surface s)
 {
     w->g = g;
-    w->z = g->z;
-    w->stride = (size_t)g->w;
+    w->cz = g->cz;
     w->surf = &surfaces[s];
     w->lit = NULL;
     w->cmax_i = g->w - 2;
@@ -1169,11 +1168,9 @@ static inline float fmax_nan(float m, float v) { return v > m ? v : m; }
 static float samples_max(const td_grid *g, int32_t i0, int32_t i1, int32_t j0, int32_t j1)
 {
     float m = -INFINITY;
-    for (int32_t j = j0; j <= j1 + 1; j++) {
-        const float *row = g->z + (size_t)j * (size_t)g->w;
+    for (int32_t j = j0; j <= j1 + 1; j++)
         for (int32_t i = i0; i <= i1 + 1; i++)
-            m = fmax_nan(m, row[i]);
-    }
+            m = fmax_nan(m, td_grid_sample(g, i, j));
     return m;
 }
 

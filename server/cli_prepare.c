@@ -46,13 +46,15 @@ static int progress(void *cls, int64_t done, int64_t total, int32_t width_sample
 static void usage(FILE *f)
 {
     fprintf(f, "usage: terrad prepare DEM OUT_DIR [--tile-size N] [--spacing SX[,SY]] [--chunk-rows N]\n"
-               "                      [--stop-after CHUNKS] [--quiet]\n"
+               "                      [--block-size B] [--stop-after CHUNKS] [--quiet]\n"
                "Writes DEM (any format terrad reads) into OUT_DIR as terrad's prepared form:\n"
-               "heights.f32 (memory-mapped by terrad serve), tiles.bin and the index terrad.json.\n"
+               "heights.f32 and heights.blk (memory-mapped by terrad serve), the levels lodK.f32,\n"
+               "tiles.bin and the index terrad.json.\n"
                "A run that is killed or stopped continues where it left off when run again.\n"
                "  --tile-size N      cells per tile side, a power of two (default 256)\n"
                "  --spacing SX[,SY]  metres between samples when the DEM does not say\n"
                "  --chunk-rows N     rows per chunk (checksum and resume unit; default the tile size)\n"
+               "  --block-size B     cells per block side of heights.blk, a power of two 4..256 (default 64)\n"
                "  --stop-after K     stop after K chunks (to try resuming)\n"
                "  --quiet            no progress bar\n");
 }
@@ -81,6 +83,12 @@ static int parse_args(int argc, char **argv, const char **pos, td_prepare_opts *
             o->dem.tile_log2 = 0;
             while ((1 << o->dem.tile_log2) < v)
                 o->dem.tile_log2++;
+            i++;
+        } else if (!strcmp(a, "--block-size") && next &&
+                   td_cli_parse_int(next, 1 << TD_PREPARED_BLOCK_LOG2_MIN, 1 << TD_PREPARED_BLOCK_LOG2_MAX, &v) &&
+                   !(v & (v - 1))) {
+            while ((1 << o->block_log2) < v)
+                o->block_log2++;
             i++;
         } else if (!strcmp(a, "--chunk-rows") && next && td_cli_parse_int(next, 1, 1 << 20, &v)) {
             o->chunk_rows = v;

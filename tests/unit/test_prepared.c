@@ -4,7 +4,9 @@
  * streamed, GeoTIFF streamed through GDAL, .asc through its loader); a prepare stopped after
  * some chunks must continue and end with the same files; and a truncated heights file, an
  * index of another version, a corrupted tiles.bin or a corrupted chunk must be refused with
- * the file and the reason. */
+ * the file and the reason. The blocked copy (heights.blk) holds every sample where
+ * td_grid_corner says, for any block size, and a render of every method and surface reads
+ * it alone: the same pixels as the source with the row-major mapping made unreadable. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -13,6 +15,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -23,6 +26,8 @@
 #include "dem.h"
 #include "lod.h"
 #include "prepared.h"
+#include "render.h"
+#include "scene.h"
 
 #ifdef TERRAD_HAVE_GDAL
 #include <gdal.h>
@@ -81,6 +86,13 @@ static void assert_same_grid(const td_grid *a, const td_grid *b)
     assert_true(a->geo.dx == b->geo.dx && a->geo.dy == b->geo.dy);
     assert_memory_equal(a->z, b->z, (size_t)a->w * (size_t)a->h * sizeof(float));
     assert_memory_equal(a->tiles, b->tiles, (size_t)a->tiles_x * (size_t)a->tiles_y * sizeof(td_tile));
+    /* every sample through a->cz (heights.blk for the full grid): bit for bit b's */
+    for (int32_t j = 0; j < a->h; j++)
+        for (int32_t i = 0; i < a->w; i++) {
+            float x = td_grid_sample(a, i, j), y = b->z[(size_t)j * (size_t)b->w + (size_t)i];
+            if (memcmp(&x, &y, sizeof x))
+                fail_msg("sample (%d, %d): %g through cz, %g in the source", (int)i, (int)j, x, y);
+        }
 }
 
 /* The prepared levels of p equal td_lod_build's levels of the loaded grid ref, bit for bit
@@ -109,7 +121,7 @@ static void assert_same_levels(td_prepared *p, const td_grid *ref)
 
 /* The prepared grid in dir equals the loader's grid of src, bit for bit, and so do its
  * coarse levels td_lod_build's. */
-static void assert_same_as_loaded(const char *src, const char *dir, int tile_log2)
+static void assert_same_as_loaded(const char *src, const char *dir, int tile_log2, int block_log2)
 {
     td_dem_opts lo;
     td_grid *ref = NULL, *g;
@@ -121,6 +133,9 @@ static void assert_same_as_loaded(const char *src, const char *dir, int tile_log
     assert_int_equal(td_dem_load(src, &lo, &ref, &e), TD_OK);
     assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK);
     g = td_prepared_take_grid(p);
+    assert_non_null(g->bmap);
+    assert_int_equal(g->cz.log2, block_log2 ? block_log2 : TD_PREPARED_BLOCK_LOG2);
+    assert_int_equal(g->cz.stride, (1u << g->cz.log2) + 1u);
     assert_same_grid(g, ref);
     assert_same_levels(p, ref);
     td_grid_free(g);
@@ -128,14 +143,21 @@ static void assert_same_as_loaded(const char *src, const char *dir, int tile_log
     td_prepared_free(p);
 }
 
-static void prepare_ok(const char *src, const char *dir, int tile_log2, int32_t chunk_rows,
-                       td_prepare_result *res)
+static void prepare_blk(const char *src, const char *dir, int tile_log2, int32_t chunk_rows, int block_log2,
+                        td_prepare_result *res)
 {
     td_prepare_opts o;
     td_err e = {0};
     opts(&o, tile_log2, chunk_rows);
+    o.block_log2 = block_log2;
     if (td_prepare(src, dir, &o, res, &e) != TD_OK)
         fail_msg("%s", e.msg);
+}
+
+static void prepare_ok(const char *src, const char *dir, int tile_log2, int32_t chunk_rows,
+                       td_prepare_result *res)
+{
+    prepare_blk(src, dir, tile_log2, chunk_rows, 0, res);
 }
 
 static void test_f32_same_as_loader(void **state)
@@ -147,15 +169,15 @@ static void test_f32_same_as_loader(void **state)
     /* tiles of 32 (7 x 5, shared edges), chunks that are not a multiple of the tile size
        and a last chunk shorter than the others */
     tmp_path("f32-t5", dir, sizeof dir);
-    prepare_ok(src, dir, 5, 23, &res);
+    prepare_blk(src, dir, 5, 23, 3, &res); /* blocks of 8: 25 x 19, the last ones partly past the grid */
     assert_int_equal(res.streamed, 1);
     assert_int_equal(res.resumed_rows, 0);
     assert_int_equal(res.w, 200);
     assert_int_equal(res.h, 150);
-    assert_same_as_loaded(src, dir, 5);
+    assert_same_as_loaded(src, dir, 5, 3);
     tmp_path("f32-t8", dir, sizeof dir);
     prepare_ok(src, dir, 8, 0, &res);
-    assert_same_as_loaded(src, dir, 8);
+    assert_same_as_loaded(src, dir, 8, 0);
 }
 
 /* A .f32 with NaN voids (and a tile of voids only): voids, tile ranges of +-inf. */
@@ -183,7 +205,21 @@ static void test_voids(void **state)
     fclose(f);
     tmp_path("voids-p", dir, sizeof dir);
     prepare_ok(src, dir, 4, 5, &res);
-    assert_same_as_loaded(src, dir, 4);
+    assert_same_as_loaded(src, dir, 4, 0);
+    /* blocks of 4: the last sample row (32) starts a band of its own */
+    tmp_path("voids-b4", dir, sizeof dir);
+    prepare_blk(src, dir, 4, 5, 2, &res);
+    assert_same_as_loaded(src, dir, 4, 2);
+    /* a block size out of range is refused, naming it */
+    {
+        td_prepare_opts o;
+        td_err e = {0};
+        opts(&o, 4, 5);
+        o.block_log2 = 9;
+        tmp_path("voids-b512", dir, sizeof dir);
+        assert_int_equal(td_prepare(src, dir, &o, &res, &e), TD_EINVAL);
+        assert_string_equal(e.field, "block_log2");
+    }
     free(z);
 }
 
@@ -197,7 +233,7 @@ static void test_asc_whole(void **state)
     tmp_path("volcano-p", dir, sizeof dir);
     prepare_ok(src, dir, 4, 7, &res);
     assert_int_equal(res.streamed, 0);
-    assert_same_as_loaded(src, dir, 4);
+    assert_same_as_loaded(src, dir, 4, 0);
 }
 
 static void test_geotiff_streamed(void **state)
@@ -231,7 +267,7 @@ static void test_geotiff_streamed(void **state)
     tmp_path("tif-p", dir, sizeof dir);
     prepare_ok(tif, dir, 6, 50, &res);
     assert_int_equal(res.streamed, 1);
-    assert_same_as_loaded(tif, dir, 6);
+    assert_same_as_loaded(tif, dir, 6, 0);
 #endif
 }
 
@@ -271,17 +307,20 @@ static void assert_same_file(const char *a, const char *b, const char *name)
     free(y);
 }
 
-static void test_resume(void **state)
+/* Stopped after 3 chunks of 16 rows (south rows 102..149 written), then continued: with
+ * blocks of 64 the band in progress (south rows 64..128) and with blocks of 4 (band 100..104)
+ * is read back from heights.f32; every file ends as an uninterrupted run's. */
+static void resume_blk(int block_log2, const char *dirname, const char *refname)
 {
     char src[512], dir[512], ref[512];
     td_prepare_opts o;
     td_prepare_result res;
     td_err e = {0};
     int calls = 0;
-    (void)state;
     data_path("trinidad-crop.f32", src, sizeof src);
-    tmp_path("resume", dir, sizeof dir);
+    tmp_path(dirname, dir, sizeof dir);
     opts(&o, 5, 16);
+    o.block_log2 = block_log2;
     o.progress = stop_after_3;
     o.cls = &calls;
     assert_int_equal(td_prepare(src, dir, &o, &res, &e), TD_ECANCELED);
@@ -289,12 +328,13 @@ static void test_resume(void **state)
     assert_false(td_prepared_is(dir));
     assert_true(td_prepared_unfinished(dir));
     /* the second run continues after the three chunks written */
-    prepare_ok(src, dir, 5, 16, &res);
+    prepare_blk(src, dir, 5, 16, block_log2, &res);
     assert_int_equal(res.resumed_rows, 48);
     assert_false(td_prepared_unfinished(dir));
-    tmp_path("resume-ref", ref, sizeof ref);
-    prepare_ok(src, ref, 5, 16, &res);
+    tmp_path(refname, ref, sizeof ref);
+    prepare_blk(src, ref, 5, 16, block_log2, &res);
     assert_same_file(dir, ref, TD_PREPARED_HEIGHTS);
+    assert_same_file(dir, ref, TD_PREPARED_BLOCKS);
     assert_same_file(dir, ref, TD_PREPARED_TILES);
     assert_same_file(dir, ref, TD_PREPARED_INDEX);
     for (int k = 1; k <= 8; k++) {
@@ -305,9 +345,16 @@ static void test_resume(void **state)
         assert_same_file(dir, ref, name);
     }
     /* a third run finds it done */
-    prepare_ok(src, dir, 5, 16, &res);
+    prepare_blk(src, dir, 5, 16, block_log2, &res);
     assert_int_equal(res.already, 1);
-    assert_same_as_loaded(src, dir, 5);
+    assert_same_as_loaded(src, dir, 5, block_log2);
+}
+
+static void test_resume(void **state)
+{
+    (void)state;
+    resume_blk(0, "resume", "resume-ref");
+    resume_blk(2, "resume-b4", "resume-b4-ref");
 }
 
 /* A fresh prepared copy named `name` of the crop, 10 chunks of 16 rows. */
@@ -358,6 +405,10 @@ static void test_truncated(void **state)
     snprintf(p, sizeof p, "%s/%s", dir, TD_PREPARED_TILES);
     assert_int_equal(truncate(p, 10), 0);
     assert_refused(dir, TD_EFORMAT, "tiles.bin", "truncated");
+    fresh("trunc-blocks", dir, sizeof dir);
+    snprintf(p, sizeof p, "%s/%s", dir, TD_PREPARED_BLOCKS);
+    assert_int_equal(truncate(p, 3 * 67600 - 4), 0); /* 3 bands of 4 blocks of 65 x 65 */
+    assert_refused(dir, TD_EFORMAT, "heights.blk", "truncated");
 }
 
 /* The index of dir as text (the caller frees it), and written back. */
@@ -392,7 +443,7 @@ static void test_other_version(void **state)
     (void)state;
     fresh("version", dir, sizeof dir);
     text = index_text(dir);
-    v = strstr(text, "\"version\":2");
+    v = strstr(text, "\"version\":3");
     assert_non_null(v);
     v[strlen("\"version\":")] = '7';
     index_put(dir, text);
@@ -410,7 +461,8 @@ static void test_corrupt_tiles(void **state)
 
 /* The heights' chunks come first, then each level's: 10 + 5 + 3 + 2 + 1 + 1 + 1 + 1 + 1
  * for the 200 x 150 crop in chunks of 16 rows (levels 101 x 76, 51 x 39, 26 x 20, 14 x 11,
- * 8 x 6, 5 x 4, 3 x 3, 2 x 2). */
+ * 8 x 6, 5 x 4, 3 x 3, 2 x 2), then heights.blk's 3 bands (of 4 blocks of 65 x 65 samples,
+ * 67600 bytes). */
 static void test_corrupt_chunk(void **state)
 {
     char dir[512];
@@ -422,10 +474,12 @@ static void test_corrupt_chunk(void **state)
     flip_byte(dir, TD_PREPARED_HEIGHTS, (long)(90 * 200 + 7) * 4 + 2);
     /* lod2.f32 (51 x 39): its file rows 16..31 (chunk 1, chunk 16 of all) are south rows 7..22 */
     flip_byte(dir, "lod2.f32", (long)(10 * 51 + 5) * 4 + 2);
+    /* band 1 (south rows 64..128), its block 2's sample (7, 3) */
+    flip_byte(dir, TD_PREPARED_BLOCKS, 67600 + (long)(2 * 65 * 65 + 3 * 65 + 7) * 4 + 1);
     assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK); /* open reads no heights */
     assert_int_equal(td_prepared_levels(p), 8);
-    assert_int_equal(td_prepared_chunks(p), 25);
-    for (int32_t c = 0; c < 25; c++) {
+    assert_int_equal(td_prepared_chunks(p), 28);
+    for (int32_t c = 0; c < 28; c++) {
         td_status rc = td_prepared_verify_chunk(p, c, &e);
         if (c == 3) {
             assert_int_equal(rc, TD_EFORMAT);
@@ -435,11 +489,15 @@ static void test_corrupt_chunk(void **state)
             assert_int_equal(rc, TD_EFORMAT);
             if (!strstr(e.msg, "lod2.f32: chunk 1 (file rows 16..31)") || !strstr(e.msg, "corrupted"))
                 fail_msg("%s", e.msg);
+        } else if (c == 26) {
+            assert_int_equal(rc, TD_EFORMAT);
+            if (!strstr(e.msg, "heights.blk: band 1 (south rows 64..128)") || !strstr(e.msg, "corrupted"))
+                fail_msg("%s", e.msg);
         } else {
             assert_int_equal(rc, TD_OK);
         }
     }
-    assert_int_equal(td_prepared_verify_chunk(p, 25, &e), TD_EINVAL);
+    assert_int_equal(td_prepared_verify_chunk(p, 28, &e), TD_EINVAL);
     td_prepared_free(p);
 }
 
@@ -485,11 +543,75 @@ static void test_resident(void **state)
     g = td_prepared_take_grid(p);
     for (size_t k = 0; k < (size_t)g->w * (size_t)g->h; k += 256)
         sum += g->z[k];
-    assert_true(td_prepared_resident(g) >= 200 * 150 * 4 - 4096);
-    assert_true(td_prepared_cached(g) >= 200 * 150 * 4 - 4096);
+    for (size_t k = 0; k < g->bmap_bytes / 4; k += 256)
+        sum += ((const float *)g->bmap)[k];
+    assert_true(td_prepared_resident(g) >= 200 * 150 * 4 + 3 * 67600 - 8192);
+    assert_true(td_prepared_cached(g) >= 200 * 150 * 4 + 3 * 67600 - 8192);
     td_prepared_trim(g);
     assert_int_equal(td_prepared_resident(g), 0);
     td_grid_free(g);
+    td_prepared_free(p);
+}
+
+/* A render (every method on every surface, shadows, ambient occlusion, smooth normals,
+ * tiles' max-mipmaps and planes built from the mapped grid) reads heights.blk alone: with
+ * the row-major heights.f32 mapping made unreadable (PROT_NONE: any read of it is a
+ * crash), the pixels are the source's, byte for byte. */
+static void test_render_reads_blocks(void **state)
+{
+    char src[512], dir[512];
+    td_prepare_result res;
+    td_prepared *p = NULL;
+    td_grid *g, *ref = NULL;
+    td_dem_opts lo;
+    td_accel_opts ao;
+    td_accel *ga = NULL, *ra = NULL;
+    td_err e = {0};
+    (void)state;
+    data_path("trinidad-crop.f32", src, sizeof src);
+    tmp_path("render-b8", dir, sizeof dir);
+    prepare_blk(src, dir, 5, 0, 3, &res);
+    td_dem_opts_default(&lo);
+    lo.tile_log2 = 5;
+    assert_int_equal(td_dem_load(src, &lo, &ref, &e), TD_OK);
+    assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK);
+    g = td_prepared_take_grid(p);
+    assert_int_equal(mprotect(g->map, g->map_bytes, PROT_NONE), 0);
+    td_accel_opts_default(&ao);
+    ao.threads = 1;
+    assert_int_equal(td_accel_build(g, &ao, &ga, NULL, &e), TD_OK);
+    assert_int_equal(td_accel_build(ref, &ao, &ra, NULL, &e), TD_OK);
+    for (int m = 0; m < TD_METHOD_COUNT; m++)
+        for (int s = 0; s < TD_SURFACE_COUNT; s++) {
+            td_view va = {g, ga->tiles}, vb = {ref, ra->tiles};
+            td_scene sc;
+            td_render_opts o;
+            td_render_result a, b;
+            td_scene_defaults(&sc);
+            sc.camera.x = 7000.0;
+            sc.camera.y = -2000.0;
+            sc.camera.z = 2600.0;
+            sc.camera.pitch = -10.0;
+            sc.image.width = 80;
+            sc.image.height = 50;
+            sc.quality.method = (td_method)m;
+            sc.quality.surface = (td_surface)s;
+            sc.quality.smooth_normals = s == TD_SURFACE_BILINEAR;
+            sc.effects.shadows = 1;
+            sc.effects.ambient_occlusion = s == TD_SURFACE_TRIANGLE ? 4 : 0;
+            td_render_opts_default(&o);
+            o.threads = 1;
+            assert_int_equal(td_render(&va, &sc, &o, &a, &e), TD_OK);
+            assert_int_equal(td_render(&vb, &sc, &o, &b, &e), TD_OK);
+            assert_memory_equal(a.rgba, b.rgba, (size_t)80 * 50 * 4);
+            td_render_result_free(&a);
+            td_render_result_free(&b);
+        }
+    assert_int_equal(mprotect(g->map, g->map_bytes, PROT_READ), 0);
+    td_accel_free(ga);
+    td_accel_free(ra);
+    td_grid_free(g);
+    td_grid_free(ref);
     td_prepared_free(p);
 }
 
@@ -501,7 +623,7 @@ int main(void)
         cmocka_unit_test(test_resume),             cmocka_unit_test(test_truncated),
         cmocka_unit_test(test_other_version),      cmocka_unit_test(test_corrupt_tiles),
         cmocka_unit_test(test_corrupt_chunk),      cmocka_unit_test(test_levels_refused),
-        cmocka_unit_test(test_resident),
+        cmocka_unit_test(test_resident),           cmocka_unit_test(test_render_reads_blocks),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
