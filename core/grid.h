@@ -117,11 +117,21 @@ static inline float td_grid_at(const td_grid *g, int32_t i, int32_t j)
  * are p[0], p[1], p[stride], p[stride + 1] for p = td_grid_corner(&g->cz, i, j). The
  * tracers, the hit shading and the tiles' acceleration builds read heights this way (so a
  * prepared grid's render touches its blocked pages only); td_grid_at reads z, row-major. */
+const float *td_grid_corner_blocked(const td_corners *c, int32_t i, int32_t j) __attribute__((cold));
+
 static inline const float *td_grid_corner(const td_corners *c, int32_t i, int32_t j)
 {
-    return c->base +
-           ((size_t)(j >> c->log2) * c->blocks_x + (size_t)(i >> c->log2)) * c->block_floats +
-           (size_t)((uint32_t)j & c->mask) * c->stride + (size_t)((uint32_t)i & c->mask);
+    return __builtin_expect(c->log2 == TD_CORNERS_FLAT_LOG2, 1) ? c->base + (size_t)j * c->stride + (size_t)i
+                                                               : td_grid_corner_blocked(c, i, j);
+}
+
+/* Of n samples (i, j), (i + 1, j) .. along a row, how many from the first are
+ * contiguous at td_grid_corner(c, i, j) (all n in an in-memory grid; up to the block's
+ * east edge in a blocked one). */
+static inline int32_t td_grid_run(const td_corners *c, int32_t i, int32_t n)
+{
+    int64_t left = (int64_t)c->mask + 2 - (int64_t)((uint32_t)i & c->mask);
+    return left < n ? (int32_t)left : n;
 }
 
 static inline float td_grid_sample(const td_grid *g, int32_t i, int32_t j)

@@ -189,11 +189,6 @@ static inline double flush_tiny(double x) { return fabs(x) < 1e-200 ? 0.0 : x; }
 static inline double dmin(double a, double b) { return a < b ? a : b; }
 static inline double dmax(double a, double b) { return a > b ? a : b; }
 
-static inline double sample(const td_grid *g, int32_t i, int32_t j)
-{
-    return (double)td_grid_sample(g, i, j);
-}
-
 static inline void corners(const td_grid *g, int32_t ci, int32_t cj, double c[4])
 {
     const float *s0 = td_grid_corner(&g->cz, ci, cj);
@@ -254,35 +249,39 @@ static inline int32_t cell_along(double pos, int s, int32_t lo, int32_t hi)
 /* ------------------------------------------------------------------------------------ */
 /* Cell boundaries: the heights every surface shares there.                             */
 
-/* Height on the sample column I between rows J and J+1 (param from the ray's v). */
-static inline double edge_u_height(const walk *w, int32_t I, int32_t J, double t)
+/* Height on the sample column I between rows J and J+1 (param from the ray's v); p is
+ * sample (I, J), so (I, J + 1) is at p + stride (grid.h). */
+static inline double edge_u_height(const walk *w, const float *p, int32_t J, double t)
 {
-    double a = sample(w->g, I, J), b = sample(w->g, I, J + 1);
+    double a = p[0], b = p[w->cz.stride];
     return a + (b - a) * clamp01(ray_v(w, t) - (double)J);
 }
 
-/* Height on the sample row J between columns I and I+1 (param from the ray's u). */
-static inline double edge_v_height(const walk *w, int32_t I, int32_t J, double t)
+/* Height on the sample row J between columns I and I+1 (param from the ray's u); p is
+ * sample (I, J), so (I + 1, J) is at p + 1. */
+static inline double edge_v_height(const walk *w, const float *p, int32_t I, double t)
 {
-    double a = sample(w->g, I, J), b = sample(w->g, I + 1, J);
+    double a = p[0], b = p[1];
     return a + (b - a) * clamp01(ray_u(w, t) - (double)I);
 }
 
 /* The surface height where the ray crosses boundary `kind` of cell (ci, cj), on its
  * entry side (`side` 0) or its exit side (1). A crossing is one boundary seen from both
  * cells: the entry side of a cell is the exit side of the one before it, and both call
- * this with the same sample indices, so the two values are the same bits. */
+ * this with the same samples (the same bits, whichever block of grid.h's layout holds
+ * the copy the cell's corner pointer reaches), so the two values are the same bits. */
 static inline double boundary_height(const walk *w, int32_t ci, int32_t cj, int kind, int side,
                                      double t)
 {
     const int eu = side ? w->su > 0 : w->su < 0, ev = side ? w->sv > 0 : w->sv < 0;
+    const float *p = td_grid_corner(&w->cz, ci, cj); /* the cell's corners: p, +1, +stride */
     double h;
     if (kind == ENTRY_U)
-        h = edge_u_height(w, ci + eu, cj, t);
+        h = edge_u_height(w, p + eu, cj, t);
     else if (kind == ENTRY_V)
-        h = edge_v_height(w, ci, cj + ev, t);
+        h = edge_v_height(w, p + (size_t)ev * w->cz.stride, ci, t);
     else
-        h = sample(w->g, ci + eu, cj + ev);
+        h = p[(size_t)ev * w->cz.stride + (size_t)eu];
     return h;
 }
 
@@ -1169,8 +1168,12 @@ static float samples_max(const td_grid *g, int32_t i0, int32_t i1, int32_t j0, i
 {
     float m = -INFINITY;
     for (int32_t j = j0; j <= j1 + 1; j++)
-        for (int32_t i = i0; i <= i1 + 1; i++)
-            m = fmax_nan(m, td_grid_sample(g, i, j));
+        for (int32_t i = i0, n; i <= i1 + 1; i += n) { /* runs inside a block (grid.h) */
+            const float *row = td_grid_corner(&g->cz, i, j);
+            n = td_grid_run(&g->cz, i, i1 + 2 - i);
+            for (int32_t k = 0; k < n; k++)
+                m = fmax_nan(m, row[k]);
+        }
     return m;
 }
 
