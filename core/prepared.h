@@ -10,10 +10,22 @@
  *                 unfinished prepare): format "terrad-prepared", version, width, height,
  *                 spacing, tile_log2, zmin/zmax/voids, georeference, the source's name,
  *                 size and mtime, chunk_rows and one FNV-1a checksum per chunk of
- *                 heights.f32, and the checksum of tiles.bin
+ *                 heights.f32, the checksum of tiles.bin, and "blocks": {log2, bands: one
+ *                 checksum per band of heights.blk}
  *   heights.f32   w*h little-endian float32, SOUTH-based rows, row-major: exactly the
- *                 layout of td_grid.z (grid.h), so the tracers read the mapping as they
- *                 read an in-memory grid, with no change in any hot loop
+ *                 layout of td_grid.z (grid.h), for the readers of z (viewsheds, peaks,
+ *                 map tiles' height sampling, levels of detail)
+ *   heights.blk   the same samples in blocks of B x B cells (B = 2^blocks.log2, 64 by
+ *                 default), (B+1) x (B+1) samples each, the edge samples duplicated so
+ *                 that a cell's four corners are in one block: td_grid.cz (grid.h's
+ *                 td_grid_corner) points into it, and the render path (tracers, hit
+ *                 shading, the tiles' max-mipmaps and planes) reads only it. Blocks are
+ *                 row-major, south first; a band (a row of blocks, blocks_x of them, one
+ *                 contiguous range) per B sample rows, with one more band where the last
+ *                 row starts one (and one more block a band where the last column does), so
+ *                 every sample is addressable; samples past the grid are NaN. Made while
+ *                 the heights stream (a band is written, with one pwrite, when its lowest
+ *                 row arrives); its checksum unit is the band ("blocks" in the index)
  *   tiles.bin     the td_tile records (grid.h), tiles_x*tiles_y of them, as
  *                 td_grid_finish computes them (so opening never scans the heights)
  *   lodK.f32      coarse level K = 1 .. n (n as td_lod_build makes them: halved while both
@@ -25,27 +37,26 @@
  *                 one), so a far ray of quality.lod reads a small file, not the heights
  *   prepare.state only while a prepare is unfinished: how many chunks are written, every
  *                 layer's rows written, checksums and running tile statistics (a re-run
- *                 continues there; the levels' three-row windows are read back from the
- *                 files)
+ *                 continues there; the levels' three-row windows and the band of blocks in
+ *                 progress are read back from the files)
  *   prepare.lock  held (flock) by the prepare writing the folder: a second one is refused
  *
  * Chunk c holds the file's rows [c*R, c*R + R) (row 0 north, R = chunk_rows), which are
  * one contiguous byte range of heights.f32 (south rows h-c*R-n .. h-1-c*R); a level's
  * chunks are R of its rows alike.
  *
- * Why one mapped array and not tiles of heights (the issue's alternative): every tracer,
- * the edit code and the accelerations index td_grid.z as one row-major array; per-tile
- * height blocks would change every hot loop and the oracle-checked paths for a layout
- * gain that the kernel's page cache gives anyway at page granularity (a 256-cell tile of
- * a 16384-wide grid touches 257 runs of 1 KiB, i.e. 257 pages of 4 KiB: 4x the bytes of
- * a tiled layout for rays that stay in one tile, the same for rays that cross rows of
- * tiles). What made far views slow (a long ray reads a page a step of one row) is
- * answered by the coarse levels instead: with quality.lod, only rays nearer than the
- * first level's distance read the full-resolution pages (README "Datasets larger than
- * memory" has the measurements). Resident heights are what rays touched: measured from
- * the mapping's Rss (td_prepared_resident) and dropped from the process (madvise,
- * td_prepared_trim) when over the budget; the page cache keeps them for the next touch
- * while memory allows. */
+ * Why blocks, and why the row-major copy too (version 3): a row-major page is a strip of
+ * 1024 samples of one row, so a cold view's near rays (those the coarse levels do not
+ * take, quality.lod) faulted some 35 times the pages a 2D layout needs, and 89% of a cold
+ * view's faults were heights.f32's (README "Datasets larger than memory" has the
+ * measurements before and after). The render path reads samples through one accessor
+ * (td_grid_corner: the row-major address for an in-memory grid, one predicted branch)
+ * so that only its few sites changed; the other readers of z (viewsheds, peaks, map
+ * tiles, the levels, edits) keep indexing it row-major, from heights.f32, at the price
+ * of the heights on disk twice (plus 3% for the blocks' shared edges). Resident heights
+ * are what rays touched: measured from the mappings' Rss (td_prepared_resident) and
+ * dropped from the process (madvise, td_prepared_trim) when over the budget; the page
+ * cache keeps them for the next touch while memory allows. */
 #ifndef TD_PREPARED_H
 #define TD_PREPARED_H
 

@@ -730,6 +730,8 @@ static td_status ds_append(td_store *s, const char *id, const char *origin, td_g
     d->shape.z = NULL;
     d->shape.tiles = NULL;
     d->shape.map = NULL;
+    d->shape.bmap = NULL;
+    d->shape.cz.base = NULL;
     rc = hver_new(g, lod, 1, 0, &hv, err);
     g = NULL;
     lod = NULL;
@@ -802,8 +804,10 @@ td_status td_store_add_prepared(td_store *s, const char *id, const char *origin,
     g = td_prepared_take_grid(p);
     /* read-around (8 MiB a fault here) pays while the file fits the budget: 1 GiB under
        1 GiB, first render 1.6 s against 12.7 s one page a fault; beyond, it read 392 GB
-       and mapped 9 GB for one view of a 16 GiB grid. Each level is judged alone. */
-    td_prepared_advise(g, g->map_bytes > s->o.budget_bytes);
+       and mapped 9 GB for one view of a 16 GiB grid. Each level is judged alone; the full
+       grid by heights.blk, what renders read (heights.f32 only viewsheds, peaks and map
+       tiles' height sampling). */
+    td_prepared_advise(g, (g->bmap ? g->bmap_bytes : g->map_bytes) > s->o.budget_bytes);
     for (int k = 1; k <= lod->levels; k++)
         td_prepared_advise(lod->grid[k], lod->grid[k]->map_bytes > s->o.budget_bytes);
     rc = ds_append(s, id, origin, g, lod, td_prepared_fingerprint(p),
@@ -900,7 +904,7 @@ static uint64_t mapped_resident(const td_store *s, uint64_t *mapped)
         if (s->ds[k].prep)
             for (int n = mapped_grids(s->ds[k].cur, gs), i = 0; i < n; i++) {
                 res += td_prepared_resident(gs[i]);
-                *mapped += gs[i]->map_bytes;
+                *mapped += gs[i]->map_bytes + gs[i]->bmap_bytes;
             }
     return res;
 }

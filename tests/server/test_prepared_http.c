@@ -1,6 +1,7 @@
 /* test_prepared_http.c: prepared datasets served by a live terrad (`terrad prepare`, then
  * `terrad serve --data`). A prepared dataset answers the same picture, byte for byte, as its
- * source file served beside it, with levels of detail too; it is listed with its check state and its mapped heights are
+ * source file served beside it (every method and surface, shadows and smooth normals: the
+ * render path reads heights.blk, with blocks of 64 and of 8 cells), with levels of detail too; it is listed with its check state and its mapped heights are
  * in /metrics; edits are refused; a corrupted chunk, a truncated heights file and an
  * unfinished prepare are never served, and the log names the file and the reason. */
 #include <setjmp.h>
@@ -22,7 +23,8 @@
 #define SCENE                                                                                    \
     "{\"dataset\":\"%s\",\"camera\":{\"position\":{\"x\":7000,\"y\":-2000,\"z\":2600},"          \
     "\"heading\":0,\"pitch\":-10,\"fov\":60},\"image\":{\"width\":160,\"height\":100},"           \
-    "\"quality\":{\"method\":\"%s\",\"surface\":\"%s\",\"lod\":%s}}"
+    "\"quality\":{\"method\":\"%s\",\"surface\":\"%s\",\"lod\":%s,\"smooth_normals\":true},"                    \
+    "\"effects\":{\"sun\":{\"azimuth\":300,\"elevation\":20},\"shadows\":true,\"sky\":true}}"
 
 static char root[256], data[300];
 static th_server srv;
@@ -67,14 +69,18 @@ static int setup(void **state)
            data))
         return -1;
     /* good, bad (a chunk corrupted), short (truncated), half (an unfinished prepare) */
-    if (sh("for d in good bad short badlod cold; do '%s' prepare '%s/crop.f32' '%s/'\"$d\" --chunk-rows 16 --tile-size 64 "
-           "--quiet >/dev/null || exit 1; done", TERRAD_BIN, data, data))
+    if (sh("for d in good bad short badlod badblk cold; do '%s' prepare '%s/crop.f32' '%s/'\"$d\" --chunk-rows 16 "
+           "--tile-size 64 --quiet >/dev/null || exit 1; done", TERRAD_BIN, data, data))
+        return -1;
+    if (sh("'%s' prepare '%s/crop.f32' '%s/good8' --chunk-rows 16 --tile-size 64 --block-size 8 --quiet >/dev/null",
+           TERRAD_BIN, data, data))
         return -1;
     if (sh("'%s' prepare '%s/crop.f32' '%s/half' --chunk-rows 16 --stop-after 2 --quiet >/dev/null 2>&1; "
            "test -f '%s/half/prepare.state'", TERRAD_BIN, data, data, data))
         return -1;
     flip("bad", "heights.f32", (long)(120 * 200 + 3) * 4 + 1); /* south row 120: file row 29, chunk 1 */
     flip("badlod", "lod1.f32", (long)(40 * 101 + 3) * 4 + 1); /* level 1 (101 x 76): file row 35, chunk 2 */
+    flip("badblk", "heights.blk", 67600 + 5000); /* band 1: 4 blocks of 65 x 65 samples a band */
     if (sh("truncate -s 119000 '%s/short/heights.f32'", data))
         return -1;
     return th_start(&srv, TERRAD_BIN, args, env);
@@ -136,19 +142,25 @@ static void render(const char *id, const char *method, const char *surface, th_r
  * byte; with lod (not "false") also not lod off's picture (the levels were used). */
 static void same_pictures(const char *lod)
 {
-    static const char *const methods[] = {"incremental", "hierarchical", "parametric", "auto"};
+    static const char *const methods[] = {"incremental", "hierarchical", "parametric", "silhouette", "auto"};
     static const char *const surfaces[] = {"plane", "linear", "triangle", "bilinear"};
     char st[32];
     assert_string_equal(wait_checked("good", st, sizeof st), "ok");
-    for (int m = 0; m < 4; m++)
+    assert_string_equal(wait_checked("good8", st, sizeof st), "ok");
+    for (int m = 0; m < 5; m++)
         for (int s = 0; s < 4; s++) {
-            th_resp a, b, c;
+            th_resp a, b, c, d;
             render_lod("crop", methods[m], surfaces[s], lod, &a);
             render_lod("good", methods[m], surfaces[s], lod, &b);
+            render_lod("good8", methods[m], surfaces[s], lod, &d);
             assert_int_equal(a.status, 200);
             assert_int_equal(b.status, 200);
+            assert_int_equal(d.status, 200);
             assert_int_equal(a.len, b.len);
             assert_memory_equal(a.body, b.body, a.len);
+            assert_int_equal(a.len, d.len);
+            assert_memory_equal(a.body, d.body, a.len);
+            th_resp_free(&d);
             if (strcmp(lod, "false")) {
                 render("good", methods[m], surfaces[s], &c);
                 assert_true(b.len != c.len || memcmp(b.body, c.body, b.len) != 0);
@@ -183,9 +195,10 @@ static void test_listed_and_metrics(void **state)
     assert_string_equal(wait_checked("good", st, sizeof st), "ok");
     j = get_json("/v1/datasets/good", 200);
     assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "size"), "width")), 200);
-    /* 10 chunks of heights, 15 of the 8 levels (test_prepared.c counts them) */
-    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "chunks")), 25);
-    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "checked")), 25);
+    /* 10 chunks of heights, 15 of the 8 levels, 3 bands of heights.blk (test_prepared.c
+       counts them) */
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "chunks")), 28);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "checked")), 28);
     assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "levels")), 8);
     json_decref(j);
     j = get_json("/v1/datasets/crop", 200);
@@ -193,9 +206,10 @@ static void test_listed_and_metrics(void **state)
     json_decref(j);
     assert_int_equal(th_request(&srv, "GET", "/metrics", NULL, NULL, 0, &r), 0);
     assert_int_equal(r.status, 200);
-    /* good, bad, badlod and cold are mapped (short and half are not served at all): 4 x
-       (200 x 150 + the levels' 10420 samples) x 4 */
-    assert_non_null(strstr(r.body, "\nterrad_heights_mapped_bytes 646720\n"));
+    /* good, bad, badlod, badblk and cold are mapped (short and half are not served at all):
+       5 x ((200 x 150 + the levels' 10420 samples) x 4 + heights.blk's 3 bands of 4 blocks
+       of 65 x 65 floats), and good8: its heights.blk has 19 bands of 25 blocks of 9 x 9 */
+    assert_non_null(strstr(r.body, "\nterrad_heights_mapped_bytes 2137980\n"));
     assert_non_null(strstr(r.body, "\nterrad_heights_resident_bytes "));
     th_resp_free(&r);
 }
@@ -216,6 +230,12 @@ static void test_bad_never_served(void **state)
     render_lod("badlod", "auto", "bilinear", "8", &r);
     assert_int_equal(r.status, 404);
     assert_non_null(strstr(r.body, "lod1.f32: chunk 2 (file rows 32..47)"));
+    th_resp_free(&r);
+    /* and of heights.blk */
+    assert_string_equal(wait_checked("badblk", st, sizeof st), "refused");
+    render("badblk", "auto", "bilinear", &r);
+    assert_int_equal(r.status, 404);
+    assert_non_null(strstr(r.body, "heights.blk: band 1 (south rows 64..128)"));
     th_resp_free(&r);
     /* truncated: not even listed; the log names the file and the reason */
     render("short", "auto", "bilinear", &r);
