@@ -58,8 +58,8 @@ typedef struct td_grid_limits {
  *        + (j & mask) * stride + (i & mask)
  * and the cell's other corners at +1, +stride, +stride+1. An in-memory grid is one block
  * (log2 30, mask all ones, stride w: the row-major address of z, at no branch); a prepared
- * grid's blocked file (prepared.h, B = 64) has log2 6, stride 65, and a block row for every
- * 64 cells plus one where the last sample starts a block (every sample, not only every
+ * grid's blocked file (prepared.h, B = 32 by default) has log2 5, stride 33, and a block row
+ * for every 32 cells plus one where the last sample starts a block (every sample, not only every
  * cell corner, is addressable). */
 typedef struct td_corners {
     const float *base;

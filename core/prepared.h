@@ -15,7 +15,7 @@
  *   heights.f32   w*h little-endian float32, SOUTH-based rows, row-major: exactly the
  *                 layout of td_grid.z (grid.h), for the readers of z (viewsheds, peaks,
  *                 map tiles' height sampling, levels of detail)
- *   heights.blk   the same samples in blocks of B x B cells (B = 2^blocks.log2, 64 by
+ *   heights.blk   the same samples in blocks of B x B cells (B = 2^blocks.log2, 32 by
  *                 default), (B+1) x (B+1) samples each, the edge samples duplicated so
  *                 that a cell's four corners are in one block: td_grid.cz (grid.h's
  *                 td_grid_corner) points into it, and the render path (tracers, hit
@@ -71,7 +71,8 @@
 #define TD_PREPARED_INDEX "terrad.json"
 #define TD_PREPARED_HEIGHTS "heights.f32"
 #define TD_PREPARED_BLOCKS "heights.blk"
-#define TD_PREPARED_BLOCK_LOG2 6 /* B = 64 cells a block side (README: 32 and 64 measured) */
+#define TD_PREPARED_BLOCK_LOG2 5 /* B = 32 cells a block side, a block about a 4 KiB page
+                                    (README: 32 and 64 measured) */
 #define TD_PREPARED_BLOCK_LOG2_MIN 2
 #define TD_PREPARED_BLOCK_LOG2_MAX 8
 #define TD_PREPARED_TILES "tiles.bin"

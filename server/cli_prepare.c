@@ -54,7 +54,7 @@ static void usage(FILE *f)
                "  --tile-size N      cells per tile side, a power of two (default 256)\n"
                "  --spacing SX[,SY]  metres between samples when the DEM does not say\n"
                "  --chunk-rows N     rows per chunk (checksum and resume unit; default the tile size)\n"
-               "  --block-size B     cells per block side of heights.blk, a power of two 4..256 (default 64)\n"
+               "  --block-size B     cells per block side of heights.blk, a power of two 4..256 (default 32)\n"
                "  --stop-after K     stop after K chunks (to try resuming)\n"
                "  --quiet            no progress bar\n");
 }

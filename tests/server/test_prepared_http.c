@@ -1,7 +1,7 @@
 /* test_prepared_http.c: prepared datasets served by a live terrad (`terrad prepare`, then
  * `terrad serve --data`). A prepared dataset answers the same picture, byte for byte, as its
  * source file served beside it (every method and surface, shadows and smooth normals: the
- * render path reads heights.blk, with blocks of 64 and of 8 cells), with levels of detail too; it is listed with its check state and its mapped heights are
+ * render path reads heights.blk, with blocks of 32 (the default) and of 8 cells), with levels of detail too; it is listed with its check state and its mapped heights are
  * in /metrics; edits are refused; a corrupted chunk, a truncated heights file and an
  * unfinished prepare are never served, and the log names the file and the reason. */
 #include <setjmp.h>
@@ -80,7 +80,7 @@ static int setup(void **state)
         return -1;
     flip("bad", "heights.f32", (long)(120 * 200 + 3) * 4 + 1); /* south row 120: file row 29, chunk 1 */
     flip("badlod", "lod1.f32", (long)(40 * 101 + 3) * 4 + 1); /* level 1 (101 x 76): file row 35, chunk 2 */
-    flip("badblk", "heights.blk", 67600 + 5000); /* band 1: 4 blocks of 65 x 65 samples a band */
+    flip("badblk", "heights.blk", 30492 + 5000); /* band 1: 7 blocks of 33 x 33 samples a band */
     if (sh("truncate -s 119000 '%s/short/heights.f32'", data))
         return -1;
     return th_start(&srv, TERRAD_BIN, args, env);
@@ -195,10 +195,10 @@ static void test_listed_and_metrics(void **state)
     assert_string_equal(wait_checked("good", st, sizeof st), "ok");
     j = get_json("/v1/datasets/good", 200);
     assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "size"), "width")), 200);
-    /* 10 chunks of heights, 15 of the 8 levels, 3 bands of heights.blk (test_prepared.c
+    /* 10 chunks of heights, 15 of the 8 levels, 5 bands of heights.blk (test_prepared.c
        counts them) */
-    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "chunks")), 28);
-    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "checked")), 28);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "chunks")), 30);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "checked")), 30);
     assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "levels")), 8);
     json_decref(j);
     j = get_json("/v1/datasets/crop", 200);
@@ -207,9 +207,9 @@ static void test_listed_and_metrics(void **state)
     assert_int_equal(th_request(&srv, "GET", "/metrics", NULL, NULL, 0, &r), 0);
     assert_int_equal(r.status, 200);
     /* good, bad, badlod, badblk and cold are mapped (short and half are not served at all):
-       5 x ((200 x 150 + the levels' 10420 samples) x 4 + heights.blk's 3 bands of 4 blocks
-       of 65 x 65 floats), and good8: its heights.blk has 19 bands of 25 blocks of 9 x 9 */
-    assert_non_null(strstr(r.body, "\nterrad_heights_mapped_bytes 2137980\n"));
+       5 x ((200 x 150 + the levels' 10420 samples) x 4 + heights.blk's 5 bands of 7 blocks
+       of 33 x 33 floats), and good8: its heights.blk has 19 bands of 25 blocks of 9 x 9 */
+    assert_non_null(strstr(r.body, "\nterrad_heights_mapped_bytes 1886280\n"));
     assert_non_null(strstr(r.body, "\nterrad_heights_resident_bytes "));
     th_resp_free(&r);
 }
@@ -235,7 +235,7 @@ static void test_bad_never_served(void **state)
     assert_string_equal(wait_checked("badblk", st, sizeof st), "refused");
     render("badblk", "auto", "bilinear", &r);
     assert_int_equal(r.status, 404);
-    assert_non_null(strstr(r.body, "heights.blk: band 1 (south rows 64..128)"));
+    assert_non_null(strstr(r.body, "heights.blk: band 1 (south rows 32..64)"));
     th_resp_free(&r);
     /* truncated: not even listed; the log names the file and the reason */
     render("short", "auto", "bilinear", &r);

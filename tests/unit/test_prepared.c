@@ -308,7 +308,7 @@ static void assert_same_file(const char *a, const char *b, const char *name)
 }
 
 /* Stopped after 3 chunks of 16 rows (south rows 102..149 written), then continued: with
- * blocks of 64 the band in progress (south rows 64..128) and with blocks of 4 (band 100..104)
+ * blocks of 32 the band in progress (south rows 96..128) and with blocks of 4 (band 100..104)
  * is read back from heights.f32; every file ends as an uninterrupted run's. */
 static void resume_blk(int block_log2, const char *dirname, const char *refname)
 {
@@ -407,7 +407,7 @@ static void test_truncated(void **state)
     assert_refused(dir, TD_EFORMAT, "tiles.bin", "truncated");
     fresh("trunc-blocks", dir, sizeof dir);
     snprintf(p, sizeof p, "%s/%s", dir, TD_PREPARED_BLOCKS);
-    assert_int_equal(truncate(p, 3 * 67600 - 4), 0); /* 3 bands of 4 blocks of 65 x 65 */
+    assert_int_equal(truncate(p, 5 * 30492 - 4), 0); /* 5 bands of 7 blocks of 33 x 33 */
     assert_refused(dir, TD_EFORMAT, "heights.blk", "truncated");
 }
 
@@ -461,8 +461,8 @@ static void test_corrupt_tiles(void **state)
 
 /* The heights' chunks come first, then each level's: 10 + 5 + 3 + 2 + 1 + 1 + 1 + 1 + 1
  * for the 200 x 150 crop in chunks of 16 rows (levels 101 x 76, 51 x 39, 26 x 20, 14 x 11,
- * 8 x 6, 5 x 4, 3 x 3, 2 x 2), then heights.blk's 3 bands (of 4 blocks of 65 x 65 samples,
- * 67600 bytes). */
+ * 8 x 6, 5 x 4, 3 x 3, 2 x 2), then heights.blk's 5 bands (of 7 blocks of 33 x 33 samples,
+ * 30492 bytes). */
 static void test_corrupt_chunk(void **state)
 {
     char dir[512];
@@ -474,12 +474,12 @@ static void test_corrupt_chunk(void **state)
     flip_byte(dir, TD_PREPARED_HEIGHTS, (long)(90 * 200 + 7) * 4 + 2);
     /* lod2.f32 (51 x 39): its file rows 16..31 (chunk 1, chunk 16 of all) are south rows 7..22 */
     flip_byte(dir, "lod2.f32", (long)(10 * 51 + 5) * 4 + 2);
-    /* band 1 (south rows 64..128), its block 2's sample (7, 3) */
-    flip_byte(dir, TD_PREPARED_BLOCKS, 67600 + (long)(2 * 65 * 65 + 3 * 65 + 7) * 4 + 1);
+    /* band 1 (south rows 32..64), its block 2's sample (7, 3) */
+    flip_byte(dir, TD_PREPARED_BLOCKS, 30492 + (long)(2 * 33 * 33 + 3 * 33 + 7) * 4 + 1);
     assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK); /* open reads no heights */
     assert_int_equal(td_prepared_levels(p), 8);
-    assert_int_equal(td_prepared_chunks(p), 28);
-    for (int32_t c = 0; c < 28; c++) {
+    assert_int_equal(td_prepared_chunks(p), 30);
+    for (int32_t c = 0; c < 30; c++) {
         td_status rc = td_prepared_verify_chunk(p, c, &e);
         if (c == 3) {
             assert_int_equal(rc, TD_EFORMAT);
@@ -491,13 +491,13 @@ static void test_corrupt_chunk(void **state)
                 fail_msg("%s", e.msg);
         } else if (c == 26) {
             assert_int_equal(rc, TD_EFORMAT);
-            if (!strstr(e.msg, "heights.blk: band 1 (south rows 64..128)") || !strstr(e.msg, "corrupted"))
+            if (!strstr(e.msg, "heights.blk: band 1 (south rows 32..64)") || !strstr(e.msg, "corrupted"))
                 fail_msg("%s", e.msg);
         } else {
             assert_int_equal(rc, TD_OK);
         }
     }
-    assert_int_equal(td_prepared_verify_chunk(p, 28, &e), TD_EINVAL);
+    assert_int_equal(td_prepared_verify_chunk(p, 30, &e), TD_EINVAL);
     td_prepared_free(p);
 }
 
@@ -545,8 +545,8 @@ static void test_resident(void **state)
         sum += g->z[k];
     for (size_t k = 0; k < g->bmap_bytes / 4; k += 256)
         sum += ((const float *)g->bmap)[k];
-    assert_true(td_prepared_resident(g) >= 200 * 150 * 4 + 3 * 67600 - 8192);
-    assert_true(td_prepared_cached(g) >= 200 * 150 * 4 + 3 * 67600 - 8192);
+    assert_true(td_prepared_resident(g) >= 200 * 150 * 4 + 5 * 30492 - 8192);
+    assert_true(td_prepared_cached(g) >= 200 * 150 * 4 + 5 * 30492 - 8192);
     td_prepared_trim(g);
     assert_int_equal(td_prepared_resident(g), 0);
     td_grid_free(g);
