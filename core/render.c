@@ -469,9 +469,11 @@ static double note_error(const ctx *c, const td_hit *h, int level, td_render_sta
 {
     const double *p = h->p;
     double z, e = NAN;
-    /* on the full grid the hit's cell holds the point (no search for it) */
+    /* on the full grid the hit's cell holds the point (no search for it); a coarse level's
+       hit on a mapped (prepared, larger than memory) grid is not measured: it would read
+       a full-resolution page per far pixel (9.2 k of a cold 4 GiB view's 10.5 k faults) */
     if (level == 0 ? td_grid_bilinear_cell(c->v->grid, h->ci, h->cj, p[0], p[1], &z, NULL)
-                   : td_grid_bilinear(c->v->grid, p[0], p[1], &z, NULL)) {
+                   : !c->v->grid->map && td_grid_bilinear(c->v->grid, p[0], p[1], &z, NULL)) {
         e = fabs(p[2] - z);
         st->height_err_sum_m += e;
         st->height_err_max_m = e > st->height_err_max_m ? e : st->height_err_max_m;
