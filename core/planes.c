@@ -371,9 +371,12 @@ static void block_max(const float *cell, int32_t nx, int32_t ny, int32_t bnx, in
     for (int32_t bj = 0; bj < bny; bj++) {
         for (int32_t bi = 0; bi < bnx; bi++) {
             float m = -INFINITY;
-            for (int32_t cj = bj << B; cj < ((bj + 1) << B) && cj < ny; cj++)
-                for (int32_t ci = bi << B; ci < ((bi + 1) << B) && ci < nx; ci++)
-                    m = cell[(size_t)cj * (size_t)nx + (size_t)ci] > m ? cell[(size_t)cj * (size_t)nx + (size_t)ci] : m;
+            for (int32_t cj = bj << B; cj < ((bj + 1) << B) && cj < ny; cj++) {
+                for (int32_t ci = bi << B; ci < ((bi + 1) << B) && ci < nx; ci++) {
+                    float h = cell[(size_t)cj * (size_t)nx + (size_t)ci];
+                    m = h > m ? h : m;
+                }
+            }
             out[(size_t)bj * (size_t)bnx + (size_t)bi] = m;
         }
     }
