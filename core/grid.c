@@ -159,13 +159,6 @@ out:
     return rc;
 }
 
-const float *td_grid_corner_blocked(const td_corners *c, int32_t i, int32_t j)
-{
-    return c->base +
-           ((size_t)(j >> c->log2) * c->blocks_x + (size_t)(i >> c->log2)) * c->block_floats +
-           (size_t)((uint32_t)j & c->mask) * c->stride + (size_t)((uint32_t)i & c->mask);
-}
-
 void td_grid_corners_flat(td_grid *g)
 {
     td_corners c = {g->z, 1, 0, (size_t)g->w, ((uint32_t)1 << TD_CORNERS_FLAT_LOG2) - 1u,
