@@ -615,6 +615,66 @@ static void test_render_reads_blocks(void **state)
     td_prepared_free(p);
 }
 
+/* A far view with levels of detail (quality.lod, 8 pixels a coarse cell: the first level
+ * from 1.3 km on) from 4 km up, 2 km above the highest sample: every camera ray passes
+ * above the full grid's tiles until it is on the levels, so a render reads no
+ * full-resolution sample at all, not even to measure a coarse hit's height error (which
+ * read the full grid under every far pixel: a page each on a grid larger than memory).
+ * Both mappings of the full grid unreadable: the render succeeds, every ray ends on a
+ * level, and no error is counted. */
+static void test_lod_reads_no_full_grid(void **state)
+{
+    char src[512], dir[512];
+    td_prepare_result res;
+    td_prepared *p = NULL;
+    td_grid *g;
+    td_lod *lod;
+    td_scene sc;
+    td_render_opts o;
+    td_render_result r;
+    td_err e = {0};
+    uint64_t hits = 0;
+    (void)state;
+    data_path("trinidad-crop.f32", src, sizeof src);
+    tmp_path("lod-far", dir, sizeof dir);
+    prepare_ok(src, dir, 5, 0, &res);
+    assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK);
+    g = td_prepared_take_grid(p);
+    lod = td_prepared_take_lod(p);
+    assert_non_null(lod);
+    assert_int_equal(mprotect(g->map, g->map_bytes, PROT_NONE), 0);
+    assert_int_equal(mprotect(g->bmap, g->bmap_bytes, PROT_NONE), 0);
+    td_scene_defaults(&sc);
+    sc.camera.x = 7000.0;
+    sc.camera.y = -2000.0;
+    sc.camera.z = 4000.0;
+    sc.camera.pitch = -20.0;
+    sc.image.width = 80;
+    sc.image.height = 50;
+    sc.quality.method = TD_METHOD_AUTO;
+    sc.quality.surface = TD_SURFACE_BILINEAR;
+    sc.quality.lod = 1;
+    sc.quality.lod_pixels = 8.0;
+    td_render_opts_default(&o);
+    o.threads = 1;
+    o.lod = lod;
+    {
+        td_view v = {g, NULL};
+        assert_int_equal(td_render(&v, &sc, &o, &r, &e), TD_OK);
+    }
+    assert_int_equal(r.stats.lod_rays[0], 0);
+    for (int k = 1; k <= lod->levels; k++)
+        hits += r.stats.lod_rays[k];
+    assert_true(hits > 0);
+    assert_int_equal(r.stats.height_err_hits, 0);
+    td_render_result_free(&r);
+    assert_int_equal(mprotect(g->map, g->map_bytes, PROT_READ), 0);
+    assert_int_equal(mprotect(g->bmap, g->bmap_bytes, PROT_READ), 0);
+    td_lod_free(lod);
+    td_grid_free(g);
+    td_prepared_free(p);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -624,6 +684,7 @@ int main(void)
         cmocka_unit_test(test_other_version),      cmocka_unit_test(test_corrupt_tiles),
         cmocka_unit_test(test_corrupt_chunk),      cmocka_unit_test(test_levels_refused),
         cmocka_unit_test(test_resident),           cmocka_unit_test(test_render_reads_blocks),
+        cmocka_unit_test(test_lod_reads_no_full_grid),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
