@@ -553,6 +553,23 @@ static void test_resident(void **state)
     td_prepared_free(p);
 }
 
+/* An 80 x 50 view of the crop from (7000, -2000, z) looking north, pitch degrees down,
+ * method m on surface su, one thread. */
+static void crop_view(td_scene *sc, td_render_opts *o, double z, double pitch, int m, int su)
+{
+    td_scene_defaults(sc);
+    sc->camera.x = 7000.0;
+    sc->camera.y = -2000.0;
+    sc->camera.z = z;
+    sc->camera.pitch = -pitch;
+    sc->image.width = 80;
+    sc->image.height = 50;
+    sc->quality.method = (td_method)m;
+    sc->quality.surface = (td_surface)su;
+    td_render_opts_default(o);
+    o->threads = 1;
+}
+
 /* A render (every method on every surface, shadows, ambient occlusion, smooth normals,
  * tiles' max-mipmaps and planes built from the mapped grid) reads heights.blk alone: with
  * the row-major heights.f32 mapping made unreadable (PROT_NONE: any read of it is a
@@ -587,20 +604,10 @@ static void test_render_reads_blocks(void **state)
             td_scene sc;
             td_render_opts o;
             td_render_result a, b;
-            td_scene_defaults(&sc);
-            sc.camera.x = 7000.0;
-            sc.camera.y = -2000.0;
-            sc.camera.z = 2600.0;
-            sc.camera.pitch = -10.0;
-            sc.image.width = 80;
-            sc.image.height = 50;
-            sc.quality.method = (td_method)m;
-            sc.quality.surface = (td_surface)s;
+            crop_view(&sc, &o, 2600.0, 10.0, m, s);
             sc.quality.smooth_normals = s == TD_SURFACE_BILINEAR;
             sc.effects.shadows = 1;
             sc.effects.ambient_occlusion = s == TD_SURFACE_TRIANGLE ? 4 : 0;
-            td_render_opts_default(&o);
-            o.threads = 1;
             assert_int_equal(td_render(&va, &sc, &o, &a, &e), TD_OK);
             assert_int_equal(td_render(&vb, &sc, &o, &b, &e), TD_OK);
             assert_memory_equal(a.rgba, b.rgba, (size_t)80 * 50 * 4);
@@ -644,19 +651,9 @@ static void test_lod_reads_no_full_grid(void **state)
     assert_non_null(lod);
     assert_int_equal(mprotect(g->map, g->map_bytes, PROT_NONE), 0);
     assert_int_equal(mprotect(g->bmap, g->bmap_bytes, PROT_NONE), 0);
-    td_scene_defaults(&sc);
-    sc.camera.x = 7000.0;
-    sc.camera.y = -2000.0;
-    sc.camera.z = 4000.0;
-    sc.camera.pitch = -20.0;
-    sc.image.width = 80;
-    sc.image.height = 50;
-    sc.quality.method = TD_METHOD_AUTO;
-    sc.quality.surface = TD_SURFACE_BILINEAR;
+    crop_view(&sc, &o, 4000.0, 20.0, TD_METHOD_AUTO, TD_SURFACE_BILINEAR);
     sc.quality.lod = 1;
     sc.quality.lod_pixels = 8.0;
-    td_render_opts_default(&o);
-    o.threads = 1;
     o.lod = lod;
     {
         td_view v = {g, NULL};
