@@ -13,6 +13,9 @@
  * last three rows of level k-1 and makes each of its rows (lod.c's filter) as soon as the
  * rows around it have arrived, passing it on to level k+1 (rows arrive north first, so a
  * level's rows are made in the same order; the whole pyramid needs three rows a level).
+ * Each row also goes into the band of blocks of heights.blk it belongs to (band_feed), and
+ * a band is written whole when its lowest row has arrived (that row starts the band below:
+ * the blocks share their edge samples).
  * Two threads (chunks_run): the caller reads, checks, checksums and writes chunk c+1
  * while a worker makes the levels of chunk c. After each chunk every file is synced and
  * the state file (chunks done, every layer's rows and checksums, the running statistics)
