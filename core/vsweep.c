@@ -951,11 +951,13 @@ static int owned(const sweep *sw, int32_t U, int32_t V, double u)
     const cone *c = &sw->c;
     const td_grid *g = c->g;
     double dv = fabs(V - c->ev), dx, dy;
-    int32_t i = c->ui * U + c->vi * V, j = c->uj * U + c->vj * V;
+    int32_t i, j;
     if (!(c->strict ? dv < u : dv <= u))
         return 0;
     if (sw->job->maxd2 == INFINITY)
         return 1;
+    i = c->ui * U + c->vi * V;
+    j = c->uj * U + c->vj * V;
     dx = i * g->sx - sw->job->ex;
     dy = j * g->sy - sw->job->ey;
     return dx * dx + dy * dy <= sw->job->maxd2;
