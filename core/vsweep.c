@@ -519,20 +519,22 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     sw->pass_ok = U - sw->c.eu >= VS_PASS_U && U - sw->c.eu < 0.5 / VS_NARROW;
     if (!sw->pass_ok)
         return;
-    for (int32_t V = V0; V <= V1; V++) {
-        double m = mc[V];
-        while (k + 1 < F->n && F->p[k + 1].m <= m)
-            k++;
-        kc[V] = k;
-    }
+    /* one walk: the pieces up to m_V0, then each interval's breaks as k passes them */
+    while (k + 1 < F->n && F->p[k + 1].m <= mc[V0])
+        k++;
+    kc[V0] = k;
     for (int32_t V = V0; V < V1; V++) {
-        int a = kc[V], b = kc[V + 1];
-        double lo = dmin(pval(&F->p[a], mc[V]), pval(&F->p[b], mc[V + 1]));
-        if (a > 0 && F->p[a].m == mc[V]) /* on a break: the piece ending there holds m_V too */
-            lo = dmin(lo, pval(&F->p[a - 1], mc[V]));
-        for (int q = a; q < b; q++)
-            lo = dmin(lo, dmin(pval(&F->p[q], F->p[q + 1].m), pval(&F->p[q + 1], F->p[q + 1].m)));
-        fm[V] = lo;
+        const piece *p = F->p;
+        double m1 = mc[V + 1], lo = pval(&p[k], mc[V]);
+        if (k > 0 && p[k].m == mc[V]) /* on a break: the piece ending there holds m_V too */
+            lo = dmin(lo, pval(&p[k - 1], mc[V]));
+        while (k + 1 < F->n && p[k + 1].m <= m1) {
+            double x = p[k + 1].m;
+            lo = dmin(lo, dmin(pval(&p[k], x), pval(&p[k + 1], x)));
+            k++;
+        }
+        kc[V + 1] = k;
+        fm[V] = dmin(lo, pval(&p[k], m1));
     }
 }
 
