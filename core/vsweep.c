@@ -892,6 +892,58 @@ static int starts_clear(const sweep *sw, int32_t U, int32_t V)
            td_viewshed_start_gap(j->v->grid, j->surface, &r) > 0x1p-44 * (1.0 + fabs(j->ez));
 }
 
+/* The highest q of a real point of the bilinear surface on the ray m in the strip between
+ * columns U-1 and U (cone cells U-1..U): per cell the ray crosses there, the ends of its
+ * run through it and the stationary point of q along it (z is quadratic along the ray,
+ * so with w the distance q = A / w + B + C w: w = sqrt(A / C)), each evaluated on the
+ * patch itself. Any of them is a real point; -inf when the ray crosses no cell there. */
+static double strip_real_max(const sweep *sw, int32_t U, double m)
+{
+    const cone *c = &sw->c;
+    double ez = sw->job->ez, best = -INFINITY, z[4], u0 = U - 1 - c->eu;
+    double v0 = m * u0, v1 = m * (u0 + 1.0);
+    int32_t Va = (int32_t)floor(dmin(v0, v1) + c->ev), Vb = (int32_t)floor(dmax(v0, v1) + c->ev);
+    for (int32_t V = Va; V <= Vb && u0 > 0.0; V++) {
+        double b0 = m * u0 - (V - c->ev), alo = 0.0, ahi = 1.0, k, Z0, Z1, Z2, A, cand[3];
+        if (!cell(c, U - 1, V, z))
+            continue;
+        if (m > 0.0) { /* b = b0 + m a in [0, 1] */
+            alo = dmax(alo, -b0 / m);
+            ahi = dmin(ahi, (1.0 - b0) / m);
+        } else if (m < 0.0) {
+            alo = dmax(alo, (1.0 - b0) / m);
+            ahi = dmin(ahi, -b0 / m);
+        } else if (b0 < 0.0 || b0 > 1.0) {
+            continue;
+        }
+        k = z[0] - z[1] - z[2] + z[3];
+        Z0 = z[0] + (z[2] - z[0]) * b0;
+        Z1 = (z[1] - z[0]) + (z[2] - z[0]) * m + k * b0;
+        Z2 = k * m;
+        A = Z2 * u0 * u0 - Z1 * u0 + Z0 - ez;
+        cand[0] = alo;
+        cand[1] = ahi;
+        cand[2] = Z2 < 0.0 && A < 0.0 ? sqrt(A / Z2) - u0 : alo;
+        for (int i = 0; i < 3 && alo <= ahi; i++) {
+            double a = dmin(dmax(cand[i], alo), ahi), b = b0 + m * a;
+            double zz = z[0] + (z[1] - z[0]) * a + (z[2] - z[0]) * b + k * a * b;
+            best = dmax(best, (zz - ez) / (u0 + a));
+        }
+    }
+    return best;
+}
+
+/* A lower bound of the surface's q on the ray m from real points, for a target that p (F's
+ * piece there) leaves undecided by its bilinear slack: strip_real_max in p's strip (U from
+ * its umax), when p proves at all (a finite slack, no hole nearer). */
+static double band_lo(const sweep *sw, const piece *p, double m, double hu)
+{
+    double lo = -INFINITY;
+    if (p->slack > 0.0 && p->slack < INFINITY && p->umax < hu)
+        lo = strip_real_max(sw, (int32_t)lround(p->umax + sw->c.eu), m);
+    return lo;
+}
+
 /* Decides target (U, V) of column U (not a void) against F, or casts it. */
 static void target(sweep *sw, int32_t U, int32_t V)
 {
@@ -925,6 +977,9 @@ static void target(sweep *sw, int32_t U, int32_t V)
     /* clear of everything nearer and of its last cell's diagonal's ends: visible without it */
     if (!(sw->visible_ok && q > dmax(hi, diag_bound(sw, V, m)) + eps))
         last_cell(sw, V, u, m, hu, &hi, &lo);
+    /* in the bilinear slack of its piece: real points of that strip on the ray may prove it hidden */
+    if (sw->bil && q >= lo - eps && !(q > hi + eps && sw->visible_ok))
+        lo = dmax(lo, band_lo(sw, &F->p[k], m, hu));
 decide:
 #ifdef TD_VSWEEP_DEBUG /* every proof checked against the cast */
     if (((q > hi + eps && sw->visible_ok) || (q < lo - eps && (sw->hidden_ok || starts_clear(sw, U, V))))) {
