@@ -72,6 +72,9 @@
 /* From this u on, every sample of a column (|V - ev| <= u + 2) has |m| < VS_MDOM: the
  * column pass's shortcuts hold there (nearer columns take the general path). */
 #define VS_PASS_U 8.0
+/* Columns read into the panel at a time (east and west cones): a row's 16 floats are one
+ * or two cache lines, instead of a line (and a page) a sample. */
+#define VS_PANEL 16
 
 typedef struct piece {
     double m;      /* start; the piece ends where the next one starts */
@@ -117,6 +120,10 @@ typedef struct sweep {
      * edge counts); valid while pass_ok (u >= VS_PASS_U) */
     int *kcol;
     double *fmin, *lcol, *cslope;
+    /* east and west cones, whose columns are strided in the grid: VS_PANEL columns from
+     * panel_u on, rows panel_v0..panel_v1, read a row's run of floats at a time (panel) */
+    float *panel;
+    int32_t panel_u, panel_n, panel_v0, panel_v1;
     uint8_t *colok; /* column U's edge [V, V+1] counts (a cell beside it is not a hole) */
     int pass_ok;
     uint64_t swept, rays, steps;
@@ -307,13 +314,58 @@ static void cone_init(cone *c, const td_grid *g, int k, double eu, double ev)
 
 /* Loads column U+1 into the buffers (U-1, U, U+1 then), rows |V - ev| <= u + 4: what
  * the targets and edges of column U need. */
+/* The rows column U needs (load_next): |V - ev| <= u + 3, on the grid. */
+static void col_rows(const cone *c, int32_t U, int32_t *V0, int32_t *V1)
+{
+    double u = U - c->eu;
+    *V0 = (int32_t)dmax(floor(c->ev - u) - 3.0, (double)c->vlo);
+    *V1 = (int32_t)dmin(ceil(c->ev + u) + 3.0, (double)c->vhi);
+}
+
+/* Fills the panel with columns U .. U + VS_PANEL - 1 (those on the grid), the rows the
+ * last of them needs (the widest): per row one run of contiguous floats. */
+static void panel_fill(sweep *sw, int32_t U)
+{
+    const cone *c = &sw->c;
+    const td_grid *g = c->g;
+    int32_t n = c->uhi - U + 1 < VS_PANEL ? c->uhi - U + 1 : VS_PANEL, V0, V1;
+    int32_t ilo = c->ui > 0 ? U : -(U + n - 1); /* the run's first grid column */
+    size_t nv = (size_t)(c->vhi - c->vlo + 1);
+    col_rows(c, U + n - 1, &V0, &V1);
+    for (int32_t V = V0; V <= V1; V++) {
+        const float *src = g->z + (size_t)V * (size_t)g->w + (size_t)ilo;
+        for (int32_t k = 0; k < n; k++)
+            sw->panel[(size_t)k * nv + (size_t)(V - c->vlo)] = src[c->ui > 0 ? k : n - 1 - k];
+    }
+    sw->panel_u = U;
+    sw->panel_n = n;
+    sw->panel_v0 = V0;
+    sw->panel_v1 = V1;
+}
+
+/* Column U's heights, rows V0..V1 wanted: src[V] is sample (U, V)'s. From the panel for
+ * the east and west cones (filled as needed), else the grid's row (north and south: V is
+ * the grid's column). */
+static inline const float *col_src(sweep *sw, int32_t U, int32_t V0, int32_t V1)
+{
+    const cone *c = &sw->c;
+    const float *src = c->g->z + cidx(c, U, 0);
+    if (sw->panel) {
+        if (U < sw->panel_u || U >= sw->panel_u + sw->panel_n || V0 < sw->panel_v0 || V1 > sw->panel_v1)
+            panel_fill(sw, U);
+        src = sw->panel + (size_t)(U - sw->panel_u) * (size_t)(c->vhi - c->vlo + 1) - c->vlo;
+    }
+    return src;
+}
+
 static void load_next(sweep *sw, int32_t U)
 {
     const cone *c = &sw->c;
     double un = U + 1 - c->eu, iu = 1.0 / un, ez = sw->job->ez;
-    int32_t V0 = (int32_t)dmax(floor(c->ev - un) - 3.0, (double)c->vlo);
-    int32_t V1 = (int32_t)dmin(ceil(c->ev + un) + 3.0, (double)c->vhi);
+    int32_t V0, V1;
     double *t[3] = {sw->zcol[0], sw->mcol[0], sw->qcol[0]};
+    const float *src = NULL;
+    col_rows(c, U + 1, &V0, &V1);
     for (int b = 0; b < 2; b++) {
         sw->zcol[b] = sw->zcol[b + 1];
         sw->mcol[b] = sw->mcol[b + 1];
@@ -322,8 +374,10 @@ static void load_next(sweep *sw, int32_t U)
     sw->zcol[2] = t[0];
     sw->mcol[2] = t[1];
     sw->qcol[2] = t[2];
+    if (U + 1 <= c->uhi)
+        src = col_src(sw, U + 1, V0, V1);
     for (int32_t V = V0; V <= V1 && U + 1 <= c->uhi; V++) {
-        double z = cz(c, U + 1, V);
+        double z = src[V];
         t[0][V - c->vlo] = z;
         t[1][V - c->vlo] = (V - c->ev) * iu;
         t[2][V - c->vlo] = (z - ez) * iu;
@@ -1075,7 +1129,8 @@ static void *cone_worker(void *arg)
         double *zb = malloc(12 * nv * sizeof *zb);
         int *kb = malloc(nv * sizeof *kb);
         uint8_t *ob = calloc(nv, 1);
-        if (zb && kb && ob && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
+        sw->panel = sw->c.vi == 0 ? malloc((size_t)VS_PANEL * nv * sizeof *sw->panel) : NULL;
+        if (zb && kb && ob && (sw->c.vi != 0 || sw->panel) && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
             pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
             for (size_t q = 0; q < 12 * nv; q++)
                 zb[q] = NAN;
@@ -1096,6 +1151,8 @@ static void *cone_worker(void *arg)
         free(zb);
         free(kb);
         free(ob);
+        free(sw->panel);
+        sw->panel = NULL;
     }
     return NULL;
 }
