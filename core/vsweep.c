@@ -741,7 +741,9 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
     double *lc = sw->lcol - c->vlo, *cs = sw->cslope - c->vlo, u = U - c->eu, z[4], zl[4];
     uint8_t *ok = sw->colok - c->vlo;
     for (int32_t V = V0; V < V1; V++) {
-        ok[V] = (uint8_t)((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl));
+        /* without voids every cell beside the column is there: the rows V0 .. V1 of columns
+         * U-1 .. U+1 are loaded and on the grid */
+        ok[V] = (uint8_t)(!sw->holes || (U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl));
         lc[V] = ok[V] ? dmax(fm[V], dmin(qc[V], qc[V + 1])) : fm[V];
         cs[V] = ok[V] ? (qc[V + 1] - qc[V]) / (mc[V + 1] - mc[V]) : 0.0;
     }
