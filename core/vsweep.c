@@ -120,6 +120,9 @@ typedef struct sweep {
      * edge counts); valid while pass_ok (u >= VS_PASS_U) */
     int *kcol;
     double *fmin, *lcol, *cslope;
+    double *fmax; /* F's maximum over each interval [m_V, m_V+1] (col_pass) */
+    double *dom;  /* ndom ranges [dom[2i], dom[2i+1]) of m where column U is above F (col_pieces) */
+    int ndom;
     /* east and west cones, whose columns are strided in the grid: VS_PANEL columns from
      * panel_u on, rows panel_v0..panel_v1, read a row's run of floats at a time (panel) */
     float *panel;
@@ -188,16 +191,46 @@ static inline void emit(pvec *o, double m, const piece *src, const piece **last)
 }
 
 /* out = max(a, b), both covering [a[0].m, end] with a[na].m = b[nb].m = end; out needs
- * room for 2 (na + nb) + 1 pieces. Ties go to a (the older). */
-static void merge(const piece *a, int na, const piece *b, int nb, pvec *out)
+ * room for 2 (na + nb) + 1 pieces. Ties go to a (the older). dom: ndom sorted disjoint
+ * ranges [dom[2i], dom[2i+1]) of m where b is known to be above a by a margin (the column
+ * pass's, col_pieces): there b's pieces are copied and a's skipped, without comparing
+ * them (b wins every comparison there, and joins as it would). */
+static void merge(const piece *a, int na, const piece *b, int nb, pvec *out, const double *dom, int ndom)
 {
-    int ia = 0, ib = 0;
+    int ia = 0, ib = 0, id = 0;
     double cur = a[0].m, end = a[na].m;
     const piece *last = NULL;
     out->n = 0;
     while (cur < end && ia < na && ib < nb) {
-        double ea = a[ia + 1].m, eb = b[ib + 1].m, nx = ea < eb ? ea : eb;
-        const piece *pa = &a[ia], *pb = &b[ib];
+        double ea, eb, nx;
+        const piece *pa, *pb;
+        while (id < ndom && dom[2 * id + 1] <= cur)
+            id++;
+        if (id < ndom && dom[2 * id] <= cur) { /* in a range where b is above a */
+            double e = dmin(dom[2 * id + 1], end);
+            while (ib < nb && b[ib + 1].m <= cur) /* the pieces holding cur (past zero widths) */
+                ib++;
+            while (ia < na && a[ia + 1].m <= cur)
+                ia++;
+            if (ib >= nb || ia >= na)
+                break;
+            emit(out, cur, &b[ib], &last);
+            while (b[ib + 1].m < e) {
+                ib++;
+                emit(out, b[ib].m, &b[ib], &last);
+            }
+            while (ib < nb && b[ib + 1].m <= e)
+                ib++;
+            while (ia < na && a[ia + 1].m <= e)
+                ia++;
+            cur = e;
+            continue;
+        }
+        ea = a[ia + 1].m;
+        eb = b[ib + 1].m;
+        nx = ea < eb ? ea : eb;
+        pa = &a[ia];
+        pb = &b[ib];
         if (nx > end)
             nx = end;
         if (nx > cur) {
@@ -449,7 +482,7 @@ static void g_insert(sweep *sw, const piece *p, double m0, double m1)
         b[3] = empty_piece;
         b[3].m = VS_MDOM;
         if (pv_reserve(sw, T, 2 * (G->n - k + 3) + 1) && pv_reserve(sw, G, k + 2 * (G->n - k + 3) + 1)) {
-            merge(&G->p[k], G->n - k, b, 3, T);
+            merge(&G->p[k], G->n - k, b, 3, T, NULL, 0);
             memcpy(&G->p[k], T->p, (size_t)(T->n + 1) * sizeof *T->p);
             G->n = k + T->n;
         }
@@ -499,12 +532,12 @@ static void add_edge_uv(sweep *sw, double ua, double va, double za, double ub, d
     add_seg(sw, va / ua, (za - ez) / ua, vb / ub, (zb - ez) / ub, slack, 1);
 }
 
-/* *dst = max(*dst, *src) (through T; nothing to do when src is empty). */
-static void merge_into(sweep *sw, pvec *dst, const pvec *src)
+/* *dst = max(*dst, *src) (through T; nothing to do when src is empty); dom, ndom as merge. */
+static void merge_into(sweep *sw, pvec *dst, const pvec *src, const double *dom, int ndom)
 {
     if ((src->n > 1 || src->p[0].qr != -INFINITY) && pv_reserve(sw, &sw->T, 2 * (dst->n + src->n) + 1)) {
         pvec t;
-        merge(dst->p, dst->n, src->p, src->n, &sw->T);
+        merge(dst->p, dst->n, src->p, src->n, &sw->T, dom, ndom);
         t = *dst;
         *dst = sw->T;
         sw->T = t;
@@ -514,7 +547,7 @@ static void merge_into(sweep *sw, pvec *dst, const pvec *src)
 /* F = max(F, G). */
 static void merge_g(sweep *sw)
 {
-    merge_into(sw, &sw->F, &sw->G);
+    merge_into(sw, &sw->F, &sw->G, NULL, 0);
     sw->hint_q = sw->hint_s = 0;
 }
 
@@ -568,7 +601,7 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     const pvec *F = &sw->F;
     const double *mc = sw->mcol[1] - sw->c.vlo;
     int *kc = sw->kcol - sw->c.vlo;
-    double *fm = sw->fmin - sw->c.vlo;
+    double *fm = sw->fmin - sw->c.vlo, *fx = sw->fmax - sw->c.vlo;
     int k = 0;
     sw->pass_ok = U - sw->c.eu >= VS_PASS_U && U - sw->c.eu < 0.5 / VS_NARROW;
     if (!sw->pass_ok)
@@ -579,16 +612,21 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     kc[V0] = k;
     for (int32_t V = V0; V < V1; V++) {
         const piece *p = F->p;
-        double m1 = mc[V + 1], lo = pval(&p[k], mc[V]);
-        if (k > 0 && p[k].m == mc[V]) /* on a break: the piece ending there holds m_V too */
+        double m1 = mc[V + 1], lo = pval(&p[k], mc[V]), hi = lo, e;
+        if (k > 0 && p[k].m == mc[V]) { /* on a break: the piece ending there holds m_V too */
             lo = dmin(lo, pval(&p[k - 1], mc[V]));
+            hi = dmax(hi, pval(&p[k - 1], mc[V]));
+        }
         while (k + 1 < F->n && p[k + 1].m <= m1) {
-            double x = p[k + 1].m;
-            lo = dmin(lo, dmin(pval(&p[k], x), pval(&p[k + 1], x)));
+            double x = p[k + 1].m, y0 = pval(&p[k], x), y1 = pval(&p[k + 1], x);
+            lo = dmin(lo, dmin(y0, y1));
+            hi = dmax(hi, dmax(y0, y1));
             k++;
         }
         kc[V + 1] = k;
-        fm[V] = dmin(lo, pval(&p[k], m1));
+        e = pval(&p[k], m1);
+        fm[V] = dmin(lo, e);
+        fx[V] = dmax(hi, e);
     }
 }
 
@@ -710,14 +748,28 @@ static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
     const int32_t o = sw->c.vlo;
     const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o, *fm = sw->fmin - o, *cs = sw->cslope - o;
     const uint8_t *ok = sw->colok - o;
+    const double *fx = sw->fmax - o;
     pvec *C = &sw->C;
+    sw->ndom = 0;
     if (!pv_reserve(sw, C, 2 * (V1 - V0) + 4))
         return;
     pv_clear(C);
     C->n = 1;
     for (int32_t V = V0; V < V1; V++) {
+        double top;
         if (!ok[V] || dmax(qc[V], qc[V + 1]) <= fm[V])
             continue;
+        /* above F's maximum there by far more than rounding: a range for merge */
+        top = dmin(qc[V], qc[V + 1]);
+        if (top > fx[V] + 1e-9 * (1.0 + fabs(top))) {
+            if (sw->ndom > 0 && sw->dom[2 * sw->ndom - 1] == mc[V])
+                sw->dom[2 * sw->ndom - 1] = mc[V + 1];
+            else {
+                sw->dom[2 * sw->ndom] = mc[V];
+                sw->dom[2 * sw->ndom + 1] = mc[V + 1];
+                sw->ndom++;
+            }
+        }
         if (C->p[C->n - 1].qr == -INFINITY && C->p[C->n - 1].m >= mc[V]) /* empty, zero width */
             C->n--;
         C->p[C->n] = (piece){mc[V], mc[V], qc[V], cs[V], 0.0, u};
@@ -752,8 +804,8 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
         add_strip(sw, V0, V1, u);
     col_pieces(sw, V0, V1, u);
     if (!sw->oom) {
-        merge_into(sw, &sw->C, &sw->G);
-        merge_into(sw, &sw->F, &sw->C);
+        merge_into(sw, &sw->C, &sw->G, NULL, 0);
+        merge_into(sw, &sw->F, &sw->C, sw->dom, sw->ndom);
     }
     sw->hint_q = sw->hint_s = 0;
 }
@@ -1128,13 +1180,13 @@ static void *cone_worker(void *arg)
             break;
         sw = &t->sw[k];
         size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
-        double *zb = malloc(12 * nv * sizeof *zb);
+        double *zb = malloc(15 * nv * sizeof *zb);
         int *kb = malloc(nv * sizeof *kb);
         uint8_t *ob = calloc(nv, 1);
         sw->panel = sw->c.vi == 0 ? malloc((size_t)VS_PANEL * nv * sizeof *sw->panel) : NULL;
         if (zb && kb && ob && (sw->c.vi != 0 || sw->panel) && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
             pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
-            for (size_t q = 0; q < 12 * nv; q++)
+            for (size_t q = 0; q < 15 * nv; q++)
                 zb[q] = NAN;
             for (int b = 0; b < 3; b++) {
                 sw->zcol[b] = zb + (size_t)b * nv;
@@ -1144,6 +1196,8 @@ static void *cone_worker(void *arg)
             sw->fmin = zb + 9 * nv;
             sw->lcol = zb + 10 * nv;
             sw->cslope = zb + 11 * nv;
+            sw->fmax = zb + 12 * nv;
+            sw->dom = zb + 13 * nv; /* 2 nv: at most a range an interval */
             sw->kcol = kb;
             sw->colok = ob;
             sweep_cone(sw);
