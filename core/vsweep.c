@@ -558,6 +558,11 @@ static inline double upper_slack(const sweep *sw, const double z[4], double u0)
     return sw->bil ? fabs(z[0] - z[1] - z[2] + z[3]) / (4.0 * u0) : 0.0;
 }
 
+static inline int upper_is_main(const sweep *sw, const double z[4])
+{
+    return sw->bil ? z[0] - z[1] - z[2] + z[3] >= 0.0 : !sw->c.anti;
+}
+
 static int upper_main(const sweep *sw, const double z[4], double u0, double *slack)
 {
     double k = z[0] - z[1] - z[2] + z[3];
@@ -955,12 +960,17 @@ static void cast(sweep *sw, int32_t U, int32_t V)
  * (U, V) (column U buffered): raises *hi and *lo. */
 static void last_cell(const sweep *sw, int32_t V, double u, double m, double hu, double *hi, double *lo)
 {
-    double z[4], slack, a = fabs(m), s = a / (1.0 + a), h = NAN, q;
-    if (m > 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V - 1, z) && !upper_main(sw, z, u - 1.0, &slack))
+    double z[4], slack, a = fabs(m), s = 0.0, h = NAN, q;
+    /* the cell's diagonal first (its twist): the divisions only for the one that counts */
+    if (m > 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V - 1, z) && !upper_is_main(sw, z)) {
+        s = a / (1.0 + a);
         h = z[1] + (z[2] - z[1]) * (1.0 - a + a * s); /* from the south-west: (U, V-1)-(U-1, V) */
-    else if (m < 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V, z) && upper_main(sw, z, u - 1.0, &slack))
+    } else if (m < 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V, z) && upper_is_main(sw, z)) {
+        s = a / (1.0 + a);
         h = z[0] + (z[3] - z[0]) * s; /* from the north-west: the main diagonal (U-1, V)-(U, V+1) */
+    }
     if (!isnan(h)) {
+        slack = upper_slack(sw, z, u - 1.0);
         q = (h - sw->job->ez) / (u - 1.0 + s);
         *hi = dmax(*hi, q);
         if (u - 1.0 + s < hu)
