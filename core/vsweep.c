@@ -643,11 +643,19 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
  * in interval k, else through the vertex k + 1) and, spanning two intervals, the edge at
  * the vertex between them. A shortcut before add_seg's exact test (under_f): 0 is "not
  * known". No division: the slopes are per interval, the vertex test cross-multiplied. */
-static inline int under_strip(const sweep *sw, int32_t k, int two, int32_t Va, double mb, double qb)
+/* Column U's arrays the strip tests read, offset by the rows' origin (one load each
+ * per strip, not per edge: the compiler cannot keep sw's fields across add_seg). */
+typedef struct strip_cols {
+    const double *mc, *qc, *lc, *cs;
+    const uint8_t *ok;
+    int32_t V0, V1;
+    int pass_ok;
+} strip_cols;
+
+static inline int under_strip(const strip_cols *x, int32_t k, int two, int32_t Va, double mb, double qb)
 {
-    const int32_t o = sw->c.vlo;
-    const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o, *lc = sw->lcol - o, *cs = sw->cslope - o;
-    const uint8_t *ok = sw->colok - o;
+    const double *mc = x->mc, *qc = x->qc, *lc = x->lc, *cs = x->cs;
+    const uint8_t *ok = x->ok;
     double ma = mc[Va], qa = qc[Va], top = dmax(qa, qb);
     int under = top <= lc[k] && (!two || top <= lc[k + 1]);
     if (!under && ok[k] && (!two || ok[k + 1])) {
@@ -664,31 +672,31 @@ static inline int under_strip(const sweep *sw, int32_t k, int two, int32_t Va, d
 /* The intervals the strip edge from sample Va of column U to m_b (column U-1) spans, for
  * under_strip: 1 and *k (with *two) when they are known, 0 when m_b is past the next
  * interval or the column's rows (the general path then). */
-static inline int strip_span(const sweep *sw, int32_t V0, int32_t V1, int32_t Va, double mb, int32_t *k, int *two)
+static inline int strip_span(const strip_cols *x, int32_t Va, double mb, int32_t *k, int *two)
 {
-    const double *mc = sw->mcol[1] - sw->c.vlo;
+    const double *mc = x->mc;
     int found;
     if (mb >= mc[Va]) { /* interval Va, or Va and Va + 1 */
         *k = Va;
-        found = Va + 1 <= V1;
+        found = Va + 1 <= x->V1;
         *two = found && mb > mc[Va + 1];
-        found = found && (!*two || (Va + 2 <= V1 && mb <= mc[Va + 2]));
+        found = found && (!*two || (Va + 2 <= x->V1 && mb <= mc[Va + 2]));
     } else { /* interval Va - 1, or Va - 2 and Va - 1 */
-        found = Va - 1 >= V0;
+        found = Va - 1 >= x->V0;
         *two = found && mb < mc[Va - 1];
         *k = *two ? Va - 2 : Va - 1;
-        found = found && (!*two || (Va - 2 >= V0 && mb >= mc[Va - 2]));
+        found = found && (!*two || (Va - 2 >= x->V0 && mb >= mc[Va - 2]));
     }
     return found;
 }
 
 /* The strip edge from sample Va of column U to (m_b, q_b) on column U-1: under F once
  * column U is in, as far as the column pass can tell cheaply. */
-static inline int strip_under(const sweep *sw, int32_t V0, int32_t V1, int32_t Va, double mb, double qb)
+static inline int strip_under(const strip_cols *x, int32_t Va, double mb, double qb)
 {
     int32_t k;
     int two;
-    return sw->pass_ok && strip_span(sw, V0, V1, Va, mb, &k, &two) && under_strip(sw, k, two, Va, mb, qb);
+    return x->pass_ok && strip_span(x, Va, mb, &k, &two) && under_strip(x, k, two, Va, mb, qb);
 }
 
 /* The edges of the strip between columns U-1 and U (rows, diagonals) into G, but those
@@ -696,23 +704,26 @@ static inline int strip_under(const sweep *sw, int32_t V0, int32_t V1, int32_t V
 static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
 {
     const cone *c = &sw->c;
+    const int32_t o = c->vlo;
     const double *zp = sw->zcol[0], *zc = sw->zcol[1];
-    const double *mp = sw->mcol[0] - c->vlo, *qp = sw->qcol[0] - c->vlo;
-    const double *mc = sw->mcol[1] - c->vlo, *qc = sw->qcol[1] - c->vlo;
+    const double *mp = sw->mcol[0] - o, *qp = sw->qcol[0] - o;
+    const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o;
+    const strip_cols x = {mc, qc, sw->lcol - o, sw->cslope - o, sw->colok - o, V0, V1, sw->pass_ok};
+    const int lin = sw->lin, bil = sw->bil, anti = c->anti, holes = sw->holes;
     double zl[4], zb[4];
     for (int32_t V = V0, below = cellz(sw, zp, zc, V0 - 1, zb); V <= V1 && !sw->oom; V++) {
         int left = cellz(sw, zp, zc, V, zl);
-        if (!left && sw->holes && V >= c->vlo && V + 1 <= c->vhi)
+        if (!left && holes && V >= c->vlo && V + 1 <= c->vhi)
             mark_hole(sw, u - 1.0, u, V - c->ev, V + 1 - c->ev);
-        if ((left || below) && !strip_under(sw, V0, V1, V, mp[V], qp[V]))
+        if ((left || below) && !strip_under(&x, V, mp[V], qp[V]))
             add_seg(sw, mp[V], qp[V], mc[V], qc[V], 0.0, 1);
         below = left;
-        if (left && !sw->lin) { /* upper_main's diagonal; its slack (a division) if kept */
+        if (left && !lin) { /* upper_main's diagonal; its slack (a division) if kept */
             double k = zl[0] - zl[1] - zl[2] + zl[3];
-            if (sw->bil ? k >= 0.0 : !sw->c.anti) {
-                if (!strip_under(sw, V0, V1, V + 1, mp[V], qp[V]))
+            if (bil ? k >= 0.0 : !anti) {
+                if (!strip_under(&x, V + 1, mp[V], qp[V]))
                     add_seg(sw, mp[V], qp[V], mc[V + 1], qc[V + 1], upper_slack(sw, zl, u - 1.0), 1);
-            } else if (!strip_under(sw, V0, V1, V, mp[V + 1], qp[V + 1])) {
+            } else if (!strip_under(&x, V, mp[V + 1], qp[V + 1])) {
                 add_seg(sw, mc[V], qc[V], mp[V + 1], qp[V + 1], upper_slack(sw, zl, u - 1.0), 1);
             }
         }
