@@ -107,7 +107,7 @@ typedef struct sweep {
     pvec F, G, T;
     pvec C; /* column U's edges (add_column_pass) */
     pvec N; /* bounds of the eye's strip with no real point (slack infinite): hi only */
-    int hint_q, hint_s, hint_n;
+    int hint_q, hint_s;
     double umax;              /* of the edges being added */
     double hole_u[VS_BINS];   /* per bin of m, the nearest u of a hole cell a ray there may cross */
     int oom;
@@ -989,22 +989,6 @@ static void last_cell(const sweep *sw, int32_t V, double u, double m, double hu,
     }
 }
 
-/* An upper bound of what last_cell may add to hi for target (U, V): its diagonal's point
- * lies on the edge between two samples, so its q is at most theirs (+inf when a sample is
- * off the grid: then last_cell decides). */
-static inline double diag_bound(const sweep *sw, int32_t V, double m)
-{
-    const cone *c = &sw->c;
-    const double *qc = sw->qcol[1] - c->vlo, *qp = sw->qcol[0] - c->vlo;
-    double b = -INFINITY;
-    if (sw->lin || m == 0.0)
-        b = -INFINITY;
-    else if (m > 0.0)
-        b = V - 1 >= c->vlo ? dmax(qc[V - 1], qp[V]) : INFINITY;
-    else
-        b = V + 1 <= c->vhi ? dmax(qp[V], qc[V + 1]) : INFINITY;
-    return isnan(b) ? INFINITY : b;
-}
 
 /* Whether the segment to (U, V) starts clearly above the surface where the tracer starts
  * it (by 2^-44 of the eye's height, 16 times what starts_under tolerates): then a real
@@ -1073,58 +1057,131 @@ static double band_lo(const sweep *sw, const piece *p, double m, double hu)
     return lo;
 }
 
-/* Decides target (U, V) of column U (not a void) against F, or casts it. */
-static void target(sweep *sw, int32_t U, int32_t V)
+/* What the targets of column U read, loaded once a column into a local (the compiler
+ * reloads sw's fields after every byte written to vis: a char may alias them). Arrays
+ * offset by the rows' origin. */
+typedef struct tgt_cols {
+    const double *mc, *zc, *qc, *qp;
+    const int *kc;       /* valid with pass */
+    const piece *Fp, *Np;
+    const double *hole_u; /* NULL without holes */
+    uint8_t *vis;         /* sample (U, V)'s byte: vis[V * vstride] */
+    ptrdiff_t vstride;
+    double u, ez, th;     /* th: the target height */
+    int32_t vlo, vhi;
+    int pass, hidden_ok, visible_ok, bil, lin;
+    int nn, hint_n;       /* N's pieces, the search's hint */
+} tgt_cols;
+
+/* Column U's context for target(). */
+static void tgt_cols_init(sweep *sw, int32_t U, tgt_cols *t)
 {
-    const td_vsweep_job *j = sw->job;
     const cone *c = &sw->c;
-    const pvec *F = &sw->F;
-    double u = U - c->eu, m = sw->mcol[1][V - c->vlo], zt = sw->zcol[1][V - c->vlo], q, hi, lo, eps, hu;
+    t->mc = sw->mcol[1] - c->vlo;
+    t->zc = sw->zcol[1] - c->vlo;
+    t->qc = sw->qcol[1] - c->vlo;
+    t->qp = sw->qcol[0] - c->vlo;
+    t->kc = sw->kcol - c->vlo;
+    t->Fp = sw->F.p;
+    t->Np = sw->N.p;
+    t->nn = sw->N.n;
+    t->hint_n = 0;
+    t->hole_u = sw->holes ? sw->hole_u : NULL;
+    t->vis = sw->vis + cidx(c, U, 0);
+    t->vstride = c->vi == 0 ? (ptrdiff_t)c->g->w : 1;
+    t->u = U - c->eu;
+    t->ez = sw->job->ez;
+    t->th = sw->job->target_height;
+    t->vlo = c->vlo;
+    t->vhi = c->vhi;
+    t->pass = sw->pass_ok;
+    t->hidden_ok = sw->hidden_ok;
+    t->visible_ok = sw->visible_ok;
+    t->bil = sw->bil;
+    t->lin = sw->lin;
+}
+
+/* An upper bound of what last_cell may add to hi for target (U, V): its diagonal's point
+ * lies on the edge between two samples, so its q is at most theirs (+inf when a sample is
+ * off the grid: then last_cell decides). */
+static inline double diag_bound(const tgt_cols *t, int32_t V, double m)
+{
+    double b = -INFINITY;
+    if (t->lin || m == 0.0)
+        b = -INFINITY;
+    else if (m > 0.0)
+        b = V - 1 >= t->vlo ? dmax(t->qc[V - 1], t->qp[V]) : INFINITY;
+    else
+        b = V + 1 <= t->vhi ? dmax(t->qp[V], t->qc[V + 1]) : INFINITY;
+    return isnan(b) ? INFINITY : b;
+}
+
+/* The piece of N holding m (find's search on the context's copy). */
+static inline int find_n(tgt_cols *t, double m)
+{
+    int k = t->hint_n;
+    if (k >= t->nn)
+        k = t->nn - 1;
+    while (k > 0 && t->Np[k].m > m)
+        k--;
+    while (k + 1 < t->nn && t->Np[k + 1].m <= m)
+        k++;
+    t->hint_n = k;
+    return k;
+}
+
+/* Decides target (U, V) of column U (not a void) against F, or casts it. */
+static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
+{
+    const piece *Fp = t->Fp;
+    double u = t->u, m = t->mc[V], zt = t->zc[V], q, hi, lo, eps, hu;
     int k;
-    q = j->target_height > 0.0 ? (zt + j->target_height - j->ez) / u : sw->qcol[1][V - c->vlo];
-    k = sw->pass_ok ? sw->kcol[V - c->vlo] : find(F, m, &sw->hint_q);
-    hu = sw->holes ? sw->hole_u[bin_of(m)] : INFINITY;
-    hi = pval(&F->p[k], m);
-    lo = F->p[k].umax < hu ? hi - F->p[k].slack : -INFINITY;
-    if (k > 0 && F->p[k].m == m) { /* on a break: the piece ending here holds m too */
-        double v = pval(&F->p[k - 1], m);
+    q = t->th > 0.0 ? (zt + t->th - t->ez) / u : t->qc[V];
+    k = t->pass ? t->kc[V] : find(&sw->F, m, &sw->hint_q);
+    hu = t->hole_u ? t->hole_u[bin_of(m)] : INFINITY;
+    hi = pval(&Fp[k], m);
+    lo = Fp[k].umax < hu ? hi - Fp[k].slack : -INFINITY;
+    if (k > 0 && Fp[k].m == m) { /* on a break: the piece ending here holds m too */
+        double v = pval(&Fp[k - 1], m);
         hi = dmax(hi, v);
-        if (F->p[k - 1].umax < hu)
-            lo = dmax(lo, v - F->p[k - 1].slack);
+        if (Fp[k - 1].umax < hu)
+            lo = dmax(lo, v - Fp[k - 1].slack);
     }
     eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
-    if (q < lo - eps && sw->hidden_ok) /* proved hidden already: the rest only raises lo */
+    if (q < lo - eps && t->hidden_ok) /* proved hidden already: the rest only raises lo */
         goto decide;
     {
-        int kn = find(&sw->N, m, &sw->hint_n);
-        hi = dmax(hi, pval(&sw->N.p[kn], m));
-        if (kn > 0 && sw->N.p[kn].m == m) /* on a break: the piece ending here too */
-            hi = dmax(hi, pval(&sw->N.p[kn - 1], m));
+        int kn = find_n(t, m);
+        hi = dmax(hi, pval(&t->Np[kn], m));
+        if (kn > 0 && t->Np[kn].m == m) /* on a break: the piece ending here too */
+            hi = dmax(hi, pval(&t->Np[kn - 1], m));
     }
-    if (j->target_height > 0.0)
-        hi = dmax(hi, (zt - j->ez) / u);
+    if (t->th > 0.0)
+        hi = dmax(hi, (zt - t->ez) / u);
     /* clear of everything nearer and of its last cell's diagonal's ends: visible without it */
-    if (!(sw->visible_ok && q > dmax(hi, diag_bound(sw, V, m)) + eps))
+    if (!(t->visible_ok && q > dmax(hi, diag_bound(t, V, m)) + eps))
         last_cell(sw, V, u, m, hu, &hi, &lo);
     /* in the bilinear slack of its piece: real points of that strip on the ray may prove it hidden */
-    if (sw->bil && q >= lo - eps && !(q > hi + eps && sw->visible_ok))
-        lo = dmax(lo, band_lo(sw, &F->p[k], m, hu));
+    if (t->bil && q >= lo - eps && !(q > hi + eps && t->visible_ok))
+        lo = dmax(lo, band_lo(sw, &Fp[k], m, hu));
 decide:
 #ifdef TD_VSWEEP_DEBUG /* every proof checked against the cast */
-    if (((q > hi + eps && sw->visible_ok) || (q < lo - eps && (sw->hidden_ok || starts_clear(sw, U, V))))) {
+    if (((q > hi + eps && t->visible_ok) || (q < lo - eps && (t->hidden_ok || starts_clear(sw, U, V))))) {
+        const td_vsweep_job *j = sw->job;
+        const cone *c = &sw->c;
         uint32_t st = 0;
         int32_t i = c->ui * U + c->vi * V, jj = c->uj * U + c->vj * V;
         int r = td_viewshed_cast(j->v, j->surface, j->method, j->ex, j->ey, j->ez, i, jj, j->target_height, &st);
-        if ((r > 0) != (q > hi + eps && sw->visible_ok))
+        if ((r > 0) != (q > hi + eps && t->visible_ok))
             fprintf(stderr, "MISMATCH U %d V %d (i %d j %d) u %g m %g q %.9g hi %.9g lo %.9g cast %d F piece %d/%d\n",
-                    U, V, i, jj, u, m, q, hi, lo, r, k, F->n);
+                    U, V, i, jj, u, m, q, hi, lo, r, k, sw->F.n);
     }
 #endif
-    if (q > hi + eps && sw->visible_ok) {
-        sw->vis[cidx(c, U, V)] = 1;
+    if (q > hi + eps && t->visible_ok) {
+        t->vis[V * t->vstride] = 1;
         sw->swept++;
-    } else if (q < lo - eps && (sw->hidden_ok || starts_clear(sw, U, V))) {
-        sw->vis[cidx(c, U, V)] = 0;
+    } else if (q < lo - eps && (t->hidden_ok || starts_clear(sw, U, V))) {
+        t->vis[V * t->vstride] = 0;
         sw->swept++;
     } else {
         cast(sw, U, V);
@@ -1152,6 +1209,7 @@ static int owned(const sweep *sw, int32_t U, int32_t V, double u)
 static void sweep_cone(sweep *sw)
 {
     const cone *c = &sw->c;
+    tgt_cols t;
     int32_t U0 = (int32_t)floor(c->eu) + 1; /* the first column east of the eye */
     pv_clear(&sw->F);
     for (int b = 0; b < VS_BINS; b++)
@@ -1169,14 +1227,15 @@ static void sweep_cone(sweep *sw)
             break;
         load_next(sw, U);
         col_pass(sw, U, V0, V1);
-        sw->hint_q = sw->hint_n = 0;
+        sw->hint_q = 0;
+        tgt_cols_init(sw, U, &t);
         for (int32_t V = V0; V <= V1; V++) {
-            if (!owned(sw, U, V, u) || isnan(sw->zcol[1][V - c->vlo]))
+            if (!owned(sw, U, V, u) || isnan(t.zc[V]))
                 continue;
             if (U <= U0 + 1) /* the first two columns: cast */
                 cast(sw, U, V);
             else
-                target(sw, U, V);
+                target(sw, &t, U, V);
         }
         add_column(sw, U, U > U0);
     }
