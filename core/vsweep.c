@@ -808,10 +808,11 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
     const double *mc = sw->mcol[1] - c->vlo, *qc = sw->qcol[1] - c->vlo, *fm = sw->fmin - c->vlo;
     double *lc = sw->lcol - c->vlo, *cs = sw->cslope - c->vlo, u = U - c->eu, z[4], zl[4];
     uint8_t *ok = sw->colok - c->vlo;
+    const int holes = sw->holes;
     for (int32_t V = V0; V < V1; V++) {
         /* without voids every cell beside the column is there: the rows V0 .. V1 of columns
          * U-1 .. U+1 are loaded and on the grid */
-        ok[V] = (uint8_t)(!sw->holes || (U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl));
+        ok[V] = (uint8_t)(!holes || (U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl));
         lc[V] = ok[V] ? dmax(fm[V], dmin(qc[V], qc[V + 1])) : fm[V];
         cs[V] = ok[V] ? (qc[V + 1] - qc[V]) / (mc[V + 1] - mc[V]) : 0.0;
     }
@@ -1209,6 +1210,8 @@ static int owned(const sweep *sw, int32_t U, int32_t V, double u)
 static void sweep_cone(sweep *sw)
 {
     const cone *c = &sw->c;
+    const double ev = c->ev;
+    const int strict = c->strict, nomax = sw->job->maxd2 == INFINITY;
     tgt_cols t;
     int32_t U0 = (int32_t)floor(c->eu) + 1; /* the first column east of the eye */
     pv_clear(&sw->F);
@@ -1230,7 +1233,9 @@ static void sweep_cone(sweep *sw)
         sw->hint_q = 0;
         tgt_cols_init(sw, U, &t);
         for (int32_t V = V0; V <= V1; V++) {
-            if (!owned(sw, U, V, u) || isnan(t.zc[V]))
+            double dv = fabs(V - ev);
+            /* owned() (its cone's test inline: the loop's locals are not reloaded) */
+            if (!(strict ? dv < u : dv <= u) || (!nomax && !owned(sw, U, V, u)) || isnan(t.zc[V]))
                 continue;
             if (U <= U0 + 1) /* the first two columns: cast */
                 cast(sw, U, V);
