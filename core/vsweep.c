@@ -195,11 +195,12 @@ static inline void emit(pvec *o, double m, const piece *src, const piece **last)
  * ranges [dom[2i], dom[2i+1]) of m where b is known to be above a by a margin (the column
  * pass's, col_pieces): there b's pieces are copied and a's skipped, without comparing
  * them (b wins every comparison there, and joins as it would). */
-static void merge(const piece *a, int na, const piece *b, int nb, pvec *out, const double *dom, int ndom)
+static void merge(const piece *a, int na, const piece *b, int nb, pvec *outp, const double *dom, int ndom)
 {
     int ia = 0, ib = 0, id = 0;
     double cur = a[0].m, end = a[na].m;
     const piece *last = NULL;
+    pvec o = *outp, *out = &o; /* a local: the stores of pieces and of last leave it in registers */
     out->n = 0;
     while (cur < end && ia < na && ib < nb) {
         double ea, eb, nx;
@@ -274,6 +275,7 @@ static void merge(const piece *a, int na, const piece *b, int nb, pvec *out, con
     }
     out->p[out->n] = empty_piece;
     out->p[out->n].m = end;
+    *outp = o;
 }
 
 /* The piece of v containing m (p[k].m <= m < p[k+1].m; the last one for m = end),
