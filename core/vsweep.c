@@ -284,20 +284,23 @@ static void merge(const piece *a, int na, const piece *b, int nb, pvec *outp, co
     *outp = o;
 }
 
-/* The piece of v containing m (p[k].m <= m < p[k+1].m; the last one for m = end),
- * searched from *hint. */
-static int find(const pvec *v, double m, int *hint)
+/* The piece of the n pieces p containing m (p[k].m <= m < p[k+1].m; the last one for
+ * m = end), searched from *hint. */
+static inline int find_in(const piece *p, int n, double m, int *hint)
 {
     int k = *hint;
-    if (k >= v->n)
-        k = v->n - 1;
-    while (k > 0 && v->p[k].m > m)
+    if (k >= n)
+        k = n - 1;
+    while (k > 0 && p[k].m > m)
         k--;
-    while (k + 1 < v->n && v->p[k + 1].m <= m)
+    while (k + 1 < n && p[k + 1].m <= m)
         k++;
     *hint = k;
     return k;
 }
+
+/* find_in over v's pieces. */
+static int find(const pvec *v, double m, int *hint) { return find_in(v->p, v->n, m, hint); }
 
 /* ---- cone coordinates ------------------------------------------------------------ */
 
@@ -1125,20 +1128,6 @@ static inline double diag_bound(const tgt_cols *t, int32_t V, double m)
     return isnan(b) ? INFINITY : b;
 }
 
-/* The piece of N holding m (find's search on the context's copy). */
-static inline int find_n(tgt_cols *t, double m)
-{
-    int k = t->hint_n;
-    if (k >= t->nn)
-        k = t->nn - 1;
-    while (k > 0 && t->Np[k].m > m)
-        k--;
-    while (k + 1 < t->nn && t->Np[k + 1].m <= m)
-        k++;
-    t->hint_n = k;
-    return k;
-}
-
 /* Decides target (U, V) of column U (not a void) against F, or casts it. */
 static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
 {
@@ -1160,7 +1149,7 @@ static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
     if (q < lo - eps && t->hidden_ok) /* proved hidden already: the rest only raises lo */
         goto decide;
     {
-        int kn = find_n(t, m);
+        int kn = find_in(t->Np, t->nn, m, &t->hint_n);
         hi = dmax(hi, pval(&t->Np[kn], m));
         if (kn > 0 && t->Np[kn].m == m) /* on a break: the piece ending here too */
             hi = dmax(hi, pval(&t->Np[kn - 1], m));
