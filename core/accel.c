@@ -21,6 +21,13 @@ void td_accel_opts_default(td_accel_opts *o)
     o->threads = 0;
 }
 
+void td_accel_opts_for(td_method m, td_accel_opts *o)
+{
+    td_accel_opts_default(o);
+    o->maxmip = m == TD_METHOD_HIERARCHICAL || m == TD_METHOD_AUTO;
+    o->planes = m == TD_METHOD_PARAMETRIC;
+}
+
 int td_cpu_count(void)
 {
     long n = sysconf(_SC_NPROCESSORS_ONLN);

@@ -1,7 +1,9 @@
 /* maxmip.h: one tile's max-mipmap (quadtree of maxima) for the hierarchical tracer.
  * Level 0 (one cell) is not stored: the tracer reads the cell's corners anyway. Level L
- * >= 1 holds, per block of 2^L x 2^L cells, the highest corner of any non-hole cell in
- * it (-inf if all are holes), which bounds every surface. */
+ * >= 1 holds, per block of 2^L x 2^L cells, a bound on the highest corner of any non-hole
+ * cell in it, which bounds every surface: a 16-bit code per block, decoded by
+ * td_maxmip_bound to a height never below that corner and at most one step of the
+ * tile's code above it (a block of holes only decodes to the tile's lowest code). */
 #ifndef TD_MAXMIP_H
 #define TD_MAXMIP_H
 
@@ -11,10 +13,23 @@ struct td_maxmip {
     int levels;          /* stored levels 1 .. levels (block of the top level covers the tile) */
     int32_t dim[17];     /* blocks per side at level L: dim[L] = 2^levels >> L, where 2^levels
                             covers the tile's cells (T, or less for a partial tile) */
-    size_t offset[17];   /* offset of level L in `max` */
-    float *max;          /* all levels, row-major, south first */
+    size_t offset[17];   /* offset of level L in `code` */
+    double base, step;   /* code q stands for the height base + q * step (step > 0) */
+    uint16_t *code;      /* all levels, row-major, south first */
     size_t bytes;
 };
+
+/* The code of block (bi, bj) of level L (1 .. levels). */
+static inline uint16_t td_maxmip_code(const td_maxmip *m, int L, int32_t bi, int32_t bj)
+{
+    return m->code[m->offset[L] + (size_t)bj * (size_t)m->dim[L] + (size_t)bi];
+}
+
+/* Its bound. */
+static inline double td_maxmip_bound(const td_maxmip *m, int L, int32_t bi, int32_t bj)
+{
+    return m->base + (double)td_maxmip_code(m, L, bi, bj) * m->step;
+}
 
 td_status td_maxmip_build(const td_grid *g, size_t tile, td_maxmip **out, td_err *err);
 void td_maxmip_free(td_maxmip *m);

@@ -43,7 +43,12 @@
  * gap: a centre distance of max(|di|-1, 0)*sx by max(|dj|-1, 0)*sy. The EDT is weighted
  * by sx^2 and sy^2, so cells need not be square.
  *
- * Storage, 2 bytes per cell: the apex is always one of the K slice heights z_{m+1} or
+ * Storage, 2 bytes per block of 2 x 2 cells (half a byte a cell; it was 2 bytes a cell
+ * until issue 12's 6 bytes a cell with every structure): a block keeps the cone that is
+ * no narrower than any of its cells' (the highest apex, the largest slope), which holds
+ * for a ray point anywhere over the block: over cell c of it, H(q) <= z_p(c) + s_p(c) *
+ * gap(c, q) <= z_p + s_p * rho. Each cell's cone, before that:
+ * the apex is always one of the K slice heights z_{m+1} or
  * zhi, so a cell stores its index into the tile's table of K + 1 heights (rounded up to
  * float); the slope is a byte code, the smallest whose value (a per-tile power of two
  * times td_planes_slope_unit, steps of at most 6.25%) is at least the computed slope.
@@ -213,14 +218,17 @@ static td_status planes_alloc(int32_t nx, int32_t ny, int k, td_planes **out, pl
     p->k = k;
     p->nx = nx;
     p->ny = ny;
+    p->bnx = td_planes_blocks(nx);
+    p->bny = td_planes_blocks(ny);
     p->slope_scale = 1.0;
-    p->cone = malloc(sizeof(td_cone) * n);
+    p->cone = malloc(sizeof(td_cone) * n); /* a cone per cell while building (block_cones) */
     p->apex = malloc(sizeof(float) * ((size_t)k + 1));
     if (!p->cone || !p->apex) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for parameter planes");
         goto out;
     }
-    p->bytes = sizeof *p + sizeof(td_cone) * n + sizeof(float) * ((size_t)k + 1);
+    p->bytes = sizeof *p + sizeof(td_cone) * (size_t)p->bnx * (size_t)p->bny +
+               sizeof(float) * ((size_t)k + 1);
 out:
     *out = p;
     return rc;
@@ -341,6 +349,28 @@ TD_ROW_CLONES static void cell_range(const float *cell, size_t n, float *lo, flo
     *hi = zhi;
 }
 
+/* The cells' cones to their blocks' (TD_PLANES_BLOCK_LOG2), in place: the highest apex
+ * index and the largest slope code of the block's cells (both tables ascend, so the cone
+ * is no narrower than any of theirs). A block's slot comes before every cell a later
+ * block reads, so no cell is overwritten before it is read. */
+static void block_cones(td_planes *p)
+{
+    const int B = TD_PLANES_BLOCK_LOG2;
+    for (int32_t bj = 0; bj < p->bny; bj++) {
+        for (int32_t bi = 0; bi < p->bnx; bi++) {
+            td_cone c = {0, 0};
+            for (int32_t cj = bj << B; cj < ((bj + 1) << B) && cj < p->ny; cj++) {
+                for (int32_t ci = bi << B; ci < ((bi + 1) << B) && ci < p->nx; ci++) {
+                    td_cone q = p->cone[(size_t)cj * (size_t)p->nx + (size_t)ci];
+                    c.apex = q.apex > c.apex ? q.apex : c.apex;
+                    c.slope = q.slope > c.slope ? q.slope : c.slope;
+                }
+            }
+            p->cone[(size_t)bj * (size_t)p->bnx + (size_t)bi] = c;
+        }
+    }
+}
+
 /* Slope encoding: the tile's scale (a power of two that puts its steepest finite slope
  * under the top code), then each cell's code, rounded up. */
 static void encode_slopes(td_planes *p, const float *sp)
@@ -394,6 +424,11 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
     td_planes_max3x3(w.cell, t->nx, t->ny, w.h3);
     sweep_slices(p, &w, g, zlo, zhi, slices);
     encode_slopes(p, w.sp);
+    block_cones(p);
+    {
+        td_cone *fit = realloc(p->cone, sizeof(td_cone) * (size_t)p->bnx * (size_t)p->bny);
+        p->cone = fit ? fit : p->cone; /* a failed shrink keeps the larger block */
+    }
 out:
     planes_work_free(&w);
     if (rc != TD_OK) {

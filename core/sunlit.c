@@ -41,14 +41,21 @@ static double row_max(const sweep *w, int32_t bw, const float *vals, int32_t ia,
     return m;
 }
 
-/* The block maxima (td_view_max over each block's cells). */
+/* The nearest float at or above b (a bound must not round down). */
+static inline float float_up(double b)
+{
+    float f = (float)b;
+    return (double)f < b ? nextafterf(f, INFINITY) : f;
+}
+
+/* The block maxima (td_view_max over each block's cells, a max-mipmap's bound among them). */
 static void block_maxima(const td_view *v, int32_t bw, int32_t bh, float *bm)
 {
     const int32_t S = (int32_t)1 << TD_SUNLIT_SHIFT;
     for (int32_t by = 0; by < bh; by++)
         for (int32_t bx = 0; bx < bw; bx++)
             bm[(size_t)by * (size_t)bw + (size_t)bx] =
-                (float)td_view_max(v, bx * S, bx * S + S - 1, by * S, by * S + S - 1);
+                float_up(td_view_max(v, bx * S, bx * S + S - 1, by * S, by * S + S - 1));
 }
 
 /* The sweep against the sun (see the top of sunlit.h); h may alias nothing. Values are
@@ -65,9 +72,7 @@ static void sweep_rows(const sweep *w, int32_t bw, const float *bm, float *h)
             double hi = ib + 1.0 + (w->del > 0.0 ? w->del : 0.0) + eps;
             double m = dmax(row_max(w, bw, bm, ia, lo, hi), row_max(w, bw, bm, next, lo, hi));
             double hn = row_max(w, bw, h, next, ib + w->del - eps, ib + 1.0 + w->del + eps);
-            double b = dmax(m, hn - w->decay);
-            float f = (float)b;
-            h[idx(w, bw, ia, ib)] = (double)f < b ? nextafterf(f, INFINITY) : f;
+            h[idx(w, bw, ia, ib)] = float_up(dmax(m, hn - w->decay));
         }
     }
 }

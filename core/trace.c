@@ -685,6 +685,8 @@ static int hier_run(const walk *restrict w, const td_tile *tile, const td_tile_a
     /* the tile test covered the top; a ray started near its hit (td_trace_from) climbs
        from the bottom instead */
     int L = st->level >= 0 ? st->level : (mm->levels > 1 ? mm->levels - 1 : mm->levels);
+    /* td_maxmip_bound plus zeps, its scale held in registers across the cell tests' stores */
+    const double base = mm->base + w->zeps, step = mm->step;
     uint32_t n = 0;
     while (rc == STEP_CONTINUE && in_box(st, &tb)) {
         n++;
@@ -693,13 +695,13 @@ static int hier_run(const walk *restrict w, const td_tile *tile, const td_tile_a
             L = 1;
         } else {
             int32_t bi = (st->ci - tb.ulo) >> L, bj = (st->cj - tb.vlo) >> L;
-            float m = mm->max[mm->offset[L] + (size_t)bj * (size_t)mm->dim[L] + (size_t)bi];
+            double m = base + (double)td_maxmip_code(mm, L, bi, bj) * step;
             box b = {tb.ulo + (bi << L), 0, tb.vlo + (bj << L), 0};
             b.uhi = b.ulo + ((int32_t)1 << L) < tb.uhi ? b.ulo + ((int32_t)1 << L) : tb.uhi;
             b.vhi = b.vlo + ((int32_t)1 << L) < tb.vhi ? b.vlo + ((int32_t)1 << L) : tb.vhi;
             double tu = box_exit_u(w, &b), tv = box_exit_v(w, &b);
             double tx = dmin(dmin(tu, tv), w->t_end);
-            if (dmin(ray_z(w, st->t), ray_z(w, tx)) > (double)m + w->zeps) {
+            if (dmin(ray_z(w, st->t), ray_z(w, tx)) > m) {
                 rc = leave_box_at(w, st, &b, tu, tv);
                 L = L < mm->levels ? L + 1 : L;
                 if (rc == STEP_CONTINUE && lit_end(w, st))
@@ -726,8 +728,7 @@ static int cone_run(const walk *restrict w, const td_tile *tile, const td_tile_a
     const double tx = dmin(dmin(txu, txv), w->t_end);
     uint32_t n = 0;
     while (rc == STEP_CONTINUE && in_box(st, &tb)) {
-        size_t idx = (size_t)(st->cj - tb.vlo) * (size_t)pl->nx + (size_t)(st->ci - tb.ulo);
-        const td_cone cone = pl->cone[idx];
+        const td_cone cone = td_planes_cone(pl, st->ci - tb.ulo, st->cj - tb.vlo);
         double zp = td_cone_apex(pl, cone), sp = td_cone_slope(pl, cone);
         double above = ray_z(w, st->t) - zp - w->zeps;
         int jumped = 0;
@@ -1180,14 +1181,14 @@ static float samples_max(const td_grid *g, int32_t i0, int32_t i1, int32_t j0, i
 /* Highest corner over the cells [i0, i1] x [j0, j1] of one tile (clipped to it): the
  * samples themselves for a box of up to 3 x 3 cells, else the max-mipmap blocks of the
  * finest level at which at most 4 x 4 of them cover it, else the tile's zmax. */
-static float tile_box_max(const td_view *v, const td_tile *t, size_t ti, int32_t i0, int32_t i1,
-                          int32_t j0, int32_t j1)
+static double tile_box_max(const td_view *v, const td_tile *t, size_t ti, int32_t i0, int32_t i1,
+                           int32_t j0, int32_t j1)
 {
     const td_grid *g = v->grid;
     const td_maxmip *mm = v->accel ? v->accel[ti].maxmip : NULL;
     int32_t ci0 = i0 > t->i0 ? i0 : t->i0, ci1 = i1 < t->i0 + t->nx - 1 ? i1 : t->i0 + t->nx - 1;
     int32_t cj0 = j0 > t->j0 ? j0 : t->j0, cj1 = j1 < t->j0 + t->ny - 1 ? j1 : t->j0 + t->ny - 1;
-    float m = t->zmax;
+    double m = (double)t->zmax;
     if (ci1 - ci0 < 3 && cj1 - cj0 < 3) {
         m = samples_max(g, ci0, ci1, cj0, cj1);
     } else if (mm) {
@@ -1196,12 +1197,11 @@ static float tile_box_max(const td_view *v, const td_tile *t, size_t ti, int32_t
         while (L <= mm->levels && ((li1 >> L) - (li0 >> L) > 3 || (lj1 >> L) - (lj0 >> L) > 3))
             L++;
         if (L <= mm->levels) {
-            const float *lev = mm->max + mm->offset[L];
-            size_t dim = (size_t)mm->dim[L];
-            m = -INFINITY;
+            double b = -INFINITY;
             for (int32_t bj = lj0 >> L; bj <= lj1 >> L; bj++)
                 for (int32_t bi = li0 >> L; bi <= li1 >> L; bi++)
-                    m = fmax_nan(m, lev[(size_t)bj * dim + (size_t)bi]);
+                    b = dmax(b, td_maxmip_bound(mm, L, bi, bj));
+            m = b < m ? b : m; /* the tile's own bound, when lower */
         }
     } else if ((int64_t)(ci1 - ci0 + 1) * (cj1 - cj0 + 1) <= 64) {
         m = samples_max(g, ci0, ci1, cj0, cj1);
@@ -1213,7 +1213,7 @@ double td_view_max(const td_view *v, int32_t i0, int32_t i1, int32_t j0, int32_t
 {
     const td_grid *g = v->grid;
     const int tl = g->tile_log2;
-    float m = -INFINITY;
+    double m = -INFINITY;
     i0 = i0 < 0 ? 0 : i0;
     j0 = j0 < 0 ? 0 : j0;
     i1 = i1 > g->w - 2 ? g->w - 2 : i1;
@@ -1221,10 +1221,10 @@ double td_view_max(const td_view *v, int32_t i0, int32_t i1, int32_t j0, int32_t
     for (int32_t tj = j0 >> tl; i0 <= i1 && tj <= j1 >> tl; tj++) {
         for (int32_t ti = i0 >> tl; ti <= i1 >> tl; ti++) {
             size_t k = (size_t)tj * (size_t)g->tiles_x + (size_t)ti;
-            m = fmax_nan(m, tile_box_max(v, &g->tiles[k], k, i0, i1, j0, j1));
+            m = dmax(m, tile_box_max(v, &g->tiles[k], k, i0, i1, j0, j1));
         }
     }
-    return (double)m;
+    return m;
 }
 
 double td_surface_height(const td_grid *g, td_surface s, int32_t ci, int32_t cj, double x, double y)

@@ -405,9 +405,7 @@ static int load_dataset(render_run *run)
     if (run->scene->effects.sun_time && sun_at_time(run, &err))
         goto out;
     run->load_ms = 1e3 * td_clock_s() - t;
-    td_accel_opts_default(&aopts);
-    aopts.maxmip = m == TD_METHOD_HIERARCHICAL || m == TD_METHOD_AUTO;
-    aopts.planes = m == TD_METHOD_PARAMETRIC || m == TD_METHOD_AUTO;
+    td_accel_opts_for(m, &aopts);
     aopts.threads = run->threads;
     if (aopts.maxmip || aopts.planes) {
         t = 1e3 * td_clock_s();

@@ -233,9 +233,7 @@ static int load_dem(trace_run *run)
         goto out;
     }
     run->load_s = td_clock_s() - t0;
-    td_accel_opts_default(&aopts);
-    aopts.maxmip = run->method == TD_METHOD_HIERARCHICAL || run->method == TD_METHOD_AUTO;
-    aopts.planes = run->method == TD_METHOD_PARAMETRIC || run->method == TD_METHOD_AUTO;
+    td_accel_opts_for(run->method, &aopts);
     aopts.planes_k = run->k;
     aopts.threads = run->threads;
     if ((aopts.maxmip || aopts.planes) && td_accel_build(run->g, &aopts, &run->acc, &run->astats, &err) != TD_OK) {

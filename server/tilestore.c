@@ -160,12 +160,13 @@ struct td_snapshot {
 /* --- the kinds of part: per-kind operations --------------------------------------- */
 
 #define TD_CACHE_MAGIC "TDACCEL"
-#define TD_CACHE_VERSION 4u /* 2: planes stored as interleaved cones; 3: quantised cones;
-                               4: the checksum covers the header too */
+#define TD_CACHE_VERSION 5u /* 2: planes stored as interleaved cones; 3: quantised cones;
+                               4: the checksum covers the header too; 5: 16-bit maxima,
+                               cones per 2 x 2 cells */
 
 /* A cache file: this header, then the payload (the kind's pieces in order). The layout
  * is version 3's: `param` was named planes_k, and the shape fields (levels, dim, offset,
- * slope_scale) are each kind's to fill. */
+ * slope_scale; since 5 code_base, code_step) are each kind's to fill. */
 typedef struct td_cache_hdr {
     char magic[8];
     uint32_t version, kind;
@@ -178,6 +179,7 @@ typedef struct td_cache_hdr {
     int32_t pad2;
     uint64_t offset[17];
     double slope_scale; /* planes */
+    double code_base, code_step; /* maxmip */
     uint64_t payload;   /* bytes after the header */
     uint64_t checksum;
 } td_cache_hdr;
@@ -239,7 +241,7 @@ static uint64_t maxmip_bound(const td_tile *t, int tile_log2, int param)
     uint64_t tt = (uint64_t)1 << tile_log2;
     (void)t;
     (void)param;
-    return sizeof(td_maxmip) + sizeof(float) * (tt * tt / 3 + 64);
+    return sizeof(td_maxmip) + sizeof(uint16_t) * (tt * tt / 3 + 64);
 }
 
 static void maxmip_attach(td_tile_accel *a, const void *obj) { a->maxmip = obj; }
@@ -252,8 +254,10 @@ static int maxmip_pieces(void *obj, td_cache_hdr *h, td_piece *pc)
         h->dim[i] = m->dim[i];
         h->offset[i] = m->offset[i];
     }
-    pc[0].ptr = m->max;
-    pc[0].len = (m->bytes - sizeof *m) / sizeof(float) * sizeof(float);
+    h->code_base = m->base;
+    h->code_step = m->step;
+    pc[0].ptr = m->code;
+    pc[0].len = (m->bytes - sizeof *m) / sizeof(uint16_t) * sizeof(uint16_t);
     return 1;
 }
 
@@ -279,7 +283,7 @@ static const char *maxmip_alloc(const td_cache_hdr *h, void **obj, size_t *bytes
             why = "bad shape";
         total += (uint64_t)h->dim[l] * (uint64_t)h->dim[l];
     }
-    if (!why && h->payload != total * sizeof(float))
+    if (!why && h->payload != total * sizeof(uint16_t))
         why = "bad shape";
     if (why)
         goto out;
@@ -288,14 +292,16 @@ static const char *maxmip_alloc(const td_cache_hdr *h, void **obj, size_t *bytes
         m->dim[i] = h->dim[i];
         m->offset[i] = (size_t)h->offset[i];
     }
-    m->max = malloc(h->payload ? h->payload : 1);
-    if (!m->max) {
+    m->base = h->code_base;
+    m->step = h->code_step;
+    m->code = malloc(h->payload ? h->payload : 1);
+    if (!m->code) {
         why = "out of memory";
         goto out;
     }
     m->bytes = sizeof *m + h->payload;
     *bytes = m->bytes;
-    pc[0].ptr = m->max;
+    pc[0].ptr = m->code;
     pc[0].len = h->payload;
     *npc = 1;
 out:
@@ -304,8 +310,8 @@ out:
 
 static const char *maxmip_check(const void *obj)
 {
-    (void)obj; /* maxima are only compared with: any float is safe */
-    return NULL;
+    const td_maxmip *m = obj; /* any code is safe; a base of -inf or a step of 0 is not */
+    return isfinite(m->base) && isfinite(m->step) && m->step > 0.0 ? NULL : "bad code scale";
 }
 
 /* parameter planes (planes.h) */
@@ -327,7 +333,8 @@ static void planes_free(void *obj) { td_planes_free(obj); }
 static uint64_t planes_bound(const td_tile *t, int tile_log2, int param)
 {
     (void)tile_log2;
-    return sizeof(td_planes) + sizeof(td_cone) * (uint64_t)t->nx * (uint64_t)t->ny +
+    return sizeof(td_planes) +
+           sizeof(td_cone) * (uint64_t)td_planes_blocks(t->nx) * (uint64_t)td_planes_blocks(t->ny) +
            sizeof(float) * ((uint64_t)param + 1);
 }
 
@@ -339,7 +346,7 @@ static int planes_pieces(void *obj, td_cache_hdr *h, td_piece *pc)
     h->levels = p->k;
     h->slope_scale = p->slope_scale;
     pc[0].ptr = p->cone;
-    pc[0].len = (size_t)p->nx * (size_t)p->ny * sizeof(td_cone);
+    pc[0].len = (size_t)p->bnx * (size_t)p->bny * sizeof(td_cone);
     pc[1].ptr = p->apex;
     pc[1].len = ((size_t)p->k + 1) * sizeof(float);
     return 2;
@@ -350,7 +357,7 @@ static const char *planes_alloc(const td_cache_hdr *h, void **obj, size_t *bytes
 {
     const char *why = NULL;
     td_planes *p = calloc(1, sizeof *p);
-    size_t n = (size_t)h->nx * (size_t)h->ny * sizeof(td_cone);
+    size_t n = (size_t)td_planes_blocks(h->nx) * (size_t)td_planes_blocks(h->ny) * sizeof(td_cone);
     size_t na = ((size_t)h->param + 1) * sizeof(float);
     *obj = p;
     if (!p || h->payload != n + na || h->levels != (int32_t)h->param || !(h->slope_scale > 0.0) ||
@@ -361,6 +368,8 @@ static const char *planes_alloc(const td_cache_hdr *h, void **obj, size_t *bytes
     p->k = h->levels;
     p->nx = h->nx;
     p->ny = h->ny;
+    p->bnx = td_planes_blocks(h->nx);
+    p->bny = td_planes_blocks(h->ny);
     p->slope_scale = h->slope_scale;
     p->cone = malloc(n ? n : 1);
     p->apex = malloc(na);
@@ -387,7 +396,7 @@ static const char *planes_check(const void *obj)
     for (int i = 0; i <= p->k && !why; i++)
         if (isnan(p->apex[i]))
             why = "bad apex heights";
-    for (size_t c = 0; c < (size_t)p->nx * (size_t)p->ny && !why; c++)
+    for (size_t c = 0; c < (size_t)p->bnx * (size_t)p->bny && !why; c++)
         if (p->cone[c].apex > p->k)
             why = "cone apex out of range";
     return why;

@@ -305,14 +305,11 @@ static void write_designs(FILE *f, const bench_ctx *b)
                 st, td_method_name((td_method)pm));
     if (bpc > 6)
         fprintf(f,
-                "- **6 bytes per cell** (now %.2f with both structures). The planes are already "
-                "quantised (2 bytes a cell: an apex index into the tile's K + 1 slice heights and a "
-                "slope code rounded up; 4x less than two floats for under 1%% more steps), and the "
-                "heights are a float per sample, a little over 4 bytes a cell; so either structure "
-                "alone is at about 6 and both together at 7.5. *Heights as 16-bit offsets per tile* "
-                "(the acceleration rounded outward, the surface from the exact samples kept "
-                "elsewhere or quantised to the DEM's own precision, often 1 m or 0.1 m) would bring "
-                "both together to about 5.5.\n",
+                "- **6 bytes per cell** (now %.2f with both structures). The max-mipmap is 16-bit "
+                "codes per tile (0.67 bytes a cell and its partial tiles' padding) and the planes a "
+                "2-byte cone per 2 x 2 cells (0.5 bytes a cell), so what is left is the heights, a "
+                "float per sample. *Heights as 16-bit offsets per tile* where that is lossless (the "
+                "integer metres of SRTM and USGS DEMs) would take 2 bytes a cell off.\n",
                 bpc);
     if (d->em[TD_EMBREE_GRID].done && d->planes_s > d->em[TD_EMBREE_GRID].build_s)
         fprintf(f,
@@ -416,8 +413,8 @@ static void write_errors(FILE *f, const bench_ctx *b)
             fprintf(f, "| %d | %.3f | %.2f | %.2f | %.0f | %s |\n", k->k, k->build_s, (double)k->bytes / d->cells,
                     k->tr.mean_steps, k->tr.p99_steps, rate(a, sizeof a, k->tr.rps));
         }
-        fprintf(f, "\nThe planes hold two bytes per cell (an apex index and a slope code) whatever K is; K buys "
-                   "tighter cones (fewer steps) with build time. The default is K = %d.\n\n",
+        fprintf(f, "\nThe planes hold two bytes per 2 x 2 cells (an apex index and a slope code) whatever K "
+                   "is; K buys tighter cones (fewer steps) with build time. The default is K = %d.\n\n",
                 TD_PLANES_K_DEFAULT);
     }
 }

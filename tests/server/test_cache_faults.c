@@ -169,8 +169,9 @@ static void same_as_fresh(td_store *s)
     assert_int_equal(td_maxmip_build(v->grid, TILE, &m, &e), TD_OK);
     assert_int_equal(td_planes_build(v->grid, TILE, 8, &p, &e), TD_OK);
     assert_int_equal(v->accel[TILE].maxmip->bytes, m->bytes);
-    assert_memory_equal(v->accel[TILE].maxmip->max, m->max, m->bytes - sizeof *m);
-    assert_memory_equal(v->accel[TILE].planes->cone, p->cone, sizeof(td_cone) * (size_t)p->nx * (size_t)p->ny);
+    assert_memory_equal(v->accel[TILE].maxmip->code, m->code, m->bytes - sizeof *m);
+    assert_true(v->accel[TILE].maxmip->base == m->base && v->accel[TILE].maxmip->step == m->step);
+    assert_memory_equal(v->accel[TILE].planes->cone, p->cone, sizeof(td_cone) * (size_t)p->bnx * (size_t)p->bny);
     assert_memory_equal(v->accel[TILE].planes->apex, p->apex, sizeof(float) * ((size_t)p->k + 1));
     td_maxmip_free(m);
     td_planes_free(p);
@@ -335,13 +336,15 @@ static void test_other_dataset_and_tile(void **state)
 
 /* Files with a valid checksum whose content would make a tracer index out of range (a
  * buggy or hostile writer): a cone's apex index past the slices, a NaN apex height, a
- * max-mipmap level's dimension changed. Refused after the checksum, rebuilt. */
+ * max-mipmap level's dimension changed, its codes' base -inf. Refused after the checksum,
+ * rebuilt. */
 static void test_forged_checksum(void **state)
 {
     char pl[600], mm[600];
     unsigned char *b;
     size_t n, h;
     const float nan = __builtin_nanf("");
+    const double ninf = -__builtin_inf();
     int32_t dim;
     (void)state;
     populate();
@@ -368,6 +371,12 @@ static void test_forged_checksum(void **state)
     fix_checksum(b, n);
     spit(mm, b, n);
     reload_expect(1, 1);
+    free(b);
+    b = slurp(mm, &n); /* rewritten valid by the rebuild */
+    memcpy(b + 272, &ninf, sizeof ninf); /* code_base: after offset[17] and slope_scale */
+    fix_checksum(b, n);
+    spit(mm, b, n);
+    reload_expect(1, 1); /* every block would decode to -inf: every ray would pass */
     free(b);
 }
 

@@ -959,8 +959,8 @@ static void test_budget_refusal(void **state)
 {
     /* Heights and levels of detail: levi 0.98 MB, trinidad 1.90 MB, volcano 0.04 MB. In
      * 2 MiB trinidad's do not fit beside the others: skipped at load. In 3 MiB all three
-     * fit, with 0.23 MB to spare: volcano's acceleration (0.03 MB) fits, levi's (0.67
-     * MB) cannot be added beside them. */
+     * fit, with 0.43 MB to spare: volcano's acceleration (0.01 MB) and levi's (0.26 MB,
+     * pinned) fit, trinidad's (up to 0.43 MB) cannot be added beside them. */
     th_server s;
     th_resp r;
     json_t *j, *res;
@@ -987,13 +987,16 @@ static void test_budget_refusal(void **state)
     j = preload_wait(&s, "{\"dataset\":\"volcano\"}");
     assert_string_equal(json_string_value(json_object_get(j, "state")), "done");
     json_decref(j);
-    j = preload_wait(&s, "{\"dataset\":\"levi\"}");
+    j = preload_wait(&s, "{\"dataset\":\"levi\",\"pin\":true}");
+    assert_string_equal(json_string_value(json_object_get(j, "state")), "done");
+    json_decref(j);
+    j = preload_wait(&s, "{\"dataset\":\"trinidad\"}");
     assert_string_equal(json_string_value(json_object_get(j, "state")), "failed");
     assert_string_equal(json_string_value(json_object_get(json_object_get(j, "error"), "code")), "too_big");
     assert_non_null(strstr(json_string_value(json_object_get(json_object_get(j, "error"), "message")),
                            "budget"));
     json_decref(j);
-    res = dataset_residency(&s, "levi");
+    res = dataset_residency(&s, "trinidad");
     assert_int_equal(json_integer_value(json_object_get(res, "tiles")), 0);
     json_decref(res);
     res = dataset_residency(&s, "volcano"); /* untouched by the failed preload */
