@@ -196,6 +196,34 @@ static inline void emit(pvec *o, double m, const piece *src, const piece **last)
     *last = src;
 }
 
+/* merge's step over [cur, e), where b is above a: b's pieces out (joined as merge's own
+ * steps would join them), a's skipped; *ia, *ib left on the pieces holding e. 0 when a
+ * list ends first. */
+static inline int merge_won(const piece *a, int na, const piece *b, int nb, double cur, double e, int *ia,
+                            int *ib, pvec *out, const piece **last)
+{
+    int i = *ia, j = *ib, ok;
+    while (j < nb && b[j + 1].m <= cur) /* the pieces holding cur (past zero widths) */
+        j++;
+    while (i < na && a[i + 1].m <= cur)
+        i++;
+    ok = j < nb && i < na;
+    if (ok) {
+        emit(out, cur, &b[j], last);
+        while (b[j + 1].m < e) {
+            j++;
+            emit(out, b[j].m, &b[j], last);
+        }
+        while (j < nb && b[j + 1].m <= e)
+            j++;
+        while (i < na && a[i + 1].m <= e)
+            i++;
+    }
+    *ia = i;
+    *ib = j;
+    return ok;
+}
+
 /* out = max(a, b), both covering [a[0].m, end] with a[na].m = b[nb].m = end; out needs
  * room for 2 (na + nb) + 1 pieces. Ties go to a (the older). dom: ndom sorted disjoint
  * ranges [dom[2i], dom[2i+1]) of m where b is known to be above a by a margin (the column
@@ -215,21 +243,8 @@ static void merge(const piece *a, int na, const piece *b, int nb, pvec *outp, co
             id++;
         if (id < ndom && dom[2 * id] <= cur) { /* in a range where b is above a */
             double e = dmin(dom[2 * id + 1], end);
-            while (ib < nb && b[ib + 1].m <= cur) /* the pieces holding cur (past zero widths) */
-                ib++;
-            while (ia < na && a[ia + 1].m <= cur)
-                ia++;
-            if (ib >= nb || ia >= na)
+            if (!merge_won(a, na, b, nb, cur, e, &ia, &ib, out, &last))
                 break;
-            emit(out, cur, &b[ib], &last);
-            while (b[ib + 1].m < e) {
-                ib++;
-                emit(out, b[ib].m, &b[ib], &last);
-            }
-            while (ib < nb && b[ib + 1].m <= e)
-                ib++;
-            while (ia < na && a[ia + 1].m <= e)
-                ia++;
             cur = e;
             continue;
         }
