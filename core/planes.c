@@ -1,20 +1,25 @@
 /* planes.c: builds one tile's Paglieroni-Petersen parameter planes.
  *
- * Per cell c of the tile we store a cone of empty space: apex height z_p(c) and slope
- * s_p(c) (metres of height per metre of horizontal distance) such that every cell q of
- * the tile satisfies
+ * The tile's cells are grouped in blocks of 2 x 2 (TD_PLANES_BLOCK_LOG2; a partial block
+ * on the tile's east or north edge), and the planes are built over the blocks as if they
+ * were cells: a block's H is the highest corner of its cells, its footprint the 2 sx x 2
+ * sy rectangle that holds them. Per block c we store a cone of empty space: apex height
+ * z_p(c) and slope s_p(c) (metres of height per metre of horizontal distance) such that
+ * every block q of the tile satisfies
  *
  *     H(q) <= z_p(c) + s_p(c) * gap(c, q)                                        (1)
  *
- * where H(q) is q's highest corner (-inf for a hole) and gap(c, q) the horizontal
- * distance between the two cells' footprints (rectangles sx x sy), not between their
- * centres. Why (1) makes a parametric step safe for every surface:
- *   - Every surface (plane, linear, triangle, bilinear) inside q lies at or below H(q):
- *     each is a convex combination of q's corners, or the flat top at the highest one.
- *   - Let P be any point of the ray above cell c (anywhere over c's footprint, not only
- *     over its centre) at height z_P > z_p, and Q any terrain point in cell q at
+ * where H(q) is q's highest corner (-inf for a block of holes) and gap(c, q) the
+ * horizontal distance between the two blocks' footprints, not between their centres.
+ * Why (1) makes a parametric step safe for every surface:
+ *   - Every surface (plane, linear, triangle, bilinear) inside a cell lies at or below
+ *     its highest corner, so at or below the H of its block: each is a convex
+ *     combination of the cell's corners, or the flat top at the highest one.
+ *   - Let P be any point of the ray above block c (anywhere over c's footprint, not only
+ *     over its centre) at height z_P > z_p, and Q any terrain point in block q at
  *     horizontal distance rho from P. Since P lies in c's footprint and Q in q's,
- *     gap(c, q) <= rho, so the terrain at Q is at most z_p + s_p * rho.
+ *     gap(c, q) <= rho, so the terrain at Q is at most z_p + s_p * rho. (A partial
+ *     block's cells lie inside its nominal footprint, so its gaps only shrink.)
  *   - The ray descends at most g metres per horizontal metre (g < 0 when it rises), so
  *     it is above every terrain point within horizontal distance rho while
  *     z_P - g*rho > z_p + s_p*rho, i.e. for rho < (z_P - z_p) / (s_p + g); when
@@ -24,7 +29,18 @@
  * point; under interpolation they miss grazing hits (Ban et al., 2024). Using the
  * footprint gap removes that error at the cost of slightly shorter steps.
  *
- * Computing z_p and s_p from K slices (Paglieroni & Petersen 1994):
+ * Why blocks (issue 12: 6 bytes a cell with every structure; planes built no slower than
+ * Embree builds its GRID): a cone per cell took 2 bytes a cell and K EDTs over every
+ * cell. Per 2 x 2 block it takes half a byte a cell and a quarter of the EDTs. Measured
+ * (make bench, section 1, one thread, K = 16): builds 0.32 -> 0.08 s on trinidad, 0.034
+ * -> 0.010 s on picos, 0.016 -> 0.005 s on levi (Embree's GRID: 0.28, 0.047, 0.012 s),
+ * for 2-3% more parametric steps (trinidad 10.83 -> 11.05 a ray, picos 14.52 -> 15.01,
+ * levi 9.81 -> 10.15), which the smaller table more than pays for in time (trinidad
+ * 2.21 -> 2.50 M rays/s). Per-cell cones reduced to their blocks' (the highest apex and
+ * the largest slope of the four) cost 8% more steps than cones built over the blocks.
+ *
+ * Computing z_p and s_p from K slices (Paglieroni & Petersen 1994), "cell" below meaning
+ * a block:
  *   z_k = zlo + k*(zhi - zlo)/(K-1), k = 0 .. K-1, over the tile's valid cell maxima.
  *   D_k(c) = min gap(c, q) over cells q with H(q) >= z_k. Every cell closer than D_k has
  *   H < z_k, so the terrain's height as a function of the distance r from c is bounded
@@ -43,13 +59,8 @@
  * gap: a centre distance of max(|di|-1, 0)*sx by max(|dj|-1, 0)*sy. The EDT is weighted
  * by sx^2 and sy^2, so cells need not be square.
  *
- * Storage, 2 bytes per block of 2 x 2 cells (half a byte a cell; it was 2 bytes a cell
- * until issue 12's 6 bytes a cell with every structure): a block keeps the cone that is
- * no narrower than any of its cells' (the highest apex, the largest slope), which holds
- * for a ray point anywhere over the block: over cell c of it, H(q) <= z_p(c) + s_p(c) *
- * gap(c, q) <= z_p + s_p * rho. Each cell's cone, before that:
- * the apex is always one of the K slice heights z_{m+1} or
- * zhi, so a cell stores its index into the tile's table of K + 1 heights (rounded up to
+ * Storage, 2 bytes a block: the apex is always one of the K slice heights z_{m+1} or
+ * zhi, so a block stores its index into the tile's table of K + 1 heights (rounded up to
  * float); the slope is a byte code, the smallest whose value (a per-tile power of two
  * times td_planes_slope_unit, steps of at most 6.25%) is at least the computed slope.
  * Both round up, so the stored cone is never narrower than the computed one and (1)
@@ -75,9 +86,9 @@
  * as its test cost: not kept.
  *
  * Stages of td_planes_build, a function each: the cells' highest corners
- * (td_grid_cell_max) and their range, the dilation (td_planes_max3x3, public so that a
- * unit test holds it to brute force), the slice sweep (sweep_slices, cone_row per
- * cell), the slope encoding (encode_slopes). Called per tile by td_accel_build and by
+ * (td_grid_cell_max), the blocks' (block_max) and their range, the dilation
+ * (td_planes_max3x3, public so that a unit test holds it to brute force), the slice sweep
+ * (sweep_slices, cone_row per block), the slope encoding (encode_slopes). Called per tile by td_accel_build and by
  * the server's tile store. */
 #include "planes.h"
 
@@ -193,12 +204,14 @@ static void planes_work_free(planes_work *w)
     td_edt_scratch_free(&w->scratch);
 }
 
-/* The planes of an nx x ny tile with k slices (shape, no values yet) and the scratch. */
+/* The planes of an nx x ny tile with k slices (shape, no values yet) and the scratch, which
+ * works on the tile's blocks of cones (bnx x bny). */
 static td_status planes_alloc(int32_t nx, int32_t ny, int k, td_planes **out, planes_work *w,
                               td_err *err)
 {
     td_status rc = TD_OK;
-    const size_t n = (size_t)nx * (size_t)ny;
+    const int32_t bnx = td_planes_blocks(nx), bny = td_planes_blocks(ny);
+    const size_t n = (size_t)bnx * (size_t)bny;
     td_planes *p = calloc(1, sizeof *p);
 
     memset(w, 0, sizeof *w);
@@ -208,27 +221,26 @@ static td_status planes_alloc(int32_t nx, int32_t ny, int k, td_planes **out, pl
     w->sp = malloc(sizeof(float) * n);
     w->prev = malloc(sizeof(float) * n);
     w->za = malloc(sizeof(double) * n);
-    w->mark = malloc((size_t)nx);
-    w->d2 = malloc(sizeof(double) * (size_t)nx);
+    w->mark = malloc((size_t)bnx);
+    w->d2 = malloc(sizeof(double) * (size_t)bnx);
     if (!p || !w->cell || !w->h3 || !w->col || !w->sp || !w->prev || !w->za || !w->mark || !w->d2 ||
-        !td_edt_scratch_init(&w->scratch, nx > ny ? nx : ny)) {
+        !td_edt_scratch_init(&w->scratch, bnx > bny ? bnx : bny)) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for parameter planes");
         goto out;
     }
     p->k = k;
     p->nx = nx;
     p->ny = ny;
-    p->bnx = td_planes_blocks(nx);
-    p->bny = td_planes_blocks(ny);
+    p->bnx = bnx;
+    p->bny = bny;
     p->slope_scale = 1.0;
-    p->cone = malloc(sizeof(td_cone) * n); /* a cone per cell while building (block_cones) */
+    p->cone = malloc(sizeof(td_cone) * n);
     p->apex = malloc(sizeof(float) * ((size_t)k + 1));
     if (!p->cone || !p->apex) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for parameter planes");
         goto out;
     }
-    p->bytes = sizeof *p + sizeof(td_cone) * (size_t)p->bnx * (size_t)p->bny +
-               sizeof(float) * ((size_t)k + 1);
+    p->bytes = sizeof *p + sizeof(td_cone) * n + sizeof(float) * ((size_t)k + 1);
 out:
     *out = p;
     return rc;
@@ -315,7 +327,8 @@ TD_ROW_CLONES static void cone_row(td_cone *cone, planes_work *w, size_t r0, int
 static void sweep_slices(td_planes *p, planes_work *w, const td_grid *g, float zlo, float zhi,
                          int slices)
 {
-    const int32_t nx = p->nx, ny = p->ny;
+    const int32_t nx = p->bnx, ny = p->bny;
+    const double bx = g->sx * (double)(1 << TD_PLANES_BLOCK_LOG2), by = g->sy * (double)(1 << TD_PLANES_BLOCK_LOG2);
     for (int s = 0; s <= slices; s++) {
         /* slice s < slices is a real slice; s == slices is the final step up to zhi */
         double zk = s == slices ? (double)zhi
@@ -329,7 +342,7 @@ static void sweep_slices(td_planes *p, planes_work *w, const td_grid *g, float z
         for (int32_t y = 0; y < ny; y++) {
             const size_t r0 = (size_t)y * (size_t)nx;
             if (s < slices)
-                td_edt_row(w->col + r0, nx, g->sx * g->sx, g->sy * g->sy, w->d2, &w->scratch);
+                td_edt_row(w->col + r0, nx, bx * bx, by * by, w->d2, &w->scratch);
             cone_row(p->cone, w, r0, nx, s, slices, zk, w->d2);
         }
     }
@@ -349,24 +362,22 @@ TD_ROW_CLONES static void cell_range(const float *cell, size_t n, float *lo, flo
     *hi = zhi;
 }
 
-/* The cells' cones to their blocks' (TD_PLANES_BLOCK_LOG2), in place: the highest apex
- * index and the largest slope code of the block's cells (both tables ascend, so the cone
- * is no narrower than any of theirs). A block's slot comes before every cell a later
- * block reads, so no cell is overwritten before it is read. */
-static void block_cones(td_planes *p)
+/* The blocks' highest corners (TD_PLANES_BLOCK_LOG2) from the cells' (nx x ny): what the
+ * slices, the dilation and the distances are taken over, so a block's cone bounds the
+ * tile from anywhere over the block (see the top of the file). */
+static void block_max(const float *cell, int32_t nx, int32_t ny, int32_t bnx, int32_t bny, float *out)
 {
     const int B = TD_PLANES_BLOCK_LOG2;
-    for (int32_t bj = 0; bj < p->bny; bj++) {
-        for (int32_t bi = 0; bi < p->bnx; bi++) {
-            td_cone c = {0, 0};
-            for (int32_t cj = bj << B; cj < ((bj + 1) << B) && cj < p->ny; cj++) {
-                for (int32_t ci = bi << B; ci < ((bi + 1) << B) && ci < p->nx; ci++) {
-                    td_cone q = p->cone[(size_t)cj * (size_t)p->nx + (size_t)ci];
-                    c.apex = q.apex > c.apex ? q.apex : c.apex;
-                    c.slope = q.slope > c.slope ? q.slope : c.slope;
+    for (int32_t bj = 0; bj < bny; bj++) {
+        for (int32_t bi = 0; bi < bnx; bi++) {
+            float m = -INFINITY;
+            for (int32_t cj = bj << B; cj < ((bj + 1) << B) && cj < ny; cj++) {
+                for (int32_t ci = bi << B; ci < ((bi + 1) << B) && ci < nx; ci++) {
+                    float h = cell[(size_t)cj * (size_t)nx + (size_t)ci];
+                    m = h > m ? h : m;
                 }
             }
-            p->cone[(size_t)bj * (size_t)p->bnx + (size_t)bi] = c;
+            out[(size_t)bj * (size_t)bnx + (size_t)bi] = m;
         }
     }
 }
@@ -375,7 +386,7 @@ static void block_cones(td_planes *p)
  * under the top code), then each cell's code, rounded up. */
 static void encode_slopes(td_planes *p, const float *sp)
 {
-    const size_t n = (size_t)p->nx * (size_t)p->ny;
+    const size_t n = (size_t)p->bnx * (size_t)p->bny;
     double smax = 0.0;
     for (size_t c = 0; c < n; c++)
         smax = (double)sp[c] > smax && isfinite(sp[c]) ? (double)sp[c] : smax; /* +inf -> code 255 */
@@ -392,11 +403,12 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
 {
     td_status rc = TD_OK;
     const td_tile *t = &g->tiles[tile];
-    const size_t n = (size_t)t->nx * (size_t)t->ny;
     td_planes *p = NULL;
     planes_work w;
+    float *cell = NULL;
     float zlo = INFINITY, zhi = -INFINITY;
     int slices = k;
+    size_t n = 0;
 
     *out = NULL;
     memset(&w, 0, sizeof w);
@@ -405,9 +417,14 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
         goto out;
     }
     rc = planes_alloc(t->nx, t->ny, k, &p, &w, err);
+    cell = malloc(sizeof(float) * (size_t)t->nx * (size_t)t->ny);
+    if (!rc && !cell)
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for parameter planes");
     if (rc)
         goto out;
-    td_grid_cell_max(g, t, w.cell);
+    n = (size_t)p->bnx * (size_t)p->bny;
+    td_grid_cell_max(g, t, cell);
+    block_max(cell, t->nx, t->ny, p->bnx, p->bny, w.cell);
     cell_range(w.cell, n, &zlo, &zhi);
     if (zhi == -INFINITY) { /* all holes: nothing to hit anywhere in the tile */
         for (int s = 0; s <= k; s++)
@@ -421,15 +438,11 @@ td_status td_planes_build(const td_grid *g, size_t tile, int k, td_planes **out,
         p->apex[s] = round_up(zhi); /* the top, and unused entries of a flat tile */
     for (size_t c = 0; c < n; c++)
         w.sp[c] = -1.0f; /* apex not fixed yet */
-    td_planes_max3x3(w.cell, t->nx, t->ny, w.h3);
+    td_planes_max3x3(w.cell, p->bnx, p->bny, w.h3);
     sweep_slices(p, &w, g, zlo, zhi, slices);
     encode_slopes(p, w.sp);
-    block_cones(p);
-    {
-        td_cone *fit = realloc(p->cone, sizeof(td_cone) * (size_t)p->bnx * (size_t)p->bny);
-        p->cone = fit ? fit : p->cone; /* a failed shrink keeps the larger block */
-    }
 out:
+    free(cell);
     planes_work_free(&w);
     if (rc != TD_OK) {
         td_planes_free(p);

@@ -29,6 +29,7 @@
 #include <jansson.h>
 #include <unistd.h>
 
+#include "accel.h"
 #include "cli.h"
 #include "dem.h"
 #include "limit.h"
@@ -186,6 +187,54 @@ static void test_shadows(void **state)
     assert_true(darker > 20);
     td_render_result_free(&a);
     td_render_result_free(&b);
+}
+
+/* What td_accel_opts_for builds per method, and that auto draws with the max-mipmap alone
+ * what it draws with the planes beside it (it takes the max-mipmap wherever it is
+ * resident): the same pixels and the same counts of rays by method, shadows on. */
+static void test_auto_reads_what_it_builds(void **state)
+{
+    (void)state;
+    static const int want[TD_METHOD_COUNT][2] = {
+        [TD_METHOD_INCREMENTAL] = {0, 0}, [TD_METHOD_HIERARCHICAL] = {1, 0},
+        [TD_METHOD_PARAMETRIC] = {0, 1}, [TD_METHOD_AUTO] = {1, 0}, [TD_METHOD_SILHOUETTE] = {0, 0}};
+    for (int m = 0; m < TD_METHOD_COUNT; m++) {
+        td_accel_opts o;
+        td_accel_opts_for((td_method)m, &o);
+        assert_int_equal(o.maxmip, want[m][0]);
+        assert_int_equal(o.planes, want[m][1]);
+        assert_int_equal(o.planes_k, TD_PLANES_K_DEFAULT);
+    }
+    for (int surf = 0; surf < TD_SURFACE_COUNT; surf++) {
+        td_render_result r[2];
+        td_accel *a[2] = {NULL, NULL};
+        for (int k = 0; k < 2; k++) {
+            td_accel_opts o;
+            td_render_opts ro;
+            td_err err = {0};
+            if (k == 0)
+                td_accel_opts_default(&o);
+            else
+                td_accel_opts_for(TD_METHOD_AUTO, &o);
+            o.threads = 1;
+            assert_int_equal(td_accel_build(grid, &o, &a[k], NULL, &err), TD_OK);
+            td_view v = {grid, a[k]->tiles};
+            base_scene(&scene);
+            scene.quality.method = TD_METHOD_AUTO;
+            scene.quality.surface = (td_surface)surf;
+            scene.effects.shadows = 1;
+            td_render_opts_default(&ro);
+            ro.threads = 1;
+            assert_int_equal(td_render(&v, &scene, &ro, &r[k], &err), TD_OK);
+        }
+        assert_memory_equal(r[0].rgba, r[1].rgba, (size_t)W * H * 4);
+        assert_memory_equal(r[0].stats.method_rays, r[1].stats.method_rays, sizeof r[0].stats.method_rays);
+        assert_true(r[0].stats.method_rays[TD_METHOD_HIERARCHICAL] > 0);
+        for (int k = 0; k < 2; k++) {
+            td_render_result_free(&r[k]);
+            td_accel_free(a[k]);
+        }
+    }
 }
 
 static void test_sky_and_haze(void **state)
@@ -1135,6 +1184,7 @@ int main(void)
         cmocka_unit_test(test_absent_effects_cost_nothing),
         cmocka_unit_test(test_height_error),
         cmocka_unit_test(test_shadows),
+        cmocka_unit_test(test_auto_reads_what_it_builds),
         cmocka_unit_test(test_sky_and_haze),
         cmocka_unit_test(test_water_and_ao),
         cmocka_unit_test(test_supersampling_and_threads),
