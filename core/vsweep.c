@@ -791,12 +791,15 @@ static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
     const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o, *fm = sw->fmin - o, *cs = sw->cslope - o;
     const uint8_t *ok = sw->colok - o;
     const double *fx = sw->fmax - o;
+    double *dom = sw->dom;
     pvec *C = &sw->C;
+    piece *cp;
+    int n = 1, nd = 0; /* C's count and the ranges', in locals: the stores could alias them */
     sw->ndom = 0;
     if (!pv_reserve(sw, C, 2 * (V1 - V0) + 4))
         return;
     pv_clear(C);
-    C->n = 1;
+    cp = C->p;
     for (int32_t V = V0; V < V1; V++) {
         double top;
         if (!ok[V] || dmax(qc[V], qc[V + 1]) <= fm[V])
@@ -804,23 +807,25 @@ static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
         /* above F's maximum there by far more than rounding: a range for merge */
         top = dmin(qc[V], qc[V + 1]);
         if (top > fx[V] + 1e-9 * (1.0 + fabs(top))) {
-            if (sw->ndom > 0 && sw->dom[2 * sw->ndom - 1] == mc[V])
-                sw->dom[2 * sw->ndom - 1] = mc[V + 1];
+            if (nd > 0 && dom[2 * nd - 1] == mc[V])
+                dom[2 * nd - 1] = mc[V + 1];
             else {
-                sw->dom[2 * sw->ndom] = mc[V];
-                sw->dom[2 * sw->ndom + 1] = mc[V + 1];
-                sw->ndom++;
+                dom[2 * nd] = mc[V];
+                dom[2 * nd + 1] = mc[V + 1];
+                nd++;
             }
         }
-        if (C->p[C->n - 1].qr == -INFINITY && C->p[C->n - 1].m >= mc[V]) /* empty, zero width */
-            C->n--;
-        C->p[C->n] = (piece){mc[V], mc[V], qc[V], cs[V], 0.0, u};
-        C->p[C->n + 1] = empty_piece;
-        C->p[C->n + 1].m = mc[V + 1];
-        C->n += 2;
+        if (cp[n - 1].qr == -INFINITY && cp[n - 1].m >= mc[V]) /* empty, zero width */
+            n--;
+        cp[n] = (piece){mc[V], mc[V], qc[V], cs[V], 0.0, u};
+        cp[n + 1] = empty_piece;
+        cp[n + 1].m = mc[V + 1];
+        n += 2;
     }
-    C->p[C->n] = empty_piece;
-    C->p[C->n].m = VS_MDOM;
+    cp[n] = empty_piece;
+    cp[n].m = VS_MDOM;
+    C->n = n;
+    sw->ndom = nd;
 }
 
 /* Column U's edges and with `strip` the strip's into F, with the column pass: the
