@@ -448,10 +448,30 @@ td_status td_demutil_read_row(const char *path, FILE *f, void *dst, size_t size,
     return rc;
 }
 
+/* Whether p leaves every sample of the row as it is (the common raw float32 file): no
+ * scale or offset, and each sample finite, within max_abs, not the nodata value and not
+ * zero (a -0.0 would come out +0.0). Comparisons in float against max_abs rounded down
+ * (the same answers as in double), no branch: 4 instructions a sample against the full
+ * rule's 31 (trinidad's 2.9 M samples: 89 -> 25 M). */
+static int f32_row_unchanged(const td_demutil_f32 *p, const float *row, int32_t w)
+{
+    float lim = (float)p->max_abs, nd = p->has_nodata ? p->nodata : NAN;
+    int bad = p->scale != 1.0 || p->offset != 0.0 || !(p->max_abs >= 0.0);
+    if ((double)lim > p->max_abs)
+        lim = nextafterf(lim, 0.0f);
+    for (int32_t i = 0; i < w; i++) {
+        float v = row[i];
+        bad |= !(fabsf(v) <= lim) | (v == nd) | (v == 0.0f);
+    }
+    return !bad;
+}
+
 td_status td_demutil_f32_row(const char *path, const td_demutil_f32 *p, float *row, int32_t w,
                              int32_t r, td_err *err)
 {
     td_status rc = TD_OK;
+    if (f32_row_unchanged(p, row, w))
+        w = 0;
     for (int32_t i = 0; i < w && rc == TD_OK; i++) {
         float v = row[i];
         double m;

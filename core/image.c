@@ -12,6 +12,7 @@
 #include <setjmp.h>
 #include <stdlib.h>
 #include <string.h>
+#include <zlib.h>
 
 void td_buf_free(td_buf *b)
 {
@@ -81,10 +82,11 @@ static void on_png_warning(png_structp png, png_const_charp msg)
     (void)msg;
 }
 
-/* bit_depth 8 with 4 or 1 channels, or 16 with 1 channel. */
+/* bit_depth 8 with 4 or 1 channels, or 16 with 1 channel. `flat`: an image of a few
+ * values in large areas (image.h's gray8). */
 static td_status encode(const void *pixels, int32_t width, int32_t height, int color_type,
                         int bit_depth, int channels, const char *key, const char *value,
-                        td_buf *out, td_err *err)
+                        int flat, td_buf *out, td_err *err)
 {
     volatile td_status rc = TD_OK; /* set after a longjmp */
     char msg[128] = "";
@@ -117,7 +119,9 @@ static td_status encode(const void *pixels, int32_t width, int32_t height, int c
     }
     png_set_write_fn(png, &sink, sink_write, sink_flush);
     png_set_compression_level(png, 1);
-    png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_SUB);
+    if (flat)
+        png_set_compression_strategy(png, Z_RLE);
+    png_set_filter(png, PNG_FILTER_TYPE_BASE, flat ? PNG_FILTER_NONE : PNG_FILTER_SUB);
     png_set_IHDR(png, info, (png_uint_32)width, (png_uint_32)height, bit_depth, color_type,
                  PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
     if (key && value) {
@@ -155,19 +159,19 @@ out:
 td_status td_image_encode_rgba(const uint8_t *rgba, int32_t width, int32_t height, td_buf *out,
                                td_err *err)
 {
-    return encode(rgba, width, height, PNG_COLOR_TYPE_RGBA, 8, 4, NULL, NULL, out, err);
+    return encode(rgba, width, height, PNG_COLOR_TYPE_RGBA, 8, 4, NULL, NULL, 0, out, err);
 }
 
 td_status td_image_encode_gray16(const uint16_t *v, int32_t width, int32_t height,
                                  const char *key, const char *value, td_buf *out, td_err *err)
 {
-    return encode(v, width, height, PNG_COLOR_TYPE_GRAY, 16, 1, key, value, out, err);
+    return encode(v, width, height, PNG_COLOR_TYPE_GRAY, 16, 1, key, value, 0, out, err);
 }
 
 td_status td_image_encode_gray8(const uint8_t *v, int32_t width, int32_t height, td_buf *out,
                                 td_err *err)
 {
-    return encode(v, width, height, PNG_COLOR_TYPE_GRAY, 8, 1, NULL, NULL, out, err);
+    return encode(v, width, height, PNG_COLOR_TYPE_GRAY, 8, 1, NULL, NULL, 1, out, err);
 }
 
 td_status td_image_encode_f32(const float *v, int32_t width, int32_t height, td_buf *out,

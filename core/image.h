@@ -36,7 +36,9 @@ td_status td_image_encode_rgba(const uint8_t *rgba, int32_t width, int32_t heigh
 td_status td_image_encode_gray16(const uint16_t *v, int32_t width, int32_t height,
                                  const char *key, const char *value, td_buf *out, td_err *err);
 
-/* 8-bit grayscale PNG, rows top to bottom (viewsheds). */
+/* 8-bit grayscale PNG, rows top to bottom (viewsheds: three values in large areas). Set
+ * for such images: zlib's run-length strategy and no filter, against level 1 with `sub`
+ * on trinidad's viewshed (2.9 M pixels) 6.4 against 9.6 ms and 91 against 184 kB. */
 td_status td_image_encode_gray8(const uint8_t *v, int32_t width, int32_t height, td_buf *out,
                                 td_err *err);
 

@@ -493,9 +493,15 @@ out:
 static void vs_count(const td_grid *g, const uint8_t *out, td_viewshed_stats *st)
 {
     size_t n = (size_t)g->w * (size_t)g->h;
-    for (size_t k = 0; k < n; k++) {
-        st->inside += out[k] != TD_VS_OUTSIDE;
-        st->visible += out[k] != TD_VS_OUTSIDE && out[k] > 0;
+    for (int32_t j = 0; j < g->h; j++) { /* a row's counts in 32 bits: a loop that vectorises */
+        const uint8_t *row = &out[(size_t)j * (size_t)g->w];
+        uint32_t outside = 0, zero = 0;
+        for (int32_t i = 0; i < g->w; i++) {
+            outside += row[i] == TD_VS_OUTSIDE;
+            zero += row[i] == 0;
+        }
+        st->inside += (uint32_t)g->w - outside;
+        st->visible += (uint32_t)g->w - outside - zero;
     }
     st->samples = n;
     st->visible_area_m2 = (double)st->visible * g->sx * g->sy;
@@ -503,18 +509,29 @@ static void vs_count(const td_grid *g, const uint8_t *out, td_viewshed_stats *st
 
 /* ---- the viewshed by the horizon sweep (vsweep.h), one observer at a time -------------- */
 
-/* Adds eye e's answers vis (south-based) to the pass's counts in out. */
+/* Adds eye e's answers vis (south-based) to the pass's counts in out: the samples within
+ * max_distance that are not void (the sweep wrote no others; never the plane surface, so
+ * a sample's ground is its own height). Without max_distance or voids a row is added
+ * whole, a loop the compiler vectorises (this pass was 46 instructions a sample). */
 static void vs_sweep_add(const vs_ctx *c, const eye *e, const uint8_t *vis)
 {
-    const td_grid *g = c->g;
+    const td_grid *g = c->g, *ge = e->view.grid;
+    int all = c->maxd2 == INFINITY && ge->voids == 0;
     for (int32_t j = 0; j < g->h; j++) {
         double dy = j * g->sy - e->y;
         uint8_t *row = &c->out[(size_t)(g->h - 1 - j) * (size_t)g->w];
+        const uint8_t *vrow = &vis[(size_t)j * (size_t)g->w];
+        const float *zrow = &ge->z[(size_t)j * (size_t)g->w];
+        if (all) {
+            for (int32_t i = 0; i < g->w; i++)
+                row[i] = (uint8_t)((row[i] == TD_VS_OUTSIDE ? 0 : row[i]) + vrow[i]);
+            continue;
+        }
         for (int32_t i = 0; i < g->w; i++) {
             double dx = i * g->sx - e->x;
-            if (dx * dx + dy * dy > c->maxd2 || isnan(sample_ground(e->view.grid, c->o->surface, i, j)))
+            if (dx * dx + dy * dy > c->maxd2 || isnan(zrow[i]))
                 continue;
-            row[i] = (uint8_t)((row[i] == TD_VS_OUTSIDE ? 0 : row[i]) + vis[(size_t)j * (size_t)g->w + (size_t)i]);
+            row[i] = (uint8_t)((row[i] == TD_VS_OUTSIDE ? 0 : row[i]) + vrow[i]);
         }
     }
 }

@@ -22,7 +22,9 @@
  * A target T = (U, V) is decided by
  *   hi = max(F(m_T), NB, last-cell diagonal, with a target height its own ground),
  *   lo = max(F(m_T) - slack, last-cell diagonal - slack),
- * visible if q_T > hi + eps, hidden if q_T < lo - eps, else cast. The edges that end at T
+ * visible if q_T > hi + eps, hidden if q_T < lo - eps, else (band_lo) hidden if a real
+ * point of the bilinear strip whose upper diagonal F's piece is lies above the segment on
+ * its ray by eps, else cast. The edges that end at T
  * are not in F yet (F holds the strips up to column U-1), and the only edge the segment
  * crosses in its last strip is the diagonal of the cell it arrives through when that
  * diagonal does not end at T. NB bounds the part of every segment between the eye and
@@ -32,16 +34,20 @@
  * eye depends on the ray, gets no such bound). Targets in columns up to U0 + 1 are cast.
  *
  * The column pass (from u = VS_PASS_U on). One walk along F per column (col_pass) gives
- * each target its piece of F and F's minimum over each interval [m_V, m_V+1] between the
- * column's samples; a column edge under that minimum is left out, the others become
+ * each target its piece of F and F's minimum and maximum over each interval [m_V, m_V+1]
+ * between the column's samples; a column edge under that minimum is left out, the others become
  * pieces straight from the column's arrays (col_pieces: they meet end to end in m order).
  * A strip edge ends on the column and spans one or two of its intervals: it is left out
  * when under the lower bound of F there once the column is in (lcol) or under the
  * column's polyline (facing slopes), else tested exactly by add_seg; then one merge puts
- * the column and the strip's survivors into F. The answers do not change (an edge left
+ * the column and the strip's survivors into F, copying the column's pieces without
+ * comparisons where the column is above F's maximum (dom). The answers do not change (an edge left
  * out is under F, as add_seg's own test decides); the work does (docs/viewshed.md
  * "Speed"): picos's sweep went from 376 M to 198 M instructions (callgrind), and F, about
- * two pieces a row, is copied once a column instead of twice.
+ * two pieces a row, is copied once a column instead of twice; trinidad's 2.23 G -> 1.78 G
+ * with the skips, band_lo, and the loops' contexts (tgt_cols, strip_cols: locals the
+ * compiler keeps, where sw's fields were reloaded after every byte written to vis). The
+ * east and west cones read their columns, strided in the grid, 16 at a time (panel).
  *
  * Rounding: the envelope is computed in double from float heights; a crossing put off
  * by rounding moves a value by the slope times 1e-16, kept below 1e-8 by flattening
@@ -72,6 +78,9 @@
 /* From this u on, every sample of a column (|V - ev| <= u + 2) has |m| < VS_MDOM: the
  * column pass's shortcuts hold there (nearer columns take the general path). */
 #define VS_PASS_U 8.0
+/* Columns read into the panel at a time (east and west cones): a row's 16 floats are one
+ * or two cache lines, instead of a line (and a page) a sample. */
+#define VS_PANEL 16
 
 typedef struct piece {
     double m;      /* start; the piece ends where the next one starts */
@@ -104,7 +113,7 @@ typedef struct sweep {
     pvec F, G, T;
     pvec C; /* column U's edges (add_column_pass) */
     pvec N; /* bounds of the eye's strip with no real point (slack infinite): hi only */
-    int hint_q, hint_s, hint_n;
+    int hint_q, hint_s;
     double umax;              /* of the edges being added */
     double hole_u[VS_BINS];   /* per bin of m, the nearest u of a hole cell a ray there may cross */
     int oom;
@@ -117,6 +126,13 @@ typedef struct sweep {
      * edge counts); valid while pass_ok (u >= VS_PASS_U) */
     int *kcol;
     double *fmin, *lcol, *cslope;
+    double *fmax; /* F's maximum over each interval [m_V, m_V+1] (col_pass) */
+    double *dom;  /* ndom ranges [dom[2i], dom[2i+1]) of m where column U is above F (col_pieces) */
+    int ndom;
+    /* east and west cones, whose columns are strided in the grid: VS_PANEL columns from
+     * panel_u on, rows panel_v0..panel_v1, read a row's run of floats at a time (panel) */
+    float *panel;
+    int32_t panel_u, panel_n, panel_v0, panel_v1;
     uint8_t *colok; /* column U's edge [V, V+1] counts (a cell beside it is not a hole) */
     int pass_ok;
     uint64_t swept, rays, steps;
@@ -180,17 +196,63 @@ static inline void emit(pvec *o, double m, const piece *src, const piece **last)
     *last = src;
 }
 
-/* out = max(a, b), both covering [a[0].m, end] with a[na].m = b[nb].m = end; out needs
- * room for 2 (na + nb) + 1 pieces. Ties go to a (the older). */
-static void merge(const piece *a, int na, const piece *b, int nb, pvec *out)
+/* merge's step over [cur, e), where b is above a: b's pieces out (joined as merge's own
+ * steps would join them), a's skipped; *ia, *ib left on the pieces holding e. 0 when a
+ * list ends first. */
+static inline int merge_won(const piece *a, int na, const piece *b, int nb, double cur, double e, int *ia,
+                            int *ib, pvec *out, const piece **last)
 {
-    int ia = 0, ib = 0;
+    int i = *ia, j = *ib, ok;
+    while (j < nb && b[j + 1].m <= cur) /* the pieces holding cur (past zero widths) */
+        j++;
+    while (i < na && a[i + 1].m <= cur)
+        i++;
+    ok = j < nb && i < na;
+    if (ok) {
+        emit(out, cur, &b[j], last);
+        while (b[j + 1].m < e) {
+            j++;
+            emit(out, b[j].m, &b[j], last);
+        }
+        while (j < nb && b[j + 1].m <= e)
+            j++;
+        while (i < na && a[i + 1].m <= e)
+            i++;
+    }
+    *ia = i;
+    *ib = j;
+    return ok;
+}
+
+/* out = max(a, b), both covering [a[0].m, end] with a[na].m = b[nb].m = end; out needs
+ * room for 2 (na + nb) + 1 pieces. Ties go to a (the older). dom: ndom sorted disjoint
+ * ranges [dom[2i], dom[2i+1]) of m where b is known to be above a by a margin (the column
+ * pass's, col_pieces): there b's pieces are copied and a's skipped, without comparing
+ * them (b wins every comparison there, and joins as it would). */
+static void merge(const piece *a, int na, const piece *b, int nb, pvec *outp, const double *dom, int ndom)
+{
+    int ia = 0, ib = 0, id = 0;
     double cur = a[0].m, end = a[na].m;
     const piece *last = NULL;
+    pvec o = *outp, *out = &o; /* a local: the stores of pieces and of last leave it in registers */
     out->n = 0;
     while (cur < end && ia < na && ib < nb) {
-        double ea = a[ia + 1].m, eb = b[ib + 1].m, nx = ea < eb ? ea : eb;
-        const piece *pa = &a[ia], *pb = &b[ib];
+        double ea, eb, nx;
+        const piece *pa, *pb;
+        while (id < ndom && dom[2 * id + 1] <= cur)
+            id++;
+        if (id < ndom && dom[2 * id] <= cur) { /* in a range where b is above a */
+            double e = dmin(dom[2 * id + 1], end);
+            if (!merge_won(a, na, b, nb, cur, e, &ia, &ib, out, &last))
+                break;
+            cur = e;
+            continue;
+        }
+        ea = a[ia + 1].m;
+        eb = b[ib + 1].m;
+        nx = ea < eb ? ea : eb;
+        pa = &a[ia];
+        pb = &b[ib];
         if (nx > end)
             nx = end;
         if (nx > cur) {
@@ -234,22 +296,26 @@ static void merge(const piece *a, int na, const piece *b, int nb, pvec *out)
     }
     out->p[out->n] = empty_piece;
     out->p[out->n].m = end;
+    *outp = o;
 }
 
-/* The piece of v containing m (p[k].m <= m < p[k+1].m; the last one for m = end),
- * searched from *hint. */
-static int find(const pvec *v, double m, int *hint)
+/* The piece of the n pieces p containing m (p[k].m <= m < p[k+1].m; the last one for
+ * m = end), searched from *hint. */
+static inline int find_in(const piece *p, int n, double m, int *hint)
 {
     int k = *hint;
-    if (k >= v->n)
-        k = v->n - 1;
-    while (k > 0 && v->p[k].m > m)
+    if (k >= n)
+        k = n - 1;
+    while (k > 0 && p[k].m > m)
         k--;
-    while (k + 1 < v->n && v->p[k + 1].m <= m)
+    while (k + 1 < n && p[k + 1].m <= m)
         k++;
     *hint = k;
     return k;
 }
+
+/* find_in over v's pieces. */
+static int find(const pvec *v, double m, int *hint) { return find_in(v->p, v->n, m, hint); }
 
 /* ---- cone coordinates ------------------------------------------------------------ */
 
@@ -307,13 +373,58 @@ static void cone_init(cone *c, const td_grid *g, int k, double eu, double ev)
 
 /* Loads column U+1 into the buffers (U-1, U, U+1 then), rows |V - ev| <= u + 4: what
  * the targets and edges of column U need. */
+/* The rows column U needs (load_next): |V - ev| <= u + 3, on the grid. */
+static void col_rows(const cone *c, int32_t U, int32_t *V0, int32_t *V1)
+{
+    double u = U - c->eu;
+    *V0 = (int32_t)dmax(floor(c->ev - u) - 3.0, (double)c->vlo);
+    *V1 = (int32_t)dmin(ceil(c->ev + u) + 3.0, (double)c->vhi);
+}
+
+/* Fills the panel with columns U .. U + VS_PANEL - 1 (those on the grid), the rows the
+ * last of them needs (the widest): per row one run of contiguous floats. */
+static void panel_fill(sweep *sw, int32_t U)
+{
+    const cone *c = &sw->c;
+    const td_grid *g = c->g;
+    int32_t n = c->uhi - U + 1 < VS_PANEL ? c->uhi - U + 1 : VS_PANEL, V0, V1;
+    int32_t ilo = c->ui > 0 ? U : -(U + n - 1); /* the run's first grid column */
+    size_t nv = (size_t)(c->vhi - c->vlo + 1);
+    col_rows(c, U + n - 1, &V0, &V1);
+    for (int32_t V = V0; V <= V1; V++) {
+        const float *src = g->z + (size_t)V * (size_t)g->w + (size_t)ilo;
+        for (int32_t k = 0; k < n; k++)
+            sw->panel[(size_t)k * nv + (size_t)(V - c->vlo)] = src[c->ui > 0 ? k : n - 1 - k];
+    }
+    sw->panel_u = U;
+    sw->panel_n = n;
+    sw->panel_v0 = V0;
+    sw->panel_v1 = V1;
+}
+
+/* Column U's heights, rows V0..V1 wanted: src[V] is sample (U, V)'s. From the panel for
+ * the east and west cones (filled as needed), else the grid's row (north and south: V is
+ * the grid's column). */
+static inline const float *col_src(sweep *sw, int32_t U, int32_t V0, int32_t V1)
+{
+    const cone *c = &sw->c;
+    const float *src = c->g->z + cidx(c, U, 0);
+    if (sw->panel) {
+        if (U < sw->panel_u || U >= sw->panel_u + sw->panel_n || V0 < sw->panel_v0 || V1 > sw->panel_v1)
+            panel_fill(sw, U);
+        src = sw->panel + (size_t)(U - sw->panel_u) * (size_t)(c->vhi - c->vlo + 1) - c->vlo;
+    }
+    return src;
+}
+
 static void load_next(sweep *sw, int32_t U)
 {
     const cone *c = &sw->c;
     double un = U + 1 - c->eu, iu = 1.0 / un, ez = sw->job->ez;
-    int32_t V0 = (int32_t)dmax(floor(c->ev - un) - 3.0, (double)c->vlo);
-    int32_t V1 = (int32_t)dmin(ceil(c->ev + un) + 3.0, (double)c->vhi);
+    int32_t V0, V1;
     double *t[3] = {sw->zcol[0], sw->mcol[0], sw->qcol[0]};
+    const float *src = NULL;
+    col_rows(c, U + 1, &V0, &V1);
     for (int b = 0; b < 2; b++) {
         sw->zcol[b] = sw->zcol[b + 1];
         sw->mcol[b] = sw->mcol[b + 1];
@@ -322,8 +433,10 @@ static void load_next(sweep *sw, int32_t U)
     sw->zcol[2] = t[0];
     sw->mcol[2] = t[1];
     sw->qcol[2] = t[2];
+    if (U + 1 <= c->uhi)
+        src = col_src(sw, U + 1, V0, V1);
     for (int32_t V = V0; V <= V1 && U + 1 <= c->uhi; V++) {
-        double z = cz(c, U + 1, V);
+        double z = src[V];
         t[0][V - c->vlo] = z;
         t[1][V - c->vlo] = (V - c->ev) * iu;
         t[2][V - c->vlo] = (z - ez) * iu;
@@ -395,7 +508,7 @@ static void g_insert(sweep *sw, const piece *p, double m0, double m1)
         b[3] = empty_piece;
         b[3].m = VS_MDOM;
         if (pv_reserve(sw, T, 2 * (G->n - k + 3) + 1) && pv_reserve(sw, G, k + 2 * (G->n - k + 3) + 1)) {
-            merge(&G->p[k], G->n - k, b, 3, T);
+            merge(&G->p[k], G->n - k, b, 3, T, NULL, 0);
             memcpy(&G->p[k], T->p, (size_t)(T->n + 1) * sizeof *T->p);
             G->n = k + T->n;
         }
@@ -445,12 +558,12 @@ static void add_edge_uv(sweep *sw, double ua, double va, double za, double ub, d
     add_seg(sw, va / ua, (za - ez) / ua, vb / ub, (zb - ez) / ub, slack, 1);
 }
 
-/* *dst = max(*dst, *src) (through T; nothing to do when src is empty). */
-static void merge_into(sweep *sw, pvec *dst, const pvec *src)
+/* *dst = max(*dst, *src) (through T; nothing to do when src is empty); dom, ndom as merge. */
+static void merge_into(sweep *sw, pvec *dst, const pvec *src, const double *dom, int ndom)
 {
     if ((src->n > 1 || src->p[0].qr != -INFINITY) && pv_reserve(sw, &sw->T, 2 * (dst->n + src->n) + 1)) {
         pvec t;
-        merge(dst->p, dst->n, src->p, src->n, &sw->T);
+        merge(dst->p, dst->n, src->p, src->n, &sw->T, dom, ndom);
         t = *dst;
         *dst = sw->T;
         sw->T = t;
@@ -460,7 +573,7 @@ static void merge_into(sweep *sw, pvec *dst, const pvec *src)
 /* F = max(F, G). */
 static void merge_g(sweep *sw)
 {
-    merge_into(sw, &sw->F, &sw->G);
+    merge_into(sw, &sw->F, &sw->G, NULL, 0);
     sw->hint_q = sw->hint_s = 0;
 }
 
@@ -469,6 +582,11 @@ static void merge_g(sweep *sw)
 static inline double upper_slack(const sweep *sw, const double z[4], double u0)
 {
     return sw->bil ? fabs(z[0] - z[1] - z[2] + z[3]) / (4.0 * u0) : 0.0;
+}
+
+static inline int upper_is_main(const sweep *sw, const double z[4])
+{
+    return sw->bil ? z[0] - z[1] - z[2] + z[3] >= 0.0 : !sw->c.anti;
 }
 
 static int upper_main(const sweep *sw, const double z[4], double u0, double *slack)
@@ -514,25 +632,32 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     const pvec *F = &sw->F;
     const double *mc = sw->mcol[1] - sw->c.vlo;
     int *kc = sw->kcol - sw->c.vlo;
-    double *fm = sw->fmin - sw->c.vlo;
+    double *fm = sw->fmin - sw->c.vlo, *fx = sw->fmax - sw->c.vlo;
     int k = 0;
     sw->pass_ok = U - sw->c.eu >= VS_PASS_U && U - sw->c.eu < 0.5 / VS_NARROW;
     if (!sw->pass_ok)
         return;
-    for (int32_t V = V0; V <= V1; V++) {
-        double m = mc[V];
-        while (k + 1 < F->n && F->p[k + 1].m <= m)
-            k++;
-        kc[V] = k;
-    }
+    /* one walk: the pieces up to m_V0, then each interval's breaks as k passes them */
+    while (k + 1 < F->n && F->p[k + 1].m <= mc[V0])
+        k++;
+    kc[V0] = k;
     for (int32_t V = V0; V < V1; V++) {
-        int a = kc[V], b = kc[V + 1];
-        double lo = dmin(pval(&F->p[a], mc[V]), pval(&F->p[b], mc[V + 1]));
-        if (a > 0 && F->p[a].m == mc[V]) /* on a break: the piece ending there holds m_V too */
-            lo = dmin(lo, pval(&F->p[a - 1], mc[V]));
-        for (int q = a; q < b; q++)
-            lo = dmin(lo, dmin(pval(&F->p[q], F->p[q + 1].m), pval(&F->p[q + 1], F->p[q + 1].m)));
-        fm[V] = lo;
+        const piece *p = F->p;
+        double m1 = mc[V + 1], lo = pval(&p[k], mc[V]), hi = lo, e;
+        if (k > 0 && p[k].m == mc[V]) { /* on a break: the piece ending there holds m_V too */
+            lo = dmin(lo, pval(&p[k - 1], mc[V]));
+            hi = dmax(hi, pval(&p[k - 1], mc[V]));
+        }
+        while (k + 1 < F->n && p[k + 1].m <= m1) {
+            double x = p[k + 1].m, y0 = pval(&p[k], x), y1 = pval(&p[k + 1], x);
+            lo = dmin(lo, dmin(y0, y1));
+            hi = dmax(hi, dmax(y0, y1));
+            k++;
+        }
+        kc[V + 1] = k;
+        e = pval(&p[k], m1);
+        fm[V] = dmin(lo, e);
+        fx[V] = dmax(hi, e);
     }
 }
 
@@ -544,11 +669,19 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
  * in interval k, else through the vertex k + 1) and, spanning two intervals, the edge at
  * the vertex between them. A shortcut before add_seg's exact test (under_f): 0 is "not
  * known". No division: the slopes are per interval, the vertex test cross-multiplied. */
-static inline int under_strip(const sweep *sw, int32_t k, int two, int32_t Va, double mb, double qb)
+/* Column U's arrays the strip tests read, offset by the rows' origin (one load each
+ * per strip, not per edge: the compiler cannot keep sw's fields across add_seg). */
+typedef struct strip_cols {
+    const double *mc, *qc, *lc, *cs;
+    const uint8_t *ok;
+    int32_t V0, V1;
+    int pass_ok;
+} strip_cols;
+
+static inline int under_strip(const strip_cols *x, int32_t k, int two, int32_t Va, double mb, double qb)
 {
-    const int32_t o = sw->c.vlo;
-    const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o, *lc = sw->lcol - o, *cs = sw->cslope - o;
-    const uint8_t *ok = sw->colok - o;
+    const double *mc = x->mc, *qc = x->qc, *lc = x->lc, *cs = x->cs;
+    const uint8_t *ok = x->ok;
     double ma = mc[Va], qa = qc[Va], top = dmax(qa, qb);
     int under = top <= lc[k] && (!two || top <= lc[k + 1]);
     if (!under && ok[k] && (!two || ok[k + 1])) {
@@ -565,31 +698,31 @@ static inline int under_strip(const sweep *sw, int32_t k, int two, int32_t Va, d
 /* The intervals the strip edge from sample Va of column U to m_b (column U-1) spans, for
  * under_strip: 1 and *k (with *two) when they are known, 0 when m_b is past the next
  * interval or the column's rows (the general path then). */
-static inline int strip_span(const sweep *sw, int32_t V0, int32_t V1, int32_t Va, double mb, int32_t *k, int *two)
+static inline int strip_span(const strip_cols *x, int32_t Va, double mb, int32_t *k, int *two)
 {
-    const double *mc = sw->mcol[1] - sw->c.vlo;
+    const double *mc = x->mc;
     int found;
     if (mb >= mc[Va]) { /* interval Va, or Va and Va + 1 */
         *k = Va;
-        found = Va + 1 <= V1;
+        found = Va + 1 <= x->V1;
         *two = found && mb > mc[Va + 1];
-        found = found && (!*two || (Va + 2 <= V1 && mb <= mc[Va + 2]));
+        found = found && (!*two || (Va + 2 <= x->V1 && mb <= mc[Va + 2]));
     } else { /* interval Va - 1, or Va - 2 and Va - 1 */
-        found = Va - 1 >= V0;
+        found = Va - 1 >= x->V0;
         *two = found && mb < mc[Va - 1];
         *k = *two ? Va - 2 : Va - 1;
-        found = found && (!*two || (Va - 2 >= V0 && mb >= mc[Va - 2]));
+        found = found && (!*two || (Va - 2 >= x->V0 && mb >= mc[Va - 2]));
     }
     return found;
 }
 
 /* The strip edge from sample Va of column U to (m_b, q_b) on column U-1: under F once
  * column U is in, as far as the column pass can tell cheaply. */
-static inline int strip_under(const sweep *sw, int32_t V0, int32_t V1, int32_t Va, double mb, double qb)
+static inline int strip_under(const strip_cols *x, int32_t Va, double mb, double qb)
 {
     int32_t k;
     int two;
-    return sw->pass_ok && strip_span(sw, V0, V1, Va, mb, &k, &two) && under_strip(sw, k, two, Va, mb, qb);
+    return x->pass_ok && strip_span(x, Va, mb, &k, &two) && under_strip(x, k, two, Va, mb, qb);
 }
 
 /* The edges of the strip between columns U-1 and U (rows, diagonals) into G, but those
@@ -597,23 +730,26 @@ static inline int strip_under(const sweep *sw, int32_t V0, int32_t V1, int32_t V
 static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
 {
     const cone *c = &sw->c;
+    const int32_t o = c->vlo;
     const double *zp = sw->zcol[0], *zc = sw->zcol[1];
-    const double *mp = sw->mcol[0] - c->vlo, *qp = sw->qcol[0] - c->vlo;
-    const double *mc = sw->mcol[1] - c->vlo, *qc = sw->qcol[1] - c->vlo;
+    const double *mp = sw->mcol[0] - o, *qp = sw->qcol[0] - o;
+    const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o;
+    const strip_cols x = {mc, qc, sw->lcol - o, sw->cslope - o, sw->colok - o, V0, V1, sw->pass_ok};
+    const int lin = sw->lin, bil = sw->bil, anti = c->anti, holes = sw->holes;
     double zl[4], zb[4];
     for (int32_t V = V0, below = cellz(sw, zp, zc, V0 - 1, zb); V <= V1 && !sw->oom; V++) {
         int left = cellz(sw, zp, zc, V, zl);
-        if (!left && sw->holes && V >= c->vlo && V + 1 <= c->vhi)
+        if (!left && holes && V >= c->vlo && V + 1 <= c->vhi)
             mark_hole(sw, u - 1.0, u, V - c->ev, V + 1 - c->ev);
-        if ((left || below) && !strip_under(sw, V0, V1, V, mp[V], qp[V]))
+        if ((left || below) && !strip_under(&x, V, mp[V], qp[V]))
             add_seg(sw, mp[V], qp[V], mc[V], qc[V], 0.0, 1);
         below = left;
-        if (left && !sw->lin) { /* upper_main's diagonal; its slack (a division) if kept */
+        if (left && !lin) { /* upper_main's diagonal; its slack (a division) if kept */
             double k = zl[0] - zl[1] - zl[2] + zl[3];
-            if (sw->bil ? k >= 0.0 : !sw->c.anti) {
-                if (!strip_under(sw, V0, V1, V + 1, mp[V], qp[V]))
+            if (bil ? k >= 0.0 : !anti) {
+                if (!strip_under(&x, V + 1, mp[V], qp[V]))
                     add_seg(sw, mp[V], qp[V], mc[V + 1], qc[V + 1], upper_slack(sw, zl, u - 1.0), 1);
-            } else if (!strip_under(sw, V0, V1, V, mp[V + 1], qp[V + 1])) {
+            } else if (!strip_under(&x, V, mp[V + 1], qp[V + 1])) {
                 add_seg(sw, mc[V], qc[V], mp[V + 1], qp[V + 1], upper_slack(sw, zl, u - 1.0), 1);
             }
         }
@@ -654,23 +790,42 @@ static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
     const int32_t o = sw->c.vlo;
     const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o, *fm = sw->fmin - o, *cs = sw->cslope - o;
     const uint8_t *ok = sw->colok - o;
+    const double *fx = sw->fmax - o;
+    double *dom = sw->dom;
     pvec *C = &sw->C;
+    piece *cp;
+    int n = 1, nd = 0; /* C's count and the ranges', in locals: the stores could alias them */
+    sw->ndom = 0;
     if (!pv_reserve(sw, C, 2 * (V1 - V0) + 4))
         return;
     pv_clear(C);
-    C->n = 1;
+    cp = C->p;
     for (int32_t V = V0; V < V1; V++) {
+        double top;
         if (!ok[V] || dmax(qc[V], qc[V + 1]) <= fm[V])
             continue;
-        if (C->p[C->n - 1].qr == -INFINITY && C->p[C->n - 1].m >= mc[V]) /* empty, zero width */
-            C->n--;
-        C->p[C->n] = (piece){mc[V], mc[V], qc[V], cs[V], 0.0, u};
-        C->p[C->n + 1] = empty_piece;
-        C->p[C->n + 1].m = mc[V + 1];
-        C->n += 2;
+        /* above F's maximum there by far more than rounding: a range for merge */
+        top = dmin(qc[V], qc[V + 1]);
+        if (top > fx[V] + 1e-9 * (1.0 + fabs(top))) {
+            if (nd > 0 && dom[2 * nd - 1] == mc[V])
+                dom[2 * nd - 1] = mc[V + 1];
+            else {
+                dom[2 * nd] = mc[V];
+                dom[2 * nd + 1] = mc[V + 1];
+                nd++;
+            }
+        }
+        if (cp[n - 1].qr == -INFINITY && cp[n - 1].m >= mc[V]) /* empty, zero width */
+            n--;
+        cp[n] = (piece){mc[V], mc[V], qc[V], cs[V], 0.0, u};
+        cp[n + 1] = empty_piece;
+        cp[n + 1].m = mc[V + 1];
+        n += 2;
     }
-    C->p[C->n] = empty_piece;
-    C->p[C->n].m = VS_MDOM;
+    cp[n] = empty_piece;
+    cp[n].m = VS_MDOM;
+    C->n = n;
+    sw->ndom = nd;
 }
 
 /* Column U's edges and with `strip` the strip's into F, with the column pass: the
@@ -684,8 +839,11 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
     const double *mc = sw->mcol[1] - c->vlo, *qc = sw->qcol[1] - c->vlo, *fm = sw->fmin - c->vlo;
     double *lc = sw->lcol - c->vlo, *cs = sw->cslope - c->vlo, u = U - c->eu, z[4], zl[4];
     uint8_t *ok = sw->colok - c->vlo;
+    const int holes = sw->holes;
     for (int32_t V = V0; V < V1; V++) {
-        ok[V] = (uint8_t)((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl));
+        /* without voids every cell beside the column is there: the rows V0 .. V1 of columns
+         * U-1 .. U+1 are loaded and on the grid */
+        ok[V] = (uint8_t)(!holes || (U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl));
         lc[V] = ok[V] ? dmax(fm[V], dmin(qc[V], qc[V + 1])) : fm[V];
         cs[V] = ok[V] ? (qc[V + 1] - qc[V]) / (mc[V + 1] - mc[V]) : 0.0;
     }
@@ -694,8 +852,8 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
         add_strip(sw, V0, V1, u);
     col_pieces(sw, V0, V1, u);
     if (!sw->oom) {
-        merge_into(sw, &sw->C, &sw->G);
-        merge_into(sw, &sw->F, &sw->C);
+        merge_into(sw, &sw->C, &sw->G, NULL, 0);
+        merge_into(sw, &sw->F, &sw->C, sw->dom, sw->ndom);
     }
     sw->hint_q = sw->hint_s = 0;
 }
@@ -845,12 +1003,17 @@ static void cast(sweep *sw, int32_t U, int32_t V)
  * (U, V) (column U buffered): raises *hi and *lo. */
 static void last_cell(const sweep *sw, int32_t V, double u, double m, double hu, double *hi, double *lo)
 {
-    double z[4], slack, a = fabs(m), s = a / (1.0 + a), h = NAN, q;
-    if (m > 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V - 1, z) && !upper_main(sw, z, u - 1.0, &slack))
+    double z[4], slack, a = fabs(m), s = 0.0, h = NAN, q;
+    /* the cell's diagonal first (its twist): the divisions only for the one that counts */
+    if (m > 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V - 1, z) && !upper_is_main(sw, z)) {
+        s = a / (1.0 + a);
         h = z[1] + (z[2] - z[1]) * (1.0 - a + a * s); /* from the south-west: (U, V-1)-(U-1, V) */
-    else if (m < 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V, z) && upper_main(sw, z, u - 1.0, &slack))
+    } else if (m < 0.0 && !sw->lin && cellz(sw, sw->zcol[0], sw->zcol[1], V, z) && upper_is_main(sw, z)) {
+        s = a / (1.0 + a);
         h = z[0] + (z[3] - z[0]) * s; /* from the north-west: the main diagonal (U-1, V)-(U, V+1) */
+    }
     if (!isnan(h)) {
+        slack = upper_slack(sw, z, u - 1.0);
         q = (h - sw->job->ez) / (u - 1.0 + s);
         *hi = dmax(*hi, q);
         if (u - 1.0 + s < hu)
@@ -858,22 +1021,6 @@ static void last_cell(const sweep *sw, int32_t V, double u, double m, double hu,
     }
 }
 
-/* An upper bound of what last_cell may add to hi for target (U, V): its diagonal's point
- * lies on the edge between two samples, so its q is at most theirs (+inf when a sample is
- * off the grid: then last_cell decides). */
-static inline double diag_bound(const sweep *sw, int32_t V, double m)
-{
-    const cone *c = &sw->c;
-    const double *qc = sw->qcol[1] - c->vlo, *qp = sw->qcol[0] - c->vlo;
-    double b = -INFINITY;
-    if (sw->lin || m == 0.0)
-        b = -INFINITY;
-    else if (m > 0.0)
-        b = V - 1 >= c->vlo ? dmax(qc[V - 1], qp[V]) : INFINITY;
-    else
-        b = V + 1 <= c->vhi ? dmax(qp[V], qc[V + 1]) : INFINITY;
-    return isnan(b) ? INFINITY : b;
-}
 
 /* Whether the segment to (U, V) starts clearly above the surface where the tracer starts
  * it (by 2^-44 of the eye's height, 16 times what starts_under tolerates): then a real
@@ -890,55 +1037,169 @@ static int starts_clear(const sweep *sw, int32_t U, int32_t V)
            td_viewshed_start_gap(j->v->grid, j->surface, &r) > 0x1p-44 * (1.0 + fabs(j->ez));
 }
 
-/* Decides target (U, V) of column U (not a void) against F, or casts it. */
-static void target(sweep *sw, int32_t U, int32_t V)
+/* The highest q of a real point of the bilinear surface on the ray m in the strip between
+ * columns U-1 and U (cone cells U-1..U): per cell the ray crosses there, the ends of its
+ * run through it and the stationary point of q along it (z is quadratic along the ray,
+ * so with w the distance q = A / w + B + C w: w = sqrt(A / C)), each evaluated on the
+ * patch itself. Any of them is a real point; -inf when the ray crosses no cell there. */
+static double strip_real_max(const sweep *sw, int32_t U, double m)
 {
-    const td_vsweep_job *j = sw->job;
     const cone *c = &sw->c;
-    const pvec *F = &sw->F;
-    double u = U - c->eu, m = sw->mcol[1][V - c->vlo], zt = sw->zcol[1][V - c->vlo], q, hi, lo, eps, hu;
+    double ez = sw->job->ez, best = -INFINITY, z[4], u0 = U - 1 - c->eu;
+    double v0 = m * u0, v1 = m * (u0 + 1.0);
+    int32_t Va = (int32_t)floor(dmin(v0, v1) + c->ev), Vb = (int32_t)floor(dmax(v0, v1) + c->ev);
+    for (int32_t V = Va; V <= Vb && u0 > 0.0; V++) {
+        double b0 = m * u0 - (V - c->ev), alo = 0.0, ahi = 1.0, k, Z0, Z1, Z2, A, cand[3];
+        if (!cell(c, U - 1, V, z))
+            continue;
+        if (m > 0.0) { /* b = b0 + m a in [0, 1] */
+            alo = dmax(alo, -b0 / m);
+            ahi = dmin(ahi, (1.0 - b0) / m);
+        } else if (m < 0.0) {
+            alo = dmax(alo, (1.0 - b0) / m);
+            ahi = dmin(ahi, -b0 / m);
+        } else if (b0 < 0.0 || b0 > 1.0) {
+            continue;
+        }
+        k = z[0] - z[1] - z[2] + z[3];
+        Z0 = z[0] + (z[2] - z[0]) * b0;
+        Z1 = (z[1] - z[0]) + (z[2] - z[0]) * m + k * b0;
+        Z2 = k * m;
+        A = Z2 * u0 * u0 - Z1 * u0 + Z0 - ez;
+        cand[0] = alo;
+        cand[1] = ahi;
+        cand[2] = Z2 < 0.0 && A < 0.0 ? sqrt(A / Z2) - u0 : alo;
+        for (int i = 0; i < 3 && alo <= ahi; i++) {
+            double a = dmin(dmax(cand[i], alo), ahi), b = b0 + m * a;
+            double zz = z[0] + (z[1] - z[0]) * a + (z[2] - z[0]) * b + k * a * b;
+            best = dmax(best, (zz - ez) / (u0 + a));
+        }
+    }
+    return best;
+}
+
+/* A lower bound of the surface's q on the ray m from real points, for a target that p (F's
+ * piece there) leaves undecided by its bilinear slack: strip_real_max in p's strip (U from
+ * its umax), when p proves at all (a finite slack, no hole nearer). */
+static double band_lo(const sweep *sw, const piece *p, double m, double hu)
+{
+    double lo = -INFINITY;
+    if (p->slack > 0.0 && p->slack < INFINITY && p->umax < hu)
+        lo = strip_real_max(sw, (int32_t)lround(p->umax + sw->c.eu), m);
+    return lo;
+}
+
+/* What the targets of column U read, loaded once a column into a local (the compiler
+ * reloads sw's fields after every byte written to vis: a char may alias them). Arrays
+ * offset by the rows' origin. */
+typedef struct tgt_cols {
+    const double *mc, *zc, *qc, *qp;
+    const int *kc;       /* valid with pass */
+    const piece *Fp, *Np;
+    const double *hole_u; /* NULL without holes */
+    uint8_t *vis;         /* sample (U, V)'s byte: vis[V * vstride] */
+    ptrdiff_t vstride;
+    double u, ez, th;     /* th: the target height */
+    int32_t vlo, vhi;
+    int pass, hidden_ok, visible_ok, bil, lin;
+    int nn, hint_n;       /* N's pieces, the search's hint */
+} tgt_cols;
+
+/* Column U's context for target(). */
+static void tgt_cols_init(sweep *sw, int32_t U, tgt_cols *t)
+{
+    const cone *c = &sw->c;
+    t->mc = sw->mcol[1] - c->vlo;
+    t->zc = sw->zcol[1] - c->vlo;
+    t->qc = sw->qcol[1] - c->vlo;
+    t->qp = sw->qcol[0] - c->vlo;
+    t->kc = sw->kcol - c->vlo;
+    t->Fp = sw->F.p;
+    t->Np = sw->N.p;
+    t->nn = sw->N.n;
+    t->hint_n = 0;
+    t->hole_u = sw->holes ? sw->hole_u : NULL;
+    t->vis = sw->vis + cidx(c, U, 0);
+    t->vstride = c->vi == 0 ? (ptrdiff_t)c->g->w : 1;
+    t->u = U - c->eu;
+    t->ez = sw->job->ez;
+    t->th = sw->job->target_height;
+    t->vlo = c->vlo;
+    t->vhi = c->vhi;
+    t->pass = sw->pass_ok;
+    t->hidden_ok = sw->hidden_ok;
+    t->visible_ok = sw->visible_ok;
+    t->bil = sw->bil;
+    t->lin = sw->lin;
+}
+
+/* An upper bound of what last_cell may add to hi for target (U, V): its diagonal's point
+ * lies on the edge between two samples, so its q is at most theirs (+inf when a sample is
+ * off the grid: then last_cell decides). */
+static inline double diag_bound(const tgt_cols *t, int32_t V, double m)
+{
+    double b = -INFINITY;
+    if (t->lin || m == 0.0)
+        b = -INFINITY;
+    else if (m > 0.0)
+        b = V - 1 >= t->vlo ? dmax(t->qc[V - 1], t->qp[V]) : INFINITY;
+    else
+        b = V + 1 <= t->vhi ? dmax(t->qp[V], t->qc[V + 1]) : INFINITY;
+    return isnan(b) ? INFINITY : b;
+}
+
+/* Decides target (U, V) of column U (not a void) against F, or casts it. */
+static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
+{
+    const piece *Fp = t->Fp;
+    double u = t->u, m = t->mc[V], zt = t->zc[V], q, hi, lo, eps, hu;
     int k;
-    q = j->target_height > 0.0 ? (zt + j->target_height - j->ez) / u : sw->qcol[1][V - c->vlo];
-    k = sw->pass_ok ? sw->kcol[V - c->vlo] : find(F, m, &sw->hint_q);
-    hu = sw->holes ? sw->hole_u[bin_of(m)] : INFINITY;
-    hi = pval(&F->p[k], m);
-    lo = F->p[k].umax < hu ? hi - F->p[k].slack : -INFINITY;
-    if (k > 0 && F->p[k].m == m) { /* on a break: the piece ending here holds m too */
-        double v = pval(&F->p[k - 1], m);
+    q = t->th > 0.0 ? (zt + t->th - t->ez) / u : t->qc[V];
+    k = t->pass ? t->kc[V] : find(&sw->F, m, &sw->hint_q);
+    hu = t->hole_u ? t->hole_u[bin_of(m)] : INFINITY;
+    hi = pval(&Fp[k], m);
+    lo = Fp[k].umax < hu ? hi - Fp[k].slack : -INFINITY;
+    if (k > 0 && Fp[k].m == m) { /* on a break: the piece ending here holds m too */
+        double v = pval(&Fp[k - 1], m);
         hi = dmax(hi, v);
-        if (F->p[k - 1].umax < hu)
-            lo = dmax(lo, v - F->p[k - 1].slack);
+        if (Fp[k - 1].umax < hu)
+            lo = dmax(lo, v - Fp[k - 1].slack);
     }
     eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
-    if (q < lo - eps && sw->hidden_ok) /* proved hidden already: the rest only raises lo */
+    if (q < lo - eps && t->hidden_ok) /* proved hidden already: the rest only raises lo */
         goto decide;
     {
-        int kn = find(&sw->N, m, &sw->hint_n);
-        hi = dmax(hi, pval(&sw->N.p[kn], m));
-        if (kn > 0 && sw->N.p[kn].m == m) /* on a break: the piece ending here too */
-            hi = dmax(hi, pval(&sw->N.p[kn - 1], m));
+        int kn = find_in(t->Np, t->nn, m, &t->hint_n);
+        hi = dmax(hi, pval(&t->Np[kn], m));
+        if (kn > 0 && t->Np[kn].m == m) /* on a break: the piece ending here too */
+            hi = dmax(hi, pval(&t->Np[kn - 1], m));
     }
-    if (j->target_height > 0.0)
-        hi = dmax(hi, (zt - j->ez) / u);
+    if (t->th > 0.0)
+        hi = dmax(hi, (zt - t->ez) / u);
     /* clear of everything nearer and of its last cell's diagonal's ends: visible without it */
-    if (!(sw->visible_ok && q > dmax(hi, diag_bound(sw, V, m)) + eps))
+    if (!(t->visible_ok && q > dmax(hi, diag_bound(t, V, m)) + eps))
         last_cell(sw, V, u, m, hu, &hi, &lo);
+    /* in the bilinear slack of its piece: real points of that strip on the ray may prove it hidden */
+    if (t->bil && q >= lo - eps && !(q > hi + eps && t->visible_ok))
+        lo = dmax(lo, band_lo(sw, &Fp[k], m, hu));
 decide:
 #ifdef TD_VSWEEP_DEBUG /* every proof checked against the cast */
-    if (((q > hi + eps && sw->visible_ok) || (q < lo - eps && (sw->hidden_ok || starts_clear(sw, U, V))))) {
+    if (((q > hi + eps && t->visible_ok) || (q < lo - eps && (t->hidden_ok || starts_clear(sw, U, V))))) {
+        const td_vsweep_job *j = sw->job;
+        const cone *c = &sw->c;
         uint32_t st = 0;
         int32_t i = c->ui * U + c->vi * V, jj = c->uj * U + c->vj * V;
         int r = td_viewshed_cast(j->v, j->surface, j->method, j->ex, j->ey, j->ez, i, jj, j->target_height, &st);
-        if ((r > 0) != (q > hi + eps && sw->visible_ok))
+        if ((r > 0) != (q > hi + eps && t->visible_ok))
             fprintf(stderr, "MISMATCH U %d V %d (i %d j %d) u %g m %g q %.9g hi %.9g lo %.9g cast %d F piece %d/%d\n",
-                    U, V, i, jj, u, m, q, hi, lo, r, k, F->n);
+                    U, V, i, jj, u, m, q, hi, lo, r, k, sw->F.n);
     }
 #endif
-    if (q > hi + eps && sw->visible_ok) {
-        sw->vis[cidx(c, U, V)] = 1;
+    if (q > hi + eps && t->visible_ok) {
+        t->vis[V * t->vstride] = 1;
         sw->swept++;
-    } else if (q < lo - eps && (sw->hidden_ok || starts_clear(sw, U, V))) {
-        sw->vis[cidx(c, U, V)] = 0;
+    } else if (q < lo - eps && (t->hidden_ok || starts_clear(sw, U, V))) {
+        t->vis[V * t->vstride] = 0;
         sw->swept++;
     } else {
         cast(sw, U, V);
@@ -951,11 +1212,13 @@ static int owned(const sweep *sw, int32_t U, int32_t V, double u)
     const cone *c = &sw->c;
     const td_grid *g = c->g;
     double dv = fabs(V - c->ev), dx, dy;
-    int32_t i = c->ui * U + c->vi * V, j = c->uj * U + c->vj * V;
+    int32_t i, j;
     if (!(c->strict ? dv < u : dv <= u))
         return 0;
     if (sw->job->maxd2 == INFINITY)
         return 1;
+    i = c->ui * U + c->vi * V;
+    j = c->uj * U + c->vj * V;
     dx = i * g->sx - sw->job->ex;
     dy = j * g->sy - sw->job->ey;
     return dx * dx + dy * dy <= sw->job->maxd2;
@@ -964,6 +1227,9 @@ static int owned(const sweep *sw, int32_t U, int32_t V, double u)
 static void sweep_cone(sweep *sw)
 {
     const cone *c = &sw->c;
+    const double ev = c->ev;
+    const int strict = c->strict, nomax = sw->job->maxd2 == INFINITY;
+    tgt_cols t;
     int32_t U0 = (int32_t)floor(c->eu) + 1; /* the first column east of the eye */
     pv_clear(&sw->F);
     for (int b = 0; b < VS_BINS; b++)
@@ -981,14 +1247,17 @@ static void sweep_cone(sweep *sw)
             break;
         load_next(sw, U);
         col_pass(sw, U, V0, V1);
-        sw->hint_q = sw->hint_n = 0;
+        sw->hint_q = 0;
+        tgt_cols_init(sw, U, &t);
         for (int32_t V = V0; V <= V1; V++) {
-            if (!owned(sw, U, V, u) || isnan(sw->zcol[1][V - c->vlo]))
+            double dv = fabs(V - ev);
+            /* owned() (its cone's test inline: the loop's locals are not reloaded) */
+            if (!(strict ? dv < u : dv <= u) || (!nomax && !owned(sw, U, V, u)) || isnan(t.zc[V]))
                 continue;
             if (U <= U0 + 1) /* the first two columns: cast */
                 cast(sw, U, V);
             else
-                target(sw, U, V);
+                target(sw, &t, U, V);
         }
         add_column(sw, U, U > U0);
     }
@@ -1013,12 +1282,13 @@ static void *cone_worker(void *arg)
             break;
         sw = &t->sw[k];
         size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
-        double *zb = malloc(12 * nv * sizeof *zb);
+        double *zb = malloc(15 * nv * sizeof *zb);
         int *kb = malloc(nv * sizeof *kb);
         uint8_t *ob = calloc(nv, 1);
-        if (zb && kb && ob && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
+        sw->panel = sw->c.vi == 0 ? malloc((size_t)VS_PANEL * nv * sizeof *sw->panel) : NULL;
+        if (zb && kb && ob && (sw->c.vi != 0 || sw->panel) && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
             pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
-            for (size_t q = 0; q < 12 * nv; q++)
+            for (size_t q = 0; q < 15 * nv; q++)
                 zb[q] = NAN;
             for (int b = 0; b < 3; b++) {
                 sw->zcol[b] = zb + (size_t)b * nv;
@@ -1028,6 +1298,8 @@ static void *cone_worker(void *arg)
             sw->fmin = zb + 9 * nv;
             sw->lcol = zb + 10 * nv;
             sw->cslope = zb + 11 * nv;
+            sw->fmax = zb + 12 * nv;
+            sw->dom = zb + 13 * nv; /* 2 nv: at most a range an interval */
             sw->kcol = kb;
             sw->colok = ob;
             sweep_cone(sw);
@@ -1037,6 +1309,8 @@ static void *cone_worker(void *arg)
         free(zb);
         free(kb);
         free(ob);
+        free(sw->panel);
+        sw->panel = NULL;
     }
     return NULL;
 }

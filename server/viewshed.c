@@ -39,7 +39,11 @@ json_t *td_vs_answer(const char *dataset, const td_grid *g, const td_viewshed_op
     json_t *seen_by = json_array(), *obs = json_array();
     uint64_t hist[TD_VS_MAX_OBSERVERS + 1] = {0};
     size_t n = (size_t)g->w * (size_t)g->h;
-    for (size_t k = 0; k < n; k++)
+    if (o->nobs == 1) { /* the counts are 0 or 1: st has them (no pass over the picture) */
+        hist[1] = st->visible;
+        hist[0] = st->inside - st->visible;
+    }
+    for (size_t k = 0; k < n && o->nobs > 1; k++)
         if (counts[k] != TD_VS_OUTSIDE)
             hist[counts[k]]++;
     for (int k = 0; k <= o->nobs; k++)
