@@ -249,39 +249,30 @@ static inline int32_t cell_along(double pos, int s, int32_t lo, int32_t hi)
 /* ------------------------------------------------------------------------------------ */
 /* Cell boundaries: the heights every surface shares there.                             */
 
-/* Height on the sample column I between rows J and J+1 (param from the ray's v); p is
- * sample (I, J), so (I, J + 1) is at p + stride (grid.h). */
-static inline double edge_u_height(const walk *w, const float *p, int32_t J, double t)
+/* Height on the edge from sample height a to b, at the ray's v (a column's edge, from row
+ * J) or u (a row's edge, from column I) at time t. */
+static inline double edge_height(double a, double b, double pos, int32_t k)
 {
-    double a = p[0], b = p[w->cz.stride];
-    return a + (b - a) * clamp01(ray_v(w, t) - (double)J);
+    return a + (b - a) * clamp01(pos - (double)k);
 }
 
-/* Height on the sample row J between columns I and I+1 (param from the ray's u); p is
- * sample (I, J), so (I + 1, J) is at p + 1. */
-static inline double edge_v_height(const walk *w, const float *p, int32_t I, double t)
-{
-    double a = p[0], b = p[1];
-    return a + (b - a) * clamp01(ray_u(w, t) - (double)I);
-}
-
-/* The surface height where the ray crosses boundary `kind` of cell (ci, cj), on its
- * entry side (`side` 0) or its exit side (1). A crossing is one boundary seen from both
- * cells: the entry side of a cell is the exit side of the one before it, and both call
- * this with the same samples (the same bits, whichever block of grid.h's layout holds
- * the copy the cell's corner pointer reaches), so the two values are the same bits. */
-static inline double boundary_height(const walk *w, int32_t ci, int32_t cj, int kind, int side,
-                                     double t)
+/* The surface height where the ray crosses boundary `kind` of the segment's cell, on its
+ * entry side (`side` 0) or its exit side (1), from the cell's corners the segment holds
+ * (c: z00, z10, z01, z11). A crossing is one boundary seen from both cells: the entry side
+ * of a cell is the exit side of the one before it, and both read the same two samples
+ * (the same floats, whichever cell's corners they came with), so the two values are the
+ * same bits. */
+static inline double boundary_height(const walk *w, const cell_seg *s, int kind, int side, double t)
 {
     const int eu = side ? w->su > 0 : w->su < 0, ev = side ? w->sv > 0 : w->sv < 0;
-    const float *p = td_grid_corner(&w->cz, ci, cj); /* the cell's corners: p, +1, +stride */
+    const double *c = s->c;
     double h;
-    if (kind == ENTRY_U)
-        h = edge_u_height(w, p + eu, cj, t);
-    else if (kind == ENTRY_V)
-        h = edge_v_height(w, p + (size_t)ev * w->cz.stride, ci, t);
+    if (kind == ENTRY_U) /* column ci + eu, rows cj .. cj + 1 */
+        h = edge_height(c[eu], c[2 + eu], ray_v(w, t), s->cj);
+    else if (kind == ENTRY_V) /* row cj + ev, columns ci .. ci + 1 */
+        h = edge_height(c[2 * ev], c[2 * ev + 1], ray_u(w, t), s->ci);
     else
-        h = p[(size_t)ev * w->cz.stride + (size_t)eu];
+        h = c[2 * ev + eu];
     return h;
 }
 
@@ -326,8 +317,8 @@ static double linear_under(const walk *w, const cell_seg *s, double t)
         /* vertical ray or a ray that only touches the cell: the surface under it */
         h = bilinear_patch(s->c, clamp01(ray_u(w, t) - s->ci), clamp01(ray_v(w, t) - s->cj));
     } else {
-        double hin = boundary_height(w, s->ci, s->cj, tu0 >= tv0 ? ENTRY_U : ENTRY_V, 0, tin);
-        double hout = boundary_height(w, s->ci, s->cj, tu1 <= tv1 ? ENTRY_U : ENTRY_V, 1, tout);
+        double hin = boundary_height(w, s, tu0 >= tv0 ? ENTRY_U : ENTRY_V, 0, tin);
+        double hout = boundary_height(w, s, tu1 <= tv1 ? ENTRY_U : ENTRY_V, 1, tout);
         h = hin + (hout - hin) * clamp01((t - tin) / (tout - tin));
     }
     return h;
@@ -343,10 +334,10 @@ TD_HOT void seg_f(const walk *w, cell_seg *s, under_fn under)
     if (isnan(s->fa))
         s->fa = ray_z(w, s->ta) - (s->entry == ENTRY_START
                                        ? under(w, s, s->ta)
-                                       : boundary_height(w, s->ci, s->cj, s->entry, 0, s->ta));
+                                       : boundary_height(w, s, s->entry, 0, s->ta));
     s->fb = ray_z(w, s->tb) - (s->exit == ENTRY_START
                                    ? under(w, s, s->tb)
-                                   : boundary_height(w, s->ci, s->cj, s->exit, 1, s->tb));
+                                   : boundary_height(w, s, s->exit, 1, s->tb));
 }
 
 /* First t in [ta, tb] where the linear f goes from fa to fb through zero. */
