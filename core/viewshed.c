@@ -322,9 +322,7 @@ static td_status lowered_view(const td_view *v, td_method m, double c, double px
         e->view.accel = e->bound;
         goto out;
     }
-    td_accel_opts_default(&ao);
-    ao.maxmip = m == TD_METHOD_HIERARCHICAL || m == TD_METHOD_AUTO;
-    ao.planes = m == TD_METHOD_PARAMETRIC;
+    td_accel_opts_for(m, &ao);
     ao.threads = threads;
     if (ao.maxmip || ao.planes)
         rc = td_accel_build(e->lowered, &ao, &e->acc, NULL, err);

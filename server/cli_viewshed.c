@@ -174,9 +174,7 @@ static int vs_run(vs_cli *c)
     }
     t_load = td_clock_s();
     ck[1] = clock();
-    td_accel_opts_default(&ao);
-    ao.maxmip = c->o.method == TD_METHOD_HIERARCHICAL || c->o.method == TD_METHOD_AUTO;
-    ao.planes = c->o.method == TD_METHOD_PARAMETRIC;
+    td_accel_opts_for(c->o.method, &ao);
     ao.threads = c->o.threads;
     if ((ao.maxmip || ao.planes) && td_accel_build(g, &ao, &acc, NULL, &err)) {
         fprintf(stderr, "terrad viewshed: %s: %s\n", c->dem, err.msg);
