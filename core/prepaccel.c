@@ -71,14 +71,14 @@ static size_t cones_of(const td_tile *t)
 }
 
 /* A tile's payload: apex heights, codes, cones, padding to 8; *at_codes, *at_cones where
- * the second and third begin. */
+ * the second and third begin. K 0: no planes (codes only). */
 static size_t payload_bytes(int tile_log2, const td_tile *t, int k, size_t *at_codes, size_t *at_cones)
 {
     td_maxmip m;
     size_t codes = mm_shape(tile_log2, t, &m);
-    *at_codes = ((size_t)k + 1) * sizeof(float);
+    *at_codes = k ? ((size_t)k + 1) * sizeof(float) : 0;
     *at_cones = *at_codes + codes * sizeof(uint16_t);
-    return (*at_cones + cones_of(t) * sizeof(td_cone) + 7u) & ~(size_t)7u;
+    return (*at_cones + (k ? cones_of(t) * sizeof(td_cone) : 0) + 7u) & ~(size_t)7u;
 }
 
 td_status td_pacc_build(const td_grid *g, size_t tile, int k, td_pacc_blob *b, td_err *err)
@@ -91,7 +91,7 @@ td_status td_pacc_build(const td_grid *g, size_t tile, int k, td_pacc_blob *b, t
 
     memset(b, 0, sizeof *b);
     rc = td_maxmip_build(g, tile, &m, err);
-    if (rc == TD_OK)
+    if (rc == TD_OK && k)
         rc = td_planes_build(g, tile, k, &p, err);
     if (rc)
         goto out;
@@ -101,12 +101,14 @@ td_status td_pacc_build(const td_grid *g, size_t tile, int k, td_pacc_blob *b, t
         rc = td_err_set(err, TD_ENOMEM, "out of memory for tile %zu's structures", tile);
         goto out;
     }
-    memcpy(b->data, p->apex, at_codes);
+    if (p) {
+        memcpy(b->data, p->apex, at_codes);
+        memcpy(b->data + at_cones, p->cone, cones_of(t) * sizeof(td_cone));
+    }
     memcpy(b->data + at_codes, m->code, at_cones - at_codes);
-    memcpy(b->data + at_cones, p->cone, cones_of(t) * sizeof(td_cone));
     b->rec.mm_base = m->base;
     b->rec.mm_step = m->step;
-    b->rec.slope_scale = p->slope_scale;
+    b->rec.slope_scale = p ? p->slope_scale : 0.0;
     b->rec.k = k;
     b->rec.bytes = (uint32_t)n;
     b->rec.sum = td_fnv1a(TD_FNV1A_INIT, b->data, n);
@@ -174,8 +176,8 @@ static int rec_fits(const td_pacc_rec *r, int tile_log2, const td_tile *t, int k
 {
     size_t a, c, n = payload_bytes(tile_log2, t, k, &a, &c);
     return r->k == k && r->bytes == n && r->off % 8u == 0 && r->off <= file && file - r->off >= n &&
-           isfinite(r->mm_base) && isfinite(r->mm_step) && r->mm_step > 0.0 && isfinite(r->slope_scale) &&
-           r->slope_scale > 0.0;
+           isfinite(r->mm_base) && isfinite(r->mm_step) && r->mm_step > 0.0 &&
+           (k ? isfinite(r->slope_scale) && r->slope_scale > 0.0 : r->slope_scale == 0.0);
 }
 
 /* Tile t of layer l (record i) pointed into the mapping. */
@@ -201,7 +203,7 @@ static void tile_attach(td_pacc *p, size_t i, int tile_log2, const td_tile *t)
     pl->cone = (td_cone *)(void *)(base + at_cones);
     pl->bytes = sizeof *pl + at_codes + (n - at_cones);
     p->acc[i].maxmip = m;
-    p->acc[i].planes = pl;
+    p->acc[i].planes = p->k ? pl : NULL;
 }
 
 static td_status tab_read(td_pacc *p, const char *path, uint64_t want, td_err *err)
@@ -257,7 +259,7 @@ td_status td_pacc_open(const char *dir, const td_grid *const *grids, int nlayers
     char path[PATH_MAX + 16];
 
     *out = NULL;
-    if (!p || nlayers < 1 || nlayers > TD_PACC_LAYERS || k < 1 || k > TD_PLANES_K_MAX) {
+    if (!p || nlayers < 1 || nlayers > TD_PACC_LAYERS || k < 0 || k > TD_PLANES_K_MAX) {
         rc = p ? td_err_set(err, TD_EFORMAT, "%s: accel: %d layers, K %d", dir, nlayers, k)
                : td_err_set(err, TD_ENOMEM, "%s: out of memory", dir);
         goto out;
@@ -314,12 +316,13 @@ const td_tile_accel *td_pacc_tiles(const td_pacc *p, int layer)
 int32_t td_pacc_rows(const td_pacc *p) { return p ? p->row0[p->nlayers] : 0; }
 
 /* Tile i's values where a tracer indexes with them: apex heights are numbers, every
- * cone's apex index is one of them (the code scales were checked at open). */
+ * cone's apex index is one of them (the code scales were checked at open); nothing to
+ * check without planes (K 0). */
 static const char *tile_check(const td_planes *pl, const unsigned char *data, size_t at_cones)
 {
     const char *why = NULL;
-    const size_t n = (size_t)pl->bnx * (size_t)pl->bny;
-    for (int s = 0; s <= pl->k && !why; s++) {
+    const size_t n = pl->k ? (size_t)pl->bnx * (size_t)pl->bny : 0;
+    for (int s = 0; pl->k && s <= pl->k && !why; s++) {
         float a;
         memcpy(&a, data + (size_t)s * sizeof a, sizeof a);
         why = isnan(a) ? "an apex height is not a number" : NULL;
@@ -375,6 +378,16 @@ out:
         close(fd);
     free(buf);
     return rc;
+}
+
+uint64_t td_pacc_willneed(const td_pacc *p, int from)
+{
+    size_t page = (size_t)sysconf(_SC_PAGESIZE), at;
+    if (!p || from < 0 || from >= p->nlayers || p->first[from] >= p->nrec)
+        return 0;
+    at = (size_t)p->recs[p->first[from]].off / page * page;
+    madvise((char *)p->map + at, p->map_bytes - at, MADV_WILLNEED);
+    return p->map_bytes - at;
 }
 
 void td_pacc_mapping(const td_pacc *p, void **base, size_t *len)

@@ -41,7 +41,7 @@ typedef struct td_pacc_rec {
     uint64_t off;       /* of the payload in accel.bin (a multiple of 8) */
     double mm_base, mm_step; /* the max-mipmap's code scale */
     double slope_scale; /* the planes' */
-    int32_t k;          /* the planes' slices (the prepare's K) */
+    int32_t k;          /* the planes' slices (the prepare's K; 0: no planes) */
     uint32_t bytes;     /* of the payload, padding included */
     uint64_t sum;       /* FNV-1a of the payload */
 } td_pacc_rec;
@@ -52,7 +52,8 @@ typedef struct td_pacc_blob {
     unsigned char *data;
 } td_pacc_blob;
 
-/* Builds tile `tile` of g's max-mipmap and K-slice planes into b (b->data malloc'ed). */
+/* Builds tile `tile` of g's max-mipmap and K-slice planes (none for K 0: the payload is the
+ * codes alone, and the tile's planes pointer NULL when read) into b (b->data malloc'ed). */
 td_status td_pacc_build(const td_grid *g, size_t tile, int k, td_pacc_blob *b, td_err *err);
 
 /* Builds the tiles of tile row ty of g on `threads` threads into blobs[0 .. tiles_x). */
@@ -75,6 +76,10 @@ int32_t td_pacc_rows(const td_pacc *p);
  * the page cache after), compares each with its record's checksum and checks the values a
  * tracer indexes with; TD_EFORMAT naming the file, the layer, the tile and why. */
 td_status td_pacc_verify_row(const td_pacc *p, int32_t r, td_err *err);
+/* Asks the kernel to read the structures of layers `from` .. last (the coarsest levels are
+ * last in accel.bin: one range) into the page cache ahead of their first touch
+ * (MADV_WILLNEED); returns their bytes. */
+uint64_t td_pacc_willneed(const td_pacc *p, int from);
 /* accel.bin's mapping (for residency, trimming and advice alike to the heights'). */
 void td_pacc_mapping(const td_pacc *p, void **base, size_t *len);
 void td_pacc_free(td_pacc *p);

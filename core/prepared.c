@@ -881,7 +881,7 @@ static td_status run_init(td_prep_run *r, const td_src_rows *src, const td_prepa
     want.block_log2 = o->block_log2 ? o->block_log2 : TD_PREPARED_BLOCK_LOG2;
     r->k = blocks_plan(src->shape.w, src->shape.h, want.block_log2);
     want.bands = r->k.by;
-    want.planes_k = o->planes_k > 0 ? o->planes_k : TD_PLANES_K_DEFAULT;
+    want.planes_k = o->planes_k > 0 ? o->planes_k : o->planes_k == TD_PREPARE_NO_PLANES ? 0 : TD_PLANES_K_DEFAULT;
     r->band = malloc(r->k.band_bytes);
     r->bsums = calloc((size_t)r->k.by, 8);
     ok = r->band && r->bsums;
@@ -1214,7 +1214,7 @@ td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opt
     r.afd[0] = r.afd[1] = -1;
     for (int k = 0; k <= TD_LOD_MAX; k++)
         r.b[k].fd = -1;
-    if (o->planes_k < 0 || o->planes_k > TD_PLANES_K_MAX) {
+    if (o->planes_k < TD_PREPARE_NO_PLANES || o->planes_k > TD_PLANES_K_MAX) {
         memset(&src, 0, sizeof src);
         rc = td_err_field(err, TD_EINVAL, "planes_k", "%d slices: outside 1 .. %d", o->planes_k, TD_PLANES_K_MAX);
         goto out;
@@ -1435,7 +1435,7 @@ static td_status accel_read(td_prepared *p, const char *path, json_t *o, td_err 
     td_status rc = TD_OK;
     json_int_t k = json_integer_value(json_object_get(o, "planes_k"));
     json_int_t bytes = json_integer_value(json_object_get(o, "bytes"));
-    if (k < 1 || k > TD_PLANES_K_MAX || bytes < 8 ||
+    if (!json_is_integer(json_object_get(o, "planes_k")) || k < 0 || k > TD_PLANES_K_MAX || bytes < 8 ||
         !hex_parse(json_string_value(json_object_get(o, "tab_fnv")), &p->accel_tab_fnv))
         rc = td_err_set(err, TD_EFORMAT, "%s: accel.planes_k, accel.bytes or accel.tab_fnv missing or out of range",
                         path);
@@ -1837,6 +1837,8 @@ static void accel_madvise(const td_prepared *p, int advice)
     if (base)
         madvise(base, len, advice);
 }
+
+void td_prepared_accel_willneed(const td_prepared *p, int from) { td_pacc_willneed(p->pacc, from); }
 
 void td_prepared_accel_trim(const td_prepared *p) { accel_madvise(p, MADV_DONTNEED); }
 

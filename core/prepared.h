@@ -93,11 +93,14 @@
  * cancels (the state written so far stays, so a later run continues). */
 typedef int (*td_prepare_progress)(void *cls, int64_t rows_done, int64_t rows_total, int32_t w);
 
+#define TD_PREPARE_NO_PLANES (-1)
+
 typedef struct td_prepare_opts {
     td_dem_opts dem;     /* loader options (spacing, encoding...); tile_log2 from here */
     int32_t chunk_rows;  /* 0: the tile size */
     int block_log2;      /* heights.blk's blocks: 2^block_log2 cells a side; 0: TD_PREPARED_BLOCK_LOG2 */
-    int planes_k;        /* slices of the tiles' parameter planes; 0: TD_PLANES_K_DEFAULT */
+    int planes_k;        /* slices of the tiles' parameter planes; 0: TD_PLANES_K_DEFAULT;
+                            TD_PREPARE_NO_PLANES: none (max-mipmaps only) */
     int threads;         /* that build the tiles' structures; 0: one a core */
     /* called with the rows of the heights (width > 0), then with the tile rows of the
        structures done of all (width 0) */
@@ -149,6 +152,8 @@ uint64_t td_prepared_accel_resident(const td_prepared *p);
 void td_prepared_accel_trim(const td_prepared *p);
 void td_prepared_accel_advise(const td_prepared *p, int random);
 uint64_t td_prepared_accel_mapped(const td_prepared *p);
+/* MADV_WILLNEED on the structures of levels `from` .. the coarsest (prepaccel.h). */
+void td_prepared_accel_willneed(const td_prepared *p, int from);
 /* A hash of the index's checksums, shape and version (the disk cache's fingerprint). */
 uint64_t td_prepared_fingerprint(const td_prepared *p);
 /* Chunks of every layer: the heights' first, then level 1's, ..., heights.blk's bands,

@@ -69,7 +69,8 @@ static void usage(FILE *f)
                "  --spacing SX[,SY]  metres between samples when the DEM does not say\n"
                "  --chunk-rows N     rows per chunk (checksum and resume unit; default the tile size)\n"
                "  --block-size B     cells per block side of heights.blk, a power of two 4..256 (default 32)\n"
-               "  --planes-k K       slices of the tiles' parameter planes, 1..255 (default 16)\n"
+               "  --planes-k K       slices of the tiles' parameter planes, 1..255 (default 16); 0: no planes\n"
+               "                     (max-mipmaps only: parametric then walks cell by cell; auto never reads them)\n"
                "  --threads N        threads that build the structures (default one a core)\n"
                "  --stop-after K     stop after K chunks, tile rows of structures included (to try resuming)\n"
                "  --quiet            no progress bar\n");
@@ -109,8 +110,8 @@ static int parse_args(int argc, char **argv, const char **pos, td_prepare_opts *
         } else if (!strcmp(a, "--chunk-rows") && next && td_cli_parse_int(next, 1, 1 << 20, &v)) {
             o->chunk_rows = v;
             i++;
-        } else if (!strcmp(a, "--planes-k") && next && td_cli_parse_int(next, 1, TD_PLANES_K_MAX, &v)) {
-            o->planes_k = v;
+        } else if (!strcmp(a, "--planes-k") && next && td_cli_parse_int(next, 0, TD_PLANES_K_MAX, &v)) {
+            o->planes_k = v ? v : TD_PREPARE_NO_PLANES;
             i++;
         } else if (!strcmp(a, "--threads") && next && td_cli_parse_int(next, 1, 64, &v)) {
             o->threads = v;

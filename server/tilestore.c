@@ -626,7 +626,6 @@ void td_store_free(td_store *s)
     }
     for (size_t d = 0; d < s->nds; d++) {
         td_ds *ds = &s->ds[d];
-        td_prepared_free(ds->prep);
         for (size_t t = 0; t < ds->ntiles; t++)
             for (int k = 0; k < TD_PART_COUNT; k++)
                 part_unref(ds->slots[t].part[k]);
@@ -637,6 +636,7 @@ void td_store_free(td_store *s)
         }
         free(ds->slots);
         hver_unref(ds->cur);
+        td_prepared_free(ds->prep); /* after the levels, whose views point into it */
     }
     free(s->ds);
     free(s->cache_dir);
@@ -839,20 +839,24 @@ out:
 }
 
 /* Coarse levels first: once a prepared dataset is checked (the check drops what it read
- * from the page cache), its coarsest levels that fit a quarter of the budget together are
- * asked back into the page cache (MADV_WILLNEED: read ahead by the kernel, not mapped into
+ * from the page cache), its coarsest levels that fit a quarter of the budget together, and
+ * their tiles' structures, are asked back into the page cache (MADV_WILLNEED: read ahead by the kernel, not mapped into
  * the process), so a far ray's first touch of them is a minor fault, not a read. A prepared
  * dataset's heights are never edited, so d->cur stays. */
 static void warm_levels(const td_store *s, const td_ds *d)
 {
     const td_lod *l = d->cur->lod;
     uint64_t sum = 0;
+    int from = 0;
     for (int k = l ? l->levels : 0; k >= 1; k--) {
         sum += l->grid[k]->map_bytes;
         if (sum > s->o.budget_bytes / 4)
             break;
         td_prepared_willneed(l->grid[k]);
+        from = k;
     }
+    if (from) /* and their tiles' structures (the coarsest last in accel.bin: one range) */
+        td_prepared_accel_willneed(d->prep, from);
 }
 
 /* Checks the next pending chunk of one prepared dataset; 0 when none is left. */

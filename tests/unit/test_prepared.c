@@ -820,6 +820,74 @@ static void test_lod_structures_used(void **state)
     td_prepared_free(p);
 }
 
+/* Without planes (terrad prepare --planes-k 0: max-mipmaps only, about half of the
+ * structures' bytes): every tile has its max-mipmap and no planes, and every method still
+ * gives the source's picture (parametric walks cell by cell: the steps of a render of the
+ * source with max-mipmaps alone built). */
+static void test_no_planes(void **state)
+{
+    char src[512], dir[512], with[512];
+    td_prepare_result res;
+    td_prepare_opts po;
+    td_prepared *p = NULL;
+    td_grid *g, *ref = NULL;
+    td_dem_opts lo;
+    td_accel_opts ao;
+    td_accel *ra = NULL;
+    td_err e = {0};
+    struct stat a, b;
+    (void)state;
+    data_path("trinidad-crop.f32", src, sizeof src);
+    tmp_path("no-planes", dir, sizeof dir);
+    opts(&po, 5, 0);
+    po.planes_k = TD_PREPARE_NO_PLANES;
+    if (td_prepare(src, dir, &po, &res, &e) != TD_OK)
+        fail_msg("%s", e.msg);
+    tmp_path("with-planes", with, sizeof with);
+    prepare_ok(src, with, 5, 0, &res);
+    {
+        char pa[600], pb[600];
+        snprintf(pa, sizeof pa, "%s/%s", dir, TD_PACC_BIN);
+        snprintf(pb, sizeof pb, "%s/%s", with, TD_PACC_BIN);
+        assert_int_equal(stat(pa, &a), 0);
+        assert_int_equal(stat(pb, &b), 0);
+        assert_true(a.st_size < b.st_size);
+    }
+    td_dem_opts_default(&lo);
+    lo.tile_log2 = 5;
+    assert_int_equal(td_dem_load(src, &lo, &ref, &e), TD_OK);
+    td_accel_opts_default(&ao);
+    ao.planes = 0;
+    ao.threads = 1;
+    assert_int_equal(td_accel_build(ref, &ao, &ra, NULL, &e), TD_OK);
+    assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK);
+    for (int c = 0; c < td_prepared_chunks(p); c++)
+        assert_int_equal(td_prepared_verify_chunk(p, c, &e), TD_OK);
+    g = td_prepared_take_grid(p);
+    for (size_t t = 0; t < (size_t)g->tiles_x * (size_t)g->tiles_y; t++) {
+        assert_non_null(td_prepared_accel(p)[t].maxmip);
+        assert_null(td_prepared_accel(p)[t].planes);
+    }
+    for (int m = 0; m < TD_METHOD_COUNT; m++) {
+        td_view va = {g, td_prepared_accel(p)}, vb = {ref, ra->tiles};
+        td_scene sc;
+        td_render_opts o;
+        td_render_result x, y;
+        crop_view(&sc, &o, 2600.0, 10.0, m, TD_SURFACE_BILINEAR);
+        sc.effects.shadows = 1;
+        assert_int_equal(td_render(&va, &sc, &o, &x, &e), TD_OK);
+        assert_int_equal(td_render(&vb, &sc, &o, &y, &e), TD_OK);
+        assert_memory_equal(x.rgba, y.rgba, (size_t)80 * 50 * 4);
+        assert_int_equal(x.stats.steps, y.stats.steps);
+        td_render_result_free(&x);
+        td_render_result_free(&y);
+    }
+    td_accel_free(ra);
+    td_grid_free(g);
+    td_grid_free(ref);
+    td_prepared_free(p);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -830,6 +898,7 @@ int main(void)
         cmocka_unit_test(test_corrupt_chunk),      cmocka_unit_test(test_levels_refused),
         cmocka_unit_test(test_resident),           cmocka_unit_test(test_render_reads_blocks),
         cmocka_unit_test(test_lod_reads_no_full_grid), cmocka_unit_test(test_lod_structures_used),
+        cmocka_unit_test(test_no_planes),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
