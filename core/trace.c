@@ -1103,12 +1103,11 @@ void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r,
  * baseline's), each branch of the scalar code a select between its two sides. Each lane
  * runs the scalar code's operations in its order on its operands, so its values are the
  * scalar walk's bit for bit (IEEE arithmetic is the same in a lane as in a scalar
- * register; no FMA, and C11 mode contracts nothing). A ray the packet does not finish in
- * the near walk (it takes more cells, or starts behind its clip, so without a near walk)
- * is traced again by trace_one from its start: its answer is the scalar one by
- * construction. Only the triangle surface has a packet so far (packet_cross); the others
- * take trace_one for every ray. test_trace's test_batches_same holds the packets to
- * td_trace_from, memory for memory. */
+ * register; no FMA, and C11 mode contracts nothing). A ray the near walk leaves on the
+ * grid goes on over the tiles from the lane's state (packet_rest, tile_walk), and one that
+ * starts behind its clip (no near walk) is trace_one's. Every surface has its packet form (vcross: vplane_cross .. vbilinear_cross,
+ * each its scalar twin's expressions in the same order). test_trace's test_batches_same
+ * holds the packets to td_trace_from, memory for memory. */
 
 /* The helpers below are always inlined into fan_packet, so no vector crosses a call: the
  * warning that a 32-byte vector's calling convention differs without AVX does not apply.
@@ -1212,11 +1211,9 @@ TD_HOT vd vboundary(const vwalk *p, const vcell *k, vd ci, vd cj, vd kind, int s
     return vsel((vm)(kind == ENTRY_U), hu, vsel((vm)(kind == ENTRY_V), hv, huv));
 }
 
-/* triangle_patch under the ray at t */
-TD_HOT vd vtriangle_under(const vwalk *p, const vcell *k, vd ci, vd cj, vd t)
+/* triangle_patch for every lane */
+TD_HOT vd vtriangle_patch(const vd *c, vd a, vd b)
 {
-    const vd *c = k->c;
-    vd a = vclamp01(vray_u(p, t) - ci), b = vclamp01(vray_v(p, t) - cj);
     vd lo = c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b;
     vd hi = c[3] + (c[2] - c[3]) * (1.0 - a) + (c[1] - c[3]) * (1.0 - b);
     return vsel((vm)(a + b <= 1.0), lo, hi);
@@ -1231,30 +1228,163 @@ TD_HOT void vseg_hit(vd ta, vd fa, vd tb, vd fb, vm *hit, vd *t)
     *hit = z | change;
 }
 
-/* triangle_cross for every lane, over the segment [ta, tb] entered across `entry` (f there
- * fa, NaN: not known) and left across `exit`: the lanes that hit (*t), and f at tb (*fb) */
-TD_HOT vm vtriangle_cross(const vwalk *p, const vcell *k, vd ci, vd cj, vd ta, vd tb, vd entry,
-                          vd exit, vd fa, vd *fb, vd *t)
+/* The surface under the ray at t inside the cell, for every lane: patch_under (triangle,
+ * bilinear) and linear_under. */
+TD_HOT vd vbilinear_patch(const vd *c, vd a, vd b)
+{
+    return c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b + (c[0] - c[1] - c[2] + c[3]) * a * b;
+}
+
+TD_HOT vd vlinear_under(const vwalk *p, const vcell *k, vd ci, vd cj, vd t)
+{
+    vd tu0 = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
+    vd tv0 = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
+    vd tu1 = vtime_u(p, ci + vone(p->pu)), tv1 = vtime_v(p, cj + vone(p->pv));
+    vd tin = vmax(tu0, tv0), tout = vmin(tu1, tv1);
+    vm inf = (vm)vb(INFINITY);
+    vm touch = ~(vm)(tout > tin) | (vm)(((vm)vabs(tin) & inf) == inf) | (vm)(((vm)vabs(tout) & inf) == inf);
+    vd patch = vbilinear_patch(k->c, vclamp01(vray_u(p, t) - ci), vclamp01(vray_v(p, t) - cj));
+    vd hin = vboundary(p, k, ci, cj, vsel((vm)(tu0 >= tv0), vb(ENTRY_U), vb(ENTRY_V)), 0, tin);
+    vd hout = vboundary(p, k, ci, cj, vsel((vm)(tu1 <= tv1), vb(ENTRY_U), vb(ENTRY_V)), 1, tout);
+    vd lin = hin + (hout - hin) * vclamp01((t - tin) / (tout - tin));
+    return vsel(touch, patch, lin);
+}
+
+TD_HOT vd vunder(const vwalk *p, const vcell *k, td_surface sf, vd ci, vd cj, vd t)
+{
+    vd h;
+    if (sf == TD_SURFACE_LINEAR) {
+        h = vlinear_under(p, k, ci, cj, t);
+    } else {
+        vd a = vclamp01(vray_u(p, t) - ci), b = vclamp01(vray_v(p, t) - cj);
+        h = sf == TD_SURFACE_TRIANGLE ? vtriangle_patch(k->c, a, b) : vbilinear_patch(k->c, a, b);
+    }
+    return h;
+}
+
+/* seg_f for every lane: f at both ends of the segment (fa where it is NaN) */
+TD_HOT void vseg_f(const vwalk *p, const vcell *k, td_surface sf, vd ci, vd cj, vd ta, vd tb,
+                   vd entry, vd exit, vd *fa, vd *fb)
+{
+    vd fa_new = vray_z(p, ta) - vsel((vm)(entry == ENTRY_START), vunder(p, k, sf, ci, cj, ta),
+                                      vboundary(p, k, ci, cj, entry, 0, ta));
+    *fa = vsel(vnan(*fa), fa_new, *fa);
+    *fb = vray_z(p, tb) - vsel((vm)(exit == ENTRY_START), vunder(p, k, sf, ci, cj, tb),
+                               vboundary(p, k, ci, cj, exit, 1, tb));
+}
+
+/* The surfaces' cell intersections (plane_cross .. bilinear_cross) for every lane, over
+ * the segment [ta, tb] entered across `entry` (f there fa, NaN: not known) and left across
+ * `exit`: the lanes that hit (their t in *t, the plane's wall in *wall), and f at tb (*fb,
+ * NaN for the plane, which computes none). */
+typedef struct vseg {
+    vd ci, cj, ta, tb, entry, exit, fa;
+} vseg;
+
+TD_HOT vm vplane_cross(const vwalk *p, const vcell *k, const vseg *g, vd *t, vd *wall)
 {
     const vd *c = k->c;
-    vd fa_new = vray_z(p, ta) - vsel((vm)(entry == ENTRY_START), vtriangle_under(p, k, ci, cj, ta),
-                                      vboundary(p, k, ci, cj, entry, 0, ta));
-    fa = vsel(vnan(fa), fa_new, fa);
-    *fb = vray_z(p, tb) - vsel((vm)(exit == ENTRY_START), vtriangle_under(p, k, ci, cj, tb),
-                               vboundary(p, k, ci, cj, exit, 1, tb));
-    vd sa = (vray_u(p, ta) - ci) + (vray_v(p, ta) - cj) - 1.0;
-    vd sb = (vray_u(p, tb) - ci) + (vray_v(p, tb) - cj) - 1.0;
+    vd top = vmax(vmax(c[0], c[1]), vmax(c[2], c[3]));
+    vd za = vray_z(p, g->ta), zb = vray_z(p, g->tb);
+    vm at_a = (vm)(za <= top), at_b = ~at_a & (vm)(zb <= top);
+    vd th = g->ta + (za - top) / -p->dz;
+    vd tc = vsel((vm)(th < g->ta), g->ta, vsel((vm)(th > g->tb), g->tb, th));
+    vm side = (vm)(za < top) & ((vm)(g->entry == ENTRY_U) | (vm)(g->entry == ENTRY_V));
+    *t = vsel(at_a, g->ta, tc);
+    *wall = vsel(at_a & side, g->entry, vb(0.0));
+    return at_a | at_b;
+}
+
+TD_HOT vm vtriangle_cross(const vwalk *p, const vcell *k, const vseg *g, vd fa, vd fb, vd *t)
+{
+    const vd *c = k->c;
+    vd sa = (vray_u(p, g->ta) - g->ci) + (vray_v(p, g->ta) - g->cj) - 1.0;
+    vd sb = (vray_u(p, g->tb) - g->ci) + (vray_v(p, g->tb) - g->cj) - 1.0;
     vm split = ((vm)(sa < 0.0) & (vm)(sb > 0.0)) | ((vm)(sa > 0.0) & (vm)(sb < 0.0));
-    vd td = ta + (tb - ta) * (sa / (sa - sb));
-    vd bd = vclamp01(vray_v(p, td) - cj);
-    vd fd = vray_z(p, td) - (c[1] + (c[2] - c[1]) * bd);
-    vm h1, h2, h0;
-    vd t1, t2, t0;
-    vseg_hit(ta, fa, td, fd, &h1, &t1);
-    vseg_hit(td, fd, tb, *fb, &h2, &t2);
-    vseg_hit(ta, fa, tb, *fb, &h0, &t0);
-    *t = vsel(split, vsel(h1, t1, t2), t0);
-    return (split & (h1 | h2)) | (~split & h0);
+    vd td = g->tb, fd = fb; /* where the first part ends: the diagonal where the lane splits */
+    if (vany(split)) {
+        vd ts = g->ta + (g->tb - g->ta) * (sa / (sa - sb));
+        vd bd = vclamp01(vray_v(p, ts) - g->cj);
+        td = vsel(split, ts, td);
+        fd = vsel(split, vray_z(p, ts) - (c[1] + (c[2] - c[1]) * bd), fd);
+    }
+    vm h1, h2;
+    vd t2;
+    vseg_hit(g->ta, fa, td, fd, &h1, t);
+    vm second = split & ~h1;
+    if (vany(second)) {
+        vseg_hit(td, fd, g->tb, fb, &h2, &t2);
+        *t = vsel(second, t2, *t);
+        h1 |= second & h2;
+    }
+    return h1;
+}
+
+TD_HOT vd vsqrt(vd x) { return (vd){sqrt(x[0]), sqrt(x[1]), sqrt(x[2]), sqrt(x[3])}; }
+TD_HOT vd vcopysign(vd m, vd s)
+{
+    vm sign = (vm)vb(-0.0);
+    return (vd)(((vm)m & ~sign) | ((vm)s & sign));
+}
+
+TD_HOT vm vbilinear_cross(const vwalk *p, const vcell *k, const vseg *g, vd fa, vd fb, vd *t)
+{
+    const vd *c = k->c;
+    vd ta = g->ta, L = g->tb - g->ta;
+    vd kk = c[0] - c[1] - c[2] + c[3];
+    vd A = -kk * p->du * p->dv;
+    vm z = (vm)(fa == 0.0), flat = ~(vm)(L > 0.0);
+    vm lin = ~z & ~flat & ((vm)(A == 0.0) | (vm)(vabs(A) * L * L <= 1e-12 * (vabs(fa) + vabs(fb))));
+    vm quad = ~z & ~flat & ~lin;
+    vm h, hl;
+    vd tl;
+    vseg_hit(ta, fa, g->tb, fb, &hl, &tl);
+    h = z | (lin & hl);
+    *t = vsel(z, ta, tl);
+    if (vany(quad)) {
+        vd B = (fb - fa - A * L * L) / L;
+        vm change = ((vm)(fa > 0.0) ^ (vm)(fb > 0.0)) | (vm)(fb == 0.0);
+        vd smin = -B / (2.0 * A);
+        vd fext = fa + 0.5 * B * smin;
+        vm inside = (vm)(smin > 0.0) & (vm)(smin < L) &
+                    ((vm)(fext == 0.0) | ((vm)(fext > 0.0) ^ (vm)(fa > 0.0)));
+        vm root = quad & (change | inside);
+        if (vany(root)) {
+            vd disc = B * B - 4.0 * A * fa;
+            vd sq = vsqrt(vsel((vm)(disc > 0.0), disc, vb(0.0)));
+            vd q = -0.5 * (B + vcopysign(sq, B));
+            vd r1 = q / A, r2 = vsel((vm)(q != 0.0), fa / q, r1);
+            vd lo = vmin(r1, r2), hi = vmax(r1, r2);
+            vd hiend = vsel(change, L, smin);
+            vd sr = vsel((vm)(lo >= 0.0), lo, hi);
+            vm bad = ~((vm)(sr >= 0.0) & (vm)(sr <= hiend));
+            sr = vsel(bad, vsel(change, L * (fa / (fa - fb)), smin), sr);
+            *t = vsel(root, ta + sr, *t);
+            h |= root;
+        }
+    }
+    return h;
+}
+
+TD_HOT vm vcross(const vwalk *p, const vcell *k, td_surface sf, const vseg *g, vd *fb, vd *t,
+                 vd *wall)
+{
+    vm h;
+    vd fa = g->fa;
+    *fb = vb(NAN);
+    *wall = vb(0.0);
+    if (sf == TD_SURFACE_PLANE) {
+        h = vplane_cross(p, k, g, t, wall);
+    } else {
+        vseg_f(p, k, sf, g->ci, g->cj, g->ta, g->tb, g->entry, g->exit, &fa, fb);
+        if (sf == TD_SURFACE_TRIANGLE)
+            h = vtriangle_cross(p, k, g, fa, *fb, t);
+        else if (sf == TD_SURFACE_BILINEAR)
+            h = vbilinear_cross(p, k, g, fa, *fb, t);
+        else /* linear: f is linear along the ray */
+            vseg_hit(g->ta, fa, g->tb, *fb, &h, t);
+    }
+    return h;
 }
 
 /* The packet's rays set up, clipped and started (walk_dir, walk_clip, skip_to): *go the
@@ -1315,10 +1445,10 @@ TD_HOT void vadvance(const vwalk *p, vstate *st, vm m, vd kind, vd t, vd f)
 }
 
 /* One step of the near walk (walk_cell, then cell_test where it does not reject) for the
- * lanes of act: *hit gets the lanes that hit (their t in *th, corners in *hk), *end those
- * whose search ends in the cell. */
-TD_HOT void vstep(const walk *w, const vwalk *p, vstate *st, vm act, vm *hit, vm *end, vd *th,
-                  vcell *hk)
+ * lanes of act: *hit gets the lanes that hit (their t in *th, the plane's wall in *hwall,
+ * the cell's corners in *hk), *end those whose search ends in the cell. */
+TD_HOT void vstep(const walk *w, const vwalk *p, td_surface sf, vstate *st, vm act, vm *hit,
+                  vm *end, vd *th, vd *hwall, vcell *hk)
 {
     vd tu = vtime_u(p, st->ci + vone(p->pu)), tv = vtime_v(p, st->cj + vone(p->pv));
     vd tb = vmin(tu, tv), kind = vcrossing(tu, tv);
@@ -1337,12 +1467,15 @@ TD_HOT void vstep(const walk *w, const vwalk *p, vstate *st, vm act, vm *hit, vm
     if (!w->surf->solid)
         clear |= (vm)(vmax(za, zb) < bottom);
     vm cross = test & ok & ~clear;
-    vd fb = vb(NAN), t = vb(INFINITY);
+    vd fb = vb(NAN), t = vb(INFINITY), wall = vb(0.0);
     vm h = {0, 0, 0, 0};
-    if (vany(cross))
-        h = cross & vtriangle_cross(p, &k, st->ci, st->cj, st->t, tb2, st->entry, exit, st->f, &fb, &t);
+    if (vany(cross)) {
+        vseg g = {st->ci, st->cj, st->t, tb2, st->entry, exit, st->f};
+        h = cross & vcross(p, &k, sf, &g, &fb, &t, &wall);
+    }
     *hit = h;
     *th = t;
+    *hwall = wall;
     *hk = k;
     vm go_on = test & ~h;
     *end = go_on & (vm)(exit == ENTRY_START);
@@ -1356,30 +1489,36 @@ TD_HOT vm von_grid(const walk *w, const vstate *st)
            (vm)(st->cj <= (double)w->cmax_j);
 }
 
-/* Whether trace_one's walk of a fan ray would be a packet lane's: a ray to trace (t_clear
- * finite) whose direction needs no rescaling (walk_dir's scale 1), on the triangle surface. */
-static int packet_lane(const walk *w, const td_fan_ray *r)
+/* Whether a fan ray can be a packet's lane: a ray to trace (t_clear finite) whose
+ * direction needs no rescaling (walk_dir's scale 1). */
+static int packet_lane(const td_fan_ray *r)
 {
     double dlen = dmax(fabs(r->d[0]), dmax(fabs(r->d[1]), fabs(r->d[2])));
-    return w->surf == &surfaces[TD_SURFACE_TRIANGLE] && r->t_clear < INFINITY && dlen >= 0x1p-20 &&
-           dlen <= 0x1p20;
+    return r->t_clear < INFINITY && dlen >= 0x1p-20 && dlen <= 0x1p20;
 }
 
-/* The lane's hit as trace_one writes it: the point, the cell and the normal's vector
- * (surface_normal's, triangle_gradient with the cell's corners). */
-static void packet_hit(const walk *w, const double o[3], const double d[3], double t, double du,
-                       double dv, int32_t ci, int32_t cj, const double c[4], td_hit *hit, double nv[3])
+/* A lane's hit as trace_one writes it (keep_hit): the point, the cell and the normal's
+ * vector (surface_normal's, from the corners the lane read and its direction). */
+static void packet_hit(const walk *w, const double o[3], const double d[3], const hit_rec *hr,
+                       double du, double dv, double su, double sv, const double c[4], td_hit *hit,
+                       double nv[3])
 {
-    double gr[2];
-    hit->t = t;
+    hit->t = hr->t;
     for (int i = 0; i < 3; i++)
         hit->p[i] = o[i] + hit->t * d[i];
-    hit->ci = ci;
-    hit->cj = cj;
-    triangle_gradient(c, clamp01(w->ou + du * t - ci), clamp01(w->ov + dv * t - cj), gr);
-    nv[0] = -gr[0] / w->g->sx;
-    nv[1] = -gr[1] / w->g->sy;
-    nv[2] = 1.0;
+    hit->ci = hr->ci;
+    hit->cj = hr->cj;
+    if (!w->surf->gradient) { /* the plane's top, or the wall the ray came through */
+        nv[0] = hr->wall == ENTRY_U ? -su : 0.0;
+        nv[1] = hr->wall == ENTRY_V ? -sv : 0.0;
+        nv[2] = hr->wall ? 0.0 : 1.0;
+    } else {
+        double gr[2];
+        w->surf->gradient(c, clamp01(w->ou + du * hr->t - hr->ci), clamp01(w->ov + dv * hr->t - hr->cj), gr);
+        nv[0] = -gr[0] / w->g->sx;
+        nv[1] = -gr[1] / w->g->sy;
+        nv[2] = 1.0;
+    }
     if (hit->t < 0.0) /* trace_one's tmin, 0 for a fan */
         hit->t = 0.0;
 }
@@ -1421,19 +1560,21 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
     vwalk p;
     vstate st;
     vm go, near, hit = {0, 0, 0, 0}, cont;
-    vd n = vb(0.0), th = vb(INFINITY);
+    vd n = vb(0.0), th = vb(INFINITY), hw = vb(0.0);
     vcell hk = {{vb(0.0), vb(0.0), vb(0.0), vb(0.0)}};
+    const td_surface sf = (td_surface)(w->surf - surfaces);
     vstart(w, &p, d, tc, &st, &go, &near);
     cont = near;
     for (int k = 0; k < TD_NEAR_CELLS; k++) { /* run_walk's near loop */
         vm act = cont & von_grid(w, &st), h, end;
-        vd t;
+        vd t, wall;
         vcell kk;
         if (!vany(act))
             break;
         n += vone(act);
-        vstep(w, &p, &st, act, &h, &end, &t, &kk);
+        vstep(w, &p, sf, &st, act, &h, &end, &t, &wall, &kk);
         th = vsel(h, t, th);
+        hw = vsel(h, wall, hw);
         for (int i = 0; i < 4; i++)
             hk.c[i] = vsel(h, kk.c[i], hk.c[i]);
         hit |= h;
@@ -1455,8 +1596,9 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
             packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], h, nv[lane[l] - k0]);
         } else if (hit[l]) {
             double c[4] = {hk.c[0][l], hk.c[1][l], hk.c[2][l], hk.c[3][l]};
-            packet_hit(w, o, rays[lane[l]].d, th[l], p.du[l], p.dv[l], (int32_t)st.ci[l],
-                       (int32_t)st.cj[l], c, h, nv[lane[l] - k0]);
+            hit_rec hr = {.t = th[l], .ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .wall = (int)hw[l]};
+            packet_hit(w, o, rays[lane[l]].d, &hr, p.du[l], p.dv[l], p.su[l], p.sv[l], c, h,
+                       nv[lane[l] - k0]);
         }
     }}
 
@@ -1478,7 +1620,7 @@ void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3]
         int lane[TD_FAN_MAX], nl = 0;
         for (int k = k0; k < k1; k++) {
             memset(&hits[k], 0, sizeof hits[k]);
-            if (ok && packet_lane(&w, &rays[k]))
+            if (ok && packet_lane(&rays[k]))
                 lane[nl++] = k;
             else
                 trace_one(v, m, &w, o, rays[k].d, 0.0, INFINITY, ok ? rays[k].t_clear : INFINITY,
