@@ -1202,13 +1202,14 @@ TD_HOT vcell vcorners(const walk *w, vd ci, vd cj, vm act)
 TD_HOT vd vboundary(const vwalk *p, const vcell *k, vd ci, vd cj, vd kind, int side, vd t)
 {
     const vd *c = k->c;
-    vm eu = side ? p->pu : p->nu, ev = side ? p->pv : p->nv;
-    vd au = vsel(eu, c[1], c[0]), bu = vsel(eu, c[3], c[2]);
-    vd hu = au + (bu - au) * vclamp01(vray_v(p, t) - cj);
-    vd av = vsel(ev, c[2], c[0]), bv = vsel(ev, c[3], c[1]);
-    vd hv = av + (bv - av) * vclamp01(vray_u(p, t) - ci);
+    vm eu = side ? p->pu : p->nu, ev = side ? p->pv : p->nv, on_u = (vm)(kind == ENTRY_U);
+    /* a column's edge (U): from c[eu] to c[2 + eu] along v; a row's (V): from c[2 ev] to
+       c[2 ev + 1] along u; a sample point (UV): c[2 ev + eu] */
+    vd a = vsel(on_u, vsel(eu, c[1], c[0]), vsel(ev, c[2], c[0]));
+    vd b = vsel(on_u, vsel(eu, c[3], c[2]), vsel(ev, c[3], c[1]));
+    vd pos = vsel(on_u, vray_v(p, t), vray_u(p, t)), at = vsel(on_u, cj, ci);
     vd huv = vsel(ev, vsel(eu, c[3], c[2]), vsel(eu, c[1], c[0]));
-    return vsel((vm)(kind == ENTRY_U), hu, vsel((vm)(kind == ENTRY_V), hv, huv));
+    return vsel((vm)(kind == ENTRY_UV), huv, a + (b - a) * vclamp01(pos - at));
 }
 
 /* triangle_patch for every lane */
@@ -1266,11 +1267,21 @@ TD_HOT vd vunder(const vwalk *p, const vcell *k, td_surface sf, vd ci, vd cj, vd
 TD_HOT void vseg_f(const vwalk *p, const vcell *k, td_surface sf, vd ci, vd cj, vd ta, vd tb,
                    vd entry, vd exit, vd *fa, vd *fb)
 {
-    vd fa_new = vray_z(p, ta) - vsel((vm)(entry == ENTRY_START), vunder(p, k, sf, ci, cj, ta),
-                                      vboundary(p, k, ci, cj, entry, 0, ta));
-    *fa = vsel(vnan(*fa), fa_new, *fa);
-    *fb = vray_z(p, tb) - vsel((vm)(exit == ENTRY_START), vunder(p, k, sf, ci, cj, tb),
-                               vboundary(p, k, ci, cj, exit, 1, tb));
+    /* f carried from the cell before, and both ends on boundaries, are the common case:
+       the surface inside the cell only where a lane needs it */
+    vm need = vnan(*fa);
+    if (vany(need)) {
+        vm inside = need & (vm)(entry == ENTRY_START);
+        vd h = vboundary(p, k, ci, cj, entry, 0, ta);
+        if (vany(inside))
+            h = vsel(inside, vunder(p, k, sf, ci, cj, ta), h);
+        *fa = vsel(need, vray_z(p, ta) - h, *fa);
+    }
+    vm inside = (vm)(exit == ENTRY_START);
+    vd h = vboundary(p, k, ci, cj, exit, 1, tb);
+    if (vany(inside))
+        h = vsel(inside, vunder(p, k, sf, ci, cj, tb), h);
+    *fb = vray_z(p, tb) - h;
 }
 
 /* The surfaces' cell intersections (plane_cross .. bilinear_cross) for every lane, over
@@ -1523,11 +1534,11 @@ static void packet_hit(const walk *w, const double o[3], const double d[3], cons
         hit->t = 0.0;
 }
 
-/* A fan ray whose near walk a packet took and left on the grid: trace_one's walk over
- * tiles from the cell, time, f and entry the lane stood at (the same bits as the scalar
- * near walk's), after its n steps. */
+/* A fan ray whose near walk a packet began and did not finish: the rest of trace_one's
+ * walk (the near cells left of near_done, then the tiles) from the cell, time, f and entry
+ * the lane stood at (the same bits as the scalar near walk's), after its n steps. */
 static void packet_rest(const td_view *v, td_method m, walk *w, const double o[3], const double d[3],
-                        const walk_state *at, uint32_t n, td_hit *hit, double nv[3])
+                        const walk_state *at, uint32_t n, int near_done, td_hit *hit, double nv[3])
 {
     walk_state st;
     hit_rec hr = {.t = INFINITY};
@@ -1538,7 +1549,14 @@ static void packet_rest(const td_view *v, td_method m, walk *w, const double o[3
     st = *at;
     hit->t = INFINITY;
     hit->ci = hit->cj = -1;
-    if (tile_walk(v, m, w, &st, &hr, &n, &used) == STEP_HIT)
+    int rc = STEP_CONTINUE;
+    for (int k = near_done; k < TD_NEAR_CELLS && rc == STEP_CONTINUE && on_grid(w, &st); k++) {
+        n++; /* the rest of run_walk's near loop */
+        rc = walk_cell(w, &st, &hr);
+    }
+    if (rc == STEP_CONTINUE)
+        rc = tile_walk(v, m, w, &st, &hr, &n, &used);
+    if (rc == STEP_HIT)
         keep_hit(w, &hr, o, d, scale, 0.0, hit, nv);
     hit->steps = n;
     hit->method = used;
@@ -1565,11 +1583,13 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
     const td_surface sf = (td_surface)(w->surf - surfaces);
     vstart(w, &p, d, tc, &st, &go, &near);
     cont = near;
-    for (int k = 0; k < TD_NEAR_CELLS; k++) { /* run_walk's near loop */
+    /* run_walk's near loop while two lanes or more walk it (a lone lane is faster scalar) */
+    int k = 0;
+    for (; k < TD_NEAR_CELLS; k++) {
         vm act = cont & von_grid(w, &st), h, end;
         vd t, wall;
         vcell kk;
-        if (!vany(act))
+        if (!((act[0] & 1) + (act[1] & 1) + (act[2] & 1) + (act[3] & 1) > 1))
             break;
         n += vone(act);
         vstep(w, &p, sf, &st, act, &h, &end, &t, &wall, &kk);
@@ -1580,9 +1600,9 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
         hit |= h;
         cont &= ~(h | end);
     }
-    /* a lane still walking on the grid goes on over the tiles (packet_rest); one that
-       starts behind its clip (no near walk) is trace_one's */
-    vm rest = cont & von_grid(w, &st), finished = ~go | (near & ~rest);
+    /* a lane still walking goes on alone (packet_rest); one that starts behind its clip
+       (no near walk) is trace_one's */
+    vm rest = cont, finished = ~go | (near & ~rest);
     for (int l = 0; l < nl; l++) {
         td_hit *h = &hits[lane[l]];
         done[l] = (finished | rest)[l] != 0;
@@ -1593,7 +1613,7 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
         if (rest[l]) {
             walk_state at = {.ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .t = st.t[l],
                              .f = st.f[l], .entry = (int)st.entry[l], .level = 0};
-            packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], h, nv[lane[l] - k0]);
+            packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], k, h, nv[lane[l] - k0]);
         } else if (hit[l]) {
             double c[4] = {hk.c[0][l], hk.c[1][l], hk.c[2][l], hk.c[3][l]};
             hit_rec hr = {.t = th[l], .ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .wall = (int)hw[l]};
