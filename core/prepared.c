@@ -1875,6 +1875,27 @@ void td_prepared_advise(const td_grid *g, int random) { grid_madvise(g, random ?
 
 void td_prepared_willneed(const td_grid *g) { grid_madvise(g, MADV_WILLNEED); }
 
+void td_prepared_willneed_near(const td_grid *g, double x, double y, int32_t cells)
+{
+    const td_corners *c = &g->cz;
+    const size_t page = (size_t)sysconf(_SC_PAGESIZE);
+    double fi = x / g->sx, fj = y / g->sy;
+    int32_t i0, i1, j0, j1;
+    if (!g->bmap || !isfinite(fi) || !isfinite(fj) || cells < 0)
+        return;
+    fi = fi < 0 ? 0 : fi > g->w - 1 ? g->w - 1 : fi;
+    fj = fj < 0 ? 0 : fj > g->h - 1 ? g->h - 1 : fj;
+    i0 = (int32_t)fi - cells < 0 ? 0 : (int32_t)fi - cells;
+    i1 = (int32_t)fi > g->w - 1 - cells ? g->w - 1 : (int32_t)fi + cells;
+    j0 = (int32_t)fj - cells < 0 ? 0 : (int32_t)fj - cells;
+    j1 = (int32_t)fj > g->h - 1 - cells ? g->h - 1 : (int32_t)fj + cells;
+    for (int32_t by = j0 >> c->log2; by <= j1 >> c->log2; by++) { /* a band's blocks bx0..bx1: one range */
+        size_t a = (((size_t)by * c->blocks_x + (size_t)(i0 >> c->log2)) * c->block_floats * 4) / page * page;
+        size_t b = ((size_t)by * c->blocks_x + (size_t)(i1 >> c->log2) + 1) * c->block_floats * 4;
+        madvise((char *)g->bmap + a, (b < g->bmap_bytes ? b : g->bmap_bytes) - a, MADV_WILLNEED);
+    }
+}
+
 void td_prepared_trim(const td_grid *g)
 {
     /* Not MADV_PAGEOUT (out of the page cache too): measured on the 16 GiB grid with a

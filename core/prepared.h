@@ -179,6 +179,10 @@ void td_prepared_advise(const td_grid *g, int random);
 /* Asks the kernel to read a mapped grid into the page cache ahead of its first touch
  * (MADV_WILLNEED; nothing is mapped into the process). */
 void td_prepared_willneed(const td_grid *g);
+/* The same for the blocks of a prepared full grid's heights.blk within `cells` cells of
+ * (x, y) in the dataset frame (the camera, when a render ran out of its page-in time: the
+ * retry finds the near field read); nothing for a grid that is not blocked and mapped. */
+void td_prepared_willneed_near(const td_grid *g, double x, double y, int32_t cells);
 /* Drops this process's pages of a mapped grid (MADV_DONTNEED): the page cache keeps them
  * while memory allows (clean pages the kernel reclaims under pressure), so the next touch
  * is a minor fault, not a read. */

@@ -45,6 +45,7 @@
 #include "viewshed_api.h"
 #include "pano.h"
 #include "pagein.h"
+#include "prepared.h"
 #include "solar.h"
 
 const char *const td_route_names[TD_ROUTE_COUNT] = {
@@ -1009,6 +1010,9 @@ static int work_image(td_app *app, td_rjob *j, td_pagein_guard *pg, td_snapshot 
     if (rc == TD_OK)
         rc = td_render_encode(res, &j->scene, &buf, &depth_scale, &e);
     if (rc == TD_ECANCELED && td_pagein_expired(pg)) {
+        const td_grid *g = td_snapshot_view(snap)->grid;
+        if (j->scene.camera.pos_kind == TD_POS_XYZ || j->scene.camera.pos_kind == TD_POS_XY_AGL)
+            td_prepared_willneed_near(g, j->scene.camera.x, j->scene.camera.y, 4 << g->tile_log2);
         td_http_resp_header(r, "Retry-After", "%d", (int)ceil(td_pagein_deadline(app->pagein)));
         api_error(r, TD_AE_PAGEIN, NULL, "the render waited for pages of the dataset's files longer than "
                   "--pagein-timeout (%.3g s); they are being read: retry", td_pagein_deadline(app->pagein));

@@ -7,6 +7,7 @@
  * the file and the reason. The blocked copy (heights.blk) holds every sample where
  * td_grid_corner says, for any block size, and a render of every method and surface reads
  * it alone: the same pixels as the source with the row-major mapping made unreadable. */
+#include <fcntl.h>
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -17,6 +18,7 @@
 #include <string.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <cmocka.h>
@@ -613,6 +615,48 @@ static void test_resident(void **state)
     td_prepared_free(p);
 }
 
+static void drop_cached(const char *dir, const char *name)
+{
+    char path[600];
+    int fd;
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    fd = open(path, O_RDONLY);
+    assert_true(fd >= 0);
+    assert_int_equal(posix_fadvise(fd, 0, 0, POSIX_FADV_DONTNEED), 0);
+    close(fd);
+}
+
+/* After a render ran out of page-in time, the blocks around its camera are asked into the
+ * page cache: with both heights files dropped from it, td_prepared_willneed_near of 4 cells
+ * around sample (100, 75) brings in that block (band 2, block 3: 4356 bytes) and not the
+ * grid: at most a band of blocks (30492 bytes), none of heights.f32. (The read is the
+ * kernel's, asynchronous: polled for up to 5 s.) */
+static void test_willneed_near(void **state)
+{
+    char dir[512];
+    td_prepared *p = NULL;
+    td_err e = {0};
+    td_grid *g;
+    uint64_t got = 0;
+    (void)state;
+    fresh("near", dir, sizeof dir);
+    assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK);
+    g = td_prepared_take_grid(p);
+    drop_cached(dir, TD_PREPARED_HEIGHTS);
+    drop_cached(dir, TD_PREPARED_BLOCKS);
+    assert_int_equal(td_prepared_cached(g), 0);
+    td_prepared_willneed_near(g, 100.0 * g->sx, 75.0 * g->sy, 4);
+    for (int k = 0; k < 500 && !got; k++) {
+        struct timespec nap = {0, 10 * 1000 * 1000};
+        nanosleep(&nap, NULL);
+        got = td_prepared_cached(g);
+    }
+    assert_true(got > 0);
+    assert_true(got <= 30492 + 4096);
+    td_grid_free(g);
+    td_prepared_free(p);
+}
+
 /* An 80 x 50 view of the crop from (7000, -2000, z) looking north, pitch degrees down,
  * method m on surface su, one thread. */
 static void crop_view(td_scene *sc, td_render_opts *o, double z, double pitch, int m, int su)
@@ -898,7 +942,7 @@ int main(void)
         cmocka_unit_test(test_corrupt_chunk),      cmocka_unit_test(test_levels_refused),
         cmocka_unit_test(test_resident),           cmocka_unit_test(test_render_reads_blocks),
         cmocka_unit_test(test_lod_reads_no_full_grid), cmocka_unit_test(test_lod_structures_used),
-        cmocka_unit_test(test_no_planes),
+        cmocka_unit_test(test_no_planes),          cmocka_unit_test(test_willneed_near),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
