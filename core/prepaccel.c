@@ -342,8 +342,10 @@ td_status td_pacc_verify_row(const td_pacc *p, int32_t r, td_err *err)
     unsigned char *buf = NULL;
     char path[PATH_MAX + 16];
 
-    if (r < 0 || r >= td_pacc_rows(p))
-        return td_err_set(err, TD_EINVAL, "%s: no tile row %ld of structures", p->dir, (long)r);
+    if (r < 0 || r >= td_pacc_rows(p)) {
+        rc = td_err_set(err, TD_EINVAL, "%s: no tile row %ld of structures", p->dir, (long)r);
+        goto out;
+    }
     while (r >= p->row0[l + 1])
         l++;
     i0 = p->first[l] + (size_t)(r - p->row0[l]) * (size_t)p->tiles_x[l];

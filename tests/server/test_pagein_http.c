@@ -27,16 +27,6 @@
 static char root[256], data[300];
 static th_server bounded, unbounded;
 
-static int sh(const char *fmt, ...)
-{
-    char cmd[2048];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(cmd, sizeof cmd, fmt, ap);
-    va_end(ap);
-    return system(cmd);
-}
-
 static int setup(void **state)
 {
     const char *a1[] = {"--demo-dir", "", "--data", data, "--preload", "none", "--pagein-timeout", "0.05", NULL};
@@ -47,7 +37,7 @@ static int setup(void **state)
     if (!mkdtemp(root))
         return -1;
     snprintf(data, sizeof data, "%s/data", root);
-    if (sh("mkdir -p '%s' && '%s' prepare '%s/trinidad-crop.f32' '%s/good' --tile-size 64 --quiet >/dev/null", data,
+    if (th_sh("mkdir -p '%s' && '%s' prepare '%s/trinidad-crop.f32' '%s/good' --tile-size 64 --quiet >/dev/null", data,
            TERRAD_BIN, TERRAD_TEST_DATA, data))
         return -1;
     if (th_start(&bounded, TERRAD_BIN, a1, env) || th_start(&unbounded, TERRAD_BIN, a0, env))
@@ -60,7 +50,7 @@ static int teardown(void **state)
     (void)state;
     th_stop(&bounded);
     th_stop(&unbounded);
-    sh("rm -rf '%s'", root);
+    th_sh("rm -rf '%s'", root);
     return 0;
 }
 

@@ -29,16 +29,6 @@
 static char root[256], data[300];
 static th_server srv;
 
-static int sh(const char *fmt, ...)
-{
-    char cmd[2048];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(cmd, sizeof cmd, fmt, ap);
-    va_end(ap);
-    return system(cmd);
-}
-
 /* Flips one byte of dir/name at `at`. */
 static void flip(const char *dir, const char *name, long at)
 {
@@ -65,24 +55,24 @@ static int setup(void **state)
     if (!mkdtemp(root))
         return -1;
     snprintf(data, sizeof data, "%s/data", root);
-    if (sh("mkdir -p '%s' && cp '%s.f32' '%s/crop.f32' && cp '%s.json' '%s/crop.json'", data, src, data, src,
+    if (th_sh("mkdir -p '%s' && cp '%s.f32' '%s/crop.f32' && cp '%s.json' '%s/crop.json'", data, src, data, src,
            data))
         return -1;
     /* good, bad (a chunk corrupted), short (truncated), half (an unfinished prepare) */
-    if (sh("for d in good bad short badlod badblk badacc cold; do '%s' prepare '%s/crop.f32' '%s/'\"$d\" --chunk-rows 16 "
+    if (th_sh("for d in good bad short badlod badblk badacc cold; do '%s' prepare '%s/crop.f32' '%s/'\"$d\" --chunk-rows 16 "
            "--tile-size 64 --quiet >/dev/null || exit 1; done", TERRAD_BIN, data, data))
         return -1;
-    if (sh("'%s' prepare '%s/crop.f32' '%s/good8' --chunk-rows 16 --tile-size 64 --block-size 8 --quiet >/dev/null",
+    if (th_sh("'%s' prepare '%s/crop.f32' '%s/good8' --chunk-rows 16 --tile-size 64 --block-size 8 --quiet >/dev/null",
            TERRAD_BIN, data, data))
         return -1;
-    if (sh("'%s' prepare '%s/crop.f32' '%s/half' --chunk-rows 16 --stop-after 2 --quiet >/dev/null 2>&1; "
+    if (th_sh("'%s' prepare '%s/crop.f32' '%s/half' --chunk-rows 16 --stop-after 2 --quiet >/dev/null 2>&1; "
            "test -f '%s/half/prepare.state'", TERRAD_BIN, data, data, data))
         return -1;
     flip("bad", "heights.f32", (long)(120 * 200 + 3) * 4 + 1); /* south row 120: file row 29, chunk 1 */
     flip("badlod", "lod1.f32", (long)(40 * 101 + 3) * 4 + 1); /* level 1 (101 x 76): file row 35, chunk 2 */
     flip("badblk", "heights.blk", 30492 + 5000); /* band 1: 7 blocks of 33 x 33 samples a band */
     flip("badacc", "accel.bin", 40); /* the first tile's structures (tile row 0 of the full grid) */
-    if (sh("truncate -s 119000 '%s/short/heights.f32'", data))
+    if (th_sh("truncate -s 119000 '%s/short/heights.f32'", data))
         return -1;
     return th_start(&srv, TERRAD_BIN, args, env);
 }
@@ -91,7 +81,7 @@ static int teardown(void **state)
 {
     (void)state;
     th_stop(&srv);
-    sh("rm -rf '%s'", root);
+    th_sh("rm -rf '%s'", root);
     return 0;
 }
 
@@ -282,7 +272,7 @@ static void test_pagein_reported(void **state)
     (void)state;
     assert_string_equal(wait_checked("cold", st, sizeof st), "ok");
     /* fadvise DONTNEED on every file of the folder (clean: the prepare synced them) */
-    assert_int_equal(sh("python3 -c \"import os,sys\n"
+    assert_int_equal(th_sh("python3 -c \"import os,sys\n"
                         "for f in os.listdir(sys.argv[1]):\n"
                         "  fd=os.open(os.path.join(sys.argv[1],f),os.O_RDONLY); "
                         "os.posix_fadvise(fd,0,0,os.POSIX_FADV_DONTNEED); os.close(fd)\" '%s/cold'", data),

@@ -674,6 +674,22 @@ static void crop_view(td_scene *sc, td_render_opts *o, double z, double pitch, i
     o->threads = 1;
 }
 
+/* The crop loaded in memory with tiles of 32 cells and its structures built (the planes
+ * too when asked; one thread): what a prepared copy's mapped structures are held to. */
+static void load_crop_ref(const char *src, int planes, td_grid **ref, td_accel **ra)
+{
+    td_dem_opts lo;
+    td_accel_opts ao;
+    td_err e = {0};
+    td_dem_opts_default(&lo);
+    lo.tile_log2 = 5;
+    assert_int_equal(td_dem_load(src, &lo, ref, &e), TD_OK);
+    td_accel_opts_default(&ao);
+    ao.planes = planes;
+    ao.threads = 1;
+    assert_int_equal(td_accel_build(*ref, &ao, ra, NULL, &e), TD_OK);
+}
+
 /* A render (every method on every surface, shadows, ambient occlusion, smooth normals,
  * with the tiles' max-mipmaps and planes the prepare wrote, mapped) reads heights.blk and
  * accel.bin alone: with the row-major heights.f32 mapping made unreadable (PROT_NONE: any
@@ -686,23 +702,16 @@ static void test_render_reads_blocks(void **state)
     td_prepare_result res;
     td_prepared *p = NULL;
     td_grid *g, *ref = NULL;
-    td_dem_opts lo;
-    td_accel_opts ao;
     td_accel *ra = NULL;
     td_err e = {0};
     (void)state;
     data_path("trinidad-crop.f32", src, sizeof src);
     tmp_path("render-b8", dir, sizeof dir);
     prepare_blk(src, dir, 5, 0, 3, &res);
-    td_dem_opts_default(&lo);
-    lo.tile_log2 = 5;
-    assert_int_equal(td_dem_load(src, &lo, &ref, &e), TD_OK);
+    load_crop_ref(src, 1, &ref, &ra);
     assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK);
     g = td_prepared_take_grid(p);
     assert_int_equal(mprotect(g->map, g->map_bytes, PROT_NONE), 0);
-    td_accel_opts_default(&ao);
-    ao.threads = 1;
-    assert_int_equal(td_accel_build(ref, &ao, &ra, NULL, &e), TD_OK);
     for (int m = 0; m < TD_METHOD_COUNT; m++)
         for (int s = 0; s < TD_SURFACE_COUNT; s++) {
             td_view va = {g, td_prepared_accel(p)}, vb = {ref, ra->tiles}, vc = {g, NULL};
@@ -800,19 +809,15 @@ static void test_lod_structures_used(void **state)
     td_lod *lod, *rl = NULL, bare;
     td_accel_opts ao;
     td_accel *ra = NULL;
-    td_dem_opts lo;
     td_err e = {0};
     static const int methods[] = {TD_METHOD_HIERARCHICAL, TD_METHOD_PARAMETRIC, TD_METHOD_AUTO};
     (void)state;
     data_path("trinidad-crop.f32", src, sizeof src);
     tmp_path("lod-acc", dir, sizeof dir);
     prepare_ok(src, dir, 5, 0, &res);
-    td_dem_opts_default(&lo);
-    lo.tile_log2 = 5;
-    assert_int_equal(td_dem_load(src, &lo, &ref, &e), TD_OK);
+    load_crop_ref(src, 1, &ref, &ra);
     td_accel_opts_default(&ao);
     ao.threads = 1;
-    assert_int_equal(td_accel_build(ref, &ao, &ra, NULL, &e), TD_OK);
     assert_int_equal(td_lod_build(ref, TD_LOD_MAX, &ao, &rl, &e), TD_OK);
     assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK);
     g = td_prepared_take_grid(p);
@@ -875,8 +880,6 @@ static void test_no_planes(void **state)
     td_prepare_opts po;
     td_prepared *p = NULL;
     td_grid *g, *ref = NULL;
-    td_dem_opts lo;
-    td_accel_opts ao;
     td_accel *ra = NULL;
     td_err e = {0};
     struct stat a, b;
@@ -897,13 +900,7 @@ static void test_no_planes(void **state)
         assert_int_equal(stat(pb, &b), 0);
         assert_true(a.st_size < b.st_size);
     }
-    td_dem_opts_default(&lo);
-    lo.tile_log2 = 5;
-    assert_int_equal(td_dem_load(src, &lo, &ref, &e), TD_OK);
-    td_accel_opts_default(&ao);
-    ao.planes = 0;
-    ao.threads = 1;
-    assert_int_equal(td_accel_build(ref, &ao, &ra, NULL, &e), TD_OK);
+    load_crop_ref(src, 0, &ref, &ra);
     assert_int_equal(td_prepared_open(dir, &p, &e), TD_OK);
     for (int c = 0; c < td_prepared_chunks(p); c++)
         assert_int_equal(td_prepared_verify_chunk(p, c, &e), TD_OK);
