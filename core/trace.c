@@ -27,7 +27,11 @@
  *   walk_grid() .. walk_clip()  the walk's setup in the parts rays share (grid, origin,
  *                  direction) and each ray's clip: td_trace_fan (a render's camera rays)
  *                  and td_occluded_par (its shadow rays) set up the shared part once, and
- *                  every ray still takes the one walk, so its answer is the one-ray call's.
+ *                  every ray still takes the one walk, so its answer is the one-ray call's;
+ *   fan_packet()   the one twin: a fan's setup and near walk for four rays at once, in
+ *                  vectors, each lane the scalar code's operations in its order (the
+ *                  Packets section says why that is the same bits, and the tests hold it
+ *                  there); a change to a surface or to the walk's first cells changes both.
  *
  * Watertightness. The crossing test is a sign test on f(t) = z_ray(t) - surface(t).
  * Inside a cell the triangle and linear surfaces make f linear in t (on each side of
@@ -1599,7 +1603,7 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
         vm act = cont & von_grid(w, &st), h, end;
         vd t, wall;
         vcell kk;
-        if (!((act[0] & 1) + (act[1] & 1) + (act[2] & 1) + (act[3] & 1) > 1))
+        if ((act[0] & 1) + (act[1] & 1) + (act[2] & 1) + (act[3] & 1) < 2)
             break;
         n += vone(act);
         vstep(w, &p, sf, &st, act, &h, &end, &t, &wall, &kk);
@@ -1634,7 +1638,8 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
                 nv[lane[l] - k0][i] = hv.nv[i][l];
             }
         }
-    }}
+    }
+}
 
 /* Fan rays whose normals wait for one loop (unit_normal) */
 #define TD_FAN_MAX 64
