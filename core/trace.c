@@ -27,7 +27,11 @@
  *   walk_grid() .. walk_clip()  the walk's setup in the parts rays share (grid, origin,
  *                  direction) and each ray's clip: td_trace_fan (a render's camera rays)
  *                  and td_occluded_par (its shadow rays) set up the shared part once, and
- *                  every ray still takes the one walk, so its answer is the one-ray call's.
+ *                  every ray still takes the one walk, so its answer is the one-ray call's;
+ *   fan_packet()   the one twin: a fan's setup and near walk for four rays at once, in
+ *                  vectors, each lane the scalar code's operations in its order (the
+ *                  Packets section says why that is the same bits, and the tests hold it
+ *                  there); a change to a surface or to the walk's first cells changes both.
  *
  * Watertightness. The crossing test is a sign test on f(t) = z_ray(t) - surface(t).
  * Inside a cell the triangle and linear surfaces make f linear in t (on each side of
@@ -1508,30 +1512,40 @@ static int packet_lane(const td_fan_ray *r)
     return r->t_clear < INFINITY && dlen >= 0x1p-20 && dlen <= 0x1p20;
 }
 
-/* A lane's hit as trace_one writes it (keep_hit): the point, the cell and the normal's
- * vector (surface_normal's, from the corners the lane read and its direction). */
-static void packet_hit(const walk *w, const double o[3], const double d[3], const hit_rec *hr,
-                       double du, double dv, double su, double sv, const double c[4], td_hit *hit,
-                       double nv[3])
+/* The packet's hits as trace_one writes them (keep_hit) for every lane: the point and the
+ * normal's vector (surface_normal's, from the corners each lane read at its hit), in
+ * vectors; fan_packet stores the lanes that hit. */
+typedef struct vhit {
+    vd p[3], nv[3];
+} vhit;
+
+TD_HOT vhit vhits(const walk *w, const vwalk *q, td_surface sf, const double o[3], const vd d[3],
+                  vd t, vd ci, vd cj, vd wall, const vcell *k)
 {
-    hit->t = hr->t;
+    vhit h;
+    const vd *c = k->c;
     for (int i = 0; i < 3; i++)
-        hit->p[i] = o[i] + hit->t * d[i];
-    hit->ci = hr->ci;
-    hit->cj = hr->cj;
-    if (!w->surf->gradient) { /* the plane's top, or the wall the ray came through */
-        nv[0] = hr->wall == ENTRY_U ? -su : 0.0;
-        nv[1] = hr->wall == ENTRY_V ? -sv : 0.0;
-        nv[2] = hr->wall ? 0.0 : 1.0;
-    } else {
-        double gr[2];
-        w->surf->gradient(c, clamp01(w->ou + du * hr->t - hr->ci), clamp01(w->ov + dv * hr->t - hr->cj), gr);
-        nv[0] = -gr[0] / w->g->sx;
-        nv[1] = -gr[1] / w->g->sy;
-        nv[2] = 1.0;
+        h.p[i] = o[i] + t * d[i];
+    if (sf == TD_SURFACE_PLANE) { /* the top, or the wall the ray came through */
+        h.nv[0] = vsel((vm)(wall == ENTRY_U), -q->su, vb(0.0));
+        h.nv[1] = vsel((vm)(wall == ENTRY_V), -q->sv, vb(0.0));
+        h.nv[2] = vsel((vm)(wall != 0.0), vb(0.0), vb(1.0));
+    } else { /* triangle_gradient, bilinear_gradient (the linear surface's too) */
+        vd a = vclamp01(vray_u(q, t) - ci), b = vclamp01(vray_v(q, t) - cj), g0, g1;
+        if (sf == TD_SURFACE_TRIANGLE) {
+            vm lower = (vm)(a + b <= 1.0);
+            g0 = vsel(lower, c[1] - c[0], c[3] - c[2]);
+            g1 = vsel(lower, c[2] - c[0], c[3] - c[1]);
+        } else {
+            vd kk = c[0] - c[1] - c[2] + c[3];
+            g0 = (c[1] - c[0]) + kk * b;
+            g1 = (c[2] - c[0]) + kk * a;
+        }
+        h.nv[0] = -g0 / w->g->sx;
+        h.nv[1] = -g1 / w->g->sy;
+        h.nv[2] = vb(1.0);
     }
-    if (hit->t < 0.0) /* trace_one's tmin, 0 for a fan */
-        hit->t = 0.0;
+    return h;
 }
 
 /* A fan ray whose near walk a packet began and did not finish: the rest of trace_one's
@@ -1589,7 +1603,7 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
         vm act = cont & von_grid(w, &st), h, end;
         vd t, wall;
         vcell kk;
-        if (!((act[0] & 1) + (act[1] & 1) + (act[2] & 1) + (act[3] & 1) > 1))
+        if ((act[0] & 1) + (act[1] & 1) + (act[2] & 1) + (act[3] & 1) < 2)
             break;
         n += vone(act);
         vstep(w, &p, sf, &st, act, &h, &end, &t, &wall, &kk);
@@ -1603,6 +1617,7 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
     /* a lane still walking goes on alone (packet_rest); one that starts behind its clip
        (no near walk) is trace_one's */
     vm rest = cont, finished = ~go | (near & ~rest);
+    vhit hv = vhits(w, &p, sf, o, d, th, st.ci, st.cj, hw, &hk);
     for (int l = 0; l < nl; l++) {
         td_hit *h = &hits[lane[l]];
         done[l] = (finished | rest)[l] != 0;
@@ -1615,12 +1630,16 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
                              .f = st.f[l], .entry = (int)st.entry[l], .level = 0};
             packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], k, h, nv[lane[l] - k0]);
         } else if (hit[l]) {
-            double c[4] = {hk.c[0][l], hk.c[1][l], hk.c[2][l], hk.c[3][l]};
-            hit_rec hr = {.t = th[l], .ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .wall = (int)hw[l]};
-            packet_hit(w, o, rays[lane[l]].d, &hr, p.du[l], p.dv[l], p.su[l], p.sv[l], c, h,
-                       nv[lane[l] - k0]);
+            h->t = th[l] < 0.0 ? 0.0 : th[l]; /* trace_one's tmin, 0 for a fan */
+            h->ci = (int32_t)st.ci[l];
+            h->cj = (int32_t)st.cj[l];
+            for (int i = 0; i < 3; i++) {
+                h->p[i] = hv.p[i][l];
+                nv[lane[l] - k0][i] = hv.nv[i][l];
+            }
         }
-    }}
+    }
+}
 
 /* Fan rays whose normals wait for one loop (unit_normal) */
 #define TD_FAN_MAX 64
