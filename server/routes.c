@@ -1104,7 +1104,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         td_metrics_render(app->metrics, j->scene.quality.method, td_clock_s() - t0, rays, st->steps);
     }
 out:
-    expired = td_pagein_guard_end(app->pagein, &pg);
+    expired = td_pagein_guard_end(app->pagein, &pg) && !st; /* and it cut the work short */
     td_pagein_end(&pg.start, &faults, &pagein_ms);
     td_metrics_pagein(app->metrics, faults, pagein_ms * 1e-3);
     timing_header(r, j, queue_ms, st, faults, pagein_ms, expired);
