@@ -23,6 +23,7 @@ typedef struct prep_bar {
     int tty;
     double t0, last;
     int64_t chunks, stop_after;
+    int structures; /* the bar is the structures' */
     uint64_t row_bytes;
 } prep_bar;
 
@@ -31,6 +32,9 @@ static int progress(void *cls, int64_t done, int64_t total, int32_t width_sample
     prep_bar *b = cls;
     double now = td_clock_s(), el = now - b->t0;
     if (width_samples == 0) { /* the tiles' structures: tile rows */
+        if (b->tty && !b->structures && b->chunks)
+            fputc('\n', stderr); /* keep the heights' bar */
+        b->structures = 1;
         if (b->tty && (now - b->last > 0.2 || done == total)) {
             int width = 40, fill = total ? (int)(width * done / total) : width;
             fprintf(stderr, "\r[%.*s%*s] %3d%%  structures: %lld of %lld tile rows ", fill,
