@@ -693,6 +693,20 @@ out:
     return rc;
 }
 
+/* Asks the kernel to read tile row ty of layer k's file (g's mapping) while the row before
+ * is being built: the build's threads then fault on pages already on their way instead of
+ * waiting for each read in turn (heights.blk is read back from disk at 16 GiB). */
+static void accel_prefetch(const td_prep_run *r, int k, const td_grid *g, int32_t ty)
+{
+    const size_t page = (size_t)sysconf(_SC_PAGESIZE);
+    const int32_t T = (int32_t)1 << r->st.tile_log2;
+    int32_t j0 = ty * T, j1 = j0 + T < g->h - 1 ? j0 + T : g->h - 1;
+    size_t a = k ? (size_t)j0 * (size_t)g->w * 4 : (size_t)(j0 >> r->k.log2) * r->k.band_bytes;
+    size_t b = k ? ((size_t)j1 + 1) * (size_t)g->w * 4 : ((size_t)(j1 >> r->k.log2) + 1) * r->k.band_bytes;
+    if (ty < g->tiles_y)
+        madvise((char *)(k ? g->map : g->bmap) + a / page * page, b - a / page * page, MADV_WILLNEED);
+}
+
 /* Every layer's tile rows from where the state says: each row's tiles built on every
  * core (the mapped layer read a tile row at a time, then dropped from the process),
  * appended, the state saved; progress in tile rows. */
@@ -705,6 +719,7 @@ static td_status accel_layer(td_prep_run *r, const td_src_rows *src, const td_pr
     td_pacc_blob *blobs = calloc((size_t)m->tiles_x, sizeof *blobs);
     rc = blobs ? accel_grid(r, src, k, &g, err) : td_err_set(err, TD_ENOMEM, "out of memory");
     for (int32_t ty = r->st.accel_rows - row0; ty < m->tiles_y && rc == TD_OK; ty++) {
+        accel_prefetch(r, k, g, ty + 1);
         rc = td_pacc_build_row(g, ty, r->st.planes_k, o->threads > 0 ? o->threads : td_cpu_count(), blobs, err);
         if (rc == TD_OK)
             rc = accel_append(r, first + (size_t)ty * (size_t)m->tiles_x, blobs, m->tiles_x, err);
