@@ -60,6 +60,7 @@
 
 #include "maxmip.h"
 #include "planes.h"
+#include "simd.h"
 #include "sunlit.h"
 
 static const char *const td_method_names[] = {
@@ -979,21 +980,16 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
     td_trace_from(v, m, s, r, 0.0, hit);
 }
 
-/* The walk from where st stands to a hit (STEP_HIT, in *hr) or the end: a start near the
- * surface (st->level 0) first walks its cells plainly, then every tile is entered (one
- * step) and crossed by its method. */
-static int run_walk(const td_view *v, td_method m, const walk *w, walk_state *st, hit_rec *hr,
-                    uint32_t *steps, td_method *used)
+/* The walk over tiles from where st stands (run_walk's second part, and a packet's rays
+ * that its near walk did not finish), adding its steps to *steps. */
+static int tile_walk(const td_view *v, td_method m, const walk *w, walk_state *st, hit_rec *hr,
+                     uint32_t *steps, td_method *used)
 {
     int rc = STEP_CONTINUE;
     const td_tile *tile = NULL;
     const td_tile_accel *ta = NULL;
     box tb = {0, 0, 0, 0};
     uint32_t n = 0;
-    for (int k = 0; k < TD_NEAR_CELLS && st->level == 0 && rc == STEP_CONTINUE && on_grid(w, st); k++) {
-        n++;
-        rc = walk_cell(w, st, hr);
-    }
     while (rc == STEP_CONTINUE) {
         if (tile && in_box(st, &tb)) {
             rc = method_runs[*used](w, tile, ta, st, &n, hr);
@@ -1010,6 +1006,24 @@ static int run_walk(const td_view *v, td_method m, const walk *w, walk_state *st
     return rc;
 }
 
+/* The walk from where st stands to a hit (STEP_HIT, in *hr) or the end: a start near the
+ * surface (st->level 0) first walks its cells plainly, then every tile is entered (one
+ * step) and crossed by its method. */
+static int run_walk(const td_view *v, td_method m, const walk *w, walk_state *st, hit_rec *hr,
+                    uint32_t *steps, td_method *used)
+{
+    int rc = STEP_CONTINUE;
+    uint32_t n = 0;
+    for (int k = 0; k < TD_NEAR_CELLS && st->level == 0 && rc == STEP_CONTINUE && on_grid(w, st); k++) {
+        n++;
+        rc = walk_cell(w, st, hr);
+    }
+    if (rc == STEP_CONTINUE)
+        rc = tile_walk(v, m, w, st, hr, &n, used);
+    *steps += n;
+    return rc;
+}
+
 /* The method a walk starts with: auto and silhouette walk incrementally until a tile
  * says otherwise (auto) or always (silhouette). */
 static inline td_method walk_method(td_method m)
@@ -1020,6 +1034,22 @@ static inline td_method walk_method(td_method m)
 static int valid_call(const td_grid *g, td_method m, td_surface s)
 {
     return !isnan(g->zmin) && (unsigned)m < TD_METHOD_COUNT && (unsigned)s < TD_SURFACE_COUNT;
+}
+
+/* A hit into *hit as td_trace reports it: t in the caller's units, the point and the cell;
+ * the normal's vector (not normalised: unit_normal makes hit->n of it) in nv. */
+static void keep_hit(const walk *w, const hit_rec *hr, const double o[3], const double d[3],
+                     double scale, double tmin, td_hit *hit, double nv[3])
+{
+    hit->t = hr->t * scale;
+    for (int i = 0; i < 3; i++)
+        hit->p[i] = o[i] + hit->t * d[i];
+    hit->ci = hr->ci;
+    hit->cj = hr->cj;
+    surface_normal(w, hr, nv);
+    /* never report a hit before tmin through rounding */
+    if (hit->t < tmin)
+        hit->t = tmin;
 }
 
 /* One ray from where w's grid and origin are set: direction, clip, the start at t_clear,
@@ -1038,17 +1068,8 @@ static void trace_one(const td_view *v, td_method m, walk *w, const double o[3],
     hit->ci = hit->cj = -1;
     if (t_clear < INFINITY && walk_dir(w, d, &scale) && walk_clip(w, &st, tmin, tmax, scale) &&
         skip_to(w, &st, t_clear / scale) &&
-        run_walk(v, m, w, &st, &hr, &steps, &used) == STEP_HIT) {
-        hit->t = hr.t * scale;
-        for (int i = 0; i < 3; i++)
-            hit->p[i] = o[i] + hit->t * d[i];
-        hit->ci = hr.ci;
-        hit->cj = hr.cj;
-        surface_normal(w, &hr, nv);
-        /* never report a hit before tmin through rounding */
-        if (hit->t < tmin)
-            hit->t = tmin;
-    }
+        run_walk(v, m, w, &st, &hr, &steps, &used) == STEP_HIT)
+        keep_hit(w, &hr, o, d, scale, tmin, hit, nv);
     hit->steps = steps;
     hit->method = used;
 }
@@ -1070,6 +1091,517 @@ void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r,
         unit_normal(nv, hit->n);
 }
 
+/* ------------------------------------------------------------------------------------ */
+/* Packets: the near walk of four camera rays at once.                                  */
+/*
+ * A render's camera rays come in fans with a start each (t_clear, from the horizon or the
+ * beam), and almost all of them hit inside the near walk that start sets off (run_walk's
+ * first TD_NEAR_CELLS cells, incremental): 97% of the traced rays of the trinidad level
+ * view. For them td_trace is ray setup, a cell or two and the hit, the same arithmetic for
+ * every ray. A packet does it for four rays in one pass of four-lane double vectors (GCC's
+ * vector extensions: one AVX2 register in the AVX2 clone, two SSE2 registers in the
+ * baseline's), each branch of the scalar code a select between its two sides. Each lane
+ * runs the scalar code's operations in its order on its operands, so its values are the
+ * scalar walk's bit for bit (IEEE arithmetic is the same in a lane as in a scalar
+ * register; no FMA, and C11 mode contracts nothing). A ray the near walk leaves on the
+ * grid goes on over the tiles from the lane's state (packet_rest, tile_walk), and one that
+ * starts behind its clip (no near walk) is trace_one's. Every surface has its packet form (vcross: vplane_cross .. vbilinear_cross,
+ * each its scalar twin's expressions in the same order). test_trace's test_batches_same
+ * holds the packets to td_trace_from, memory for memory. */
+
+/* The helpers below are always inlined into fan_packet, so no vector crosses a call: the
+ * warning that a 32-byte vector's calling convention differs without AVX does not apply.
+ * (Not popped: GCC gives it at the end of the file.) */
+#pragma GCC diagnostic ignored "-Wpsabi"
+
+typedef double vd __attribute__((vector_size(32)));
+typedef int64_t vm __attribute__((vector_size(32))); /* a lane mask: all ones or zero */
+typedef int32_t vi __attribute__((vector_size(16)));
+#define TD_LANES 4
+
+TD_HOT vd vb(double x) { return (vd){x, x, x, x}; }
+TD_HOT vd vsel(vm m, vd a, vd b) { return (vd)(((vm)a & m) | ((vm)b & ~m)); }
+TD_HOT vd vmin(vd a, vd b) { return vsel((vm)(a < b), a, b); } /* dmin, lane by lane */
+TD_HOT vd vmax(vd a, vd b) { return vsel((vm)(a > b), a, b); }
+TD_HOT vd vclamp01(vd x) { return vsel((vm)(x < 0.0), vb(0.0), vsel((vm)(x > 1.0), vb(1.0), x)); }
+TD_HOT vd vabs(vd x) { return (vd)((vm)x & ~(vm)vb(-0.0)); }
+TD_HOT vm vnan(vd x) { return (vm)(x != x); }
+TD_HOT int vany(vm m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
+
+/* One packet's rays: direction per unit t (cell units), signs as masks, reciprocals. */
+typedef struct vwalk {
+    vd du, dv, dz, iu, iv;
+    vm pu, nu, pv, nv; /* du > 0, du < 0, dv > 0, dv < 0 */
+    vd su, sv;         /* -1, 0, +1 */
+    double ou, ov, oz; /* the fan's origin (walk_origin's) */
+} vwalk;
+
+TD_HOT vd vray_u(const vwalk *p, vd t) { return p->ou + p->du * t; }
+TD_HOT vd vray_v(const vwalk *p, vd t) { return p->ov + p->dv * t; }
+TD_HOT vd vray_z(const vwalk *p, vd t) { return p->oz + p->dz * t; }
+
+/* time_u and time_v of a sample line k (a vector of integers) */
+TD_HOT vd vtime_u(const vwalk *p, vd k) { return vsel(p->pu | p->nu, (k - p->ou) * p->iu, vb(INFINITY)); }
+TD_HOT vd vtime_v(const vwalk *p, vd k) { return vsel(p->pv | p->nv, (k - p->ov) * p->iv, vb(INFINITY)); }
+TD_HOT vd vone(vm m) { return vsel(m, vb(1.0), vb(0.0)); }
+
+/* crossing(a, b) as the ENTRY_ codes in doubles */
+TD_HOT vd vcrossing(vd tu, vd tv)
+{
+    return vsel((vm)(tu < tv), vb(ENTRY_U), vsel((vm)(tv < tu), vb(ENTRY_V), vb(ENTRY_UV)));
+}
+
+/* cell_along for every lane (neg: the lanes going west or south) */
+TD_HOT vd vcell_along(vd pos, vm neg, double lo, double hi)
+{
+    vm below = ~(vm)(pos >= lo), above = (vm)(pos >= hi + 1.0);
+    vd safe = vsel(below | above, vb(lo), pos);
+    /* floor: safe >= lo >= 0 (whole-vector conversions: lanes written one by one and
+       read back as a vector would stall on store forwarding) */
+    vd c = __builtin_convertvector(__builtin_convertvector(safe, vi), vd);
+    vm back = neg & (vm)(c == safe) & (vm)(c > lo);
+    c = c - vone(back);
+    return vsel(below, vb(lo), vsel(above, vb(hi), c));
+}
+
+/* clip_slab for every lane, the origin o shared */
+TD_HOT void vclip_slab(double o, vd d, vd inv, double lo, double hi, vd *t0, vd *t1)
+{
+    vm zero = (vm)(d == 0.0);
+    int out = !(o >= lo && o <= hi);
+    vd a = (lo - o) * inv, b = (hi - o) * inv;
+    vm sw = (vm)(a > b);
+    vd a2 = vsel(sw, b, a), b2 = vsel(sw, a, b);
+    vd n0 = vsel((vm)(a2 > *t0), a2, *t0), n1 = vsel((vm)(b2 < *t1), b2, *t1);
+    *t0 = vsel(zero, *t0, n0);
+    *t1 = vsel(zero, out ? vb(-INFINITY) : *t1, n1);
+}
+
+/* A cell's corners for every lane, as cell_seg's c[4] (lanes off `act` read nothing) */
+typedef struct vcell {
+    vd c[4];
+} vcell;
+
+TD_HOT vcell vcorners(const walk *w, vd ci, vd cj, vm act)
+{
+    const size_t W = w->cz.stride;
+    /* a lane off act reads cell (0, 0), which every grid has, and is not used */
+    vi i = __builtin_convertvector(vsel(act, ci, vb(0.0)), vi);
+    vi j = __builtin_convertvector(vsel(act, cj, vb(0.0)), vi);
+    const float *s[TD_LANES];
+    for (int l = 0; l < TD_LANES; l++)
+        s[l] = td_grid_corner(&w->cz, i[l], j[l]);
+    vcell k = {{(vd){s[0][0], s[1][0], s[2][0], s[3][0]}, (vd){s[0][1], s[1][1], s[2][1], s[3][1]},
+                (vd){s[0][W], s[1][W], s[2][W], s[3][W]},
+                (vd){s[0][W + 1], s[1][W + 1], s[2][W + 1], s[3][W + 1]}}};
+    return k;
+}
+
+/* boundary_height for every lane: the crossing `kind` of the cell, entry side (0) or exit
+ * side (1) */
+TD_HOT vd vboundary(const vwalk *p, const vcell *k, vd ci, vd cj, vd kind, int side, vd t)
+{
+    const vd *c = k->c;
+    vm eu = side ? p->pu : p->nu, ev = side ? p->pv : p->nv;
+    vd au = vsel(eu, c[1], c[0]), bu = vsel(eu, c[3], c[2]);
+    vd hu = au + (bu - au) * vclamp01(vray_v(p, t) - cj);
+    vd av = vsel(ev, c[2], c[0]), bv = vsel(ev, c[3], c[1]);
+    vd hv = av + (bv - av) * vclamp01(vray_u(p, t) - ci);
+    vd huv = vsel(ev, vsel(eu, c[3], c[2]), vsel(eu, c[1], c[0]));
+    return vsel((vm)(kind == ENTRY_U), hu, vsel((vm)(kind == ENTRY_V), hv, huv));
+}
+
+/* triangle_patch for every lane */
+TD_HOT vd vtriangle_patch(const vd *c, vd a, vd b)
+{
+    vd lo = c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b;
+    vd hi = c[3] + (c[2] - c[3]) * (1.0 - a) + (c[1] - c[3]) * (1.0 - b);
+    return vsel((vm)(a + b <= 1.0), lo, hi);
+}
+
+/* seg_hit for every lane: *hit the lanes that cross, *t their crossing */
+TD_HOT void vseg_hit(vd ta, vd fa, vd tb, vd fb, vm *hit, vd *t)
+{
+    vm z = (vm)(fa == 0.0);
+    vm change = ((vm)(fa > 0.0) ^ (vm)(fb > 0.0)) | (vm)(fb == 0.0);
+    *t = vsel(z, ta, ta + (tb - ta) * (fa / (fa - fb)));
+    *hit = z | change;
+}
+
+/* The surface under the ray at t inside the cell, for every lane: patch_under (triangle,
+ * bilinear) and linear_under. */
+TD_HOT vd vbilinear_patch(const vd *c, vd a, vd b)
+{
+    return c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b + (c[0] - c[1] - c[2] + c[3]) * a * b;
+}
+
+TD_HOT vd vlinear_under(const vwalk *p, const vcell *k, vd ci, vd cj, vd t)
+{
+    vd tu0 = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
+    vd tv0 = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
+    vd tu1 = vtime_u(p, ci + vone(p->pu)), tv1 = vtime_v(p, cj + vone(p->pv));
+    vd tin = vmax(tu0, tv0), tout = vmin(tu1, tv1);
+    vm inf = (vm)vb(INFINITY);
+    vm touch = ~(vm)(tout > tin) | (vm)(((vm)vabs(tin) & inf) == inf) | (vm)(((vm)vabs(tout) & inf) == inf);
+    vd patch = vbilinear_patch(k->c, vclamp01(vray_u(p, t) - ci), vclamp01(vray_v(p, t) - cj));
+    vd hin = vboundary(p, k, ci, cj, vsel((vm)(tu0 >= tv0), vb(ENTRY_U), vb(ENTRY_V)), 0, tin);
+    vd hout = vboundary(p, k, ci, cj, vsel((vm)(tu1 <= tv1), vb(ENTRY_U), vb(ENTRY_V)), 1, tout);
+    vd lin = hin + (hout - hin) * vclamp01((t - tin) / (tout - tin));
+    return vsel(touch, patch, lin);
+}
+
+TD_HOT vd vunder(const vwalk *p, const vcell *k, td_surface sf, vd ci, vd cj, vd t)
+{
+    vd h;
+    if (sf == TD_SURFACE_LINEAR) {
+        h = vlinear_under(p, k, ci, cj, t);
+    } else {
+        vd a = vclamp01(vray_u(p, t) - ci), b = vclamp01(vray_v(p, t) - cj);
+        h = sf == TD_SURFACE_TRIANGLE ? vtriangle_patch(k->c, a, b) : vbilinear_patch(k->c, a, b);
+    }
+    return h;
+}
+
+/* seg_f for every lane: f at both ends of the segment (fa where it is NaN) */
+TD_HOT void vseg_f(const vwalk *p, const vcell *k, td_surface sf, vd ci, vd cj, vd ta, vd tb,
+                   vd entry, vd exit, vd *fa, vd *fb)
+{
+    vd fa_new = vray_z(p, ta) - vsel((vm)(entry == ENTRY_START), vunder(p, k, sf, ci, cj, ta),
+                                      vboundary(p, k, ci, cj, entry, 0, ta));
+    *fa = vsel(vnan(*fa), fa_new, *fa);
+    *fb = vray_z(p, tb) - vsel((vm)(exit == ENTRY_START), vunder(p, k, sf, ci, cj, tb),
+                               vboundary(p, k, ci, cj, exit, 1, tb));
+}
+
+/* The surfaces' cell intersections (plane_cross .. bilinear_cross) for every lane, over
+ * the segment [ta, tb] entered across `entry` (f there fa, NaN: not known) and left across
+ * `exit`: the lanes that hit (their t in *t, the plane's wall in *wall), and f at tb (*fb,
+ * NaN for the plane, which computes none). */
+typedef struct vseg {
+    vd ci, cj, ta, tb, entry, exit, fa;
+} vseg;
+
+TD_HOT vm vplane_cross(const vwalk *p, const vcell *k, const vseg *g, vd *t, vd *wall)
+{
+    const vd *c = k->c;
+    vd top = vmax(vmax(c[0], c[1]), vmax(c[2], c[3]));
+    vd za = vray_z(p, g->ta), zb = vray_z(p, g->tb);
+    vm at_a = (vm)(za <= top), at_b = ~at_a & (vm)(zb <= top);
+    vd th = g->ta + (za - top) / -p->dz;
+    vd tc = vsel((vm)(th < g->ta), g->ta, vsel((vm)(th > g->tb), g->tb, th));
+    vm side = (vm)(za < top) & ((vm)(g->entry == ENTRY_U) | (vm)(g->entry == ENTRY_V));
+    *t = vsel(at_a, g->ta, tc);
+    *wall = vsel(at_a & side, g->entry, vb(0.0));
+    return at_a | at_b;
+}
+
+TD_HOT vm vtriangle_cross(const vwalk *p, const vcell *k, const vseg *g, vd fa, vd fb, vd *t)
+{
+    const vd *c = k->c;
+    vd sa = (vray_u(p, g->ta) - g->ci) + (vray_v(p, g->ta) - g->cj) - 1.0;
+    vd sb = (vray_u(p, g->tb) - g->ci) + (vray_v(p, g->tb) - g->cj) - 1.0;
+    vm split = ((vm)(sa < 0.0) & (vm)(sb > 0.0)) | ((vm)(sa > 0.0) & (vm)(sb < 0.0));
+    vd td = g->tb, fd = fb; /* where the first part ends: the diagonal where the lane splits */
+    if (vany(split)) {
+        vd ts = g->ta + (g->tb - g->ta) * (sa / (sa - sb));
+        vd bd = vclamp01(vray_v(p, ts) - g->cj);
+        td = vsel(split, ts, td);
+        fd = vsel(split, vray_z(p, ts) - (c[1] + (c[2] - c[1]) * bd), fd);
+    }
+    vm h1, h2;
+    vd t2;
+    vseg_hit(g->ta, fa, td, fd, &h1, t);
+    vm second = split & ~h1;
+    if (vany(second)) {
+        vseg_hit(td, fd, g->tb, fb, &h2, &t2);
+        *t = vsel(second, t2, *t);
+        h1 |= second & h2;
+    }
+    return h1;
+}
+
+TD_HOT vd vsqrt(vd x) { return (vd){sqrt(x[0]), sqrt(x[1]), sqrt(x[2]), sqrt(x[3])}; }
+TD_HOT vd vcopysign(vd m, vd s)
+{
+    vm sign = (vm)vb(-0.0);
+    return (vd)(((vm)m & ~sign) | ((vm)s & sign));
+}
+
+TD_HOT vm vbilinear_cross(const vwalk *p, const vcell *k, const vseg *g, vd fa, vd fb, vd *t)
+{
+    const vd *c = k->c;
+    vd ta = g->ta, L = g->tb - g->ta;
+    vd kk = c[0] - c[1] - c[2] + c[3];
+    vd A = -kk * p->du * p->dv;
+    vm z = (vm)(fa == 0.0), flat = ~(vm)(L > 0.0);
+    vm lin = ~z & ~flat & ((vm)(A == 0.0) | (vm)(vabs(A) * L * L <= 1e-12 * (vabs(fa) + vabs(fb))));
+    vm quad = ~z & ~flat & ~lin;
+    vm h, hl;
+    vd tl;
+    vseg_hit(ta, fa, g->tb, fb, &hl, &tl);
+    h = z | (lin & hl);
+    *t = vsel(z, ta, tl);
+    if (vany(quad)) {
+        vd B = (fb - fa - A * L * L) / L;
+        vm change = ((vm)(fa > 0.0) ^ (vm)(fb > 0.0)) | (vm)(fb == 0.0);
+        vd smin = -B / (2.0 * A);
+        vd fext = fa + 0.5 * B * smin;
+        vm inside = (vm)(smin > 0.0) & (vm)(smin < L) &
+                    ((vm)(fext == 0.0) | ((vm)(fext > 0.0) ^ (vm)(fa > 0.0)));
+        vm root = quad & (change | inside);
+        if (vany(root)) {
+            vd disc = B * B - 4.0 * A * fa;
+            vd sq = vsqrt(vsel((vm)(disc > 0.0), disc, vb(0.0)));
+            vd q = -0.5 * (B + vcopysign(sq, B));
+            vd r1 = q / A, r2 = vsel((vm)(q != 0.0), fa / q, r1);
+            vd lo = vmin(r1, r2), hi = vmax(r1, r2);
+            vd hiend = vsel(change, L, smin);
+            vd sr = vsel((vm)(lo >= 0.0), lo, hi);
+            vm bad = ~((vm)(sr >= 0.0) & (vm)(sr <= hiend));
+            sr = vsel(bad, vsel(change, L * (fa / (fa - fb)), smin), sr);
+            *t = vsel(root, ta + sr, *t);
+            h |= root;
+        }
+    }
+    return h;
+}
+
+TD_HOT vm vcross(const vwalk *p, const vcell *k, td_surface sf, const vseg *g, vd *fb, vd *t,
+                 vd *wall)
+{
+    vm h;
+    vd fa = g->fa;
+    *fb = vb(NAN);
+    *wall = vb(0.0);
+    if (sf == TD_SURFACE_PLANE) {
+        h = vplane_cross(p, k, g, t, wall);
+    } else {
+        vseg_f(p, k, sf, g->ci, g->cj, g->ta, g->tb, g->entry, g->exit, &fa, fb);
+        if (sf == TD_SURFACE_TRIANGLE)
+            h = vtriangle_cross(p, k, g, fa, *fb, t);
+        else if (sf == TD_SURFACE_BILINEAR)
+            h = vbilinear_cross(p, k, g, fa, *fb, t);
+        else /* linear: f is linear along the ray */
+            vseg_hit(g->ta, fa, g->tb, *fb, &h, t);
+    }
+    return h;
+}
+
+/* The packet's rays set up, clipped and started (walk_dir, walk_clip, skip_to): *go the
+ * lanes whose search is not empty, *near those of them that start at their t_clear (with
+ * a near walk; the others start behind their clip, and trace_one takes them). */
+typedef struct vstate {
+    vd ci, cj, t, f, entry, t_end;
+} vstate;
+
+TD_HOT void vstart(const walk *w, vwalk *p, const vd d[3], vd tc, vstate *st, vm *go, vm *near)
+{
+    const td_grid *g = w->g;
+    vd f[3];
+    for (int i = 0; i < 3; i++) /* flush_tiny */
+        f[i] = vsel((vm)(vabs(d[i]) < 1e-200), vb(0.0), d[i]);
+    p->ou = w->ou, p->ov = w->ov, p->oz = w->oz;
+    p->du = f[0] / g->sx;
+    p->dv = f[1] / g->sy;
+    p->dz = f[2];
+    p->pu = (vm)(p->du > 0.0), p->nu = (vm)(p->du < 0.0);
+    p->pv = (vm)(p->dv > 0.0), p->nv = (vm)(p->dv < 0.0);
+    p->su = vone(p->pu) - vone(p->nu);
+    p->sv = vone(p->pv) - vone(p->nv);
+    p->iu = vsel(p->pu | p->nu, 1.0 / p->du, vb(INFINITY));
+    p->iv = vsel(p->pv | p->nv, 1.0 / p->dv, vb(INFINITY));
+    vd iz = 1.0 / p->dz, t0 = vb(0.0), t1 = vb(INFINITY);
+    vclip_slab(p->ou, p->du, p->iu, 0.0, (double)(g->w - 1), &t0, &t1);
+    vclip_slab(p->ov, p->dv, p->iv, 0.0, (double)(g->h - 1), &t0, &t1);
+    vclip_slab(p->oz, p->dz, iz, w->surf->solid ? -INFINITY : (double)g->zmin - w->zeps,
+               (double)g->zmax + w->zeps, &t0, &t1);
+    st->t_end = t1;
+    *go = (vm)(t0 <= t1) & ~(vm)(tc > t1);
+    vm later = (vm)(tc > t0);
+    vd ci = vcell_along(vray_u(p, tc), p->nu, 0.0, (double)w->cmax_i);
+    vd cj = vcell_along(vray_v(p, tc), p->nv, 0.0, (double)w->cmax_j);
+    vd teu = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
+    vd tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
+    vd te = vmax(teu, tev);
+    vm moved = later & (vm)(te > t0);
+    vd si = vcell_along(vray_u(p, t0), p->nu, 0.0, (double)w->cmax_i);
+    vd sj = vcell_along(vray_v(p, t0), p->nv, 0.0, (double)w->cmax_j);
+    st->ci = vsel(moved, ci, si);
+    st->cj = vsel(moved, cj, sj);
+    st->t = vsel(moved, te, t0);
+    st->entry = vsel(moved, vcrossing(tev, teu), vb(ENTRY_START));
+    st->f = vb(NAN);
+    *near = *go & later;
+}
+
+/* advance() for the lanes of m */
+TD_HOT void vadvance(const vwalk *p, vstate *st, vm m, vd kind, vd t, vd f)
+{
+    st->ci = vsel(m & (vm)(kind != ENTRY_V), st->ci + p->su, st->ci);
+    st->cj = vsel(m & (vm)(kind != ENTRY_U), st->cj + p->sv, st->cj);
+    st->t = vsel(m, t, st->t);
+    st->f = vsel(m, f, st->f);
+    st->entry = vsel(m, kind, st->entry);
+}
+
+/* One step of the near walk (walk_cell, then cell_test where it does not reject) for the
+ * lanes of act: *hit gets the lanes that hit (their t in *th, the plane's wall in *hwall,
+ * the cell's corners in *hk), *end those whose search ends in the cell. */
+TD_HOT void vstep(const walk *w, const vwalk *p, td_surface sf, vstate *st, vm act, vm *hit,
+                  vm *end, vd *th, vd *hwall, vcell *hk)
+{
+    vd tu = vtime_u(p, st->ci + vone(p->pu)), tv = vtime_v(p, st->cj + vone(p->pv));
+    vd tb = vmin(tu, tv), kind = vcrossing(tu, tv);
+    vcell k = vcorners(w, st->ci, st->cj, act);
+    const vd *c = k.c;
+    vd top = vmax(vmax(c[0], c[1]), vmax(c[2], c[3]));
+    vd bottom = vmin(vmin(c[0], c[1]), vmin(c[2], c[3]));
+    vm quick = act & (vm)(tb < st->t_end) & (vm)(vmin(vray_z(p, st->t), vray_z(p, tb)) > top);
+    vm test = act & ~quick;
+    /* cell_test */
+    vm ends = (vm)(tb >= st->t_end);
+    vd tb2 = vsel(ends, st->t_end, tb), exit = vsel(ends, vb(ENTRY_START), kind);
+    vd za = vray_z(p, st->t), zb = vray_z(p, tb2);
+    vm ok = ~vnan(c[0] + c[1] + c[2] + c[3]) & (vm)(tb2 >= st->t);
+    vm clear = (vm)(vmin(za, zb) > top);
+    if (!w->surf->solid)
+        clear |= (vm)(vmax(za, zb) < bottom);
+    vm cross = test & ok & ~clear;
+    vd fb = vb(NAN), t = vb(INFINITY), wall = vb(0.0);
+    vm h = {0, 0, 0, 0};
+    if (vany(cross)) {
+        vseg g = {st->ci, st->cj, st->t, tb2, st->entry, exit, st->f};
+        h = cross & vcross(p, &k, sf, &g, &fb, &t, &wall);
+    }
+    *hit = h;
+    *th = t;
+    *hwall = wall;
+    *hk = k;
+    vm go_on = test & ~h;
+    *end = go_on & (vm)(exit == ENTRY_START);
+    vadvance(p, st, quick, kind, tb, vb(NAN));
+    vadvance(p, st, go_on & ~*end, exit, tb2, vsel(cross, fb, vb(NAN)));
+}
+
+TD_HOT vm von_grid(const walk *w, const vstate *st)
+{
+    return (vm)(st->ci >= 0.0) & (vm)(st->cj >= 0.0) & (vm)(st->ci <= (double)w->cmax_i) &
+           (vm)(st->cj <= (double)w->cmax_j);
+}
+
+/* Whether a fan ray can be a packet's lane: a ray to trace (t_clear finite) whose
+ * direction needs no rescaling (walk_dir's scale 1). */
+static int packet_lane(const td_fan_ray *r)
+{
+    double dlen = dmax(fabs(r->d[0]), dmax(fabs(r->d[1]), fabs(r->d[2])));
+    return r->t_clear < INFINITY && dlen >= 0x1p-20 && dlen <= 0x1p20;
+}
+
+/* A lane's hit as trace_one writes it (keep_hit): the point, the cell and the normal's
+ * vector (surface_normal's, from the corners the lane read and its direction). */
+static void packet_hit(const walk *w, const double o[3], const double d[3], const hit_rec *hr,
+                       double du, double dv, double su, double sv, const double c[4], td_hit *hit,
+                       double nv[3])
+{
+    hit->t = hr->t;
+    for (int i = 0; i < 3; i++)
+        hit->p[i] = o[i] + hit->t * d[i];
+    hit->ci = hr->ci;
+    hit->cj = hr->cj;
+    if (!w->surf->gradient) { /* the plane's top, or the wall the ray came through */
+        nv[0] = hr->wall == ENTRY_U ? -su : 0.0;
+        nv[1] = hr->wall == ENTRY_V ? -sv : 0.0;
+        nv[2] = hr->wall ? 0.0 : 1.0;
+    } else {
+        double gr[2];
+        w->surf->gradient(c, clamp01(w->ou + du * hr->t - hr->ci), clamp01(w->ov + dv * hr->t - hr->cj), gr);
+        nv[0] = -gr[0] / w->g->sx;
+        nv[1] = -gr[1] / w->g->sy;
+        nv[2] = 1.0;
+    }
+    if (hit->t < 0.0) /* trace_one's tmin, 0 for a fan */
+        hit->t = 0.0;
+}
+
+/* A fan ray whose near walk a packet took and left on the grid: trace_one's walk over
+ * tiles from the cell, time, f and entry the lane stood at (the same bits as the scalar
+ * near walk's), after its n steps. */
+static void packet_rest(const td_view *v, td_method m, walk *w, const double o[3], const double d[3],
+                        const walk_state *at, uint32_t n, td_hit *hit, double nv[3])
+{
+    walk_state st;
+    hit_rec hr = {.t = INFINITY};
+    td_method used = walk_method(m);
+    double scale = 1.0;
+    walk_dir(w, d, &scale); /* scale 1: packet_lane */
+    walk_clip(w, &st, 0.0, INFINITY, scale);
+    st = *at;
+    hit->t = INFINITY;
+    hit->ci = hit->cj = -1;
+    if (tile_walk(v, m, w, &st, &hr, &n, &used) == STEP_HIT)
+        keep_hit(w, &hr, o, d, scale, 0.0, hit, nv);
+    hit->steps = n;
+    hit->method = used;
+}
+
+/* The near walk of fan rays rays[lane[0 .. nl)] (nl <= TD_LANES; see the section's
+ * comment): for each lane it finishes, hits[] and nv[] (at k - k0) as trace_one leaves
+ * them and done[l] = 1; the caller traces the others with trace_one. */
+TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, const double o[3],
+                                     const td_fan_ray *rays, const int *lane, int nl, int k0,
+                                     td_hit *hits, double (*nv)[3], int *done)
+{
+    const td_fan_ray *r[TD_LANES];
+    for (int l = 0; l < TD_LANES; l++) /* a packet short of rays repeats its first */
+        r[l] = &rays[lane[l < nl ? l : 0]];
+    vd d[3], tc = {r[0]->t_clear, r[1]->t_clear, r[2]->t_clear, r[3]->t_clear};
+    for (int i = 0; i < 3; i++)
+        d[i] = (vd){r[0]->d[i], r[1]->d[i], r[2]->d[i], r[3]->d[i]};
+    vwalk p;
+    vstate st;
+    vm go, near, hit = {0, 0, 0, 0}, cont;
+    vd n = vb(0.0), th = vb(INFINITY), hw = vb(0.0);
+    vcell hk = {{vb(0.0), vb(0.0), vb(0.0), vb(0.0)}};
+    const td_surface sf = (td_surface)(w->surf - surfaces);
+    vstart(w, &p, d, tc, &st, &go, &near);
+    cont = near;
+    for (int k = 0; k < TD_NEAR_CELLS; k++) { /* run_walk's near loop */
+        vm act = cont & von_grid(w, &st), h, end;
+        vd t, wall;
+        vcell kk;
+        if (!vany(act))
+            break;
+        n += vone(act);
+        vstep(w, &p, sf, &st, act, &h, &end, &t, &wall, &kk);
+        th = vsel(h, t, th);
+        hw = vsel(h, wall, hw);
+        for (int i = 0; i < 4; i++)
+            hk.c[i] = vsel(h, kk.c[i], hk.c[i]);
+        hit |= h;
+        cont &= ~(h | end);
+    }
+    /* a lane still walking on the grid goes on over the tiles (packet_rest); one that
+       starts behind its clip (no near walk) is trace_one's */
+    vm rest = cont & von_grid(w, &st), finished = ~go | (near & ~rest);
+    for (int l = 0; l < nl; l++) {
+        td_hit *h = &hits[lane[l]];
+        done[l] = (finished | rest)[l] != 0;
+        h->t = INFINITY; /* a miss unless the lane hit (a lane not done: trace_one's) */
+        h->ci = h->cj = -1;
+        h->steps = (uint32_t)n[l];
+        h->method = walk_method(m);
+        if (rest[l]) {
+            walk_state at = {.ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .t = st.t[l],
+                             .f = st.f[l], .entry = (int)st.entry[l], .level = 0};
+            packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], h, nv[lane[l] - k0]);
+        } else if (hit[l]) {
+            double c[4] = {hk.c[0][l], hk.c[1][l], hk.c[2][l], hk.c[3][l]};
+            hit_rec hr = {.t = th[l], .ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .wall = (int)hw[l]};
+            packet_hit(w, o, rays[lane[l]].d, &hr, p.du[l], p.dv[l], p.su[l], p.sv[l], c, h,
+                       nv[lane[l] - k0]);
+        }
+    }}
+
 /* Fan rays whose normals wait for one loop (unit_normal) */
 #define TD_FAN_MAX 64
 
@@ -1085,10 +1617,22 @@ void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3]
     double nv[TD_FAN_MAX][3];
     for (int k0 = 0; k0 < n; k0 += TD_FAN_MAX) {
         int k1 = n - k0 < TD_FAN_MAX ? n : k0 + TD_FAN_MAX;
+        int lane[TD_FAN_MAX], nl = 0;
         for (int k = k0; k < k1; k++) {
             memset(&hits[k], 0, sizeof hits[k]);
-            trace_one(v, m, &w, o, rays[k].d, 0.0, INFINITY, ok ? rays[k].t_clear : INFINITY,
-                      &hits[k], nv[k - k0]);
+            if (ok && packet_lane(&rays[k]))
+                lane[nl++] = k;
+            else
+                trace_one(v, m, &w, o, rays[k].d, 0.0, INFINITY, ok ? rays[k].t_clear : INFINITY,
+                          &hits[k], nv[k - k0]);
+        }
+        for (int q = 0; q < nl; q += TD_LANES) { /* the packets, then what they left */
+            int np = nl - q < TD_LANES ? nl - q : TD_LANES, done[TD_LANES];
+            fan_packet(v, m, &w, o, rays, lane + q, np, k0, hits, nv, done);
+            for (int l = 0; l < np; l++)
+                if (!done[l])
+                    trace_one(v, m, &w, o, rays[lane[q + l]].d, 0.0, INFINITY, rays[lane[q + l]].t_clear,
+                              &hits[lane[q + l]], nv[lane[q + l] - k0]);
         }
         for (int k = k0; k < k1; k++)
             if (hits[k].t < INFINITY)
