@@ -30,24 +30,21 @@ static char load_error[512]; /* empty once loaded */
 static void load(void)
 {
     void *h = dlopen(TERRAD_GDAL_SONAME, RTLD_NOW | RTLD_LOCAL);
-    const char *missing = NULL;
-    if (!h) {
-        const char *e = dlerror();
-        snprintf(load_error, sizeof load_error, "%s", e ? e : "dlopen failed");
-        return;
-    }
-    /* dlsym gives a void *; the table's types are the functions' own (a POSIX guarantee
-     * that the conversion works, through the union-free memcpy-free cast of dlsym's man page) */
+    const char *missing = NULL, *e = h ? NULL : dlerror();
+    /* dlsym returns a void *, which POSIX requires to convert to a function pointer; ISO C
+     * leaves the cast undefined, so the entry is written through a void ** (the form of
+     * dlsym's manual page) */
 #define TD_GDAL_SYM(f)                                                                             \
-    if (!missing && !(*(void **)&td_gdal.f = dlsym(h, #f)))                                        \
+    if (h && !missing && !(*(void **)&td_gdal.f = dlsym(h, #f)))                                   \
         missing = #f;
     TD_GDAL_FNS(TD_GDAL_SYM)
 #undef TD_GDAL_SYM
-    if (missing) {
+    if (!h)
+        snprintf(load_error, sizeof load_error, "%s", e ? e : "dlopen failed");
+    else if (missing)
         snprintf(load_error, sizeof load_error, "%s has no %s", TERRAD_GDAL_SONAME, missing);
-        return;
-    }
-    td_gdal.GDALAllRegister();
+    else
+        td_gdal.GDALAllRegister();
 }
 
 td_status td_gdal_open(td_err *err)

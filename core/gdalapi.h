@@ -54,9 +54,7 @@ extern td_gdal_api td_gdal;
 #define CPLPushErrorHandler (td_gdal.CPLPushErrorHandler)
 #define CPLQuietErrorHandler (td_gdal.CPLQuietErrorHandler)
 #define CPLStrdup (td_gdal.CPLStrdup)
-#undef CPLFree
-#define CPLFree VSIFree
-#define VSIFree (td_gdal.VSIFree)
+#define VSIFree (td_gdal.VSIFree) /* and so CPLFree, cpl_conv.h's name for it */
 #define GDALAllRegister (td_gdal.GDALAllRegister)
 #define GDALClose (td_gdal.GDALClose)
 #define GDALGetGeoTransform (td_gdal.GDALGetGeoTransform)
