@@ -27,7 +27,11 @@
  *   walk_grid() .. walk_clip()  the walk's setup in the parts rays share (grid, origin,
  *                  direction) and each ray's clip: td_trace_fan (a render's camera rays)
  *                  and td_occluded_par (its shadow rays) set up the shared part once, and
- *                  every ray still takes the one walk, so its answer is the one-ray call's.
+ *                  every ray still takes the one walk, so its answer is the one-ray call's;
+ *   fan_packet()   the one twin: a fan's setup and near walk for four rays at once, in
+ *                  vectors, each lane the scalar code's operations in its order (the
+ *                  Packets section says why that is the same bits, and the tests hold it
+ *                  there); a change to a surface or to the walk's first cells changes both.
  *
  * Watertightness. The crossing test is a sign test on f(t) = z_ray(t) - surface(t).
  * Inside a cell the triangle and linear surfaces make f linear in t (on each side of
@@ -1202,13 +1206,14 @@ TD_HOT vcell vcorners(const walk *w, vd ci, vd cj, vm act)
 TD_HOT vd vboundary(const vwalk *p, const vcell *k, vd ci, vd cj, vd kind, int side, vd t)
 {
     const vd *c = k->c;
-    vm eu = side ? p->pu : p->nu, ev = side ? p->pv : p->nv;
-    vd au = vsel(eu, c[1], c[0]), bu = vsel(eu, c[3], c[2]);
-    vd hu = au + (bu - au) * vclamp01(vray_v(p, t) - cj);
-    vd av = vsel(ev, c[2], c[0]), bv = vsel(ev, c[3], c[1]);
-    vd hv = av + (bv - av) * vclamp01(vray_u(p, t) - ci);
+    vm eu = side ? p->pu : p->nu, ev = side ? p->pv : p->nv, on_u = (vm)(kind == ENTRY_U);
+    /* a column's edge (U): from c[eu] to c[2 + eu] along v; a row's (V): from c[2 ev] to
+       c[2 ev + 1] along u; a sample point (UV): c[2 ev + eu] */
+    vd a = vsel(on_u, vsel(eu, c[1], c[0]), vsel(ev, c[2], c[0]));
+    vd b = vsel(on_u, vsel(eu, c[3], c[2]), vsel(ev, c[3], c[1]));
+    vd pos = vsel(on_u, vray_v(p, t), vray_u(p, t)), at = vsel(on_u, cj, ci);
     vd huv = vsel(ev, vsel(eu, c[3], c[2]), vsel(eu, c[1], c[0]));
-    return vsel((vm)(kind == ENTRY_U), hu, vsel((vm)(kind == ENTRY_V), hv, huv));
+    return vsel((vm)(kind == ENTRY_UV), huv, a + (b - a) * vclamp01(pos - at));
 }
 
 /* triangle_patch for every lane */
@@ -1266,11 +1271,21 @@ TD_HOT vd vunder(const vwalk *p, const vcell *k, td_surface sf, vd ci, vd cj, vd
 TD_HOT void vseg_f(const vwalk *p, const vcell *k, td_surface sf, vd ci, vd cj, vd ta, vd tb,
                    vd entry, vd exit, vd *fa, vd *fb)
 {
-    vd fa_new = vray_z(p, ta) - vsel((vm)(entry == ENTRY_START), vunder(p, k, sf, ci, cj, ta),
-                                      vboundary(p, k, ci, cj, entry, 0, ta));
-    *fa = vsel(vnan(*fa), fa_new, *fa);
-    *fb = vray_z(p, tb) - vsel((vm)(exit == ENTRY_START), vunder(p, k, sf, ci, cj, tb),
-                               vboundary(p, k, ci, cj, exit, 1, tb));
+    /* f carried from the cell before, and both ends on boundaries, are the common case:
+       the surface inside the cell only where a lane needs it */
+    vm need = vnan(*fa);
+    if (vany(need)) {
+        vm inside = need & (vm)(entry == ENTRY_START);
+        vd h = vboundary(p, k, ci, cj, entry, 0, ta);
+        if (vany(inside))
+            h = vsel(inside, vunder(p, k, sf, ci, cj, ta), h);
+        *fa = vsel(need, vray_z(p, ta) - h, *fa);
+    }
+    vm inside = (vm)(exit == ENTRY_START);
+    vd h = vboundary(p, k, ci, cj, exit, 1, tb);
+    if (vany(inside))
+        h = vsel(inside, vunder(p, k, sf, ci, cj, tb), h);
+    *fb = vray_z(p, tb) - h;
 }
 
 /* The surfaces' cell intersections (plane_cross .. bilinear_cross) for every lane, over
@@ -1497,37 +1512,47 @@ static int packet_lane(const td_fan_ray *r)
     return r->t_clear < INFINITY && dlen >= 0x1p-20 && dlen <= 0x1p20;
 }
 
-/* A lane's hit as trace_one writes it (keep_hit): the point, the cell and the normal's
- * vector (surface_normal's, from the corners the lane read and its direction). */
-static void packet_hit(const walk *w, const double o[3], const double d[3], const hit_rec *hr,
-                       double du, double dv, double su, double sv, const double c[4], td_hit *hit,
-                       double nv[3])
+/* The packet's hits as trace_one writes them (keep_hit) for every lane: the point and the
+ * normal's vector (surface_normal's, from the corners each lane read at its hit), in
+ * vectors; fan_packet stores the lanes that hit. */
+typedef struct vhit {
+    vd p[3], nv[3];
+} vhit;
+
+TD_HOT vhit vhits(const walk *w, const vwalk *q, td_surface sf, const double o[3], const vd d[3],
+                  vd t, vd ci, vd cj, vd wall, const vcell *k)
 {
-    hit->t = hr->t;
+    vhit h;
+    const vd *c = k->c;
     for (int i = 0; i < 3; i++)
-        hit->p[i] = o[i] + hit->t * d[i];
-    hit->ci = hr->ci;
-    hit->cj = hr->cj;
-    if (!w->surf->gradient) { /* the plane's top, or the wall the ray came through */
-        nv[0] = hr->wall == ENTRY_U ? -su : 0.0;
-        nv[1] = hr->wall == ENTRY_V ? -sv : 0.0;
-        nv[2] = hr->wall ? 0.0 : 1.0;
-    } else {
-        double gr[2];
-        w->surf->gradient(c, clamp01(w->ou + du * hr->t - hr->ci), clamp01(w->ov + dv * hr->t - hr->cj), gr);
-        nv[0] = -gr[0] / w->g->sx;
-        nv[1] = -gr[1] / w->g->sy;
-        nv[2] = 1.0;
+        h.p[i] = o[i] + t * d[i];
+    if (sf == TD_SURFACE_PLANE) { /* the top, or the wall the ray came through */
+        h.nv[0] = vsel((vm)(wall == ENTRY_U), -q->su, vb(0.0));
+        h.nv[1] = vsel((vm)(wall == ENTRY_V), -q->sv, vb(0.0));
+        h.nv[2] = vsel((vm)(wall != 0.0), vb(0.0), vb(1.0));
+    } else { /* triangle_gradient, bilinear_gradient (the linear surface's too) */
+        vd a = vclamp01(vray_u(q, t) - ci), b = vclamp01(vray_v(q, t) - cj), g0, g1;
+        if (sf == TD_SURFACE_TRIANGLE) {
+            vm lower = (vm)(a + b <= 1.0);
+            g0 = vsel(lower, c[1] - c[0], c[3] - c[2]);
+            g1 = vsel(lower, c[2] - c[0], c[3] - c[1]);
+        } else {
+            vd kk = c[0] - c[1] - c[2] + c[3];
+            g0 = (c[1] - c[0]) + kk * b;
+            g1 = (c[2] - c[0]) + kk * a;
+        }
+        h.nv[0] = -g0 / w->g->sx;
+        h.nv[1] = -g1 / w->g->sy;
+        h.nv[2] = vb(1.0);
     }
-    if (hit->t < 0.0) /* trace_one's tmin, 0 for a fan */
-        hit->t = 0.0;
+    return h;
 }
 
-/* A fan ray whose near walk a packet took and left on the grid: trace_one's walk over
- * tiles from the cell, time, f and entry the lane stood at (the same bits as the scalar
- * near walk's), after its n steps. */
+/* A fan ray whose near walk a packet began and did not finish: the rest of trace_one's
+ * walk (the near cells left of near_done, then the tiles) from the cell, time, f and entry
+ * the lane stood at (the same bits as the scalar near walk's), after its n steps. */
 static void packet_rest(const td_view *v, td_method m, walk *w, const double o[3], const double d[3],
-                        const walk_state *at, uint32_t n, td_hit *hit, double nv[3])
+                        const walk_state *at, uint32_t n, int near_done, td_hit *hit, double nv[3])
 {
     walk_state st;
     hit_rec hr = {.t = INFINITY};
@@ -1538,7 +1563,14 @@ static void packet_rest(const td_view *v, td_method m, walk *w, const double o[3
     st = *at;
     hit->t = INFINITY;
     hit->ci = hit->cj = -1;
-    if (tile_walk(v, m, w, &st, &hr, &n, &used) == STEP_HIT)
+    int rc = STEP_CONTINUE;
+    for (int k = near_done; k < TD_NEAR_CELLS && rc == STEP_CONTINUE && on_grid(w, &st); k++) {
+        n++; /* the rest of run_walk's near loop */
+        rc = walk_cell(w, &st, &hr);
+    }
+    if (rc == STEP_CONTINUE)
+        rc = tile_walk(v, m, w, &st, &hr, &n, &used);
+    if (rc == STEP_HIT)
         keep_hit(w, &hr, o, d, scale, 0.0, hit, nv);
     hit->steps = n;
     hit->method = used;
@@ -1565,11 +1597,13 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
     const td_surface sf = (td_surface)(w->surf - surfaces);
     vstart(w, &p, d, tc, &st, &go, &near);
     cont = near;
-    for (int k = 0; k < TD_NEAR_CELLS; k++) { /* run_walk's near loop */
+    /* run_walk's near loop while two lanes or more walk it (a lone lane is faster scalar) */
+    int k = 0;
+    for (; k < TD_NEAR_CELLS; k++) {
         vm act = cont & von_grid(w, &st), h, end;
         vd t, wall;
         vcell kk;
-        if (!vany(act))
+        if ((act[0] & 1) + (act[1] & 1) + (act[2] & 1) + (act[3] & 1) < 2)
             break;
         n += vone(act);
         vstep(w, &p, sf, &st, act, &h, &end, &t, &wall, &kk);
@@ -1580,9 +1614,10 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
         hit |= h;
         cont &= ~(h | end);
     }
-    /* a lane still walking on the grid goes on over the tiles (packet_rest); one that
-       starts behind its clip (no near walk) is trace_one's */
-    vm rest = cont & von_grid(w, &st), finished = ~go | (near & ~rest);
+    /* a lane still walking goes on alone (packet_rest); one that starts behind its clip
+       (no near walk) is trace_one's */
+    vm rest = cont, finished = ~go | (near & ~rest);
+    vhit hv = vhits(w, &p, sf, o, d, th, st.ci, st.cj, hw, &hk);
     for (int l = 0; l < nl; l++) {
         td_hit *h = &hits[lane[l]];
         done[l] = (finished | rest)[l] != 0;
@@ -1593,14 +1628,18 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
         if (rest[l]) {
             walk_state at = {.ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .t = st.t[l],
                              .f = st.f[l], .entry = (int)st.entry[l], .level = 0};
-            packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], h, nv[lane[l] - k0]);
+            packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], k, h, nv[lane[l] - k0]);
         } else if (hit[l]) {
-            double c[4] = {hk.c[0][l], hk.c[1][l], hk.c[2][l], hk.c[3][l]};
-            hit_rec hr = {.t = th[l], .ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .wall = (int)hw[l]};
-            packet_hit(w, o, rays[lane[l]].d, &hr, p.du[l], p.dv[l], p.su[l], p.sv[l], c, h,
-                       nv[lane[l] - k0]);
+            h->t = th[l] < 0.0 ? 0.0 : th[l]; /* trace_one's tmin, 0 for a fan */
+            h->ci = (int32_t)st.ci[l];
+            h->cj = (int32_t)st.cj[l];
+            for (int i = 0; i < 3; i++) {
+                h->p[i] = hv.p[i][l];
+                nv[lane[l] - k0][i] = hv.nv[i][l];
+            }
         }
-    }}
+    }
+}
 
 /* Fan rays whose normals wait for one loop (unit_normal) */
 #define TD_FAN_MAX 64

@@ -286,12 +286,13 @@ static void write_designs(FILE *f, const bench_ctx *b)
                 "(parametric) steps at about %.0f / %.0f ns a step: fewer steps do not pay when each "
                 "one waits on a dependent load (a parametric jump lands on a cone and cells far from "
                 "the last ones, out of cache). "
-                "Designs that would reach it: *vertical ray coherence* (neighbouring pixels of a "
-                "column start where the pixel below hit, so most rays begin one or two cells before "
-                "their hit: the classic height-field trick, exact where a column's rays share a "
-                "vertical plane through the eye, i.e. a level camera without roll, or any view "
-                "traced in such planes and resampled), and *packets* of 4 x 4 rays sharing the block and cone tests "
-                "(one load for 16 rays, as Embree's rtcIntersect16 does for its BVH).\n",
+                "These rays are traced one at a time from their start (`terrad trace` knows nothing "
+                "of their neighbours). A render does more (section 7): vertical ray coherence (the "
+                "horizon and the beam) starts its camera rays one or two cells before their hit, "
+                "and packets of four rays take them through that near walk at once. What would "
+                "reach 3x on independent rays: *packets through the max-mipmap*, 4 x 4 rays sharing "
+                "a block test while they stay together (one load for 16 rays, as Embree's "
+                "rtcIntersect16 does for its BVH).\n",
                 ours / eb, d->name, hi->mean_steps, pa->mean_steps,
                 hi->rps > 0 ? 1e9 / hi->rps / fmax(hi->mean_steps, 1) : 0,
                 pa->rps > 0 ? 1e9 / pa->rps / fmax(pa->mean_steps, 1) : 0);

@@ -484,10 +484,12 @@ static void test_steps_fewer(void **state)
     td_grid_free(g);
 }
 
-/* A fan from one origin (td_trace_fan) and parallel rays (td_occluded_par) give, bit for
- * bit, what td_trace_from and td_occluded give each ray, on every method and surface: from
- * above, from below the crests, with t_clear 0, a real bound (just before the hit), +inf,
- * and with a grazing direction; a grid with voids; more rays than one batch holds. */
+/* A fan from one origin (td_trace_fan, with its packets of four rays) and parallel rays
+ * (td_occluded_par) give, bit for bit, what td_trace_from and td_occluded give each ray,
+ * on every method and surface: from above, from below the crests, with t_clear 0, real
+ * bounds (from half the way to 1 - 1e-12 of it), +inf, with grazing directions and
+ * directions along sample rows, columns and diagonals; a grid with voids; more rays than
+ * one batch holds. */
 static void test_batches_same(void **state)
 {
     (void)state;
@@ -513,18 +515,25 @@ static void test_batches_same(void **state)
                 t[2] = origins[oi][2] - 1e-3 * hypot(t[0] - origins[oi][0], t[1] - origins[oi][1]);
             for (int i = 0; i < 3; i++)
                 fan[k].d[i] = t[i] - origins[oi][i];
+            if (k % 11 == 5) /* along a sample row, along a column, through sample points */
+                fan[k].d[1] = 0.0;
+            else if (k % 13 == 6)
+                fan[k].d[0] = 0.0;
+            else if (k % 17 == 7)
+                fan[k].d[1] = copysign(fan[k].d[0] / g->sx * g->sy, fan[k].d[1]);
             po[k][0] = (g->w - 1) * g->sx * rnd(&seed);
             po[k][1] = (g->h - 1) * g->sy * rnd(&seed);
             po[k][2] = g->zmin + (g->zmax - g->zmin) * rnd(&seed);
         }
         for (int m = 0; m < TD_METHOD_COUNT; m++) {
             for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
-                for (int k = 0; k < N; k++) { /* t_clear: 0, +inf, or just before the hit */
+                for (int k = 0; k < N; k++) { /* t_clear: 0, +inf, or before the hit */
+                    static const double before[] = {0.9, 0.5, 0.999, 1.0 - 1e-12, 0.97};
                     td_ray r = {{origins[oi][0], origins[oi][1], origins[oi][2]},
                                 {fan[k].d[0], fan[k].d[1], fan[k].d[2]}, 0.0, INFINITY};
                     td_hit h;
                     td_trace(&v, (td_method)m, (td_surface)sf, &r, &h);
-                    fan[k].t_clear = k % 3 == 0 ? 0.0 : (k % 3 == 1 ? INFINITY : 0.9 * h.t);
+                    fan[k].t_clear = k % 3 == 0 ? 0.0 : (k % 3 == 1 ? INFINITY : before[k % 5] * h.t);
                     if (!isfinite(fan[k].t_clear))
                         fan[k].t_clear = k % 3 == 1 ? INFINITY : 0.0;
                 }
@@ -560,6 +569,53 @@ static void test_batches_same(void **state)
     td_grid_free(g);
 }
 
+/* The packets' cell intersections where the scalar ones branch: on a grid of saddles
+ * (corners 0 and 10 m alternating), horizontal rays along and beside the cells' diagonals
+ * (through sample points, or just off them) at heights below, at and above the patches'
+ * 5 m crests, in both directions, each started a few cells before as a fan of one ray
+ * (a packet with one lane): bilinear and linear rays that dip under the surface inside a
+ * cell and rise out of it with f of one sign at both ends, triangle rays split at the
+ * diagonal, plane rays that meet walls and tops; started inside a cell, on its sample lines
+ * and at a sample point. Each gives td_trace_from's hit bit for bit. */
+static void test_fan_cells(void **state)
+{
+    (void)state;
+    td_grid *g = make_grid(24, 24, 3.0, 2.0, 3);
+    for (int32_t j = 0; j < g->h; j++)
+        for (int32_t i = 0; i < g->w; i++)
+            g->z[(size_t)j * (size_t)g->w + (size_t)i] = (i + j) % 2 ? 10.0f : 0.0f;
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel *a = build_all(g, 8);
+    td_view v = {g, a->tiles};
+    static const double heights[] = {1.0, 4.0, 4.9, 4.999999, 5.0, 5.000001, 6.0};
+    static const double offsets[] = {0.0, 0.1, -0.3, 1e-9};
+    int hits = 0, tried = 0;
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
+        for (int hi = 0; hi < 7; hi++) {
+            for (int oi = 0; oi < 4; oi++) {
+                for (int dir = 0; dir < 12; dir++) { /* +u+v, -u-v, +u-v, -u+v; 3 starts */
+                    double su = dir % 2 ? -1.0 : 1.0, sv = dir % 4 < 2 ? su : -su;
+                    double u0 = 12.0 - 3.0 * su + offsets[oi], v0 = 12.0 - 3.0 * sv;
+                    /* a start in a cell, on its sample lines (at a sample point when on the
+                       diagonal), and one cell on */
+                    td_fan_ray fr = {{su * g->sx, sv * g->sy, 0.0}, 1.5 + 0.5 * (dir / 4)};
+                    const double o[3] = {u0 * g->sx, v0 * g->sy, heights[hi]};
+                    td_ray r = {{o[0], o[1], o[2]}, {fr.d[0], fr.d[1], fr.d[2]}, 0.0, INFINITY};
+                    td_hit hf, h1;
+                    td_trace_fan(&v, TD_METHOD_AUTO, (td_surface)sf, o, 1, &fr, &hf);
+                    td_trace_from(&v, TD_METHOD_AUTO, (td_surface)sf, &r, fr.t_clear, &h1);
+                    assert_memory_equal(&hf, &h1, sizeof hf);
+                    hits += h1.t < INFINITY;
+                    tried++;
+                }
+            }
+        }
+    }
+    assert_true(hits > tried / 2 && hits < tried);
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -568,6 +624,7 @@ int main(void)
         cmocka_unit_test(test_planes_degenerate),   cmocka_unit_test(test_maxmip_and_edt),
         cmocka_unit_test(test_plane_walls),         cmocka_unit_test(test_validate),
         cmocka_unit_test(test_steps_fewer),         cmocka_unit_test(test_batches_same),
+        cmocka_unit_test(test_fan_cells),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
