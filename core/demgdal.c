@@ -9,7 +9,8 @@
  * in metres at the centre latitude), otherwise projected with the linear unit applied.
  * Voids: the band's nodata value; NaN samples only when nodata is NaN, as in demraw.c
  * (both loaders state their rules as a td_demutil_f32 for td_demutil_f32_row). The band's
- * scale and offset, when set, are applied. */
+ * scale and offset, when set, are applied. GDAL itself is loaded on the first call
+ * (gdalapi.h: td_gdal_open), not linked in. */
 #include "demgdal.h"
 
 #include <stdlib.h>
@@ -66,16 +67,9 @@ void td_demgdal_stream_close(td_demgdal_stream *s) { (void)s; }
 #else
 
 #include <math.h>
-#include <pthread.h>
 #include <stdio.h>
 
-#include <cpl_error.h>
-#include <gdal.h>
-#include <ogr_srs_api.h>
-
-static pthread_once_t td_gdal_once = PTHREAD_ONCE_INIT;
-
-static void gdal_init(void) { GDALAllRegister(); }
+#include "gdalapi.h" /* GDAL's API, loaded on first use (td_gdal_open) */
 
 static const char *gdal_msg(void)
 {
@@ -189,7 +183,9 @@ td_status td_demgdal_load(const char *path, const td_dem_opts *o, td_grid **out,
     int south_up = 0;
     int32_t w = 0, h = 0;
 
-    pthread_once(&td_gdal_once, gdal_init);
+    rc = td_gdal_open(err);
+    if (rc != TD_OK)
+        goto out;
     CPLPushErrorHandler(CPLQuietErrorHandler);
     CPLErrorReset();
     rc = gdal_open(path, o, &ds, &w, &h, err);
@@ -204,6 +200,7 @@ td_status td_demgdal_load(const char *path, const td_dem_opts *o, td_grid **out,
     if (ds)
         GDALClose(ds);
     CPLPopErrorHandler();
+out:
     return td_demutil_deliver(path, rc, g, out, err);
 }
 
@@ -231,7 +228,9 @@ td_status td_demgdal_stream_open(const char *path, const td_dem_opts *o, td_demg
         goto out;
     }
     snprintf(s->path, sizeof s->path, "%s", path);
-    pthread_once(&td_gdal_once, gdal_init);
+    rc = td_gdal_open(err);
+    if (rc != TD_OK)
+        goto out;
     CPLPushErrorHandler(CPLQuietErrorHandler);
     CPLErrorReset();
     rc = gdal_open(path, o, &s->ds, &s->w, &s->h, err);

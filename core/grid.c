@@ -8,6 +8,8 @@
 #include <string.h>
 #include <sys/mman.h>
 
+#include "simd.h"
+
 void td_grid_limits_default(td_grid_limits *lim)
 {
     lim->max_width = 65536;
@@ -231,6 +233,18 @@ int td_grid_bilinear(const td_grid *g, double x, double y, double *z, double n[3
     return td_grid_bilinear_cell(g, ci, cj, x, y, z, n);
 }
 
+/* One run of td_grid_cell_max: cells k of the rows of samples s0 (south) and s1. A loop
+ * that vectorises (with the AVX2 clone): max-mipmap builds spent a third of their time here. */
+TD_ROW_CLONES static void cell_max_row(const float *restrict s0, const float *restrict s1,
+                                       float *restrict o, int32_t n)
+{
+    for (int32_t k = 0; k < n; k++) {
+        float a = s0[k], b = s0[k + 1], c = s1[k], d = s1[k + 1];
+        float ab = a > b ? a : b, cd = c > d ? c : d;
+        o[k] = isnan(a + b + c + d) ? -INFINITY : (ab > cd ? ab : cd);
+    }
+}
+
 void td_grid_cell_max(const td_grid *g, const td_tile *t, float *out)
 {
     const size_t W = g->cz.stride;
@@ -242,11 +256,7 @@ void td_grid_cell_max(const td_grid *g, const td_tile *t, float *out)
             const float *s0 = td_grid_corner(&g->cz, i, t->j0 + cj), *s1 = s0 + W;
             int64_t left = (int64_t)g->cz.mask + 1 - (int64_t)((uint32_t)i & g->cz.mask);
             n = left < t->nx - ci ? (int32_t)left : t->nx - ci;
-            for (int32_t k = 0; k < n; k++) {
-                float a = s0[k], b = s0[k + 1], c = s1[k], d = s1[k + 1];
-                float ab = a > b ? a : b, cd = c > d ? c : d;
-                o[k] = isnan(a + b + c + d) ? -INFINITY : (ab > cd ? ab : cd);
-            }
+            cell_max_row(s0, s1, o, n);
         }
     }
 }

@@ -7,16 +7,10 @@
 #include "mercator.h"
 
 #include <math.h>
-#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef TERRAD_HAVE_GDAL
-#include <cpl_conv.h>
-#include <cpl_error.h>
-#include <gdal.h>
-#include <ogr_srs_api.h>
-#endif
+#include "gdalapi.h" /* GDAL's API, loaded on first use (td_gdal_open) */
 
 static double dmin(double a, double b) { return a < b ? a : b; }
 static double dmax(double a, double b) { return a > b ? a : b; }
@@ -107,9 +101,6 @@ struct td_merc_proj {
     double grid_north; /* true north's azimuth from the frame's y axis, degrees */
 };
 
-static pthread_once_t gdal_once = PTHREAD_ONCE_INIT;
-static void gdal_init(void) { GDALAllRegister(); }
-
 static OGRSpatialReferenceH srs_epsg(int code)
 {
     OGRSpatialReferenceH s = OSRNewSpatialReference(NULL);
@@ -146,8 +137,7 @@ static OGRSpatialReferenceH srs_from_text(const char *t)
 static OGRSpatialReferenceH srs_from_file(const char *path)
 {
     OGRSpatialReferenceH s = NULL;
-    GDALDatasetH ds;
-    pthread_once(&gdal_once, gdal_init);
+    GDALDatasetH ds; /* GDAL is loaded: td_merc_proj_create's td_gdal_open */
     CPLPushErrorHandler(CPLQuietErrorHandler);
     ds = path ? GDALOpenEx(path, GDAL_OF_RASTER | GDAL_OF_READONLY, NULL, NULL, NULL) : NULL;
     if (ds) {
@@ -284,11 +274,16 @@ td_status td_merc_proj_create(const char *path, const td_grid *g, td_merc_proj *
     td_merc_proj *p = NULL;
     OGRSpatialReferenceH s = NULL;
     const char *name;
+    int pushed = 0;
     *out = NULL;
     if (g->geo.kind == TD_GEO_NONE) {
         rc = td_err_set(err, TD_EUNSUPPORTED, "the dataset has no georeference (lon/lat or a projected CRS)");
         goto out;
     }
+    rc = td_gdal_open(err);
+    if (rc != TD_OK)
+        goto out;
+    pushed = 1;
     CPLPushErrorHandler(CPLQuietErrorHandler); /* failures come back as td_err, not logs */
     s = srs_resolve(path, g);
     p = calloc(1, sizeof *p);
@@ -312,7 +307,7 @@ td_status td_merc_proj_create(const char *path, const td_grid *g, td_merc_proj *
     if (rc == TD_OK)
         rc = proj_bounds(p, err);
 out:
-    if (g->geo.kind != TD_GEO_NONE)
+    if (pushed)
         CPLPopErrorHandler();
     if (s)
         OSRDestroySpatialReference(s);

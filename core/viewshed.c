@@ -549,6 +549,7 @@ static td_status vs_sweep_run(vs_ctx *c, int nthreads, uint8_t *vis, td_viewshed
         st->swept += vst.swept;
         st->rays += vst.rays;
         st->steps += vst.steps;
+        st->blocks += vst.blocks;
         if (rc == TD_OK)
             vs_sweep_add(c, e, vis);
     }

@@ -47,6 +47,7 @@ typedef struct td_vsweep_stats {
     uint64_t swept;  /* samples decided by the envelope */
     uint64_t rays;   /* samples cast */
     uint64_t steps;  /* tracer steps of the casts */
+    uint64_t blocks; /* strip blocks whose edges were left out whole (vsweep.c block_under) */
     int cancelled;
 } td_vsweep_stats;
 

@@ -54,10 +54,11 @@ echo "DEM $DEM: $W x $HH samples, spacing $SX x $SY m; observer sample col $COL 
 
 # CPU time (user + system: the child's own rusage), median of RUNS runs: gdal_viewshed on the
 # float32 copy; terrad viewshed on the DEM as given and on the same float32 copy (read
-# through its GDAL loader: like with like); each tool's start-up alone (`gdalinfo
-# --version`, `terrad --help`: dynamic linking, GDAL's drivers), so "work" = command -
-# start-up; terrad's own split from --stats (cpu_ms: loading, max-mipmaps, the viewshed
-# itself, the PNG).
+# through its GDAL loader, which loads libgdal on first use: like with like); each tool's
+# start-up alone (`gdalinfo --version`: dynamic linking of libgdal and its libraries;
+# `terrad --help`: terrad without GDAL, which it loads only for a file that needs it), so
+# "work" = command - start-up (GDAL's includes registering its drivers); terrad's own
+# split from --stats (cpu_ms: loading, max-mipmaps, the viewshed itself, the PNG).
 python3 - "$RUNS" "$TERRAD" "$DEM" "$T" "$X" "$Y" "$H" "$W" "$HH" <<'EOF'
 import json, os, statistics, subprocess, sys
 runs, terrad, dem, t, x, y, h, w, hh = sys.argv[1:]

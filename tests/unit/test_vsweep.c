@@ -32,7 +32,7 @@ static double noise(int32_t i, int32_t j, uint32_t seed)
     return (double)(x & 0xffffff) / 16777216.0;
 }
 
-enum { T_ROUGH, T_INTEGER, T_CLIFF, T_VOIDS };
+enum { T_ROUGH, T_INTEGER, T_CLIFF, T_VOIDS, T_WALL };
 
 static double terrain(int kind, int32_t i, int32_t j)
 {
@@ -44,6 +44,10 @@ static double terrain(int kind, int32_t i, int32_t j)
     if (kind == T_VOIDS && ((i >= 15 && i <= 19 && j >= 10 && j <= 14) || (i == 30 && j == 25) ||
                             (j == 0 && i < 6)))
         z = NAN;
+    if (kind == T_WALL && i >= 8 && i <= 9 && j < 22) /* a wall over half the east cone */
+        z = 600.0 + 10.0 * noise(i, j, 5);
+    if (kind == T_WALL && ((i >= 25 && i <= 27 && j >= 5 && j <= 8) || (i == 40 && j == 30) || (i == 33 && j == 12)))
+        z = NAN; /* holes behind it and beside it */
     return z;
 }
 
@@ -193,6 +197,36 @@ static void test_voids(void **state)
     from_each(T_VOIDS, p, sizeof p / sizeof *p);
 }
 
+/* The strip's blocks (vsweep.c block_under: VS_BLOCK cells' edges left out at once when
+ * all are under the horizon): behind a wall over half the east cone, with holes behind
+ * it (blocks holding one are done cell by cell, their holes marked), from in front of
+ * the wall (the terrain behind it hidden, beside it seen) and from its top. The sweep
+ * equals the cast on every surface, and the blocks were taken (else this test would not
+ * hold them to anything). */
+static void test_blocks(void **state)
+{
+    static const td_vs_point p[] = {{30.0, 150.0}, {30.0, 40.0}, {85.0, 100.0}};
+    td_viewshed_opts o;
+    td_viewshed_stats st;
+    td_err e;
+    uint8_t vis[W * H];
+    fixture fx;
+    (void)state;
+    make(&fx, T_WALL, 10.0, 10.0);
+    for (size_t k = 0; k < sizeof p / sizeof *p; k++) {
+        all_surfaces(&fx, p[k]);
+        td_viewshed_opts_default(&o);
+        o.obs = &p[k];
+        o.nobs = 1;
+        o.height = 2.0;
+        o.threads = 1;
+        assert_int_equal(td_viewshed(&fx.v, &o, vis, &st, &e), TD_OK);
+        if (k == 0)
+            assert_true(st.blocks > 0);
+    }
+    unmake(&fx);
+}
+
 /* Random observers on every terrain, half of them on samples; those on the plane
  * surface's holes skipped. */
 static void test_random(void **state)
@@ -250,6 +284,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_rough),   cmocka_unit_test(test_integer_touches), cmocka_unit_test(test_cliff),
         cmocka_unit_test(test_voids),   cmocka_unit_test(test_random),          cmocka_unit_test(test_options),
+        cmocka_unit_test(test_blocks),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
