@@ -49,9 +49,11 @@
 #include "demraw.h"
 #include "demutil.h"
 #include "hash.h"
+#include "planes.h"
+#include "prepaccel.h"
 
 #define TD_PREPARED_FORMAT "terrad-prepared"
-#define TD_STATE_MAGIC "TDPREP3"
+#define TD_STATE_MAGIC "TDPREP4"
 #define TD_INDEX_MAX (16u << 20) /* 16 MiB of JSON: 65536 chunks of checksums */
 
 _Static_assert(sizeof(td_tile) == 24, "tiles.bin holds td_tile records of 24 bytes");
@@ -79,6 +81,9 @@ struct td_prepared {
     td_blocks k;                 /* heights.blk */
     uint64_t *bsums;             /* a checksum per band */
     uint64_t fingerprint;
+    int planes_k;                /* the index's "accel" */
+    uint64_t accel_bytes, accel_tab_fnv;
+    td_pacc *pacc;               /* the tiles' structures, mapped (prepaccel.h) */
 };
 
 /* --- the source: a chunk of file rows at a time ------------------------------------ */
@@ -188,6 +193,8 @@ typedef struct td_state_hdr {
     uint32_t version;
     int32_t tile_log2, chunk_rows, done, nlayers; /* done: chunks of heights.f32 */
     int32_t block_log2, bands;                    /* heights.blk: B = 2^block_log2, band rows */
+    int32_t planes_k, accel_rows;                 /* the structures: K, tile rows written */
+    uint64_t accel_bytes;                         /* accel.bin's bytes written */
     uint64_t src_size;
     int64_t src_mtime;
     td_layer layer[TD_LOD_MAX + 1];
@@ -209,6 +216,7 @@ typedef struct td_prep_run {
     float *band;     /* the band being filled (the worker's) */
     uint64_t *bsums; /* a checksum per band */
     int bfd;
+    int afd[2];      /* accel.tab, accel.bin */
 } td_prep_run;
 
 /* dir/name into out (n bytes); 0 if it does not fit. */
@@ -321,7 +329,8 @@ static int state_load(td_prep_run *r, const td_state_hdr *want)
              h.version == want->version && h.tile_log2 == want->tile_log2 &&
              h.chunk_rows == want->chunk_rows && h.nlayers == want->nlayers &&
              h.src_size == want->src_size && h.src_mtime == want->src_mtime && h.done >= 0 &&
-             h.done <= want->layer[0].nchunks && h.block_log2 == want->block_log2 && h.bands == want->bands;
+             h.done <= want->layer[0].nchunks && h.block_log2 == want->block_log2 && h.bands == want->bands &&
+             h.planes_k == want->planes_k && h.accel_rows >= 0;
     for (int k = 0; ok && k < want->nlayers; k++) {
         size_t nt = layer_tiles_n(&want->layer[k]);
         ok = same_layer(&h.layer[k], &want->layer[k]) &&
@@ -568,21 +577,14 @@ static json_t *geo_json(const td_georef *g)
                      g->y0, "dx", g->dx, "dy", g->dy, "crs", g->crs);
 }
 
-/* Layer k's tile records (as td_grid_finish computes them), written to its tiles file;
- * their checksum into *sum. */
-static td_status tiles_write(td_prep_run *r, int k, uint64_t *sum, td_err *err)
+/* Layer k's tile records, as td_grid_finish computes them (malloc'ed), or NULL. */
+static td_tile *tiles_make(const td_prep_run *r, int k)
 {
-    td_status rc;
     const td_layer *m = &r->st.layer[k];
     const int32_t T = (int32_t)1 << r->st.tile_log2;
     size_t nt = layer_tiles_n(m);
     td_tile *tiles = calloc(nt, sizeof *tiles);
-    char name[32];
-    if (!tiles) {
-        rc = td_err_set(err, TD_ENOMEM, "out of memory for %zu tile records", nt);
-        goto out;
-    }
-    for (size_t t = 0; t < nt; t++) {
+    for (size_t t = 0; tiles && t < nt; t++) {
         td_tile *x = &tiles[t];
         x->i0 = (int32_t)(t % (size_t)m->tiles_x) * T;
         x->j0 = (int32_t)(t / (size_t)m->tiles_x) * T;
@@ -590,6 +592,20 @@ static td_status tiles_write(td_prep_run *r, int k, uint64_t *sum, td_err *err)
         x->ny = m->h - 1 - x->j0 < T ? m->h - 1 - x->j0 : T;
         x->zmin = r->b[k].lo[t];
         x->zmax = r->b[k].hi[t];
+    }
+    return tiles;
+}
+
+/* Layer k's tile records written to its tiles file; their checksum into *sum. */
+static td_status tiles_write(td_prep_run *r, int k, uint64_t *sum, td_err *err)
+{
+    td_status rc;
+    size_t nt = layer_tiles_n(&r->st.layer[k]);
+    td_tile *tiles = tiles_make(r, k);
+    char name[32];
+    if (!tiles) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for %zu tile records", nt);
+        goto out;
     }
     *sum = td_fnv1a(TD_FNV1A_INIT, tiles, nt * sizeof *tiles);
     {
@@ -599,6 +615,172 @@ static td_status tiles_write(td_prep_run *r, int k, uint64_t *sum, td_err *err)
     }
 out:
     free(tiles);
+    return rc;
+}
+
+/* --- the tiles' structures, after the heights (prepaccel.h) ------------------------- */
+
+/* Layer k as a grid over its written file, mapped read-only (heights.blk for the full
+ * grid, as a server maps it; lodK.f32 for a level), with its tile records: what
+ * td_prepared_open gives a server, so the structures are the ones a server would build. */
+static td_status accel_grid(const td_prep_run *r, const td_src_rows *src, int k, td_grid **out, td_err *err)
+{
+    td_status rc = TD_OK;
+    const td_layer *m = &r->st.layer[k];
+    size_t bytes = k ? (size_t)m->w * (size_t)m->h * 4 : (size_t)r->k.by * r->k.band_bytes;
+    td_grid *g = calloc(1, sizeof *g);
+    void *map = MAP_FAILED;
+    if (g) {
+        g->w = m->w;
+        g->h = m->h;
+        g->sx = ldexp(src->shape.sx, k);
+        g->sy = ldexp(src->shape.sy, k);
+        g->tile_log2 = r->st.tile_log2;
+        g->tiles_x = m->tiles_x;
+        g->tiles_y = m->tiles_y;
+        g->tiles = tiles_make(r, k);
+        map = mmap(NULL, bytes, PROT_READ, MAP_SHARED, k ? r->b[k].fd : r->bfd, 0);
+    }
+    if (!g || !g->tiles || map == MAP_FAILED) {
+        rc = td_err_set(err, g && g->tiles ? TD_EIO : TD_ENOMEM, "%s: cannot map layer %d to build its structures (%s)",
+                        r->dir, k, g && g->tiles ? strerror(errno) : "out of memory");
+        goto out;
+    }
+    madvise(map, bytes, MADV_SEQUENTIAL);
+    if (k) {
+        g->map = map;
+        g->map_bytes = bytes;
+        g->z = map;
+        td_grid_corners_flat(g);
+    } else {
+        g->bmap = map;
+        g->bmap_bytes = bytes;
+        blocks_corners(&r->k, map, g);
+    }
+out:
+    if (rc) {
+        td_grid_free(g);
+        g = NULL;
+    }
+    *out = g;
+    return rc;
+}
+
+/* A tile row's payloads appended to accel.bin, their records written at `first` in
+ * accel.tab, both synced (before the state that counts them is saved). */
+static td_status accel_append(td_prep_run *r, size_t first, td_pacc_blob *b, int32_t n, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_pacc_rec *recs = calloc((size_t)n, sizeof *recs);
+    if (!recs) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for %ld records", (long)n);
+        goto out;
+    }
+    for (int32_t i = 0; i < n && rc == TD_OK; i++) {
+        recs[i] = b[i].rec;
+        recs[i].off = r->st.accel_bytes;
+        if (pwrite(r->afd[1], b[i].data, b[i].rec.bytes, (off_t)recs[i].off) != (ssize_t)b[i].rec.bytes)
+            rc = td_err_set(err, TD_EIO, "%s/%s: cannot write (%s)", r->dir, TD_PACC_BIN, strerror(errno));
+        r->st.accel_bytes += b[i].rec.bytes;
+    }
+    if (rc == TD_OK && pwrite(r->afd[0], recs, (size_t)n * sizeof *recs, (off_t)(first * sizeof *recs)) !=
+                           (ssize_t)((size_t)n * sizeof *recs))
+        rc = td_err_set(err, TD_EIO, "%s/%s: cannot write (%s)", r->dir, TD_PACC_TAB, strerror(errno));
+    if (rc == TD_OK && (fdatasync(r->afd[0]) || fdatasync(r->afd[1])))
+        rc = td_err_set(err, TD_EIO, "%s: cannot sync the structures (%s)", r->dir, strerror(errno));
+out:
+    free(recs);
+    return rc;
+}
+
+/* Asks the kernel to read tile row ty of layer k's file (g's mapping) while the row before
+ * is being built: the build's threads then fault on pages already on their way instead of
+ * waiting for each read in turn (heights.blk is read back from disk at 16 GiB). */
+static void accel_prefetch(const td_prep_run *r, int k, const td_grid *g, int32_t ty)
+{
+    const size_t page = (size_t)sysconf(_SC_PAGESIZE);
+    const int32_t T = (int32_t)1 << r->st.tile_log2;
+    int32_t j0 = ty * T, j1 = j0 + T < g->h - 1 ? j0 + T : g->h - 1;
+    size_t a = k ? (size_t)j0 * (size_t)g->w * 4 : (size_t)(j0 >> r->k.log2) * r->k.band_bytes;
+    size_t b = k ? ((size_t)j1 + 1) * (size_t)g->w * 4 : ((size_t)(j1 >> r->k.log2) + 1) * r->k.band_bytes;
+    if (ty < g->tiles_y)
+        madvise((char *)(k ? g->map : g->bmap) + a / page * page, b - a / page * page, MADV_WILLNEED);
+}
+
+/* Every layer's tile rows from where the state says: each row's tiles built on every
+ * core (the mapped layer read a tile row at a time, then dropped from the process),
+ * appended, the state saved; progress in tile rows. */
+static td_status accel_layer(td_prep_run *r, const td_src_rows *src, const td_prepare_opts *o, int k,
+                             size_t first, int32_t row0, int32_t total, td_err *err)
+{
+    td_status rc;
+    const td_layer *m = &r->st.layer[k];
+    td_grid *g = NULL;
+    td_pacc_blob *blobs = calloc((size_t)m->tiles_x, sizeof *blobs);
+    rc = blobs ? accel_grid(r, src, k, &g, err) : td_err_set(err, TD_ENOMEM, "out of memory");
+    for (int32_t ty = r->st.accel_rows - row0; ty < m->tiles_y && rc == TD_OK; ty++) {
+        accel_prefetch(r, k, g, ty + 1);
+        rc = td_pacc_build_row(g, ty, r->st.planes_k, o->threads > 0 ? o->threads : td_cpu_count(), blobs, err);
+        if (rc == TD_OK)
+            rc = accel_append(r, first + (size_t)ty * (size_t)m->tiles_x, blobs, m->tiles_x, err);
+        for (int32_t i = 0; i < m->tiles_x; i++) {
+            free(blobs[i].data);
+            blobs[i].data = NULL;
+        }
+        madvise(k ? g->map : g->bmap, k ? g->map_bytes : g->bmap_bytes, MADV_DONTNEED);
+        if (rc == TD_OK) {
+            r->st.accel_rows++;
+            rc = state_save(r, err);
+        }
+        if (rc == TD_OK && o->progress && o->progress(o->cls, r->st.accel_rows, total, 0))
+            rc = td_err_set(err, TD_ECANCELED, "%s: prepare stopped after %ld of %ld tile rows of structures (run it "
+                            "again to continue)", r->dir, (long)r->st.accel_rows, (long)total);
+    }
+    td_grid_free(g);
+    free(blobs);
+    return rc;
+}
+
+static td_status accel_run(td_prep_run *r, const td_src_rows *src, const td_prepare_opts *o, td_err *err)
+{
+    td_status rc = TD_OK;
+    int32_t total = 0, row0 = 0;
+    size_t first = 0;
+    const char *names[2] = {TD_PACC_TAB, TD_PACC_BIN};
+    char path[PATH_MAX];
+    for (int k = 0; k < r->st.nlayers; k++)
+        total += r->st.layer[k].tiles_y;
+    for (int f = 0; f < 2 && rc == TD_OK; f++)
+        if (!path_in(path, sizeof path, r->dir, names[f]) ||
+            (r->afd[f] = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644)) < 0)
+            rc = td_err_set(err, TD_EIO, "%s: cannot create (%s)", path, strerror(errno));
+    for (int k = 0; k < r->st.nlayers && rc == TD_OK; k++) {
+        const td_layer *m = &r->st.layer[k];
+        if (r->st.accel_rows < row0 + m->tiles_y)
+            rc = accel_layer(r, src, o, k, first, row0, total, err);
+        first += layer_tiles_n(m);
+        row0 += m->tiles_y;
+    }
+    /* what a killed run wrote past the last row the state counts */
+    if (rc == TD_OK && (ftruncate(r->afd[0], (off_t)(first * sizeof(td_pacc_rec))) ||
+                        ftruncate(r->afd[1], (off_t)r->st.accel_bytes) || fsync(r->afd[0]) || fsync(r->afd[1])))
+        rc = td_err_set(err, TD_EIO, "%s: cannot finish the structures' files (%s)", r->dir, strerror(errno));
+    return rc;
+}
+
+/* accel.tab's checksum (the index's accel.tab_fnv), read back whole (48 bytes a tile). */
+static td_status accel_tab_sum(const td_prep_run *r, uint64_t *sum, td_err *err)
+{
+    td_status rc = TD_OK;
+    struct stat st;
+    unsigned char *buf = NULL;
+    if (fstat(r->afd[0], &st) || !(buf = malloc((size_t)st.st_size + 1)) ||
+        pread(r->afd[0], buf, (size_t)st.st_size, 0) != (ssize_t)st.st_size)
+        rc = td_err_set(err, TD_EIO, "%s/%s: cannot read back (%s)", r->dir, TD_PACC_TAB,
+                        buf ? strerror(errno) : "out of memory");
+    else
+        *sum = td_fnv1a(TD_FNV1A_INIT, buf, (size_t)st.st_size);
+    free(buf);
     return rc;
 }
 
@@ -625,9 +807,11 @@ static td_status finish(td_prep_run *r, const td_src_rows *src, td_err *err)
 {
     td_status rc = TD_OK;
     json_t *root = NULL, *levels = json_array(), *base = NULL, *bands = json_array();
-    char *text = NULL, hx[17];
-    uint64_t tsum = 0;
+    char *text = NULL, hx[17], ahx[17];
+    uint64_t tsum = 0, asum = 0;
 
+    rc = accel_tab_sum(r, &asum, err);
+    hex64(ahx, asum);
     for (int k = 0; k < r->st.nlayers && rc == TD_OK; k++) {
         rc = tiles_write(r, k, &tsum, err);
         if (rc == TD_OK && k == 0)
@@ -641,13 +825,16 @@ static td_status finish(td_prep_run *r, const td_src_rows *src, td_err *err)
     }
     if (rc)
         goto out;
-    root = base && levels && bands ? json_pack("{s:s, s:i, s:[f,f], s:i, s:o, s:i, s:{s:s, s:I, s:I}, s:O, s:{s:i, s:O}}",
+    root = base && levels && bands ? json_pack("{s:s, s:i, s:[f,f], s:i, s:o, s:i, s:{s:s, s:I, s:I}, s:O, s:{s:i, s:O}, "
+                                               "s:{s:i, s:I, s:s}}",
                                       "format", TD_PREPARED_FORMAT, "version", TD_PREPARED_VERSION,
                                       "spacing", src->shape.sx, src->shape.sy, "tile_log2", r->st.tile_log2,
                                       "georef", geo_json(&src->shape.geo), "chunk_rows", r->st.chunk_rows,
                                       "source", "name", td_demutil_basename(src->path),
                                       "bytes", (json_int_t)src->size, "mtime", (json_int_t)src->mtime,
-                                      "levels", levels, "blocks", "log2", r->st.block_log2, "bands", bands)
+                                      "levels", levels, "blocks", "log2", r->st.block_log2, "bands", bands,
+                                      "accel", "planes_k", r->st.planes_k, "bytes", (json_int_t)r->st.accel_bytes,
+                                      "tab_fnv", ahx)
                               : NULL;
     text = root && json_object_update(root, base) == 0 ? json_dumps(root, JSON_INDENT(1) | JSON_COMPACT) : NULL;
     if (!text) {
@@ -709,6 +896,7 @@ static td_status run_init(td_prep_run *r, const td_src_rows *src, const td_prepa
     want.block_log2 = o->block_log2 ? o->block_log2 : TD_PREPARED_BLOCK_LOG2;
     r->k = blocks_plan(src->shape.w, src->shape.h, want.block_log2);
     want.bands = r->k.by;
+    want.planes_k = o->planes_k > 0 ? o->planes_k : o->planes_k == TD_PREPARE_NO_PLANES ? 0 : TD_PLANES_K_DEFAULT;
     r->band = malloc(r->k.band_bytes);
     r->bsums = calloc((size_t)r->k.by, 8);
     ok = r->band && r->bsums;
@@ -743,6 +931,9 @@ static void run_free(td_prep_run *r)
 {
     if (r->bfd >= 0)
         close(r->bfd);
+    for (int f = 0; f < 2; f++)
+        if (r->afd[f] >= 0)
+            close(r->afd[f]);
     free(r->band);
     free(r->bsums);
     for (int k = 0; k <= TD_LOD_MAX; k++) {
@@ -1035,8 +1226,14 @@ td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opt
     memset(&r, 0, sizeof r);
     r.dir = dir;
     r.bfd = -1;
+    r.afd[0] = r.afd[1] = -1;
     for (int k = 0; k <= TD_LOD_MAX; k++)
         r.b[k].fd = -1;
+    if (o->planes_k < TD_PREPARE_NO_PLANES || o->planes_k > TD_PLANES_K_MAX) {
+        memset(&src, 0, sizeof src);
+        rc = td_err_field(err, TD_EINVAL, "planes_k", "%d slices: outside 1 .. %d", o->planes_k, TD_PLANES_K_MAX);
+        goto out;
+    }
     if (o->block_log2 && (o->block_log2 < TD_PREPARED_BLOCK_LOG2_MIN || o->block_log2 > TD_PREPARED_BLOCK_LOG2_MAX)) {
         memset(&src, 0, sizeof src);
         rc = td_err_field(err, TD_EINVAL, "block_log2", "blocks of 2^%d cells: outside 2^%d .. 2^%d", o->block_log2,
@@ -1069,6 +1266,7 @@ td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opt
     if (rc)
         goto out;
     res->resumed_rows = (int64_t)r.st.done * r.st.chunk_rows;
+    res->resumed_rows = res->resumed_rows < r.st.layer[0].h ? res->resumed_rows : r.st.layer[0].h;
     res->levels = r.st.nlayers - 1;
     if (path_in(path, sizeof path, dir, TD_PREPARED_INDEX))
         unlink(path); /* a stale index must not describe half-rewritten heights */
@@ -1079,6 +1277,8 @@ td_status td_prepare(const char *src_path, const char *dir, const td_prepare_opt
         rc = band_load(&r, err);
     if (rc == TD_OK)
         rc = chunks_run(&r, &src, o, err);
+    if (rc == TD_OK)
+        rc = accel_run(&r, &src, o, err);
     if (rc == TD_OK)
         rc = finish(&r, &src, err);
     if (rc == TD_OK && path_in(path, sizeof path, dir, TD_PREPARED_STATE))
@@ -1244,6 +1444,21 @@ out:
     return rc;
 }
 
+/* The structures' K, accel.bin's size and accel.tab's checksum (the index's "accel"). */
+static td_status accel_read(td_prepared *p, const char *path, json_t *o, td_err *err)
+{
+    td_status rc = TD_OK;
+    json_int_t k = json_integer_value(json_object_get(o, "planes_k"));
+    json_int_t bytes = json_integer_value(json_object_get(o, "bytes"));
+    if (!json_is_integer(json_object_get(o, "planes_k")) || k < 0 || k > TD_PLANES_K_MAX || bytes < 8 ||
+        !hex_parse(json_string_value(json_object_get(o, "tab_fnv")), &p->accel_tab_fnv))
+        rc = td_err_set(err, TD_EFORMAT, "%s: accel.planes_k, accel.bytes or accel.tab_fnv missing or out of range",
+                        path);
+    p->planes_k = (int)k;
+    p->accel_bytes = (uint64_t)bytes;
+    return rc;
+}
+
 /* The index's fields into p and the grid records (no heights, no tiles yet). */
 static td_status index_read(td_prepared *p, const char *path, td_grid *g, td_err *err)
 {
@@ -1291,6 +1506,8 @@ static td_status index_read(td_prepared *p, const char *path, td_grid *g, td_err
         rc = levels_read(p, path, json_object_get(root, "levels"), g, err);
     if (rc == TD_OK)
         rc = blocks_read(p, path, json_object_get(root, "blocks"), g, err);
+    if (rc == TD_OK)
+        rc = accel_read(p, path, json_object_get(root, "accel"), err);
 out:
     json_decref(root);
     return rc;
@@ -1433,6 +1650,12 @@ td_status td_prepared_open(const char *dir, td_prepared **out, td_err *err)
     rc = index_read(p, path, g, err);
     for (int k = 0; k <= p->nlev && rc == TD_OK; k++)
         rc = layer_open(p, k, err);
+    if (rc == TD_OK) {
+        const td_grid *grids[TD_LOD_MAX + 1];
+        for (int k = 0; k <= p->nlev; k++)
+            grids[k] = k ? p->lev[k] : p->grid;
+        rc = td_pacc_open(dir, grids, p->nlev + 1, p->planes_k, p->accel_bytes, p->accel_tab_fnv, &p->pacc, err);
+    }
     if (rc)
         goto out;
     p->fingerprint = TD_FNV1A_INIT;
@@ -1443,7 +1666,8 @@ td_status td_prepared_open(const char *dir, td_prepared **out, td_err *err)
     }
     p->fingerprint = td_fnv1a(p->fingerprint, p->bsums, (size_t)p->k.by * 8);
     p->fingerprint = td_fnv1a(p->fingerprint, &p->k.log2, sizeof p->k.log2);
-    p->nchunks += p->k.by;
+    p->fingerprint = td_fnv1a(p->fingerprint, &p->accel_tab_fnv, 8);
+    p->nchunks += p->k.by + td_pacc_rows(p->pacc);
     *out = p;
     p = NULL;
 out:
@@ -1465,7 +1689,7 @@ td_lod *td_prepared_take_lod(td_prepared *p)
         l->grid[k] = p->lev[k];
         p->lev[k] = NULL;
         l->view[k].grid = l->grid[k];
-        l->view[k].accel = NULL; /* the tracers skip by the tile records alone */
+        l->view[k].accel = td_pacc_tiles(p->pacc, k); /* mapped, p's */
         l->bytes += (uint64_t)l->grid[k]->tiles_x * (uint64_t)l->grid[k]->tiles_y * sizeof(td_tile);
         l->levels = k;
     }
@@ -1473,6 +1697,8 @@ td_lod *td_prepared_take_lod(td_prepared *p)
 }
 
 int td_prepared_levels(const td_prepared *p) { return p->nlev; }
+
+const td_tile_accel *td_prepared_accel(const td_prepared *p) { return td_pacc_tiles(p->pacc, 0); }
 
 uint64_t td_prepared_fingerprint(const td_prepared *p) { return p->fingerprint; }
 
@@ -1516,6 +1742,10 @@ td_status td_prepared_verify_chunk(const td_prepared *p, int32_t c, td_err *err)
     off_t at = 0;
     uint64_t sum, want = 0;
 
+    if (c >= p->nchunks - td_pacc_rows(p->pacc) && c < p->nchunks) {
+        rc = td_pacc_verify_row(p->pacc, c - (p->nchunks - td_pacc_rows(p->pacc)), err);
+        goto out;
+    }
     if (!chunk_where(p, c, path, sizeof path, &at, &bytes, &want, what, sizeof what)) {
         rc = td_err_set(err, TD_EINVAL, "%s: no chunk %ld", p->dir, (long)c);
         goto out;
@@ -1547,6 +1777,7 @@ void td_prepared_free(td_prepared *p)
             free(p->sums[k]);
         }
         free(p->bsums);
+        td_pacc_free(p->pacc);
         free(p);
     }
 }
@@ -1566,15 +1797,13 @@ static int grid_maps(const td_grid *g, void *base[2], size_t len[2])
     return n;
 }
 
-uint64_t td_prepared_resident(const td_grid *g)
+/* The Rss of the mappings base[0 .. n) in /proc/self/smaps. */
+static uint64_t maps_resident(void *const *base, const size_t *len, int n)
 {
     uint64_t kb = 0;
     char line[256];
     unsigned long lo, hi;
     int in = 0;
-    void *base[2];
-    size_t len[2];
-    int n = grid_maps(g, base, len);
     FILE *f = n ? fopen("/proc/self/smaps", "r") : NULL;
     while (f && fgets(line, sizeof line, f)) {
         unsigned long long v;
@@ -1590,6 +1819,45 @@ uint64_t td_prepared_resident(const td_grid *g)
         fclose(f);
     return kb << 10;
 }
+
+uint64_t td_prepared_resident(const td_grid *g)
+{
+    void *base[2];
+    size_t len[2];
+    int n = grid_maps(g, base, len);
+    return maps_resident(base, len, n);
+}
+
+uint64_t td_prepared_accel_resident(const td_prepared *p)
+{
+    void *base;
+    size_t len;
+    td_pacc_mapping(p->pacc, &base, &len);
+    return maps_resident(&base, &len, base != NULL);
+}
+
+uint64_t td_prepared_accel_mapped(const td_prepared *p)
+{
+    void *base;
+    size_t len;
+    td_pacc_mapping(p->pacc, &base, &len);
+    return len;
+}
+
+static void accel_madvise(const td_prepared *p, int advice)
+{
+    void *base;
+    size_t len;
+    td_pacc_mapping(p->pacc, &base, &len);
+    if (base)
+        madvise(base, len, advice);
+}
+
+void td_prepared_accel_willneed(const td_prepared *p, int from) { td_pacc_willneed(p->pacc, from); }
+
+void td_prepared_accel_trim(const td_prepared *p) { accel_madvise(p, MADV_DONTNEED); }
+
+void td_prepared_accel_advise(const td_prepared *p, int random) { accel_madvise(p, random ? MADV_RANDOM : MADV_NORMAL); }
 
 uint64_t td_prepared_cached(const td_grid *g)
 {
@@ -1621,6 +1889,27 @@ static void grid_madvise(const td_grid *g, int advice)
 void td_prepared_advise(const td_grid *g, int random) { grid_madvise(g, random ? MADV_RANDOM : MADV_NORMAL); }
 
 void td_prepared_willneed(const td_grid *g) { grid_madvise(g, MADV_WILLNEED); }
+
+void td_prepared_willneed_near(const td_grid *g, double x, double y, int32_t cells)
+{
+    const td_corners *c = &g->cz;
+    const size_t page = (size_t)sysconf(_SC_PAGESIZE);
+    double fi = x / g->sx, fj = y / g->sy;
+    int32_t i0, i1, j0, j1;
+    if (!g->bmap || !isfinite(fi) || !isfinite(fj) || cells < 0)
+        return;
+    fi = fi < 0 ? 0 : fi > g->w - 1 ? g->w - 1 : fi;
+    fj = fj < 0 ? 0 : fj > g->h - 1 ? g->h - 1 : fj;
+    i0 = (int32_t)fi - cells < 0 ? 0 : (int32_t)fi - cells;
+    i1 = (int32_t)fi > g->w - 1 - cells ? g->w - 1 : (int32_t)fi + cells;
+    j0 = (int32_t)fj - cells < 0 ? 0 : (int32_t)fj - cells;
+    j1 = (int32_t)fj > g->h - 1 - cells ? g->h - 1 : (int32_t)fj + cells;
+    for (int32_t by = j0 >> c->log2; by <= j1 >> c->log2; by++) { /* a band's blocks bx0..bx1: one range */
+        size_t a = (((size_t)by * c->blocks_x + (size_t)(i0 >> c->log2)) * c->block_floats * 4) / page * page;
+        size_t b = ((size_t)by * c->blocks_x + (size_t)(i1 >> c->log2) + 1) * c->block_floats * 4;
+        madvise((char *)g->bmap + a, (b < g->bmap_bytes ? b : g->bmap_bytes) - a, MADV_WILLNEED);
+    }
+}
 
 void td_prepared_trim(const td_grid *g)
 {

@@ -35,6 +35,13 @@
  *                 each one's shape, statistics, chunk checksums and tile checksum. They are
  *                 made while the heights stream (each level keeps three rows of the finer
  *                 one), so a far ray of quality.lod reads a small file, not the heights
+ *   accel.tab    every tile's max-mipmap and parameter planes, of the full grid and of
+ *   accel.bin    every level (prepaccel.h): written after the heights, a tile row at a
+ *                time on every core, from heights.blk and the levels' files; mapped by
+ *                the server (td_prepared_accel, and each level's view in
+ *                td_prepared_take_lod) so that a render on a mapped dataset steps as one
+ *                in memory does, paging in the structures its rays reach; "accel" in the
+ *                index has K, accel.bin's size and accel.tab's checksum
  *   prepare.state only while a prepare is unfinished: how many chunks are written, every
  *                 layer's rows written, checksums and running tile statistics (a re-run
  *                 continues there; the levels' three-row windows and the band of blocks in
@@ -66,8 +73,9 @@
 #include "lod.h"
 
 /* 2: the coarse levels (lodK.f32, lodK.tiles, "levels" in the index);
- * 3: heights.blk, the heights in blocks (the render path's copy; "blocks" in the index) */
-#define TD_PREPARED_VERSION 3
+ * 3: heights.blk, the heights in blocks (the render path's copy; "blocks" in the index);
+ * 4: accel.tab and accel.bin, the tiles' structures ("accel" in the index) */
+#define TD_PREPARED_VERSION 4
 #define TD_PREPARED_INDEX "terrad.json"
 #define TD_PREPARED_HEIGHTS "heights.f32"
 #define TD_PREPARED_BLOCKS "heights.blk"
@@ -80,14 +88,22 @@
 #define TD_PREPARED_LEVEL_FMT "lod%d.f32"
 #define TD_PREPARED_LEVEL_TILES_FMT "lod%d.tiles"
 
-/* Called after each chunk: rows of the file done of total, and the samples a row; non-zero
+/* Called after each chunk: rows of the file done of total, and the samples a row (then,
+ * with 0 samples, after each tile row of structures: tile rows done of total); non-zero
  * cancels (the state written so far stays, so a later run continues). */
 typedef int (*td_prepare_progress)(void *cls, int64_t rows_done, int64_t rows_total, int32_t w);
+
+#define TD_PREPARE_NO_PLANES (-1)
 
 typedef struct td_prepare_opts {
     td_dem_opts dem;     /* loader options (spacing, encoding...); tile_log2 from here */
     int32_t chunk_rows;  /* 0: the tile size */
     int block_log2;      /* heights.blk's blocks: 2^block_log2 cells a side; 0: TD_PREPARED_BLOCK_LOG2 */
+    int planes_k;        /* slices of the tiles' parameter planes; 0: TD_PLANES_K_DEFAULT;
+                            TD_PREPARE_NO_PLANES: none (max-mipmaps only) */
+    int threads;         /* that build the tiles' structures; 0: one a core */
+    /* called with the rows of the heights (width > 0), then with the tile rows of the
+       structures done of all (width 0) */
     td_prepare_progress progress;
     void *cls;
 } td_prepare_opts;
@@ -122,14 +138,26 @@ typedef struct td_prepared td_prepared;
 td_status td_prepared_open(const char *dir, td_prepared **out, td_err *err);
 /* The mapped grid: the caller owns it from now on (td_grid_free unmaps it). Once. */
 td_grid *td_prepared_take_grid(td_prepared *p);
-/* The coarse levels, mapped (td_lod with no acceleration: view[k].accel NULL, the
- * tracers skip by the tile records): the caller owns them from now on (td_lod_free
+/* The coarse levels, mapped (td_lod with no built acceleration: view[k].accel points to
+ * the level's mapped structures, owned by p, so p must outlive the levels): the caller owns them from now on (td_lod_free
  * unmaps them). Once; NULL when out of memory. */
 td_lod *td_prepared_take_lod(td_prepared *p);
 int td_prepared_levels(const td_prepared *p);
+/* The full grid's per-tile structures, mapped (prepaccel.h), owned by p: valid while p is
+ * (the tile store keeps p as long as the dataset). */
+const td_tile_accel *td_prepared_accel(const td_prepared *p);
+/* The structures' mapping: bytes resident in this process, dropped from it (MADV_DONTNEED),
+ * advised as td_prepared_advise does a grid. */
+uint64_t td_prepared_accel_resident(const td_prepared *p);
+void td_prepared_accel_trim(const td_prepared *p);
+void td_prepared_accel_advise(const td_prepared *p, int random);
+uint64_t td_prepared_accel_mapped(const td_prepared *p);
+/* MADV_WILLNEED on the structures of levels `from` .. the coarsest (prepaccel.h). */
+void td_prepared_accel_willneed(const td_prepared *p, int from);
 /* A hash of the index's checksums, shape and version (the disk cache's fingerprint). */
 uint64_t td_prepared_fingerprint(const td_prepared *p);
-/* Chunks of every layer: the heights' first, then level 1's, ... */
+/* Chunks of every layer: the heights' first, then level 1's, ..., heights.blk's bands,
+ * then the tile rows of the structures (every layer's). */
 int32_t td_prepared_chunks(const td_prepared *p);
 /* Reads chunk c (of td_prepared_chunks) from its file (not through the mapping, and dropping it from the page
  * cache after) and compares its checksum: TD_EFORMAT naming the file, the chunk, its rows
@@ -151,6 +179,10 @@ void td_prepared_advise(const td_grid *g, int random);
 /* Asks the kernel to read a mapped grid into the page cache ahead of its first touch
  * (MADV_WILLNEED; nothing is mapped into the process). */
 void td_prepared_willneed(const td_grid *g);
+/* The same for the blocks of a prepared full grid's heights.blk within `cells` cells of
+ * (x, y) in the dataset frame (the camera, when a render ran out of its page-in time: the
+ * retry finds the near field read); nothing for a grid that is not blocked and mapped. */
+void td_prepared_willneed_near(const td_grid *g, double x, double y, int32_t cells);
 /* Drops this process's pages of a mapped grid (MADV_DONTNEED): the page cache keeps them
  * while memory allows (clean pages the kernel reclaims under pressure), so the next touch
  * is a minor fault, not a read. */

@@ -16,20 +16,37 @@
 #include <jansson.h>
 
 #include "clock.h"
+#include "planes.h"
 #include "prepared.h"
 
 typedef struct prep_bar {
     int tty;
     double t0, last;
     int64_t chunks, stop_after;
+    int structures; /* the bar is the structures' */
     uint64_t row_bytes;
 } prep_bar;
 
 static int progress(void *cls, int64_t done, int64_t total, int32_t width_samples)
 {
     prep_bar *b = cls;
-    b->row_bytes = (uint64_t)width_samples * 4u;
     double now = td_clock_s(), el = now - b->t0;
+    if (width_samples == 0) { /* the tiles' structures: tile rows */
+        if (b->tty && !b->structures && b->chunks)
+            fputc('\n', stderr); /* keep the heights' bar */
+        b->structures = 1;
+        if (b->tty && (now - b->last > 0.2 || done == total)) {
+            int width = 40, fill = total ? (int)(width * done / total) : width;
+            fprintf(stderr, "\r[%.*s%*s] %3d%%  structures: %lld of %lld tile rows ", fill,
+                    "########################################", width - fill, "",
+                    total ? (int)(100 * done / total) : 100, (long long)done, (long long)total);
+            fflush(stderr);
+            b->last = now;
+        }
+        b->chunks++;
+        return b->stop_after > 0 && b->chunks >= b->stop_after;
+    }
+    b->row_bytes = (uint64_t)width_samples * 4u;
     if (b->tty && (now - b->last > 0.2 || done == total)) {
         int width = 40, fill = total ? (int)(width * done / total) : width;
         double mb = (double)done * (double)b->row_bytes / 1048576.0;
@@ -46,16 +63,20 @@ static int progress(void *cls, int64_t done, int64_t total, int32_t width_sample
 static void usage(FILE *f)
 {
     fprintf(f, "usage: terrad prepare DEM OUT_DIR [--tile-size N] [--spacing SX[,SY]] [--chunk-rows N]\n"
-               "                      [--block-size B] [--stop-after CHUNKS] [--quiet]\n"
+               "                      [--block-size B] [--planes-k K] [--threads N] [--stop-after CHUNKS] [--quiet]\n"
                "Writes DEM (any format terrad reads) into OUT_DIR as terrad's prepared form:\n"
                "heights.f32 and heights.blk (memory-mapped by terrad serve), the levels lodK.f32,\n"
-               "tiles.bin and the index terrad.json.\n"
+               "tiles.bin, every tile's max-mipmap and parameter planes (accel.tab, accel.bin,\n"
+               "built after the heights on every core) and the index terrad.json.\n"
                "A run that is killed or stopped continues where it left off when run again.\n"
                "  --tile-size N      cells per tile side, a power of two (default 256)\n"
                "  --spacing SX[,SY]  metres between samples when the DEM does not say\n"
                "  --chunk-rows N     rows per chunk (checksum and resume unit; default the tile size)\n"
                "  --block-size B     cells per block side of heights.blk, a power of two 4..256 (default 32)\n"
-               "  --stop-after K     stop after K chunks (to try resuming)\n"
+               "  --planes-k K       slices of the tiles' parameter planes, 1..255 (default 16); 0: no planes\n"
+               "                     (max-mipmaps only: parametric then walks cell by cell; auto never reads them)\n"
+               "  --threads N        threads that build the structures (default one a core)\n"
+               "  --stop-after K     stop after K chunks, tile rows of structures included (to try resuming)\n"
                "  --quiet            no progress bar\n");
 }
 
@@ -92,6 +113,12 @@ static int parse_args(int argc, char **argv, const char **pos, td_prepare_opts *
             i++;
         } else if (!strcmp(a, "--chunk-rows") && next && td_cli_parse_int(next, 1, 1 << 20, &v)) {
             o->chunk_rows = v;
+            i++;
+        } else if (!strcmp(a, "--planes-k") && next && td_cli_parse_int(next, 0, TD_PLANES_K_MAX, &v)) {
+            o->planes_k = v ? v : TD_PREPARE_NO_PLANES;
+            i++;
+        } else if (!strcmp(a, "--threads") && next && td_cli_parse_int(next, 1, 64, &v)) {
+            o->threads = v;
             i++;
         } else if (!strcmp(a, "--stop-after") && next && td_cli_parse_int(next, 1, 1 << 30, &v)) {
             b->stop_after = v;

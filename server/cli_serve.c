@@ -30,6 +30,7 @@
 #include "jobs.h"
 #include "log.h"
 #include "metrics.h"
+#include "pagein.h"
 #include "routes.h"
 #include "maps.h"
 #include "static.h"
@@ -216,7 +217,11 @@ int td_cli_serve(int argc, char **argv)
     td_static_resolve(cfg.web_dir, app.web_dir, app.leaflet_dir);
     app.metrics = td_metrics_create(td_route_names, TD_ROUTE_COUNT);
     app.maps = td_maps_create();
-    if (!app.metrics || !app.maps || td_jobs_start(app.store, &app.jobs, &e)) {
+    /* the page-in deadline's watchdog; TERRAD_FAULT_PAGEIN_STALL_MS: its tests' fault injection */
+    if (!app.metrics || !app.maps || td_jobs_start(app.store, &app.jobs, &e) ||
+        td_pagein_watch_start(cfg.pagein_timeout_s,
+                              getenv("TERRAD_FAULT_PAGEIN_STALL_MS") ? atol(getenv("TERRAD_FAULT_PAGEIN_STALL_MS")) : 0,
+                              &app.pagein, &e)) {
         td_log(TD_LOG_ERROR, "start_failed", "msg=%s", td_log_quote(q, sizeof q, e.msg[0] ? e.msg : "out of memory"));
         goto out;
     }
@@ -237,6 +242,7 @@ out:
     if (app.http)
         td_http_stop(app.http, 0);
     td_jobs_stop(app.jobs);
+    td_pagein_watch_stop(app.pagein);
     td_store_free(app.store);
     td_maps_free(app.maps);
     td_metrics_free(app.metrics);

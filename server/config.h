@@ -53,6 +53,8 @@
       "most samples per pixel")                                                            \
     X(render_timeout_s, DBL, "--render-timeout", "TERRAD_RENDER_TIMEOUT", "30", 0.001,     \
       86400.0, "render deadline, seconds")                                                 \
+    X(pagein_timeout_s, DBL, "--pagein-timeout", "TERRAD_PAGEIN_TIMEOUT", "10", 0.0,       \
+      86400.0, "most a render may wait for pages of prepared datasets, seconds (0: only --render-timeout)") \
     X(conn_timeout_s, INT, "--conn-timeout", "TERRAD_CONN_TIMEOUT", "30", 1, 86400,        \
       "idle connection timeout, seconds")                                                  \
     X(per_ip, INT, "--per-ip-connections", "TERRAD_PER_IP_CONNECTIONS", "64", 1, 65536,    \

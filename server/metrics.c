@@ -200,7 +200,7 @@ static void put_totals(td_buf *b, td_metrics *m, const td_metrics_ext *e)
     put(b, "# HELP terrad_resident_bytes Bytes of heights and acceleration resident.\n"
             "# TYPE terrad_resident_bytes gauge\nterrad_resident_bytes %llu\n",
         (unsigned long long)e->resident_bytes);
-    put(b, "# HELP terrad_heights_mapped_bytes Heights of prepared datasets, memory-mapped.\n"
+    put(b, "# HELP terrad_heights_mapped_bytes Heights, levels and tile structures of prepared datasets, memory-mapped.\n"
             "# TYPE terrad_heights_mapped_bytes gauge\nterrad_heights_mapped_bytes %llu\n"
             "# HELP terrad_heights_resident_bytes Of them, resident in this process (also in "
             "terrad_resident_bytes).\n"

@@ -45,6 +45,7 @@
 #include "viewshed_api.h"
 #include "pano.h"
 #include "pagein.h"
+#include "prepared.h"
 #include "solar.h"
 
 const char *const td_route_names[TD_ROUTE_COUNT] = {
@@ -68,7 +69,8 @@ const char *const td_route_names[TD_ROUTE_COUNT] = {
     X(TD_AE_BUSY, 503, "busy")                                                 \
     X(TD_AE_STOPPING, 503, "stopping")                                         \
     X(TD_AE_LOADING, 503, "loading")                                           \
-    X(TD_AE_TIMEOUT, 503, "render_timeout")
+    X(TD_AE_TIMEOUT, 503, "render_timeout")                                    \
+    X(TD_AE_PAGEIN, 503, "pagein_timeout")
 
 typedef enum td_apierr {
 #define TD_X_ENUM(e, st, code) e,
@@ -915,9 +917,9 @@ static void method_label(td_method m, const td_render_stats *st, char *out, size
 }
 
 /* pagein: what the worker waited for pages of mapped heights (pagein.h); with no major
- * fault it is left out. */
+ * fault it is left out, unless the wait passed the page-in deadline. */
 static void timing_header(td_http_resp *r, const td_rjob *j, double queue_ms,
-                          const td_render_stats *st, uint64_t faults, double pagein_ms)
+                          const td_render_stats *st, uint64_t faults, double pagein_ms, int expired)
 {
     char v[512];
     size_t n = 0;
@@ -938,9 +940,9 @@ static void timing_header(td_http_resp *r, const td_rjob *j, double queue_ms,
                 n += (size_t)w;
         }
     }
-    if (faults)
-        snprintf(v + n, sizeof v - n, ", pagein;dur=%.3f;desc=\"%llu major faults\"", pagein_ms,
-                 (unsigned long long)faults);
+    if (faults || expired)
+        snprintf(v + n, sizeof v - n, ", pagein;dur=%.3f;desc=\"%llu major faults%s\"", pagein_ms,
+                 (unsigned long long)faults, expired ? ", over --pagein-timeout" : "");
     td_http_resp_header(r, "Server-Timing", "%s", v);
 }
 
@@ -983,7 +985,7 @@ out:
 
 /* A render (or a map tile): 200 with the encoded image and its format's headers, the
  * result in *res (the caller frees it); else r holds the error. 1 when answered 200. */
-static int work_image(td_app *app, td_rjob *j, td_http_req *q, td_snapshot *snap, td_http_resp *r,
+static int work_image(td_app *app, td_rjob *j, td_pagein_guard *pg, td_snapshot *snap, td_http_resp *r,
                       td_render_result *res)
 {
     td_render_opts o;
@@ -995,7 +997,8 @@ static int work_image(td_app *app, td_rjob *j, td_http_req *q, td_snapshot *snap
 
     td_render_opts_default(&o);
     o.threads = 1; /* one render per worker; the workers use the cores */
-    o.cancel = td_http_req_cancel(q); /* raised at --render-timeout (http.c) */
+    o.cancel = td_pagein_flag(app->pagein, pg); /* raised at --render-timeout (http.c) or
+                                                   --pagein-timeout (pagein.h) */
     o.lod = td_snapshot_lod(snap);
     /* the drape, decoded once and kept with the dataset (a depth image has none) */
     rc = TD_OK;
@@ -1006,6 +1009,15 @@ static int work_image(td_app *app, td_rjob *j, td_http_req *q, td_snapshot *snap
         rc = td_render(td_snapshot_view(snap), &j->scene, &o, res, &e);
     if (rc == TD_OK)
         rc = td_render_encode(res, &j->scene, &buf, &depth_scale, &e);
+    if (rc == TD_ECANCELED && td_pagein_expired(pg)) {
+        const td_grid *g = td_snapshot_view(snap)->grid;
+        if (j->scene.camera.pos_kind == TD_POS_XYZ || j->scene.camera.pos_kind == TD_POS_XY_AGL)
+            td_prepared_willneed_near(g, j->scene.camera.x, j->scene.camera.y, 4 << g->tile_log2);
+        td_http_resp_header(r, "Retry-After", "%d", (int)ceil(td_pagein_deadline(app->pagein)));
+        api_error(r, TD_AE_PAGEIN, NULL, "the render waited for pages of the dataset's files longer than "
+                  "--pagein-timeout (%.3g s); they are being read: retry", td_pagein_deadline(app->pagein));
+        goto out;
+    }
     if (rc) {
         render_error(app, r, rc, &e);
         goto out;
@@ -1062,10 +1074,11 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
     const td_view *v;
     double queue_ms = td_http_req_queue_wait(q) * 1e3, t0 = td_clock_s(), pagein_ms;
     const td_render_stats *st = NULL;
-    td_pagein pi;
+    td_pagein_guard pg;
     uint64_t faults;
+    int expired;
 
-    td_pagein_begin(&pi);
+    td_pagein_guard_begin(app->pagein, &pg, td_http_req_cancel(q));
     memset(&res, 0, sizeof res);
     memset(&pst, 0, sizeof pst);
     if (cancelled) {
@@ -1079,7 +1092,7 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
             goto out;
         st = &pst;
     } else {
-        if (!work_image(app, j, q, snap, r, &res))
+        if (!work_image(app, j, &pg, snap, r, &res))
             goto out;
         st = &res.stats;
     }
@@ -1091,9 +1104,10 @@ static void render_work(void *cls, td_http_req *q, td_http_resp *r, int cancelle
         td_metrics_render(app->metrics, j->scene.quality.method, td_clock_s() - t0, rays, st->steps);
     }
 out:
-    td_pagein_end(&pi, &faults, &pagein_ms);
+    expired = td_pagein_guard_end(app->pagein, &pg) && !st; /* and it cut the work short */
+    td_pagein_end(&pg.start, &faults, &pagein_ms);
     td_metrics_pagein(app->metrics, faults, pagein_ms * 1e-3);
-    timing_header(r, j, queue_ms, st, faults, pagein_ms);
+    timing_header(r, j, queue_ms, st, faults, pagein_ms, expired);
     td_render_result_free(&res);
     td_snapshot_release(snap);
     free(j);

@@ -61,6 +61,7 @@ typedef struct td_app {
     char web_dir[PATH_MAX];     /* realpath, or "" when absent */
     char leaflet_dir[PATH_MAX]; /* realpath of web/node_modules/leaflet/dist, or "" */
     struct td_maps *maps;       /* map tiles' per-dataset CRS cache (maps.h) */
+    struct td_pagein_watch *pagein; /* the page-in deadline's watchdog (pagein.h), or NULL */
 } td_app;
 
 /* td_http_handler and td_http_done_fn for td_http_start (cls: the td_app). */

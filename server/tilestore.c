@@ -626,7 +626,6 @@ void td_store_free(td_store *s)
     }
     for (size_t d = 0; d < s->nds; d++) {
         td_ds *ds = &s->ds[d];
-        td_prepared_free(ds->prep);
         for (size_t t = 0; t < ds->ntiles; t++)
             for (int k = 0; k < TD_PART_COUNT; k++)
                 part_unref(ds->slots[t].part[k]);
@@ -637,6 +636,7 @@ void td_store_free(td_store *s)
         }
         free(ds->slots);
         hver_unref(ds->cur);
+        td_prepared_free(ds->prep); /* after the levels, whose views point into it */
     }
     free(s->ds);
     free(s->cache_dir);
@@ -819,6 +819,7 @@ td_status td_store_add_prepared(td_store *s, const char *id, const char *origin,
     td_prepared_advise(g, (g->bmap ? g->bmap_bytes : g->map_bytes) > s->o.budget_bytes);
     for (int k = 1; k <= lod->levels; k++)
         td_prepared_advise(lod->grid[k], lod->grid[k]->map_bytes > s->o.budget_bytes);
+    td_prepared_accel_advise(p, td_prepared_accel_mapped(p) > s->o.budget_bytes);
     rc = ds_append(s, id, origin, g, lod, td_prepared_fingerprint(p),
                    sizeof *g + (uint64_t)g->tiles_x * (uint64_t)g->tiles_y * sizeof(td_tile) + lod->bytes, err);
     lod = NULL;
@@ -838,20 +839,24 @@ out:
 }
 
 /* Coarse levels first: once a prepared dataset is checked (the check drops what it read
- * from the page cache), its coarsest levels that fit a quarter of the budget together are
- * asked back into the page cache (MADV_WILLNEED: read ahead by the kernel, not mapped into
+ * from the page cache), its coarsest levels that fit a quarter of the budget together, and
+ * their tiles' structures, are asked back into the page cache (MADV_WILLNEED: read ahead by the kernel, not mapped into
  * the process), so a far ray's first touch of them is a minor fault, not a read. A prepared
  * dataset's heights are never edited, so d->cur stays. */
 static void warm_levels(const td_store *s, const td_ds *d)
 {
     const td_lod *l = d->cur->lod;
     uint64_t sum = 0;
+    int from = 0;
     for (int k = l ? l->levels : 0; k >= 1; k--) {
         sum += l->grid[k]->map_bytes;
         if (sum > s->o.budget_bytes / 4)
             break;
         td_prepared_willneed(l->grid[k]);
+        from = k;
     }
+    if (from) /* and their tiles' structures (the coarsest last in accel.bin: one range) */
+        td_prepared_accel_willneed(d->prep, from);
 }
 
 /* Checks the next pending chunk of one prepared dataset; 0 when none is left. */
@@ -902,19 +907,22 @@ static int mapped_grids(const td_hver *hv, const td_grid **out)
     return n;
 }
 
-/* Heights (and levels) of prepared datasets resident in the process, and their mapped
- * size. */
+/* Heights (and levels, and the tiles' structures) of prepared datasets resident in the
+ * process, and their mapped size. */
 static uint64_t mapped_resident(const td_store *s, uint64_t *mapped)
 {
     uint64_t res = 0;
     const td_grid *gs[TD_LOD_MAX + 1];
     *mapped = 0;
     for (size_t k = 0; k < s->nds; k++)
-        if (s->ds[k].prep)
+        if (s->ds[k].prep) {
             for (int n = mapped_grids(s->ds[k].cur, gs), i = 0; i < n; i++) {
                 res += td_prepared_resident(gs[i]);
                 *mapped += gs[i]->map_bytes + gs[i]->bmap_bytes;
             }
+            res += td_prepared_accel_resident(s->ds[k].prep);
+            *mapped += td_prepared_accel_mapped(s->ds[k].prep);
+        }
     return res;
 }
 
@@ -957,9 +965,11 @@ static void trim_mapped(td_store *s)
     s->trim_rss = rss;
     if (file && (other + file + margin > s->o.budget_bytes || rss + margin > s->o.budget_bytes)) {
         for (size_t k = 0; k < s->nds; k++)
-            if (s->ds[k].prep)
+            if (s->ds[k].prep) {
                 for (int n = mapped_grids(s->ds[k].cur, gs), i = 0; i < n; i++)
                     td_prepared_trim(gs[i]);
+                td_prepared_accel_trim(s->ds[k].prep);
+            }
         s->trim_rss = process_rss(&file);
         pthread_mutex_lock(&s->mu);
         s->heights_trims++;
@@ -1207,6 +1217,7 @@ void td_store_info(td_store *s, size_t idx, td_dataset_info *out)
         const td_grid *gs[TD_LOD_MAX + 1];
         for (int n = mapped_grids(d->cur, gs), i = 0; i < n; i++)
             out->heights_resident += td_prepared_resident(gs[i]);
+        out->heights_resident += td_prepared_accel_resident(d->prep);
     }
 }
 
@@ -1274,6 +1285,8 @@ td_status td_store_acquire(td_store *s, const char *id, td_snapshot **out, td_er
     snap->view.grid = snap->hv->grid;
     stamp = ++s->clock;
     d->snapshots++;
+    if (d->prep) /* the prepare's structures, mapped; a preload's parts replace them below */
+        memcpy(snap->accel, td_prepared_accel(d->prep), d->ntiles * sizeof *snap->accel);
     for (size_t t = 0; t < d->ntiles; t++) {
         td_slot *sl = &d->slots[t];
         for (int k = 0; k < TD_PART_COUNT; k++) {

@@ -150,8 +150,11 @@ td_status td_store_add_grid(td_store *s, const char *id, const char *origin, td_
  * its heights mapped, in time independent of their size. It is served once the background
  * thread (td_store_background_start) has checked every chunk of its heights; until then
  * td_store_acquire answers TD_EAGAIN, and for ever TD_ENOTFOUND (naming the file, chunk and
- * reason, also logged as dataset_refused) if a chunk of its heights or levels fails. Its
- * coarse levels of detail are the prepare's, mapped (td_prepared_take_lod); it refuses
+ * reason, also logged as dataset_refused) if a chunk of its heights, levels or tile
+ * structures fails. Its coarse levels of detail are the prepare's, mapped
+ * (td_prepared_take_lod), and so are every tile's max-mipmap and planes, of the full grid
+ * and of the levels (prepaccel.h): every snapshot holds them where no preload has put a
+ * part (which then replaces them); it refuses
  * edits. Its heights and levels count against the budget as far as they are resident in
  * the process: the background thread drops them (td_prepared_trim) when the process nears
  * the budget, and reads its coarsest levels ahead once checked. Not thread-safe: call

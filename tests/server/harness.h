@@ -43,6 +43,8 @@ int th_request(const th_server *s, const char *method, const char *path,
 void th_resp_free(th_resp *r);
 /* Value of a response header (case-insensitive name) copied into out; 1 if found. */
 int th_header(const th_resp *r, const char *name, char *out, size_t n);
+/* system() of a printf-formatted command (up to 2 KiB); its status. */
+int th_sh(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 /* PNG width and height from the IHDR chunk; 1 if the body is a PNG. */
 int th_png_size(const th_resp *r, int *w, int *h);
 

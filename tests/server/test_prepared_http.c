@@ -29,16 +29,6 @@
 static char root[256], data[300];
 static th_server srv;
 
-static int sh(const char *fmt, ...)
-{
-    char cmd[2048];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(cmd, sizeof cmd, fmt, ap);
-    va_end(ap);
-    return system(cmd);
-}
-
 /* Flips one byte of dir/name at `at`. */
 static void flip(const char *dir, const char *name, long at)
 {
@@ -65,23 +55,24 @@ static int setup(void **state)
     if (!mkdtemp(root))
         return -1;
     snprintf(data, sizeof data, "%s/data", root);
-    if (sh("mkdir -p '%s' && cp '%s.f32' '%s/crop.f32' && cp '%s.json' '%s/crop.json'", data, src, data, src,
+    if (th_sh("mkdir -p '%s' && cp '%s.f32' '%s/crop.f32' && cp '%s.json' '%s/crop.json'", data, src, data, src,
            data))
         return -1;
     /* good, bad (a chunk corrupted), short (truncated), half (an unfinished prepare) */
-    if (sh("for d in good bad short badlod badblk cold; do '%s' prepare '%s/crop.f32' '%s/'\"$d\" --chunk-rows 16 "
+    if (th_sh("for d in good bad short badlod badblk badacc cold; do '%s' prepare '%s/crop.f32' '%s/'\"$d\" --chunk-rows 16 "
            "--tile-size 64 --quiet >/dev/null || exit 1; done", TERRAD_BIN, data, data))
         return -1;
-    if (sh("'%s' prepare '%s/crop.f32' '%s/good8' --chunk-rows 16 --tile-size 64 --block-size 8 --quiet >/dev/null",
+    if (th_sh("'%s' prepare '%s/crop.f32' '%s/good8' --chunk-rows 16 --tile-size 64 --block-size 8 --quiet >/dev/null",
            TERRAD_BIN, data, data))
         return -1;
-    if (sh("'%s' prepare '%s/crop.f32' '%s/half' --chunk-rows 16 --stop-after 2 --quiet >/dev/null 2>&1; "
+    if (th_sh("'%s' prepare '%s/crop.f32' '%s/half' --chunk-rows 16 --stop-after 2 --quiet >/dev/null 2>&1; "
            "test -f '%s/half/prepare.state'", TERRAD_BIN, data, data, data))
         return -1;
     flip("bad", "heights.f32", (long)(120 * 200 + 3) * 4 + 1); /* south row 120: file row 29, chunk 1 */
     flip("badlod", "lod1.f32", (long)(40 * 101 + 3) * 4 + 1); /* level 1 (101 x 76): file row 35, chunk 2 */
     flip("badblk", "heights.blk", 30492 + 5000); /* band 1: 7 blocks of 33 x 33 samples a band */
-    if (sh("truncate -s 119000 '%s/short/heights.f32'", data))
+    flip("badacc", "accel.bin", 40); /* the first tile's structures (tile row 0 of the full grid) */
+    if (th_sh("truncate -s 119000 '%s/short/heights.f32'", data))
         return -1;
     return th_start(&srv, TERRAD_BIN, args, env);
 }
@@ -90,7 +81,7 @@ static int teardown(void **state)
 {
     (void)state;
     th_stop(&srv);
-    sh("rm -rf '%s'", root);
+    th_sh("rm -rf '%s'", root);
     return 0;
 }
 
@@ -138,8 +129,18 @@ static void render(const char *id, const char *method, const char *surface, th_r
     render_lod(id, method, surface, "false", r);
 }
 
+static unsigned long long steps_of(th_resp *r)
+{
+    char v[64];
+    assert_int_equal(th_header(r, "X-Terrad-Steps", v, sizeof v), 1);
+    return strtoull(v, NULL, 10);
+}
+
 /* Every method on every surface: the prepared dataset's picture is its source's, byte for
- * byte; with lod (not "false") also not lod off's picture (the levels were used). */
+ * byte; with lod (not "false") also not lod off's picture (the levels were used). The
+ * prepared datasets step with their mapped structures (prepaccel.h): parametric takes
+ * fewer steps (X-Terrad-Steps) than on the source, which has none (--preload none) but
+ * its levels' max-mipmaps. */
 static void same_pictures(const char *lod)
 {
     static const char *const methods[] = {"incremental", "hierarchical", "parametric", "silhouette", "auto"};
@@ -160,6 +161,9 @@ static void same_pictures(const char *lod)
             assert_memory_equal(a.body, b.body, a.len);
             assert_int_equal(a.len, d.len);
             assert_memory_equal(a.body, d.body, a.len);
+            if (m == 2 && !(steps_of(&b) < steps_of(&a)))
+                fail_msg("parametric on %s: %llu steps prepared, %llu from the source", surfaces[s], steps_of(&b),
+                         steps_of(&a));
             th_resp_free(&d);
             if (strcmp(lod, "false")) {
                 render("good", methods[m], surfaces[s], &c);
@@ -196,9 +200,9 @@ static void test_listed_and_metrics(void **state)
     j = get_json("/v1/datasets/good", 200);
     assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "size"), "width")), 200);
     /* 10 chunks of heights, 15 of the 8 levels, 5 bands of heights.blk (test_prepared.c
-       counts them) */
-    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "chunks")), 30);
-    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "checked")), 30);
+       counts them), 12 tile rows of structures (tiles of 64 cells: 3 + 2 + 1 x 7) */
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "chunks")), 42);
+    assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "checked")), 42);
     assert_int_equal(json_integer_value(json_object_get(json_object_get(j, "prepared"), "levels")), 8);
     json_decref(j);
     j = get_json("/v1/datasets/crop", 200);
@@ -206,10 +210,11 @@ static void test_listed_and_metrics(void **state)
     json_decref(j);
     assert_int_equal(th_request(&srv, "GET", "/metrics", NULL, NULL, 0, &r), 0);
     assert_int_equal(r.status, 200);
-    /* good, bad, badlod, badblk and cold are mapped (short and half are not served at all):
-       5 x ((200 x 150 + the levels' 10420 samples) x 4 + heights.blk's 5 bands of 7 blocks
-       of 33 x 33 floats), and good8: its heights.blk has 19 bands of 25 blocks of 9 x 9 */
-    assert_non_null(strstr(r.body, "\nterrad_heights_mapped_bytes 1886280\n"));
+    /* good, bad, badlod, badblk, badacc and cold are mapped (short and half are not served
+       at all): 6 x ((200 x 150 + the levels' 10420 samples) x 4 + heights.blk's 5 bands of 7 blocks
+       of 33 x 33 floats), and good8: its heights.blk has 19 bands of 25 blocks of 9 x 9;
+       and each one's accel.bin: 67000 bytes of the 23 tiles' structures */
+    assert_non_null(strstr(r.body, "\nterrad_heights_mapped_bytes 2669420\n"));
     assert_non_null(strstr(r.body, "\nterrad_heights_resident_bytes "));
     th_resp_free(&r);
 }
@@ -237,6 +242,14 @@ static void test_bad_never_served(void **state)
     assert_int_equal(r.status, 404);
     assert_non_null(strstr(r.body, "heights.blk: band 1 (south rows 32..64)"));
     th_resp_free(&r);
+    /* and of the tiles' structures */
+    assert_string_equal(wait_checked("badacc", st, sizeof st), "refused");
+    render("badacc", "auto", "bilinear", &r);
+    assert_int_equal(r.status, 404);
+    if (!strstr(r.body, "accel.bin: layer 0 tile 0 (tile row 0)"))
+        fail_msg("%s", r.body);
+    th_resp_free(&r);
+    assert_true(th_log_has(&srv, "event=dataset_refused id=badacc "));
     /* truncated: not even listed; the log names the file and the reason */
     render("short", "auto", "bilinear", &r);
     assert_int_equal(r.status, 404);
@@ -259,7 +272,7 @@ static void test_pagein_reported(void **state)
     (void)state;
     assert_string_equal(wait_checked("cold", st, sizeof st), "ok");
     /* fadvise DONTNEED on every file of the folder (clean: the prepare synced them) */
-    assert_int_equal(sh("python3 -c \"import os,sys\n"
+    assert_int_equal(th_sh("python3 -c \"import os,sys\n"
                         "for f in os.listdir(sys.argv[1]):\n"
                         "  fd=os.open(os.path.join(sys.argv[1],f),os.O_RDONLY); "
                         "os.posix_fadvise(fd,0,0,os.POSIX_FADV_DONTNEED); os.close(fd)\" '%s/cold'", data),
