@@ -106,6 +106,81 @@ out:
     return rc;
 }
 
+/* Floats as int32 keys in the same order (-0 just below +0: bits ^ (sign ? 0x7fffffff :
+ * 0), in run_keys), so that min and max over a run are integer reductions, which vectorise
+ * where float ones (NaN rules) do not; key_float is the way back. */
+static inline float key_float(int32_t k)
+{
+    float f;
+    k ^= (k >> 31) & 0x7fffffff;
+    memcpy(&f, &k, sizeof f);
+    return f;
+}
+
+/* Voids and infinities in a run of n samples: adds the NaNs to *voids, returns non-zero if
+ * any sample is infinite. */
+TD_ROW_CLONES static int run_voids(const float *restrict z, int32_t n, int64_t *voids)
+{
+    int64_t nan = 0;
+    int inf = 0;
+    for (int32_t i = 0; i < n; i++) {
+        nan += z[i] != z[i];
+        inf |= fabsf(z[i]) == INFINITY;
+    }
+    *voids += nan;
+    return inf;
+}
+
+/* The keys of the lowest and highest valid samples of a run into *lo, *hi (voids skipped). */
+TD_ROW_CLONES static void run_keys(const float *restrict z, int32_t n, int32_t *lo, int32_t *hi)
+{
+    int32_t l = *lo, h = *hi;
+    for (int32_t i = 0; i < n; i++) {
+        union {
+            float f;
+            int32_t b;
+        } u = {.f = z[i]};
+        int32_t k = u.b ^ ((u.b >> 31) & 0x7fffffff);
+        int32_t nan = -(int32_t)((u.b & 0x7fffffff) > 0x7f800000); /* a void: all ones */
+        int32_t kl = (k & ~nan) | (INT32_MAX & nan), kh = (k & ~nan) | (INT32_MIN & nan);
+        l = kl < l ? kl : l;
+        h = kh > h ? kh : h;
+    }
+    *lo = l;
+    *hi = h;
+}
+
+/* The first sample of the box (rows j0 .. j1, columns i0 .. i1, south row first) equal to
+ * zero, to give a minimum or maximum of zero the sign the scalar scan (strict <, first
+ * found) gave it: -0 and +0 compare equal. */
+static float first_zero(const td_grid *g, int32_t i0, int32_t i1, int32_t j0, int32_t j1)
+{
+    float z = 0.0f;
+    int found = 0;
+    for (int32_t j = j0; j <= j1 && !found; j++)
+        for (int32_t i = i0; i <= i1 && !found; i++)
+            if (g->z[(size_t)j * (size_t)g->w + (size_t)i] == 0.0f) {
+                z = g->z[(size_t)j * (size_t)g->w + (size_t)i];
+                found = 1;
+            }
+    return z;
+}
+
+/* A tile's lowest and highest valid sample, edges included (-inf, +inf reversed for a tile
+ * of voids: hi < lo, as the tracers expect). */
+static void tile_range(const td_grid *g, td_tile *t)
+{
+    int32_t lo = INT32_MAX, hi = INT32_MIN;
+    for (int32_t j = t->j0; j <= t->j0 + t->ny; j++)
+        run_keys(g->z + (size_t)j * (size_t)g->w + (size_t)t->i0, t->nx + 1, &lo, &hi);
+    t->zmin = lo == INT32_MAX ? INFINITY : key_float(lo);
+    t->zmax = hi == INT32_MIN ? -INFINITY : key_float(hi);
+    if (t->zmin == 0.0f)
+        t->zmin = first_zero(g, t->i0, t->i0 + t->nx, t->j0, t->j0 + t->ny);
+    if (t->zmax == 0.0f)
+        t->zmax = first_zero(g, t->i0, t->i0 + t->nx, t->j0, t->j0 + t->ny);
+}
+
 td_status td_grid_finish(td_grid *g, td_err *err)
 {
     td_status rc = TD_OK;
@@ -115,48 +190,36 @@ td_status td_grid_finish(td_grid *g, td_err *err)
 
     for (int32_t j = 0; j < g->h && rc == TD_OK; j++) {
         const float *row = g->z + (size_t)j * (size_t)g->w;
-        for (int32_t i = 0; i < g->w; i++) {
-            float v = row[i];
-            if (isnan(v)) {
-                voids++;
-            } else if (isinf(v)) {
-                rc = td_err_set(err, TD_ERANGE, "infinite height at column %d, row %d from the north",
-                                (int)i, (int)(g->h - 1 - j));
-                break;
-            } else {
-                gmin = v < gmin ? v : gmin;
-                gmax = v > gmax ? v : gmax;
-            }
+        if (run_voids(row, g->w, &voids)) {
+            int32_t i = 0;
+            while (!isinf(row[i]))
+                i++;
+            rc = td_err_set(err, TD_ERANGE, "infinite height at column %d, row %d from the north",
+                            (int)i, (int)(g->h - 1 - j));
         }
     }
     if (rc != TD_OK)
         goto out;
-    g->voids = voids;
-    g->zmin = voids == (int64_t)g->w * g->h ? NAN : gmin;
-    g->zmax = voids == (int64_t)g->w * g->h ? NAN : gmax;
-
+    /* the tiles cover every sample: their ranges give the grid's (a zero: see first_zero) */
     for (int32_t ty = 0; ty < g->tiles_y; ty++) {
         for (int32_t tx = 0; tx < g->tiles_x; tx++) {
             td_tile *t = &g->tiles[(size_t)ty * (size_t)g->tiles_x + (size_t)tx];
-            float lo = INFINITY, hi = -INFINITY;
             t->i0 = tx * T;
             t->j0 = ty * T;
             t->nx = (g->w - 1 - t->i0) < T ? (g->w - 1 - t->i0) : T;
             t->ny = (g->h - 1 - t->j0) < T ? (g->h - 1 - t->j0) : T;
-            for (int32_t j = t->j0; j <= t->j0 + t->ny; j++) {
-                const float *row = g->z + (size_t)j * (size_t)g->w;
-                for (int32_t i = t->i0; i <= t->i0 + t->nx; i++) {
-                    float v = row[i];
-                    if (v < lo) /* false for NaN */
-                        lo = v;
-                    if (v > hi)
-                        hi = v;
-                }
-            }
-            t->zmin = lo;
-            t->zmax = hi;
+            tile_range(g, t);
+            gmin = t->zmin < gmin ? t->zmin : gmin;
+            gmax = t->zmax > gmax ? t->zmax : gmax;
         }
     }
+    if (gmin == 0.0f)
+        gmin = first_zero(g, 0, g->w - 1, 0, g->h - 1);
+    if (gmax == 0.0f)
+        gmax = first_zero(g, 0, g->w - 1, 0, g->h - 1);
+    g->voids = voids;
+    g->zmin = voids == (int64_t)g->w * g->h ? NAN : gmin;
+    g->zmax = voids == (int64_t)g->w * g->h ? NAN : gmax;
 out:
     return rc;
 }

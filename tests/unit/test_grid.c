@@ -207,6 +207,45 @@ static void test_voids(void **state)
     td_grid_free(NULL);
 }
 
+/* td_grid_finish's ranges (vectorised over integer keys) keep the scalar scan's answers
+ * exactly: a minimum or maximum of zero gets the sign of the first zero in scan order
+ * (south row first), tile by tile and for the grid; negative heights order below positive
+ * ones; the first infinite sample is the one named. */
+static void test_finish_signed_zeros(void **state)
+{
+    td_err err = {0};
+    td_grid *g = make_grid(20, 12, 3); /* 8-cell tiles: 3 x 2 */
+    (void)state;
+    for (size_t k = 0; k < 20 * 12; k++)
+        g->z[k] = 5.0f;
+    g->z[1] = -0.0f; /* tile 0: -0 first, then +0 */
+    g->z[2] = 0.0f;
+    g->z[10] = 0.0f; /* tile 1: +0 first (column 10), then -0 */
+    g->z[20 + 11] = -0.0f;
+    g->z[5 * 20 + 19] = -7.5f; /* tile 2's lowest, and the grid's */
+    g->z[11 * 20 + 3] = 9.25f; /* tile 3's highest, and the grid's */
+    assert_int_equal(td_grid_finish(g, &err), TD_OK);
+    assert_true(g->tiles[0].zmin == 0.0f && signbit(g->tiles[0].zmin));
+    assert_true(g->tiles[1].zmin == 0.0f && !signbit(g->tiles[1].zmin));
+    assert_true(g->tiles[2].zmin == -7.5f && g->tiles[2].zmax == 5.0f);
+    assert_true(g->tiles[3].zmax == 9.25f && g->tiles[3].zmin == 5.0f);
+    assert_true(g->zmin == -7.5f && g->zmax == 9.25f);
+    for (size_t k = 0; k < 20 * 12; k++) /* a grid whose highest sample is zero */
+        g->z[k] = k % 7 == 0 ? 0.0f : -(float)(k % 7);
+    g->z[3] = -0.0f;
+    assert_int_equal(td_grid_finish(g, &err), TD_OK);
+    assert_true(g->zmax == 0.0f && !signbit(g->zmax)); /* z[0] = +0 comes first */
+    g->z[0] = -0.0f;
+    assert_int_equal(td_grid_finish(g, &err), TD_OK);
+    assert_true(g->zmax == 0.0f && signbit(g->zmax));
+    assert_true(g->zmin == -6.0f);
+    g->z[4 * 20 + 9] = -INFINITY;
+    g->z[7 * 20 + 2] = INFINITY;
+    assert_int_equal(td_grid_finish(g, &err), TD_ERANGE);
+    assert_non_null(strstr(err.msg, "column 9, row 7 from the north")); /* rows: 12 - 1 - 4 */
+    td_grid_free(g);
+}
+
 /* The Trinidad grid: 3 arc-seconds at its centre latitude 37.5 N is 73.688 m x 92.489 m
  * (the values in its dem.json). */
 static void test_lonlat_spacing(void **state)
@@ -235,6 +274,7 @@ int main(void)
         cmocka_unit_test(test_tiles_share_edges),
         cmocka_unit_test(test_tile_bounds_brute_force),
         cmocka_unit_test(test_voids),
+        cmocka_unit_test(test_finish_signed_zeros),
         cmocka_unit_test(test_lonlat_spacing),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
