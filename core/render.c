@@ -465,15 +465,18 @@ static void trace_lod(const ctx *c, const td_ray *r, double t_clear, td_hit *hit
  * at its x, y: what the scene's surface and level of detail cost in accuracy, reported
  * with every render and pick. One interpolation per hit. NaN (and nothing counted) over
  * a void. */
-static double note_error(const ctx *c, const td_hit *h, int level, td_render_stats *st)
+static double note_error(const ctx *c, const td_hit *h, int level, const double *zb,
+                         td_render_stats *st)
 {
     const double *p = h->p;
-    double z, e = NAN;
-    /* on the full grid the hit's cell holds the point (no search for it); a coarse level's
-       hit on a mapped (prepared, larger than memory) grid is not measured: it would read
-       a full-resolution page per far pixel (9.2 k of a cold 4 GiB view's 10.5 k faults) */
-    if (level == 0 ? td_grid_bilinear_cell(c->v->grid, h->ci, h->cj, p[0], p[1], &z, NULL)
-                   : !c->v->grid->map && td_grid_bilinear(c->v->grid, p[0], p[1], &z, NULL)) {
+    double z = zb ? *zb : NAN, e = NAN;
+    /* on the full grid the hit's cell holds the point (no search for it; a fan's hits come
+       with that height, zb, from the same samples and arithmetic); a coarse level's hit on
+       a mapped (prepared, larger than memory) grid is not measured: it would read a
+       full-resolution page per far pixel (9.2 k of a cold 4 GiB view's 10.5 k faults) */
+    if (zb ? !isnan(z)
+           : level == 0 ? td_grid_bilinear_cell(c->v->grid, h->ci, h->cj, p[0], p[1], &z, NULL)
+                        : !c->v->grid->map && td_grid_bilinear(c->v->grid, p[0], p[1], &z, NULL)) {
         e = fabs(p[2] - z);
         st->height_err_sum_m += e;
         st->height_err_max_m = e > st->height_err_max_m ? e : st->height_err_max_m;
@@ -488,10 +491,11 @@ static int camera_bends(const ctx *c, const td_ray *r)
     return c->curv && needs_curve(c, r->o, r->d, c->curv_smin);
 }
 
-/* A camera ray's counts: the ray, its steps, a hit and its height error. Returns the
- * error (NaN for a miss or over a void). */
-static double count_camera(const ctx *c, const td_hit *hit, int level, uint64_t steps,
-                           td_render_stats *st)
+/* A camera ray's counts: the ray, its steps, a hit and its height error (from zb, the
+ * exact surface's height there, when the caller has it). Returns the error (NaN for a miss
+ * or over a void). */
+static double count_camera(const ctx *c, const td_hit *hit, int level, const double *zb,
+                           uint64_t steps, td_render_stats *st)
 {
     double e = NAN;
     st->steps += steps;
@@ -499,7 +503,7 @@ static double count_camera(const ctx *c, const td_hit *hit, int level, uint64_t 
     st->rays[TD_RAY_PRIMARY]++;
     if (hit->t < INFINITY) {
         st->hits++;
-        e = note_error(c, hit, level, st);
+        e = note_error(c, hit, level, zb, st);
     }
     return e;
 }
@@ -520,7 +524,7 @@ static double trace_camera(const ctx *c, const td_ray *r, int bent, double t_cle
     } else {
         trace_lod(c, r, t_clear, hit, level, &steps);
     }
-    return count_camera(c, hit, *level, steps, st);
+    return count_camera(c, hit, *level, NULL, steps, st);
 }
 
 /* A camera ray's result into its sample: the method it ended with, and on a hit the
@@ -696,9 +700,10 @@ static void fan_flush(worker *w, fan *f)
 {
     const ctx *c = w->c;
     td_hit hits[TD_FAN];
-    td_trace_fan(c->v, c->s->quality.method, c->s->quality.surface, c->cam.o, f->n, f->r, hits);
+    double zb[TD_FAN];
+    td_trace_fan(c->v, c->s->quality.method, c->s->quality.surface, c->cam.o, f->n, f->r, hits, zb);
     for (int k = 0; k < f->n; k++) {
-        count_camera(c, &hits[k], 0, hits[k].steps, &w->st);
+        count_camera(c, &hits[k], 0, &zb[k], hits[k].steps, &w->st);
         f->sm[k]->level = 0;
         camera_keep(w, f->sm[k], &hits[k]);
     }

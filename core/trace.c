@@ -1517,6 +1517,7 @@ static int packet_lane(const td_fan_ray *r)
  * vectors; fan_packet stores the lanes that hit. */
 typedef struct vhit {
     vd p[3], nv[3];
+    vd zb; /* td_grid_bilinear_cell's height at the point (td_trace_fan's zb) */
 } vhit;
 
 TD_HOT vhit vhits(const walk *w, const vwalk *q, td_surface sf, const double o[3], const vd d[3],
@@ -1526,6 +1527,9 @@ TD_HOT vhit vhits(const walk *w, const vwalk *q, td_surface sf, const double o[3
     const vd *c = k->c;
     for (int i = 0; i < 3; i++)
         h.p[i] = o[i] + t * d[i];
+    vd u = vclamp01(h.p[0] / w->g->sx - ci), v = vclamp01(h.p[1] / w->g->sy - cj);
+    h.zb = vsel(vnan(c[0] + c[1] + c[2] + c[3]), vb(NAN),
+                (1 - v) * ((1 - u) * c[0] + u * c[1]) + v * ((1 - u) * c[2] + u * c[3]));
     if (sf == TD_SURFACE_PLANE) { /* the top, or the wall the ray came through */
         h.nv[0] = vsel((vm)(wall == ENTRY_U), -q->su, vb(0.0));
         h.nv[1] = vsel((vm)(wall == ENTRY_V), -q->sv, vb(0.0));
@@ -1546,6 +1550,15 @@ TD_HOT vhit vhits(const walk *w, const vwalk *q, td_surface sf, const double o[3
         h.nv[2] = vb(1.0);
     }
     return h;
+}
+
+/* td_trace_fan's zb for a hit traced one ray at a time */
+static double hit_bilinear(const td_grid *g, const td_hit *h)
+{
+    double z = NAN;
+    if (!(h->t < INFINITY) || !td_grid_bilinear_cell(g, h->ci, h->cj, h->p[0], h->p[1], &z, NULL))
+        z = NAN;
+    return z;
 }
 
 /* A fan ray whose near walk a packet began and did not finish: the rest of trace_one's
@@ -1581,7 +1594,7 @@ static void packet_rest(const td_view *v, td_method m, walk *w, const double o[3
  * them and done[l] = 1; the caller traces the others with trace_one. */
 TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, const double o[3],
                                      const td_fan_ray *rays, const int *lane, int nl, int k0,
-                                     td_hit *hits, double (*nv)[3], int *done)
+                                     td_hit *hits, double (*nv)[3], double *zb, int *done)
 {
     const td_fan_ray *r[TD_LANES];
     for (int l = 0; l < TD_LANES; l++) /* a packet short of rays repeats its first */
@@ -1629,6 +1642,8 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
             walk_state at = {.ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .t = st.t[l],
                              .f = st.f[l], .entry = (int)st.entry[l], .level = 0};
             packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], k, h, nv[lane[l] - k0]);
+            if (zb)
+                zb[lane[l]] = hit_bilinear(w->g, h);
         } else if (hit[l]) {
             h->t = th[l] < 0.0 ? 0.0 : th[l]; /* trace_one's tmin, 0 for a fan */
             h->ci = (int32_t)st.ci[l];
@@ -1637,6 +1652,8 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
                 h->p[i] = hv.p[i][l];
                 nv[lane[l] - k0][i] = hv.nv[i][l];
             }
+            if (zb)
+                zb[lane[l]] = hv.zb[l];
         }
     }
 }
@@ -1645,7 +1662,7 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
 #define TD_FAN_MAX 64
 
 void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3], int n,
-                  const td_fan_ray *rays, td_hit *hits)
+                  const td_fan_ray *rays, td_hit *hits, double *zb)
 {
     walk w;
     int ok = valid_call(v->grid, m, s);
@@ -1659,19 +1676,28 @@ void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3]
         int lane[TD_FAN_MAX], nl = 0;
         for (int k = k0; k < k1; k++) {
             memset(&hits[k], 0, sizeof hits[k]);
-            if (ok && packet_lane(&rays[k]))
+            if (zb)
+                zb[k] = NAN; /* a miss's; a hit's below */
+            if (ok && packet_lane(&rays[k])) {
                 lane[nl++] = k;
-            else
+            } else {
                 trace_one(v, m, &w, o, rays[k].d, 0.0, INFINITY, ok ? rays[k].t_clear : INFINITY,
                           &hits[k], nv[k - k0]);
+                if (zb && ok)
+                    zb[k] = hit_bilinear(v->grid, &hits[k]);
+            }
         }
         for (int q = 0; q < nl; q += TD_LANES) { /* the packets, then what they left */
             int np = nl - q < TD_LANES ? nl - q : TD_LANES, done[TD_LANES];
-            fan_packet(v, m, &w, o, rays, lane + q, np, k0, hits, nv, done);
-            for (int l = 0; l < np; l++)
-                if (!done[l])
-                    trace_one(v, m, &w, o, rays[lane[q + l]].d, 0.0, INFINITY, rays[lane[q + l]].t_clear,
-                              &hits[lane[q + l]], nv[lane[q + l] - k0]);
+            fan_packet(v, m, &w, o, rays, lane + q, np, k0, hits, nv, zb, done);
+            for (int l = 0; l < np; l++) {
+                int k = lane[q + l];
+                if (!done[l]) {
+                    trace_one(v, m, &w, o, rays[k].d, 0.0, INFINITY, rays[k].t_clear, &hits[k], nv[k - k0]);
+                    if (zb)
+                        zb[k] = hit_bilinear(v->grid, &hits[k]);
+                }
+            }
         }
         for (int k = k0; k < k1; k++)
             if (hits[k].t < INFINITY)

@@ -118,9 +118,11 @@ typedef struct td_fan_ray {
 
 /* td_trace_from for n rays from one origin o, each over [0, +inf): the camera rays of a
  * render, which share the walk's setup of the grid and the origin. hits[k] is the hit
- * td_trace_from gives rays[k], bit for bit. */
+ * td_trace_from gives rays[k], bit for bit. zb (NULL: not wanted) gets for each hit the
+ * bilinear surface's height at its x, y in its cell, td_grid_bilinear_cell's value bit for
+ * bit (what the render's height error compares with), NaN for a miss or a void cell. */
 void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3], int n,
-                  const td_fan_ray *rays, td_hit *hits);
+                  const td_fan_ray *rays, td_hit *hits, double *zb);
 
 /* Whether the ray meets the surface in [tmin, tmax] (td_trace's hit is finite), for rays
  * that leave the surface (shadow and ambient-occlusion rays): it climbs the max-mipmap

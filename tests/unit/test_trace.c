@@ -505,7 +505,7 @@ static void test_batches_same(void **state)
     enum { N = 150 };
     static td_fan_ray fan[N];
     static td_hit hits[N];
-    static double po[N][3];
+    static double po[N][3], zb[N];
     uint8_t occ[N];
     for (int oi = 0; oi < 2; oi++) {
         for (int k = 0; k < N; k++) { /* toward a point of the relief's box; every 7th grazing */
@@ -537,7 +537,7 @@ static void test_batches_same(void **state)
                     if (!isfinite(fan[k].t_clear))
                         fan[k].t_clear = k % 3 == 1 ? INFINITY : 0.0;
                 }
-                td_trace_fan(&v, (td_method)m, (td_surface)sf, origins[oi], N, fan, hits);
+                td_trace_fan(&v, (td_method)m, (td_surface)sf, origins[oi], N, fan, hits, zb);
                 int hit_count = 0;
                 for (int k = 0; k < N; k++) {
                     td_ray r = {{origins[oi][0], origins[oi][1], origins[oi][2]},
@@ -546,6 +546,10 @@ static void test_batches_same(void **state)
                     td_trace_from(&v, (td_method)m, (td_surface)sf, &r, fan[k].t_clear, &h);
                     assert_memory_equal(&h, &hits[k], sizeof h);
                     hit_count += h.t < INFINITY;
+                    double z = NAN; /* the fan's exact-surface height: the grid's, bit for bit */
+                    if (!(h.t < INFINITY && td_grid_bilinear_cell(g, h.ci, h.cj, h.p[0], h.p[1], &z, NULL)))
+                        z = NAN;
+                    assert_memory_equal(&z, &zb[k], sizeof z);
                 }
                 assert_true(hit_count > N / 6); /* the rays do meet the terrain */
                 /* parallel rays along the fan's first direction, from points of the relief */
@@ -602,7 +606,7 @@ static void test_fan_cells(void **state)
                     const double o[3] = {u0 * g->sx, v0 * g->sy, heights[hi]};
                     td_ray r = {{o[0], o[1], o[2]}, {fr.d[0], fr.d[1], fr.d[2]}, 0.0, INFINITY};
                     td_hit hf, h1;
-                    td_trace_fan(&v, TD_METHOD_AUTO, (td_surface)sf, o, 1, &fr, &hf);
+                    td_trace_fan(&v, TD_METHOD_AUTO, (td_surface)sf, o, 1, &fr, &hf, NULL);
                     td_trace_from(&v, TD_METHOD_AUTO, (td_surface)sf, &r, fr.t_clear, &h1);
                     assert_memory_equal(&hf, &h1, sizeof hf);
                     hits += h1.t < INFINITY;
