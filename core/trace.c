@@ -1013,15 +1013,23 @@ static int tile_walk(const td_view *v, td_method m, const walk *w, walk_state *s
 /* The walk from where st stands to a hit (STEP_HIT, in *hr) or the end: a start near the
  * surface (st->level 0) first walks its cells plainly, then every tile is entered (one
  * step) and crossed by its method. */
+/* The near walk (run_walk's first part) from its k-th cell on: while the start is near
+ * the surface (st->level 0), up to TD_NEAR_CELLS cells plainly, adding them to *n. */
+TD_HOT int near_walk(const walk *w, walk_state *st, hit_rec *hr, int k, uint32_t *n)
+{
+    int rc = STEP_CONTINUE;
+    for (; k < TD_NEAR_CELLS && st->level == 0 && rc == STEP_CONTINUE && on_grid(w, st); k++) {
+        (*n)++;
+        rc = walk_cell(w, st, hr);
+    }
+    return rc;
+}
+
 static int run_walk(const td_view *v, td_method m, const walk *w, walk_state *st, hit_rec *hr,
                     uint32_t *steps, td_method *used)
 {
-    int rc = STEP_CONTINUE;
     uint32_t n = 0;
-    for (int k = 0; k < TD_NEAR_CELLS && st->level == 0 && rc == STEP_CONTINUE && on_grid(w, st); k++) {
-        n++;
-        rc = walk_cell(w, st, hr);
-    }
+    int rc = near_walk(w, st, hr, 0, &n);
     if (rc == STEP_CONTINUE)
         rc = tile_walk(v, m, w, st, hr, &n, used);
     *steps += n;
@@ -1576,11 +1584,7 @@ static void packet_rest(const td_view *v, td_method m, walk *w, const double o[3
     st = *at;
     hit->t = INFINITY;
     hit->ci = hit->cj = -1;
-    int rc = STEP_CONTINUE;
-    for (int k = near_done; k < TD_NEAR_CELLS && rc == STEP_CONTINUE && on_grid(w, &st); k++) {
-        n++; /* the rest of run_walk's near loop */
-        rc = walk_cell(w, &st, &hr);
-    }
+    int rc = near_walk(w, &st, &hr, near_done, &n); /* st.level 0: the rest of it */
     if (rc == STEP_CONTINUE)
         rc = tile_walk(v, m, w, &st, &hr, &n, &used);
     if (rc == STEP_HIT)
