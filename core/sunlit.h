@@ -26,7 +26,9 @@
 typedef struct td_sunlit {
     int shift;     /* blocks of 2^shift cells a side */
     int32_t bw, bh; /* blocks across and up */
-    float *h;      /* bw * bh bounds, row-major, south first (+inf: no bound) */
+    size_t si, sj;  /* block (bi, bj)'s bound is h[bj * sj + bi * si]: rows along the axis
+                       the sun crosses more slowly (the build's sweep order) */
+    float *h;      /* bw * bh bounds (+inf: no bound) */
     size_t bytes;
 } td_sunlit;
 
@@ -38,7 +40,7 @@ void td_sunlit_free(td_sunlit *s);
 /* The bound at cell (ci, cj) (a cell of the grid). */
 static inline double td_sunlit_at(const td_sunlit *s, int32_t ci, int32_t cj)
 {
-    return (double)s->h[(size_t)(cj >> s->shift) * (size_t)s->bw + (size_t)(ci >> s->shift)];
+    return (double)s->h[(size_t)(cj >> s->shift) * s->sj + (size_t)(ci >> s->shift) * s->si];
 }
 
 #endif
