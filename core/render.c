@@ -84,8 +84,9 @@
  *              grazing and rolled +0.7-0.8% (the corner rays of every slice).
  *   occlusion  shadow and AO rays are any-hit queries (td_occluded): no hit point or
  *              normal, the max-mipmap climbed from 4 x 4 blocks.
- *   sunlit     one sweep against the sun per render bounds, per 16 x 16 cells, the height
- *              above which a point is surely lit (sunlit.h); a shadow ray ends there.
+ *   sunlit     one sweep against the sun per render bounds, per 4 x 4 cells (coarser on
+ *              grids of more than 2^24 cells), the height above which a point is surely
+ *              lit (sunlit.h); a shadow ray ends there.
  * Method silhouette (issue 13) replaces the horizon and the beam for the camera rays: one
  * partition of the view per render from the heights alone (silhouette.h, built with the
  * render's threads before the blocks, timed in the primary stage), each ray started where

@@ -13,9 +13,11 @@
  *
  * with D the distance over which s_h crosses exactly one block along its dominant axis
  * (so B + D s_h lies in the next row of blocks, in at most two of them) and M a block's
- * highest corner (td_view_max: it bounds every surface). The decay D tan per block makes
- * far ridges matter only as much as they can: with the sun at 30 degrees over 73 m cells
- * and 16-cell blocks, a ridge 680 m lower per block away. A shadow ray whose point is
+ * highest corner (td_view_max, or the max-mipmap's code for the block: both bound every
+ * surface). The decay D tan per block makes far ridges matter only as much as they can:
+ * with the sun at 30 degrees over 73 m cells and 16-cell blocks, a ridge 680 m lower per
+ * block away. Blocks are 4 x 4 cells, or the next power of two up that keeps them to
+ * 2^20 (sunlit.c says why). A shadow ray whose point is
  * above its block's bound (with the walk's margin) is lit: td_occluded ends it there.
  * Sun at the zenith (no horizontal part) or below the horizon: no bound is built. */
 #ifndef TD_SUNLIT_H
