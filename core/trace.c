@@ -1843,7 +1843,10 @@ void td_occluded_par(const td_view *v, td_method m, td_surface s, const double d
         ok = walk_dir(&w, d, &scale);
         w.lit = lit;
     }
-    for (; ok && scale == 1.0 && n - k >= 2; k += TD_LANES) /* packets of two rays or more */
+    /* packets of two rays or more, with a sun bound to end them lit (without one, a lane
+       ends only on a hit or past the grid, and the max-mipmap's climb is the faster walk:
+       measured 2.3x the packets' rate on trinidad's views with the bound off) */
+    for (; ok && scale == 1.0 && lit && n - k >= 2; k += TD_LANES)
         occ_packet(v, m, &w, d, o + k, n - k < TD_LANES ? n - k : TD_LANES, hit + k, steps);
     for (; k < n; k++)
         hit[k] = ok && occluded_one(v, m, &w, o[k], 0.0, INFINITY, scale, steps);

@@ -133,8 +133,10 @@ int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r,
                 const td_sunlit *lit, uint32_t *steps);
 
 /* td_occluded for n parallel rays over [0, +inf): from o[k] along d (the shadow rays of a
- * render, which share the walk's setup of the grid and the direction). hit[k] is what
- * td_occluded says of ray k. Adds their steps to *steps. */
+ * render, which share the walk's setup of the grid and the direction; with a sun bound,
+ * four at a time through their first cells). hit[k] is what td_occluded says of ray k.
+ * Adds their steps to *steps (with the bound, the cells the packets walked and then the
+ * one-ray walks' steps: not td_occluded's count). */
 void td_occluded_par(const td_view *v, td_method m, td_surface s, const double d[3], int n,
                      const double (*o)[3], const td_sunlit *lit, uint8_t *hit, uint32_t *steps);
 
