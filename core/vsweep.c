@@ -115,6 +115,7 @@ typedef struct sweep {
     pvec F, G, T;
     pvec C; /* column U's edges (add_column_pass) */
     pvec N; /* bounds of the eye's strip with no real point (slack infinite): hi only */
+    double nmax; /* N's maximum over the domain (n_max) */
     int hint_q, hint_s;
     double umax;              /* of the edges being added */
     double hole_u[VS_BINS];   /* per bin of m, the nearest u of a hole cell a ray there may cross */
@@ -211,10 +212,16 @@ static inline int merge_won(const piece *a, int na, const piece *b, int nb, doub
         i++;
     ok = j < nb && i < na;
     if (ok) {
+        int j0 = j + 1;
         emit(out, cur, &b[j], last);
-        while (b[j + 1].m < e) {
+        /* b's pieces after the first start after it and no two neighbours share a line
+         * (b is a merge's output or col_pieces'), so emit would append each: copied whole */
+        while (b[j + 1].m < e)
             j++;
-            emit(out, b[j].m, &b[j], last);
+        if (j >= j0) {
+            memcpy(&out->p[out->n], &b[j0], (size_t)(j - j0 + 1) * sizeof *b);
+            out->n += j - j0 + 1;
+            *last = &b[j];
         }
         while (j < nb && b[j + 1].m <= e)
             j++;
@@ -963,6 +970,17 @@ static void eye_cell_bound(sweep *sw, double ga, double gb, double kh, double k,
     }
 }
 
+/* The maximum of v's pieces over the domain (at their ends: each is linear), -inf when
+ * v is empty. A target whose q is above it by eps is above v wherever it is. */
+static double n_max(const pvec *v)
+{
+    double mx = -INFINITY;
+    for (int k = 0; k < v->n; k++)
+        if (v->p[k].qr != -INFINITY)
+            mx = dmax(mx, dmax(pval(&v->p[k], v->p[k].m), pval(&v->p[k], v->p[k + 1].m)));
+    return mx;
+}
+
 /* G and N exchanged: what is added goes to N, the eye's strip's bounds. */
 static void swap_gn(sweep *sw)
 {
@@ -1031,6 +1049,7 @@ static void near_strip(sweep *sw, int32_t U0)
     /* the linear surface's chord under the eye may be above it: then nothing is proved */
     sw->visible_ok = !sw->lin || sw->hidden_ok;
     merge_g(sw);
+    sw->nmax = n_max(&sw->N);
 }
 
 /* ---- the targets ------------------------------------------------------------------ */
@@ -1152,6 +1171,7 @@ typedef struct tgt_cols {
     int32_t vlo, vhi;
     int pass, hidden_ok, visible_ok, bil, lin;
     int nn, hint_n;       /* N's pieces, the search's hint */
+    double nmax;          /* N's maximum */
 } tgt_cols;
 
 /* Column U's context for target(). */
@@ -1166,6 +1186,7 @@ static void tgt_cols_init(sweep *sw, int32_t U, tgt_cols *t)
     t->Fp = sw->F.p;
     t->Np = sw->N.p;
     t->nn = sw->N.n;
+    t->nmax = sw->nmax;
     t->hint_n = 0;
     t->hole_u = sw->holes ? sw->hole_u : NULL;
     t->vis = sw->vis + cidx(c, U, 0);
@@ -1217,7 +1238,9 @@ static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
     eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
     if (q < lo - eps && t->hidden_ok) /* proved hidden already: the rest only raises lo */
         goto decide;
-    {
+    /* N counts only where it may reach q: above its maximum (with eps to spare for the
+     * rounding of a piece's value between its ends), hi decides alone */
+    if (q <= t->nmax + 2.0 * eps) {
         int kn = find_in(t->Np, t->nn, m, &t->hint_n);
         hi = dmax(hi, pval(&t->Np[kn], m));
         if (kn > 0 && t->Np[kn].m == m) /* on a break: the piece ending here too */
@@ -1255,14 +1278,22 @@ decide:
     }
 }
 
+/* Whether a sample dv rows from the eye's is in the cone at distance u (strict: north and
+ * south, whose diagonals belong to east and west). */
+static inline int in_cone(double dv, double u, int strict)
+{
+    dv = fabs(dv);
+    return strict ? dv < u : dv <= u;
+}
+
 /* Whether sample (U, V) belongs to this cone and is within max_distance. */
 static int owned(const sweep *sw, int32_t U, int32_t V, double u)
 {
     const cone *c = &sw->c;
     const td_grid *g = c->g;
-    double dv = fabs(V - c->ev), dx, dy;
+    double dx, dy;
     int32_t i, j;
-    if (!(c->strict ? dv < u : dv <= u))
+    if (!in_cone(V - c->ev, u, c->strict))
         return 0;
     if (sw->job->maxd2 == INFINITY)
         return 1;
@@ -1277,7 +1308,7 @@ static void sweep_cone(sweep *sw)
 {
     const cone *c = &sw->c;
     const double ev = c->ev;
-    const int strict = c->strict, nomax = sw->job->maxd2 == INFINITY;
+    const int strict = c->strict, nomax = sw->job->maxd2 == INFINITY, holes = sw->holes;
     tgt_cols t;
     int32_t U0 = (int32_t)floor(c->eu) + 1; /* the first column east of the eye */
     pv_clear(&sw->F);
@@ -1298,10 +1329,14 @@ static void sweep_cone(sweep *sw)
         col_pass(sw, U, V0, V1);
         sw->hint_q = 0;
         tgt_cols_init(sw, U, &t);
+        /* the cone's rows (|V - ev| within u: an interval, found from its ends), then per
+         * row owned()'s distance test and the void test when there are any */
+        while (V0 <= V1 && !in_cone(V0 - ev, u, strict))
+            V0++;
+        while (V1 >= V0 && !in_cone(V1 - ev, u, strict))
+            V1--;
         for (int32_t V = V0; V <= V1; V++) {
-            double dv = fabs(V - ev);
-            /* owned() (its cone's test inline: the loop's locals are not reloaded) */
-            if (!(strict ? dv < u : dv <= u) || (!nomax && !owned(sw, U, V, u)) || isnan(t.zc[V]))
+            if ((!nomax && !owned(sw, U, V, u)) || (holes && isnan(t.zc[V])))
                 continue;
             if (U <= U0 + 1) /* the first two columns: cast */
                 cast(sw, U, V);
