@@ -138,7 +138,7 @@ typedef struct sweep {
     int32_t panel_u, panel_n, panel_v0, panel_v1;
     uint8_t *colok; /* column U's edge [V, V+1] counts (a cell beside it is not a hole) */
     int pass_ok;
-    uint64_t swept, rays, steps, blocks;
+    uint64_t swept, rays, steps, blocks, facing;
 } sweep;
 
 /* max and min of values that are never NaN here, inline (fmax, fmin are calls to libm) */
@@ -761,6 +761,63 @@ static inline int block_under(const strip_cols *x, const double *mp, const doubl
     return mc[kl] <= mlo && mc[kh] >= mhi && top <= low && !isnan(sum);
 }
 
+#ifdef TD_VSWEEP_DEBUG /* block_facing's spans against strip_span's */
+static void check_span(const strip_cols *x, int32_t Va, double mb, int32_t k, int two)
+{
+    int32_t k2;
+    int two2;
+    if (!strip_span(x, Va, mb, &k2, &two2) || k2 != k || two2 != two) {
+        fprintf(stderr, "block_facing: span of Va %d mb %.17g: %d %d, strip_span %d %d\n", Va, mb, k, two, k2, two2);
+        abort();
+    }
+}
+#define VS_SPAN(x, Va, mb, k, two) check_span(x, Va, mb, k, two)
+#else
+#define VS_SPAN(x, Va, mb, k, two) ((void)0)
+#endif
+
+/* Whether every edge of the strip's cells b .. e-1 (rows b .. e-1, each cell's diagonal)
+ * passes strip_under's test, so that add_strip would leave each out: where the terrain
+ * faces the eye they are under the column's polyline. Without holes only, and on one side
+ * of the eye's row, at least two cells inside the cone (|V - ev| <= u - 2): there each
+ * edge's far end lies in a known interval (a sample V > ev of column U-1, at m'_V =
+ * (V - ev) / (u - 1), is between m_V and m_V+1 of column U; V < ev between m_V-1 and m_V),
+ * so strip_span's search is not needed and under_strip is called with the intervals it
+ * would find (checked against it with TD_VSWEEP_DEBUG). Every edge is tested (no early
+ * exit): the loop has no branch but under_strip's. */
+static inline int block_facing(const strip_cols *x, const double *mp, const double *qp, const double *zp,
+                               const double *zc, int32_t b, int32_t e, double ev, double u, int lin, int bil,
+                               int anti)
+{
+    int all = 1;
+    if (b > ev && e - ev <= u - 2.0 && e + 1 <= x->V1) {
+        for (int32_t V = b; V < e; V++) {
+            int diag = 1;
+            if (!lin) {
+                int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
+                VS_SPAN(x, main ? V + 1 : V, main ? mp[V] : mp[V + 1], V, !main);
+                diag = main ? under_strip(x, V, 0, V + 1, mp[V], qp[V]) : under_strip(x, V, 1, V, mp[V + 1], qp[V + 1]);
+            }
+            VS_SPAN(x, V, mp[V], V, 0);
+            all &= under_strip(x, V, 0, V, mp[V], qp[V]) & diag;
+        }
+    } else if (e < ev && ev - b <= u - 2.0 && b - 1 >= x->V0) {
+        for (int32_t V = b; V < e; V++) {
+            int diag = 1;
+            if (!lin) {
+                int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
+                VS_SPAN(x, main ? V + 1 : V, main ? mp[V] : mp[V + 1], main ? V - 1 : V, main);
+                diag = main ? under_strip(x, V - 1, 1, V + 1, mp[V], qp[V]) : under_strip(x, V, 0, V, mp[V + 1], qp[V + 1]);
+            }
+            VS_SPAN(x, V, mp[V], V - 1, 0);
+            all &= under_strip(x, V - 1, 0, V, mp[V], qp[V]) & diag;
+        }
+    } else {
+        all = 0;
+    }
+    return all;
+}
+
 /* The edges of the strip between columns U-1 and U (rows, diagonals) into G, but those
  * the column pass shows under F once column U is in; marks the strip's holes. A block
  * of VS_BLOCK cells at a time when block_under leaves them all out (none is a hole). */
@@ -770,7 +827,7 @@ static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
     const int32_t o = c->vlo;
     const double *zp = sw->zcol[0], *zc = sw->zcol[1];
     const double *mp = sw->mcol[0] - o, *qp = sw->qcol[0] - o;
-    const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o;
+    const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o, *zpo = zp - o, *zco = zc - o;
     const strip_cols x = {mc, qc, sw->lcol - o, sw->cslope - o, sw->colok - o, V0, V1, sw->pass_ok};
     const int lin = sw->lin, bil = sw->bil, anti = c->anti, holes = sw->holes;
     const int blocks = sw->pass_ok;
@@ -779,8 +836,12 @@ static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
         int left;
         if (blocks && V == bend) { /* a new block: left out whole when it is under F */
             bend = V + VS_BLOCK;
-            if (bend <= V1 && block_under(&x, mp, qp, V, bend)) {
+            int under = bend <= V1 && block_under(&x, mp, qp, V, bend);
+            int facing = bend <= V1 && !under && !holes &&
+                         block_facing(&x, mp, qp, zpo, zco, V, bend, c->ev, u, lin, bil, anti);
+            if (under || facing) {
                 sw->blocks++;
+                sw->facing += (uint64_t)facing;
                 V = bend - 1;
                 below = cellz(sw, zp, zc, V, zb);
                 continue;
@@ -1444,6 +1505,7 @@ td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st,
         sweep *sw = &t->sw[k];
         st->swept += sw->swept;
         st->blocks += sw->blocks;
+        st->facing += sw->facing;
         st->rays += sw->rays;
         st->steps += sw->steps;
         oom |= sw->oom;

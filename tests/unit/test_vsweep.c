@@ -227,6 +227,44 @@ static void test_blocks(void **state)
     unmake(&fx);
 }
 
+/* The strip's blocks where the terrain faces the eye (vsweep.c block_facing: VS_BLOCK
+ * cells' rows and diagonals left out at once when each is under the column's polyline,
+ * the intervals of their far ends known on each side of the eye's row): rough terrain
+ * rising east, seen from the west edge, a corner and between samples (rows on both
+ * sides of the eye's, blocks near the cone's edges and across the eye's row done cell by
+ * cell), bumps whose strip edges poke above the column. The sweep equals the cast on
+ * every surface, and such blocks were taken. Broken on purpose (every block on a side
+ * taken, the diagonals' choice swapped, the rows' interval shifted below the eye) this or
+ * test_random, test_cliff, test_rough fail. */
+static void test_facing(void **state)
+{
+    static const td_vs_point p[] = {{0.0, 190.0}, {0.0, 0.0}, {33.3, 251.7}, {0.0, 380.0}};
+    td_viewshed_opts o;
+    td_viewshed_stats st;
+    td_err e;
+    uint8_t vis[W * H];
+    fixture fx;
+    uint64_t facing[TD_SURFACE_COUNT] = {0};
+    (void)state;
+    make(&fx, T_ROUGH, 10.0, 10.0);
+    for (size_t k = 0; k < sizeof p / sizeof *p; k++) {
+        all_surfaces(&fx, p[k]);
+        td_viewshed_opts_default(&o);
+        o.obs = &p[k];
+        o.nobs = 1;
+        o.height = 2.0;
+        o.threads = 1;
+        for (int s = 0; s < TD_SURFACE_COUNT; s++) {
+            o.surface = (td_surface)s;
+            assert_int_equal(td_viewshed(&fx.v, &o, vis, &st, &e), TD_OK);
+            assert_true(st.facing <= st.blocks);
+            facing[s] += st.facing;
+        }
+    }
+    assert_true(facing[TD_SURFACE_BILINEAR] > 0 && facing[TD_SURFACE_TRIANGLE] > 0 && facing[TD_SURFACE_LINEAR] > 0);
+    unmake(&fx);
+}
+
 /* Random observers on every terrain, half of them on samples; those on the plane
  * surface's holes skipped. */
 static void test_random(void **state)
@@ -284,7 +322,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_rough),   cmocka_unit_test(test_integer_touches), cmocka_unit_test(test_cliff),
         cmocka_unit_test(test_voids),   cmocka_unit_test(test_random),          cmocka_unit_test(test_options),
-        cmocka_unit_test(test_blocks),
+        cmocka_unit_test(test_blocks),  cmocka_unit_test(test_facing),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
