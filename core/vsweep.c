@@ -904,6 +904,7 @@ static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
     pvec *C = &sw->C;
     piece *cp;
     int n = 1, nd = 0; /* C's count and the ranges', in locals: the stores could alias them */
+    int run = 0;       /* the interval before counted: its piece ends where this one starts */
     sw->ndom = 0;
     if (!pv_reserve(sw, C, 2 * (V1 - V0) + 4))
         return;
@@ -911,8 +912,15 @@ static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
     cp = C->p;
     for (int32_t V = V0; V < V1; V++) {
         double top;
-        if (!ok[V] || dmax(qc[V], qc[V + 1]) <= fm[V])
+        if (!ok[V] || dmax(qc[V], qc[V + 1]) <= fm[V]) {
+            if (run) { /* the run's end: empty from there */
+                cp[n] = empty_piece;
+                cp[n].m = mc[V];
+                n++;
+            }
+            run = 0;
             continue;
+        }
         /* above F's maximum there by far more than rounding: a range for merge */
         top = dmin(qc[V], qc[V + 1]);
         if (top > fx[V] + 1e-9 * (1.0 + fabs(top))) {
@@ -924,12 +932,16 @@ static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
                 nd++;
             }
         }
-        if (cp[n - 1].qr == -INFINITY && cp[n - 1].m >= mc[V]) /* empty, zero width */
+        if (!run && cp[n - 1].m >= mc[V]) /* the first empty piece, of zero width */
             n--;
         cp[n] = (piece){mc[V], mc[V], qc[V], cs[V], 0.0, u};
-        cp[n + 1] = empty_piece;
-        cp[n + 1].m = mc[V + 1];
-        n += 2;
+        n++;
+        run = 1;
+    }
+    if (run) {
+        cp[n] = empty_piece;
+        cp[n].m = mc[V1];
+        n++;
     }
     cp[n] = empty_piece;
     cp[n].m = VS_MDOM;
