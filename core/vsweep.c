@@ -130,6 +130,8 @@ typedef struct sweep {
     int *kcol;
     double *fmin, *lcol, *cslope;
     double *fmax; /* F's maximum over each interval [m_V, m_V+1] (col_pass) */
+    double *flo;  /* F's piece kcol[V] at m_V less its slack: the lo target() starts from (col_pass) */
+    int quick;    /* targets under flo decided in sweep_cone's loop (no holes, hidden_ok, no target height) */
     double *dom;  /* ndom ranges [dom[2i], dom[2i+1]) of m where column U is above F (col_pieces) */
     int ndom;
     /* east and west cones, whose columns are strided in the grid: VS_PANEL columns from
@@ -641,7 +643,7 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     const pvec *F = &sw->F;
     const double *mc = sw->mcol[1] - sw->c.vlo;
     int *kc = sw->kcol - sw->c.vlo;
-    double *fm = sw->fmin - sw->c.vlo, *fx = sw->fmax - sw->c.vlo;
+    double *fm = sw->fmin - sw->c.vlo, *fx = sw->fmax - sw->c.vlo, *fl = sw->flo - sw->c.vlo;
     int k = 0;
     sw->pass_ok = U - sw->c.eu >= VS_PASS_U && U - sw->c.eu < 0.5 / VS_NARROW;
     if (!sw->pass_ok)
@@ -653,6 +655,7 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     for (int32_t V = V0; V < V1; V++) {
         const piece *p = F->p;
         double m1 = mc[V + 1], lo = pval(&p[k], mc[V]), hi = lo, e;
+        fl[V] = lo - p[k].slack;
         if (k > 0 && p[k].m == mc[V]) { /* on a break: the piece ending there holds m_V too */
             lo = dmin(lo, pval(&p[k - 1], mc[V]));
             hi = dmax(hi, pval(&p[k - 1], mc[V]));
@@ -668,6 +671,7 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
         fm[V] = dmin(lo, e);
         fx[V] = dmax(hi, e);
     }
+    fl[V1] = pval(&F->p[k], mc[V1]) - F->p[k].slack;
 }
 
 /* Whether an edge of the strip between columns U-1 and U, from (m_a, q_a) on column U
@@ -1382,6 +1386,8 @@ static void sweep_cone(sweep *sw)
     const cone *c = &sw->c;
     const double ev = c->ev;
     const int strict = c->strict, nomax = sw->job->maxd2 == INFINITY, holes = sw->holes;
+    const double *fl = sw->flo - c->vlo;
+    int quick;
     tgt_cols t;
     int32_t U0 = (int32_t)floor(c->eu) + 1; /* the first column east of the eye */
     pv_clear(&sw->F);
@@ -1389,6 +1395,7 @@ static void sweep_cone(sweep *sw)
         sw->hole_u[b] = INFINITY;
     if (U0 <= c->uhi) {
         near_strip(sw, U0);
+        sw->quick = !holes && sw->hidden_ok && !(sw->job->target_height > 0.0);
         load_next(sw, U0 - 2);
         load_next(sw, U0 - 1);
     }
@@ -1402,6 +1409,7 @@ static void sweep_cone(sweep *sw)
         col_pass(sw, U, V0, V1);
         sw->hint_q = 0;
         tgt_cols_init(sw, U, &t);
+        quick = sw->quick && sw->pass_ok;
         /* the cone's rows (|V - ev| within u: an interval, found from its ends), then per
          * row owned()'s distance test and the void test when there are any */
         while (V0 <= V1 && !in_cone(V0 - ev, u, strict))
@@ -1411,6 +1419,13 @@ static void sweep_cone(sweep *sw)
         for (int32_t V = V0; V <= V1; V++) {
             if ((!nomax && !owned(sw, U, V, u)) || (holes && isnan(t.zc[V])))
                 continue;
+            /* target()'s first test without its call: hidden under F's piece's lo (on a
+             * break target() takes the higher of two: this lo is at most its) */
+            if (quick && t.qc[V] < fl[V] - (VS_EPS_ABS + VS_EPS_REL * fabs(t.qc[V]))) {
+                t.vis[V * t.vstride] = 0;
+                sw->swept++;
+                continue;
+            }
             if (U <= U0 + 1) /* the first two columns: cast */
                 cast(sw, U, V);
             else
@@ -1439,13 +1454,13 @@ static void *cone_worker(void *arg)
             break;
         sw = &t->sw[k];
         size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
-        double *zb = malloc(15 * nv * sizeof *zb);
+        double *zb = malloc(16 * nv * sizeof *zb);
         int *kb = malloc(nv * sizeof *kb);
         uint8_t *ob = calloc(nv, 1);
         sw->panel = sw->c.vi == 0 ? malloc((size_t)VS_PANEL * nv * sizeof *sw->panel) : NULL;
         if (zb && kb && ob && (sw->c.vi != 0 || sw->panel) && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
             pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
-            for (size_t q = 0; q < 15 * nv; q++)
+            for (size_t q = 0; q < 16 * nv; q++)
                 zb[q] = NAN;
             for (int b = 0; b < 3; b++) {
                 sw->zcol[b] = zb + (size_t)b * nv;
@@ -1457,6 +1472,7 @@ static void *cone_worker(void *arg)
             sw->cslope = zb + 11 * nv;
             sw->fmax = zb + 12 * nv;
             sw->dom = zb + 13 * nv; /* 2 nv: at most a range an interval */
+            sw->flo = zb + 15 * nv;
             sw->kcol = kb;
             sw->colok = ob;
             sweep_cone(sw);
