@@ -787,15 +787,16 @@ static void check_span(const strip_cols *x, int32_t Va, double mb, int32_t k, in
  * edge's far end lies in a known interval (a sample V > ev of column U-1, at m'_V =
  * (V - ev) / (u - 1), is between m_V and m_V+1 of column U; V < ev between m_V-1 and m_V),
  * so strip_span's search is not needed and under_strip is called with the intervals it
- * would find (checked against it with TD_VSWEEP_DEBUG). Every edge is tested (no early
- * exit): the loop has no branch but under_strip's. */
+ * would find (checked against it with TD_VSWEEP_DEBUG). The first cell with an edge
+ * above ends the test (1423.8 -> 1421.3 M instructions on trinidad from Blanca Peak
+ * against testing all 16 edges). */
 static inline int block_facing(const strip_cols *x, const double *mp, const double *qp, const double *zp,
                                const double *zc, int32_t b, int32_t e, double ev, double u, int lin, int bil,
                                int anti)
 {
     int all = 1;
     if (b > ev && e - ev <= u - 2.0 && e + 1 <= x->V1) {
-        for (int32_t V = b; V < e; V++) {
+        for (int32_t V = b; V < e && all; V++) {
             int diag = 1;
             if (!lin) {
                 int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
@@ -806,7 +807,7 @@ static inline int block_facing(const strip_cols *x, const double *mp, const doub
             all &= under_strip(x, V, 0, V, mp[V], qp[V]) & diag;
         }
     } else if (e < ev && ev - b <= u - 2.0 && b - 1 >= x->V0) {
-        for (int32_t V = b; V < e; V++) {
+        for (int32_t V = b; V < e && all; V++) {
             int diag = 1;
             if (!lin) {
                 int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
