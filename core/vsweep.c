@@ -404,6 +404,8 @@ static void panel_fill(sweep *sw, int32_t U)
     col_rows(c, U + n - 1, &V0, &V1);
     for (int32_t V = V0; V <= V1; V++) {
         const float *src = g->z + (size_t)V * (size_t)g->w + (size_t)ilo;
+        if (V + 8 <= V1) /* 8 rows ahead: each row is a page of its own (the rows' stride) */
+            __builtin_prefetch(src + 8 * (size_t)g->w);
         for (int32_t k = 0; k < n; k++)
             sw->panel[(size_t)k * nv + (size_t)(V - c->vlo)] = src[c->ui > 0 ? k : n - 1 - k];
     }
