@@ -838,6 +838,7 @@ static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
     const strip_cols x = {mc, qc, sw->lcol - o, sw->cslope - o, sw->colok - o, V0, V1, sw->pass_ok};
     const int lin = sw->lin, bil = sw->bil, anti = c->anti, holes = sw->holes;
     const int blocks = sw->pass_ok;
+    const int *kc = sw->kcol - o;
     double zl[4], zb[4];
     for (int32_t V = V0, below = cellz(sw, zp, zc, V0 - 1, zb), bend = V0; V <= V1 && !sw->oom; V++) {
         int left;
@@ -854,6 +855,8 @@ static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
                 continue;
             }
         }
+        if (blocks) /* add_seg's search of F (under_f) from the piece of m_V (col_pass) */
+            sw->hint_s = kc[V];
         left = cellz(sw, zp, zc, V, zl);
         if (!left && holes && V >= c->vlo && V + 1 <= c->vhi)
             mark_hole(sw, u - 1.0, u, V - c->ev, V + 1 - c->ev);
