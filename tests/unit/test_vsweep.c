@@ -239,6 +239,7 @@ static void test_blocks(void **state)
 static void test_facing(void **state)
 {
     static const td_vs_point p[] = {{0.0, 190.0}, {0.0, 0.0}, {33.3, 251.7}, {0.0, 380.0}};
+    static const td_vs_point pv[] = {{0.0, 120.0}, {0.0, 190.0}, {33.3, 251.7}, {0.0, 300.0}, {90.0, 60.0}};
     td_viewshed_opts o;
     td_viewshed_stats st;
     td_err e;
@@ -246,6 +247,10 @@ static void test_facing(void **state)
     fixture fx;
     uint64_t facing[TD_SURFACE_COUNT] = {0};
     (void)state;
+    make(&fx, T_VOIDS, 10.0, 10.0); /* blocks holding a void are done cell by cell */
+    for (size_t k = 0; k < sizeof pv / sizeof *pv; k++)
+        all_surfaces(&fx, pv[k]);
+    unmake(&fx);
     make(&fx, T_ROUGH, 10.0, 10.0);
     for (size_t k = 0; k < sizeof p / sizeof *p; k++) {
         all_surfaces(&fx, p[k]);
