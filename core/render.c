@@ -83,9 +83,12 @@
  *              stage (callgrind, trinidad views, triangle): straight down -4.8%, level,
  *              grazing and rolled +0.7-0.8% (the corner rays of every slice).
  *   occlusion  shadow and AO rays are any-hit queries (td_occluded): no hit point or
- *              normal, the max-mipmap climbed from 4 x 4 blocks.
- *   sunlit     one sweep against the sun per render bounds, per 16 x 16 cells, the height
- *              above which a point is surely lit (sunlit.h); a shadow ray ends there.
+ *              normal, the max-mipmap climbed from 2 x 2 blocks; a block's straight
+ *              shadow rays in packets of four that walk their first cells together
+ *              (td_occluded_par).
+ *   sunlit     one sweep against the sun per render bounds, per 4 x 4 cells (coarser on
+ *              grids of more than 2^24 cells), the height above which a point is surely
+ *              lit (sunlit.h); a shadow ray ends there.
  * Method silhouette (issue 13) replaces the horizon and the beam for the camera rays: one
  * partition of the view per render from the heights alone (silhouette.h, built with the
  * render's threads before the blocks, timed in the primary stage), each ray started where

@@ -13,9 +13,11 @@
  *
  * with D the distance over which s_h crosses exactly one block along its dominant axis
  * (so B + D s_h lies in the next row of blocks, in at most two of them) and M a block's
- * highest corner (td_view_max: it bounds every surface). The decay D tan per block makes
- * far ridges matter only as much as they can: with the sun at 30 degrees over 73 m cells
- * and 16-cell blocks, a ridge 680 m lower per block away. A shadow ray whose point is
+ * highest corner (td_view_max, or the max-mipmap's code for the block: both bound every
+ * surface). The decay D tan per block makes far ridges matter only as much as they can:
+ * with the sun at 30 degrees over 73 m cells and 16-cell blocks, a ridge 680 m lower per
+ * block away. Blocks are 4 x 4 cells, or the next power of two up that keeps them to
+ * 2^20 (sunlit.c says why). A shadow ray whose point is
  * above its block's bound (with the walk's margin) is lit: td_occluded ends it there.
  * Sun at the zenith (no horizontal part) or below the horizon: no bound is built. */
 #ifndef TD_SUNLIT_H
@@ -26,7 +28,9 @@
 typedef struct td_sunlit {
     int shift;     /* blocks of 2^shift cells a side */
     int32_t bw, bh; /* blocks across and up */
-    float *h;      /* bw * bh bounds, row-major, south first (+inf: no bound) */
+    size_t si, sj;  /* block (bi, bj)'s bound is h[bj * sj + bi * si]: rows along the axis
+                       the sun crosses more slowly (the build's sweep order) */
+    float *h;      /* bw * bh bounds (+inf: no bound) */
     size_t bytes;
 } td_sunlit;
 
@@ -38,7 +42,7 @@ void td_sunlit_free(td_sunlit *s);
 /* The bound at cell (ci, cj) (a cell of the grid). */
 static inline double td_sunlit_at(const td_sunlit *s, int32_t ci, int32_t cj)
 {
-    return (double)s->h[(size_t)(cj >> s->shift) * (size_t)s->bw + (size_t)(ci >> s->shift)];
+    return (double)s->h[(size_t)(cj >> s->shift) * s->sj + (size_t)(ci >> s->shift) * s->si];
 }
 
 #endif

@@ -3,7 +3,8 @@
  * axes: every block's bound is at least its own highest sample; a point above its
  * block's bound sees the sun (td_trace finds nothing on the way); and td_occluded with
  * the bound answers as td_trace for rays from the surface, while taking fewer steps
- * than without it. */
+ * than without it; with the blocks' maxima read from the max-mipmaps, from the samples,
+ * and from a mix of both. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -32,19 +33,20 @@ static void sun_of(double az_deg, double el_deg, double sun[3])
     sun[2] = sin(e);
 }
 
-/* The bound's claims for one sun over grid g (with acceleration a). */
-static void check_sun(const td_grid *g, const td_accel *a, const double sun[3], uint64_t *seed)
+/* The bound's claims for one sun over grid g (with per-tile acceleration tiles, or NULL). */
+static void check_sun(const td_grid *g, const td_tile_accel *tiles, const double sun[3], uint64_t *seed)
 {
-    td_view v = {g, a->tiles};
+    td_view v = {g, tiles};
     td_sunlit *lit = NULL;
     uint64_t with = 0, without = 0;
     assert_int_equal(td_sunlit_build(&v, sun, &lit, NULL), TD_OK);
     assert_non_null(lit);
+    assert_int_equal(lit->shift, 2); /* the finest blocks for a grid this small: 4 x 4 cells */
     for (int32_t by = 0; by < lit->bh; by++) /* a block's own samples are below its bound */
         for (int32_t bx = 0; bx < lit->bw; bx++) {
             int32_t S = 1 << lit->shift;
             double m = td_view_max(&v, bx * S, bx * S + S - 1, by * S, by * S + S - 1);
-            assert_true(lit->h[(size_t)by * lit->bw + bx] >= m);
+            assert_true(td_sunlit_at(lit, bx * S, by * S) >= m);
         }
     for (int k = 0; k < 4000; k++) {
         double x = rnd(seed) * (g->w - 1) * g->sx, y = rnd(seed) * (g->h - 1) * g->sy;
@@ -96,11 +98,20 @@ static void test_sunlit_bounds(void **state)
     td_accel_opts_default(&o);
     o.threads = 2;
     assert_int_equal(td_accel_build(g, &o, &a, NULL, NULL), TD_OK);
+    /* the block maxima from the max-mipmaps, from the samples (no acceleration), and from
+       both (every third tile without its max-mipmap) */
+    size_t nt = (size_t)g->tiles_x * (size_t)g->tiles_y;
+    td_tile_accel *some = calloc(nt, sizeof *some);
+    assert_non_null(some);
+    for (size_t k = 0; k < nt; k++)
+        some[k].maxmip = k % 3 ? a->tiles[k].maxmip : NULL;
     for (size_t k = 0; k < sizeof suns / sizeof suns[0]; k++) {
         double sun[3];
         sun_of(suns[k][0], suns[k][1], sun);
-        check_sun(g, a, sun, &seed);
+        check_sun(g, a->tiles, sun, &seed);
+        check_sun(g, k % 2 ? NULL : some, sun, &seed);
     }
+    free(some);
     td_accel_free(a);
     td_grid_free(g);
 }
