@@ -239,6 +239,30 @@ static inline int merge_won(const piece *a, int na, const piece *b, int nb, doub
     return ok;
 }
 
+/* The first k >= k0 with k == n or p[k].m >= m (p's starts do not decrease): by steps
+ * that double, then halving (the run of F under an empty stretch of the column's pieces
+ * is hundreds of pieces long where the terrain is hidden: scanned one by one it was a
+ * seventh of merge's time, perf). */
+static inline int first_from(const piece *p, int n, int k0, double m)
+{
+    int lo = k0, hi = k0, step = 1;
+    while (hi < n && p[hi].m < m) {
+        lo = hi + 1;
+        hi += step;
+        step *= 2;
+    }
+    if (hi > n)
+        hi = n;
+    while (lo < hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (p[mid].m < m)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
 /* out = max(a, b), both covering [a[0].m, end] with a[na].m = b[nb].m = end; out needs
  * room for 2 (na + nb) + 1 pieces. Ties go to a (the older). dom: ndom sorted disjoint
  * ranges [dom[2i], dom[2i+1]) of m where b is known to be above a by a margin (the column
@@ -273,10 +297,8 @@ static void merge(const piece *a, int na, const piece *b, int nb, pvec *outp, co
         if (nx > cur) {
             if (pb->qr == -INFINITY) {
                 /* b empty up to eb: a's pieces that start before it, copied whole */
-                int k = ia + 1;
+                int k = first_from(a, na, ia + 1, eb);
                 emit(out, cur, pa, &last);
-                while (k < na && a[k].m < eb)
-                    k++;
                 if (k > ia + 1) {
                     emit(out, a[ia + 1].m, &a[ia + 1], &last);
                     memcpy(&out->p[out->n], &a[ia + 2], (size_t)(k - ia - 2) * sizeof *a);
