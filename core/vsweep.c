@@ -817,6 +817,21 @@ static void check_span(const strip_cols *x, int32_t Va, double mb, int32_t k, in
 #define VS_SPAN(x, Va, mb, k, two) ((void)0)
 #endif
 
+/* under_strip's answer with every test evaluated (no branch: block_facing's edges, where
+ * the bilinear cell's diagonal, main or not, is a coin toss for the branch predictor);
+ * reads interval k + 1 (a row of the column's, so within the arrays) even without `two`. */
+static inline int under_nb(const strip_cols *x, int32_t k, int two, int32_t Va, double mb, double qb)
+{
+    const double *mc = x->mc, *qc = x->qc, *lc = x->lc, *cs = x->cs;
+    double ma = mc[Va], qa = qc[Va], top = dmax(qa, qb);
+    int32_t kb = two ? (mb < ma ? k : k + 1) : k, vx = two ? k + 1 : Va;
+    int lcu = (top <= lc[k]) & ((!two) | (top <= lc[k + 1]));
+    int poly = qb <= qc[vx] + cs[kb] * (mb - mc[vx]);
+    int vert = (!two) | ((((qa - qc[k + 1]) * (mb - mc[k + 1]) - (qb - qc[k + 1]) * (ma - mc[k + 1])) <= 0.0) ==
+                       (mb > ma));
+    return lcu | (x->ok[k] & ((!two) | x->ok[k + 1]) & poly & vert);
+}
+
 /* Whether every edge of the strip's cells b .. e-1 (rows b .. e-1, each cell's diagonal)
  * passes strip_under's test, so that add_strip would leave each out: where the terrain
  * faces the eye they are under the column's polyline. Without holes only (with them a
@@ -840,10 +855,11 @@ static inline int block_facing(const strip_cols *x, const double *mp, const doub
             if (!lin) {
                 int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
                 VS_SPAN(x, main ? V + 1 : V, main ? mp[V] : mp[V + 1], V, !main);
-                diag = main ? under_strip(x, V, 0, V + 1, mp[V], qp[V]) : under_strip(x, V, 1, V, mp[V + 1], qp[V + 1]);
+                diag = (main & under_nb(x, V, 0, V + 1, mp[V], qp[V])) |
+                       ((!main) & under_nb(x, V, 1, V, mp[V + 1], qp[V + 1]));
             }
             VS_SPAN(x, V, mp[V], V, 0);
-            all &= under_strip(x, V, 0, V, mp[V], qp[V]) & diag;
+            all &= under_nb(x, V, 0, V, mp[V], qp[V]) & diag;
         }
     } else if (e < ev && ev - b <= u - 2.0 && b - 1 >= x->V0) {
         for (int32_t V = b; V < e && all; V++) {
@@ -851,10 +867,11 @@ static inline int block_facing(const strip_cols *x, const double *mp, const doub
             if (!lin) {
                 int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
                 VS_SPAN(x, main ? V + 1 : V, main ? mp[V] : mp[V + 1], main ? V - 1 : V, main);
-                diag = main ? under_strip(x, V - 1, 1, V + 1, mp[V], qp[V]) : under_strip(x, V, 0, V, mp[V + 1], qp[V + 1]);
+                diag = (main & under_nb(x, V - 1, 1, V + 1, mp[V], qp[V])) |
+                       ((!main) & under_nb(x, V, 0, V, mp[V + 1], qp[V + 1]));
             }
             VS_SPAN(x, V, mp[V], V - 1, 0);
-            all &= under_strip(x, V - 1, 0, V, mp[V], qp[V]) & diag;
+            all &= under_nb(x, V - 1, 0, V, mp[V], qp[V]) & diag;
         }
     } else {
         all = 0;
