@@ -54,21 +54,25 @@ static inline float float_up(double b)
 }
 
 /* Each block's highest corner, rounded up, into the sweep's rows (row ia, column ib at
- * bm[ia * nb + ib]), a tile at a time: its level-`shift` max-mipmap codes where it has
- * them (decoded as td_maxmip_bound, a row of codes at a time), else td_view_max over
- * each block's cells. */
+ * bm[ia * nb + ib]), a tile at a time when blocks are no larger than tiles: its
+ * level-`shift` max-mipmap codes where it has them (decoded as td_maxmip_bound, a row of
+ * codes at a time), else td_view_max over each block's cells (and for every block when
+ * blocks are larger than tiles: the grid as one tile of blocks). */
 static void block_maxima(const td_view *v, const sweep *w, int shift, float *bm)
 {
     const td_grid *g = v->grid;
     const int32_t S = (int32_t)1 << shift, bw = w->a_is_x ? w->na : w->nb;
     const int32_t bh = w->a_is_x ? w->nb : w->na;
-    const int32_t tb = shift <= g->tile_log2 ? (int32_t)1 << (g->tile_log2 - shift) : 0;
+    const int per_tile = shift <= g->tile_log2;
+    const int32_t tb = per_tile ? (int32_t)1 << (g->tile_log2 - shift) : 0;
     const size_t si = w->a_is_x ? (size_t)w->nb : 1, sj = w->a_is_x ? 1 : (size_t)w->nb;
-    for (size_t ti = 0; ti < (size_t)g->tiles_x * (size_t)g->tiles_y; ti++) {
+    const size_t nt = per_tile ? (size_t)g->tiles_x * (size_t)g->tiles_y : 1;
+    for (size_t ti = 0; ti < nt; ti++) {
         const td_tile *t = &g->tiles[ti];
-        const td_maxmip *mm = v->accel && tb ? v->accel[ti].maxmip : NULL;
-        int32_t bx0 = t->i0 >> shift, by0 = t->j0 >> shift;
-        int32_t bx1 = tb && bx0 + tb < bw ? bx0 + tb : bw, by1 = tb && by0 + tb < bh ? by0 + tb : bh;
+        const td_maxmip *mm = v->accel && per_tile ? v->accel[ti].maxmip : NULL;
+        int32_t bx0 = per_tile ? t->i0 >> shift : 0, by0 = per_tile ? t->j0 >> shift : 0;
+        int32_t bx1 = per_tile && bx0 + tb < bw ? bx0 + tb : bw;
+        int32_t by1 = per_tile && by0 + tb < bh ? by0 + tb : bh;
         for (int32_t by = by0; by < by1; by++) {
             float *row = bm + (size_t)by * sj;
             if (mm && shift <= mm->levels) {

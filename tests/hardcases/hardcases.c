@@ -20,8 +20,9 @@
  * on a sample of the surface hits at tmin on every surface; an origin inside the plane
  * surface's solid column hits at tmin; below a two-sided surface the first crossing is
  * the hit; georeferencing never changes a hit; NaN or inf anywhere in a ray is refused
- * by td_ray_validate; every ray's occlusion query (td_occluded, shadow and AO rays) says
- * hit exactly when the trace does (hc.c); camera rays started from their horizons
+ * by td_ray_validate; every ray's occlusion query (td_occluded, shadow and AO rays, and
+ * td_occluded_par, a render's shadow rays in packets) says hit exactly when the trace
+ * does (hc.c); camera rays started from their horizons
  * (horizon.h) render the depths of the rays traced from their starts, bit for bit. */
 #include <errno.h>
 #include <float.h>

@@ -681,6 +681,24 @@ static td_sunlit *ray_sunlit(const hc_scene *sc, const td_ray *r, uint64_t k)
     return lit;
 }
 
+/* Whether td_occluded_par (a render's shadow rays: a direction's rays in packets of four
+ * lanes) fails to answer `want` for ray r taken three times (one packet, three lanes), with
+ * the sun bound lit (NULL: none). Only for r's search [0, +inf), the one it asks. */
+static int par_differs(const hc_scene *sc, td_method m, td_surface s, const td_ray *r,
+                       const td_sunlit *lit, int want)
+{
+    const double o[3][3] = {{r->o[0], r->o[1], r->o[2]}, {r->o[0], r->o[1], r->o[2]},
+                            {r->o[0], r->o[1], r->o[2]}};
+    uint8_t hit[3] = {2, 2, 2};
+    uint32_t steps = 0;
+    int differs = 0;
+    if (r->tmin == 0.0 && r->tmax == INFINITY) {
+        td_occluded_par(&sc->view, m, s, r->d, 3, o, lit, hit, &steps);
+        differs = hit[0] != want || hit[1] != want || hit[2] != want;
+    }
+    return differs;
+}
+
 int hc_run_ray(hc_stats *st, const hc_scene *sc, const td_ray *r,
                td_hit out[TD_SURFACE_COUNT][TD_METHOD_COUNT])
 {
@@ -711,6 +729,8 @@ int hc_run_ray(hc_stats *st, const hc_scene *sc, const td_ray *r,
                     why = "td_occluded disagrees with td_trace";
                 else if (lit && td_occluded(&sc->view, (td_method)m, (td_surface)s, r, lit, &osteps) != (h.t < INFINITY))
                     why = "td_occluded with the sun bound of the ray's direction disagrees with td_trace";
+                else if (par_differs(sc, (td_method)m, (td_surface)s, r, lit, h.t < INFINITY))
+                    why = "td_occluded_par (shadow rays in packets) disagrees with td_trace";
             }
             v = why ? HC_WRONG : hc_judge(sc, (td_surface)s, r, h.t, &ref_t, &near_t, &strict_t);
             if (why)
