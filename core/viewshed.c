@@ -550,6 +550,7 @@ static td_status vs_sweep_run(vs_ctx *c, int nthreads, uint8_t *vis, td_viewshed
         st->rays += vst.rays;
         st->steps += vst.steps;
         st->blocks += vst.blocks;
+        st->facing += vst.facing;
         if (rc == TD_OK)
             vs_sweep_add(c, e, vis);
     }

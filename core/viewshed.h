@@ -121,6 +121,7 @@ typedef struct td_viewshed_stats {
     uint64_t rays;     /* traced segments */
     uint64_t steps;    /* tracer steps over all rays */
     uint64_t blocks;   /* the sweep's strip blocks left out whole (td_vsweep_stats) */
+    uint64_t facing;   /* of them, those under the column's polyline (block_facing) */
     double visible_area_m2; /* visible samples * sx * sy */
     double setup_ms, trace_ms; /* curvature grids and maxmips; tracing (wall time) */
     int threads;

@@ -48,6 +48,10 @@
  * with the skips, band_lo, and the loops' contexts (tgt_cols, strip_cols: locals the
  * compiler keeps, where sw's fields were reloaded after every byte written to vis). The
  * east and west cones read their columns, strided in the grid, 16 at a time (panel).
+ * The strip's edges are left out 8 cells at a time where they are under F (block_under)
+ * or, where the terrain faces the eye, under the column's polyline (block_facing); col_pass
+ * also keeps each row's starting lo (flo), so that sweep_cone decides a target under it
+ * without calling target() (trinidad 1.64 G -> 1.40 G, docs/viewshed.md "Speed").
  *
  * Rounding: the envelope is computed in double from float heights; a crossing put off
  * by rounding moves a value by the slope times 1e-16, kept below 1e-8 by flattening
@@ -115,6 +119,7 @@ typedef struct sweep {
     pvec F, G, T;
     pvec C; /* column U's edges (add_column_pass) */
     pvec N; /* bounds of the eye's strip with no real point (slack infinite): hi only */
+    double nmax; /* N's maximum over the domain (n_max) */
     int hint_q, hint_s;
     double umax;              /* of the edges being added */
     double hole_u[VS_BINS];   /* per bin of m, the nearest u of a hole cell a ray there may cross */
@@ -129,6 +134,8 @@ typedef struct sweep {
     int *kcol;
     double *fmin, *lcol, *cslope;
     double *fmax; /* F's maximum over each interval [m_V, m_V+1] (col_pass) */
+    double *flo;  /* F's piece kcol[V] at m_V less its slack, -inf behind a hole: the lo target() starts from (col_pass) */
+    int quick;    /* targets under flo decided in sweep_cone's loop (hidden_ok, no target height) */
     double *dom;  /* ndom ranges [dom[2i], dom[2i+1]) of m where column U is above F (col_pieces) */
     int ndom;
     /* east and west cones, whose columns are strided in the grid: VS_PANEL columns from
@@ -137,7 +144,7 @@ typedef struct sweep {
     int32_t panel_u, panel_n, panel_v0, panel_v1;
     uint8_t *colok; /* column U's edge [V, V+1] counts (a cell beside it is not a hole) */
     int pass_ok;
-    uint64_t swept, rays, steps, blocks;
+    uint64_t swept, rays, steps, blocks, facing;
 } sweep;
 
 /* max and min of values that are never NaN here, inline (fmax, fmin are calls to libm) */
@@ -211,10 +218,16 @@ static inline int merge_won(const piece *a, int na, const piece *b, int nb, doub
         i++;
     ok = j < nb && i < na;
     if (ok) {
+        int j0 = j + 1;
         emit(out, cur, &b[j], last);
-        while (b[j + 1].m < e) {
+        /* b's pieces after the first start after it and no two neighbours share a line
+         * (b is a merge's output or col_pieces'), so emit would append each: copied whole */
+        while (b[j + 1].m < e)
             j++;
-            emit(out, b[j].m, &b[j], last);
+        if (j >= j0) {
+            memcpy(&out->p[out->n], &b[j0], (size_t)(j - j0 + 1) * sizeof *b);
+            out->n += j - j0 + 1;
+            *last = &b[j];
         }
         while (j < nb && b[j + 1].m <= e)
             j++;
@@ -224,6 +237,30 @@ static inline int merge_won(const piece *a, int na, const piece *b, int nb, doub
     *ia = i;
     *ib = j;
     return ok;
+}
+
+/* The first k >= k0 with k == n or p[k].m >= m (p's starts do not decrease): by steps
+ * that double, then halving (the run of F under an empty stretch of the column's pieces
+ * is hundreds of pieces long where the terrain is hidden: scanned one by one it was a
+ * seventh of merge's time, perf). */
+static inline int first_from(const piece *p, int n, int k0, double m)
+{
+    int lo = k0, hi = k0, step = 1;
+    while (hi < n && p[hi].m < m) {
+        lo = hi + 1;
+        hi += step;
+        step *= 2;
+    }
+    if (hi > n)
+        hi = n;
+    while (lo < hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (p[mid].m < m)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
 }
 
 /* out = max(a, b), both covering [a[0].m, end] with a[na].m = b[nb].m = end; out needs
@@ -260,10 +297,8 @@ static void merge(const piece *a, int na, const piece *b, int nb, pvec *outp, co
         if (nx > cur) {
             if (pb->qr == -INFINITY) {
                 /* b empty up to eb: a's pieces that start before it, copied whole */
-                int k = ia + 1;
+                int k = first_from(a, na, ia + 1, eb);
                 emit(out, cur, pa, &last);
-                while (k < na && a[k].m < eb)
-                    k++;
                 if (k > ia + 1) {
                     emit(out, a[ia + 1].m, &a[ia + 1], &last);
                     memcpy(&out->p[out->n], &a[ia + 2], (size_t)(k - ia - 2) * sizeof *a);
@@ -395,6 +430,8 @@ static void panel_fill(sweep *sw, int32_t U)
     col_rows(c, U + n - 1, &V0, &V1);
     for (int32_t V = V0; V <= V1; V++) {
         const float *src = g->z + (size_t)V * (size_t)g->w + (size_t)ilo;
+        if (V + 8 <= V1) /* 8 rows ahead: each row is a page of its own (the rows' stride) */
+            __builtin_prefetch(src + 8 * (size_t)g->w);
         for (int32_t k = 0; k < n; k++)
             sw->panel[(size_t)k * nv + (size_t)(V - c->vlo)] = src[c->ui > 0 ? k : n - 1 - k];
     }
@@ -628,13 +665,18 @@ static void mark_hole(sweep *sw, double ua, double ub, double va, double vb)
 /* The column pass over column U's rows V0..V1 (m increasing with V): kcol[V] the piece of
  * F holding m_V (as find), fmin[V] F's minimum over [m_V, m_V+1] (at its ends and the
  * breaks between: F is linear in between), one walk along F instead of a search per
- * target and per edge. Called after load_next(U), before column U's targets and edges. */
+ * target and per edge. Called after load_next(U), before column U's targets and edges.
+ * Also flo[V], the lower bound target() starts from (the piece's value less its slack,
+ * -inf when a hole is nearer than its edge: hole_u is not changed before the targets),
+ * so that sweep_cone decides the hidden ones without calling it: Blanca Peak 1452.6 ->
+ * 1423.8 M instructions, the valley sample 596 -> 496 M, picos 145.4 -> 136.5 M. */
 static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
 {
     const pvec *F = &sw->F;
     const double *mc = sw->mcol[1] - sw->c.vlo;
     int *kc = sw->kcol - sw->c.vlo;
-    double *fm = sw->fmin - sw->c.vlo, *fx = sw->fmax - sw->c.vlo;
+    double *fm = sw->fmin - sw->c.vlo, *fx = sw->fmax - sw->c.vlo, *fl = sw->flo - sw->c.vlo;
+    const double *hu = sw->holes ? sw->hole_u : NULL;
     int k = 0;
     sw->pass_ok = U - sw->c.eu >= VS_PASS_U && U - sw->c.eu < 0.5 / VS_NARROW;
     if (!sw->pass_ok)
@@ -646,6 +688,9 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     for (int32_t V = V0; V < V1; V++) {
         const piece *p = F->p;
         double m1 = mc[V + 1], lo = pval(&p[k], mc[V]), hi = lo, e;
+        fl[V] = lo - p[k].slack;
+        if (hu && !(p[k].umax < hu[bin_of(mc[V])])) /* a hole nearer: no lower bound (target()) */
+            fl[V] = -INFINITY;
         if (k > 0 && p[k].m == mc[V]) { /* on a break: the piece ending there holds m_V too */
             lo = dmin(lo, pval(&p[k - 1], mc[V]));
             hi = dmax(hi, pval(&p[k - 1], mc[V]));
@@ -661,6 +706,9 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
         fm[V] = dmin(lo, e);
         fx[V] = dmax(hi, e);
     }
+    fl[V1] = pval(&F->p[k], mc[V1]) - F->p[k].slack;
+    if (hu && !(F->p[k].umax < hu[bin_of(mc[V1])]))
+        fl[V1] = -INFINITY;
 }
 
 /* Whether an edge of the strip between columns U-1 and U, from (m_a, q_a) on column U
@@ -754,6 +802,83 @@ static inline int block_under(const strip_cols *x, const double *mp, const doubl
     return mc[kl] <= mlo && mc[kh] >= mhi && top <= low && !isnan(sum);
 }
 
+#ifdef TD_VSWEEP_DEBUG /* block_facing's spans against strip_span's */
+static void check_span(const strip_cols *x, int32_t Va, double mb, int32_t k, int two)
+{
+    int32_t k2;
+    int two2;
+    if (!strip_span(x, Va, mb, &k2, &two2) || k2 != k || two2 != two) {
+        fprintf(stderr, "block_facing: span of Va %d mb %.17g: %d %d, strip_span %d %d\n", Va, mb, k, two, k2, two2);
+        abort();
+    }
+}
+#define VS_SPAN(x, Va, mb, k, two) check_span(x, Va, mb, k, two)
+#else
+#define VS_SPAN(x, Va, mb, k, two) ((void)0)
+#endif
+
+/* under_strip's answer with every test evaluated (no branch: block_facing's edges, where
+ * the bilinear cell's diagonal, main or not, is a coin toss for the branch predictor);
+ * reads interval k + 1 (a row of the column's, so within the arrays) even without `two`. */
+static inline int under_nb(const strip_cols *x, int32_t k, int two, int32_t Va, double mb, double qb)
+{
+    const double *mc = x->mc, *qc = x->qc, *lc = x->lc, *cs = x->cs;
+    double ma = mc[Va], qa = qc[Va], top = dmax(qa, qb);
+    int32_t kb = two ? (mb < ma ? k : k + 1) : k, vx = two ? k + 1 : Va;
+    int lcu = (top <= lc[k]) & ((!two) | (top <= lc[k + 1]));
+    int poly = qb <= qc[vx] + cs[kb] * (mb - mc[vx]);
+    int vert = (!two) | ((((qa - qc[k + 1]) * (mb - mc[k + 1]) - (qb - qc[k + 1]) * (ma - mc[k + 1])) <= 0.0) ==
+                       (mb > ma));
+    return lcu | (x->ok[k] & ((!two) | x->ok[k + 1]) & poly & vert);
+}
+
+/* Whether every edge of the strip's cells b .. e-1 (rows b .. e-1, each cell's diagonal)
+ * passes strip_under's test, so that add_strip would leave each out: where the terrain
+ * faces the eye they are under the column's polyline. Without holes only (with them a
+ * block holding a void would need its hole cells marked; tried with blocks of no void
+ * sample: picos 145.4 -> 143.2 M, not kept: no test could tell it from taking blocks with
+ * voids), and on one side of the eye's row, at least two cells inside the cone (|V - ev| <= u - 2): there each
+ * edge's far end lies in a known interval (a sample V > ev of column U-1, at m'_V =
+ * (V - ev) / (u - 1), is between m_V and m_V+1 of column U; V < ev between m_V-1 and m_V),
+ * so strip_span's search is not needed and under_strip is called with the intervals it
+ * would find (checked against it with TD_VSWEEP_DEBUG). The first cell with an edge
+ * above ends the test (1423.8 -> 1421.3 M instructions on trinidad from Blanca Peak
+ * against testing all 16 edges). */
+static inline int block_facing(const strip_cols *x, const double *mp, const double *qp, const double *zp,
+                               const double *zc, int32_t b, int32_t e, double ev, double u, int lin, int bil,
+                               int anti)
+{
+    int all = 1;
+    if (b > ev && e - ev <= u - 2.0 && e + 1 <= x->V1) {
+        for (int32_t V = b; V < e && all; V++) {
+            int diag = 1;
+            if (!lin) {
+                int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
+                VS_SPAN(x, main ? V + 1 : V, main ? mp[V] : mp[V + 1], V, !main);
+                diag = (main & under_nb(x, V, 0, V + 1, mp[V], qp[V])) |
+                       ((!main) & under_nb(x, V, 1, V, mp[V + 1], qp[V + 1]));
+            }
+            VS_SPAN(x, V, mp[V], V, 0);
+            all &= under_nb(x, V, 0, V, mp[V], qp[V]) & diag;
+        }
+    } else if (e < ev && ev - b <= u - 2.0 && b - 1 >= x->V0) {
+        for (int32_t V = b; V < e && all; V++) {
+            int diag = 1;
+            if (!lin) {
+                int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
+                VS_SPAN(x, main ? V + 1 : V, main ? mp[V] : mp[V + 1], main ? V - 1 : V, main);
+                diag = (main & under_nb(x, V - 1, 1, V + 1, mp[V], qp[V])) |
+                       ((!main) & under_nb(x, V, 0, V, mp[V + 1], qp[V + 1]));
+            }
+            VS_SPAN(x, V, mp[V], V - 1, 0);
+            all &= under_nb(x, V - 1, 0, V, mp[V], qp[V]) & diag;
+        }
+    } else {
+        all = 0;
+    }
+    return all;
+}
+
 /* The edges of the strip between columns U-1 and U (rows, diagonals) into G, but those
  * the column pass shows under F once column U is in; marks the strip's holes. A block
  * of VS_BLOCK cells at a time when block_under leaves them all out (none is a hole). */
@@ -763,22 +888,29 @@ static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
     const int32_t o = c->vlo;
     const double *zp = sw->zcol[0], *zc = sw->zcol[1];
     const double *mp = sw->mcol[0] - o, *qp = sw->qcol[0] - o;
-    const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o;
+    const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o, *zpo = zp - o, *zco = zc - o;
     const strip_cols x = {mc, qc, sw->lcol - o, sw->cslope - o, sw->colok - o, V0, V1, sw->pass_ok};
     const int lin = sw->lin, bil = sw->bil, anti = c->anti, holes = sw->holes;
     const int blocks = sw->pass_ok;
+    const int *kc = sw->kcol - o;
     double zl[4], zb[4];
     for (int32_t V = V0, below = cellz(sw, zp, zc, V0 - 1, zb), bend = V0; V <= V1 && !sw->oom; V++) {
         int left;
         if (blocks && V == bend) { /* a new block: left out whole when it is under F */
             bend = V + VS_BLOCK;
-            if (bend <= V1 && block_under(&x, mp, qp, V, bend)) {
+            int under = bend <= V1 && block_under(&x, mp, qp, V, bend);
+            int facing = bend <= V1 && !under && !holes &&
+                         block_facing(&x, mp, qp, zpo, zco, V, bend, c->ev, u, lin, bil, anti);
+            if (under || facing) {
                 sw->blocks++;
+                sw->facing += (uint64_t)facing;
                 V = bend - 1;
                 below = cellz(sw, zp, zc, V, zb);
                 continue;
             }
         }
+        if (blocks) /* add_seg's search of F (under_f) from the piece of m_V (col_pass) */
+            sw->hint_s = kc[V];
         left = cellz(sw, zp, zc, V, zl);
         if (!left && holes && V >= c->vlo && V + 1 <= c->vhi)
             mark_hole(sw, u - 1.0, u, V - c->ev, V + 1 - c->ev);
@@ -836,6 +968,7 @@ static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
     pvec *C = &sw->C;
     piece *cp;
     int n = 1, nd = 0; /* C's count and the ranges', in locals: the stores could alias them */
+    int run = 0;       /* the interval before counted: its piece ends where this one starts */
     sw->ndom = 0;
     if (!pv_reserve(sw, C, 2 * (V1 - V0) + 4))
         return;
@@ -843,8 +976,15 @@ static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
     cp = C->p;
     for (int32_t V = V0; V < V1; V++) {
         double top;
-        if (!ok[V] || dmax(qc[V], qc[V + 1]) <= fm[V])
+        if (!ok[V] || dmax(qc[V], qc[V + 1]) <= fm[V]) {
+            if (run) { /* the run's end: empty from there */
+                cp[n] = empty_piece;
+                cp[n].m = mc[V];
+                n++;
+            }
+            run = 0;
             continue;
+        }
         /* above F's maximum there by far more than rounding: a range for merge */
         top = dmin(qc[V], qc[V + 1]);
         if (top > fx[V] + 1e-9 * (1.0 + fabs(top))) {
@@ -856,12 +996,16 @@ static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
                 nd++;
             }
         }
-        if (cp[n - 1].qr == -INFINITY && cp[n - 1].m >= mc[V]) /* empty, zero width */
+        if (!run && cp[n - 1].m >= mc[V]) /* the first empty piece, of zero width */
             n--;
         cp[n] = (piece){mc[V], mc[V], qc[V], cs[V], 0.0, u};
-        cp[n + 1] = empty_piece;
-        cp[n + 1].m = mc[V + 1];
-        n += 2;
+        n++;
+        run = 1;
+    }
+    if (run) {
+        cp[n] = empty_piece;
+        cp[n].m = mc[V1];
+        n++;
     }
     cp[n] = empty_piece;
     cp[n].m = VS_MDOM;
@@ -963,6 +1107,17 @@ static void eye_cell_bound(sweep *sw, double ga, double gb, double kh, double k,
     }
 }
 
+/* The maximum of v's pieces over the domain (at their ends: each is linear), -inf when
+ * v is empty. A target whose q is above it by eps is above v wherever it is. */
+static double n_max(const pvec *v)
+{
+    double mx = -INFINITY;
+    for (int k = 0; k < v->n; k++)
+        if (v->p[k].qr != -INFINITY)
+            mx = dmax(mx, dmax(pval(&v->p[k], v->p[k].m), pval(&v->p[k], v->p[k + 1].m)));
+    return mx;
+}
+
 /* G and N exchanged: what is added goes to N, the eye's strip's bounds. */
 static void swap_gn(sweep *sw)
 {
@@ -1031,6 +1186,7 @@ static void near_strip(sweep *sw, int32_t U0)
     /* the linear surface's chord under the eye may be above it: then nothing is proved */
     sw->visible_ok = !sw->lin || sw->hidden_ok;
     merge_g(sw);
+    sw->nmax = n_max(&sw->N);
 }
 
 /* ---- the targets ------------------------------------------------------------------ */
@@ -1152,6 +1308,7 @@ typedef struct tgt_cols {
     int32_t vlo, vhi;
     int pass, hidden_ok, visible_ok, bil, lin;
     int nn, hint_n;       /* N's pieces, the search's hint */
+    double nmax;          /* N's maximum */
 } tgt_cols;
 
 /* Column U's context for target(). */
@@ -1166,6 +1323,7 @@ static void tgt_cols_init(sweep *sw, int32_t U, tgt_cols *t)
     t->Fp = sw->F.p;
     t->Np = sw->N.p;
     t->nn = sw->N.n;
+    t->nmax = sw->nmax;
     t->hint_n = 0;
     t->hole_u = sw->holes ? sw->hole_u : NULL;
     t->vis = sw->vis + cidx(c, U, 0);
@@ -1217,7 +1375,9 @@ static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
     eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
     if (q < lo - eps && t->hidden_ok) /* proved hidden already: the rest only raises lo */
         goto decide;
-    {
+    /* N counts only where it may reach q: above its maximum (with eps to spare for the
+     * rounding of a piece's value between its ends), hi decides alone */
+    if (q <= t->nmax + 2.0 * eps) {
         int kn = find_in(t->Np, t->nn, m, &t->hint_n);
         hi = dmax(hi, pval(&t->Np[kn], m));
         if (kn > 0 && t->Np[kn].m == m) /* on a break: the piece ending here too */
@@ -1255,14 +1415,22 @@ decide:
     }
 }
 
+/* Whether a sample dv rows from the eye's is in the cone at distance u (strict: north and
+ * south, whose diagonals belong to east and west). */
+static inline int in_cone(double dv, double u, int strict)
+{
+    dv = fabs(dv);
+    return strict ? dv < u : dv <= u;
+}
+
 /* Whether sample (U, V) belongs to this cone and is within max_distance. */
 static int owned(const sweep *sw, int32_t U, int32_t V, double u)
 {
     const cone *c = &sw->c;
     const td_grid *g = c->g;
-    double dv = fabs(V - c->ev), dx, dy;
+    double dx, dy;
     int32_t i, j;
-    if (!(c->strict ? dv < u : dv <= u))
+    if (!in_cone(V - c->ev, u, c->strict))
         return 0;
     if (sw->job->maxd2 == INFINITY)
         return 1;
@@ -1277,7 +1445,9 @@ static void sweep_cone(sweep *sw)
 {
     const cone *c = &sw->c;
     const double ev = c->ev;
-    const int strict = c->strict, nomax = sw->job->maxd2 == INFINITY;
+    const int strict = c->strict, nomax = sw->job->maxd2 == INFINITY, holes = sw->holes;
+    const double *fl = sw->flo - c->vlo;
+    int quick;
     tgt_cols t;
     int32_t U0 = (int32_t)floor(c->eu) + 1; /* the first column east of the eye */
     pv_clear(&sw->F);
@@ -1285,6 +1455,7 @@ static void sweep_cone(sweep *sw)
         sw->hole_u[b] = INFINITY;
     if (U0 <= c->uhi) {
         near_strip(sw, U0);
+        sw->quick = sw->hidden_ok && !(sw->job->target_height > 0.0);
         load_next(sw, U0 - 2);
         load_next(sw, U0 - 1);
     }
@@ -1298,11 +1469,23 @@ static void sweep_cone(sweep *sw)
         col_pass(sw, U, V0, V1);
         sw->hint_q = 0;
         tgt_cols_init(sw, U, &t);
+        quick = sw->quick && sw->pass_ok;
+        /* the cone's rows (|V - ev| within u: an interval, found from its ends), then per
+         * row owned()'s distance test and the void test when there are any */
+        while (V0 <= V1 && !in_cone(V0 - ev, u, strict))
+            V0++;
+        while (V1 >= V0 && !in_cone(V1 - ev, u, strict))
+            V1--;
         for (int32_t V = V0; V <= V1; V++) {
-            double dv = fabs(V - ev);
-            /* owned() (its cone's test inline: the loop's locals are not reloaded) */
-            if (!(strict ? dv < u : dv <= u) || (!nomax && !owned(sw, U, V, u)) || isnan(t.zc[V]))
+            if ((!nomax && !owned(sw, U, V, u)) || (holes && isnan(t.zc[V])))
                 continue;
+            /* target()'s first test without its call: hidden under F's piece's lo (on a
+             * break target() takes the higher of two: this lo is at most its) */
+            if (quick && t.qc[V] < fl[V] - (VS_EPS_ABS + VS_EPS_REL * fabs(t.qc[V]))) {
+                t.vis[V * t.vstride] = 0;
+                sw->swept++;
+                continue;
+            }
             if (U <= U0 + 1) /* the first two columns: cast */
                 cast(sw, U, V);
             else
@@ -1331,13 +1514,13 @@ static void *cone_worker(void *arg)
             break;
         sw = &t->sw[k];
         size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
-        double *zb = malloc(15 * nv * sizeof *zb);
+        double *zb = malloc(16 * nv * sizeof *zb);
         int *kb = malloc(nv * sizeof *kb);
         uint8_t *ob = calloc(nv, 1);
         sw->panel = sw->c.vi == 0 ? malloc((size_t)VS_PANEL * nv * sizeof *sw->panel) : NULL;
         if (zb && kb && ob && (sw->c.vi != 0 || sw->panel) && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
             pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
-            for (size_t q = 0; q < 15 * nv; q++)
+            for (size_t q = 0; q < 16 * nv; q++)
                 zb[q] = NAN;
             for (int b = 0; b < 3; b++) {
                 sw->zcol[b] = zb + (size_t)b * nv;
@@ -1349,6 +1532,7 @@ static void *cone_worker(void *arg)
             sw->cslope = zb + 11 * nv;
             sw->fmax = zb + 12 * nv;
             sw->dom = zb + 13 * nv; /* 2 nv: at most a range an interval */
+            sw->flo = zb + 15 * nv;
             sw->kcol = kb;
             sw->colok = ob;
             sweep_cone(sw);
@@ -1409,6 +1593,7 @@ td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st,
         sweep *sw = &t->sw[k];
         st->swept += sw->swept;
         st->blocks += sw->blocks;
+        st->facing += sw->facing;
         st->rays += sw->rays;
         st->steps += sw->steps;
         oom |= sw->oom;
