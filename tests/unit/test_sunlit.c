@@ -33,6 +33,30 @@ static void sun_of(double az_deg, double el_deg, double sun[3])
     sun[2] = sin(e);
 }
 
+/* Procedural terrain w x h at `spacing` metres in tiles of 2^tile_log2 cells. */
+static td_grid *terrain(int32_t w, int32_t h, double spacing, int tile_log2)
+{
+    td_terrain_params p;
+    td_grid *g = NULL;
+    td_terrain_params_default(&p);
+    p.width = w;
+    p.height = h;
+    p.spacing = spacing;
+    assert_int_equal(td_terrain_generate(&p, tile_log2, &g, NULL), TD_OK);
+    return g;
+}
+
+/* Every structure for g, on `threads` threads. */
+static td_accel *accel(const td_grid *g, int threads)
+{
+    td_accel_opts o;
+    td_accel *a = NULL;
+    td_accel_opts_default(&o);
+    o.threads = threads;
+    assert_int_equal(td_accel_build(g, &o, &a, NULL, NULL), TD_OK);
+    return a;
+}
+
 /* The bound's claims for one sun over grid g (with per-tile acceleration tiles, or NULL);
  * fewer: and that it saves steps. */
 static void check_sun(const td_grid *g, const td_tile_accel *tiles, const double sun[3], uint64_t *seed,
@@ -83,24 +107,14 @@ static void test_sunlit_bounds(void **state)
 {
     static const double suns[][2] = {{30, 35}, {135, 8}, {220, 60}, {300, 2}, {0, 20}, {90, 10},
                                      {180, 45}, {270, 3}, {10, 89}, {355.5, 1}};
-    td_terrain_params p;
-    td_grid *g = NULL;
-    td_accel *a = NULL;
-    td_accel_opts o;
     uint64_t seed = 12345;
     (void)state;
-    td_terrain_params_default(&p);
-    p.width = 300;
-    p.height = 220;
-    p.spacing = 30.0;
-    assert_int_equal(td_terrain_generate(&p, 6, &g, NULL), TD_OK);
+    td_grid *g = terrain(300, 220, 30.0, 6);
     g->sy = 45.0; /* unequal spacing: the dominant axis is not the larger component */
     for (int k = 0; k < 1200; k++) /* voids */
         g->z[(size_t)(rnd(&seed) * (double)g->w * (double)g->h)] = NAN;
     assert_int_equal(td_grid_finish(g, NULL), TD_OK);
-    td_accel_opts_default(&o);
-    o.threads = 2;
-    assert_int_equal(td_accel_build(g, &o, &a, NULL, NULL), TD_OK);
+    td_accel *a = accel(g, 2);
     /* the block maxima from the max-mipmaps, from the samples (no acceleration), and from
        both (every third tile without its max-mipmap) */
     size_t nt = (size_t)g->tiles_x * (size_t)g->tiles_y;
@@ -124,20 +138,10 @@ static void test_sunlit_bounds(void **state)
  * this small and this finely tiled the walks are short either way). */
 static void test_sunlit_small_tiles(void **state)
 {
-    td_terrain_params p;
-    td_grid *g = NULL;
-    td_accel *a = NULL;
-    td_accel_opts o;
     uint64_t seed = 99;
     (void)state;
-    td_terrain_params_default(&p);
-    p.width = 61;
-    p.height = 47;
-    p.spacing = 25.0;
-    assert_int_equal(td_terrain_generate(&p, 1, &g, NULL), TD_OK);
-    td_accel_opts_default(&o);
-    o.threads = 1;
-    assert_int_equal(td_accel_build(g, &o, &a, NULL, NULL), TD_OK);
+    td_grid *g = terrain(61, 47, 25.0, 1);
+    td_accel *a = accel(g, 1);
     for (int k = 0; k < 4; k++) {
         double sun[3];
         sun_of(20.0 + 90.0 * k, 5.0 + 10.0 * k, sun);
