@@ -611,8 +611,10 @@ static void cam_write_table(FILE *f, const bench_ctx *b)
 {
     fprintf(f, "### Camera views: rays per second against Embree, one thread\n\n"
                "M rays/s; *on*: every coherence device on (camera rays: the horizon and beam bounds; shadow rays: the "
-               "occlusion query and the sun bound); *no sun*: the sun bound off (`TD_RENDER_OFF_SUNLIT`), the "
-               "occlusion query kept; *off*: every device off; x Embree = terrad / Embree on the same rays.\n\n"
+               "occlusion query, the sun bound and the packets of four that walk the rays' first cells and end them "
+               "against the bound); *no sun*: the sun bound off (`TD_RENDER_OFF_SUNLIT`, and with it the packets), "
+               "the occlusion query kept; *off*: every device off; x Embree = terrad / Embree on the same rays; "
+               "steps per shadow ray count the cells a packet walked, then the one-ray walk's steps.\n\n"
                "| dataset | view | surface | camera M rays/s, on | off | Embree rtcIntersect16 | x Embree, on | "
                "off | steps per camera ray, on | off | shadow rays | shadow M rays/s, on | no sun | off | Embree "
                "rtcOccluded16 | x Embree, on | no sun | off | steps per shadow ray, on | no sun | off |\n"
