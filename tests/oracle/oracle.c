@@ -534,8 +534,54 @@ static const cam_view pano_views[] = {
     {"panorama 140 low", 0.3, 0.6, -1, 250, -4, 0, 140, 80, 30},
 };
 
+/* One batch of par_shadows: at[0 .. np) index sh, o holds their origins, d their direction. */
+static uint64_t par_batch(ctx *c, td_surface sf, const td_ray *sh, const double *d, const double (*o)[3],
+                          const int *at, int np, const td_sunlit *lit)
+{
+    uint8_t occ[64];
+    uint32_t steps = 0;
+    uint64_t errors = 0;
+    td_occluded_par(&c->view, TD_METHOD_AUTO, sf, d, np, o, lit, occ, &steps);
+    for (int q = 0; q < np; q++) {
+        td_hit h;
+        td_trace(&c->view, TD_METHOD_AUTO, sf, &sh[at[q]], &h);
+        if (occ[q] != (h.t < INFINITY) && errors++ < MAX_PRINT) /* got 0: occluded, inf: lit */
+            print_ray("shadow ray in a packet (td_occluded_par, got) vs td_trace (want)", TD_METHOD_AUTO, sf,
+                      &sh[at[q]], occ[q] ? 0.0 : INFINITY, h.t, NULL);
+    }
+    return errors;
+}
+
+/* The render's own query for its shadow rays: td_occluded_par with the sun bound (packets
+ * of four walking their first cells), in batches of 64 along the sun as the render sends
+ * them, answers as td_trace for each of the n slots of sh that holds a straight ray. */
+static uint64_t par_shadows(ctx *c, td_surface sf, const td_ray *sh, int n, const td_sunlit *lit)
+{
+    double o[64][3];
+    int at[64], np = 0;
+    const double *d = NULL;
+    uint64_t errors = 0;
+    for (int k = 0; k < n; k++) {
+        if (!(sh[k].tmax >= 0.0))
+            continue;
+        d = d ? d : sh[k].d;
+        if (memcmp(sh[k].d, d, sizeof sh[k].d)) /* bent by the curvature: not along the sun */
+            continue;
+        memcpy(o[np], sh[k].o, sizeof o[np]);
+        at[np++] = k;
+        if (np == 64) {
+            errors += par_batch(c, sf, sh, d, (const double(*)[3])o, at, np, lit);
+            np = 0;
+        }
+    }
+    if (np > 0)
+        errors += par_batch(c, sf, sh, d, (const double(*)[3])o, at, np, lit);
+    return errors;
+}
+
 /* The shadow rays of a colour render of the view (png, shadows on): td_occluded with the
- * render's sun bound answers as td_trace, whose hit is judged against the reference. */
+ * render's sun bound answers as td_trace, whose hit is judged against the reference, and
+ * so does the render's batched query (par_shadows). */
 static uint64_t camera_shadows(ctx *c, td_scene *sc, td_surface sf, td_ray *sh, uint64_t *count)
 {
     td_render_opts o;
@@ -571,6 +617,7 @@ static uint64_t camera_shadows(ctx *c, td_scene *sc, td_surface sf, td_ray *sh, 
                           have ? &ref : NULL);
         }
     }
+    errors += errors ? 0 : par_shadows(c, sf, sh, sc->image.width * sc->image.height, lit);
     td_sunlit_free(lit);
     td_render_result_free(&res);
     return errors;
