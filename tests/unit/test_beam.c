@@ -19,6 +19,7 @@
 #include "beam.h"
 #include "terrain.h"
 #include "trace.h"
+#include "terrain_fixture.h"
 
 static double rnd(uint64_t *s)
 {
@@ -75,19 +76,6 @@ static void check_beam(const td_view *v, const double o[3], const double d[4][3]
             assert_memory_equal(&h.t, &hf.t, sizeof h.t);
         }
     }
-}
-
-/* Procedural terrain of w x h samples, spacing s, tiles of 2^tl cells. */
-static td_grid *terrain(int32_t w, int32_t h, double s, int tl)
-{
-    td_terrain_params p;
-    td_grid *g = NULL;
-    td_terrain_params_default(&p);
-    p.width = w;
-    p.height = h;
-    p.spacing = s;
-    assert_int_equal(td_terrain_generate(&p, tl, &g, NULL), TD_OK);
-    return g;
 }
 
 static void test_beam_bounds(void **state)

@@ -18,6 +18,7 @@
 #include "sunlit.h"
 #include "terrain.h"
 #include "trace.h"
+#include "terrain_fixture.h"
 
 static double rnd(uint64_t *s)
 {
@@ -31,19 +32,6 @@ static void sun_of(double az_deg, double el_deg, double sun[3])
     sun[0] = sin(a) * cos(e);
     sun[1] = cos(a) * cos(e);
     sun[2] = sin(e);
-}
-
-/* Procedural terrain w x h at `spacing` metres in tiles of 2^tile_log2 cells. */
-static td_grid *terrain(int32_t w, int32_t h, double spacing, int tile_log2)
-{
-    td_terrain_params p;
-    td_grid *g = NULL;
-    td_terrain_params_default(&p);
-    p.width = w;
-    p.height = h;
-    p.spacing = spacing;
-    assert_int_equal(td_terrain_generate(&p, tile_log2, &g, NULL), TD_OK);
-    return g;
 }
 
 /* Every structure for g, on `threads` threads. */
