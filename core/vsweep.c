@@ -135,6 +135,7 @@ typedef struct sweep {
     double *fmin, *lcol, *cslope;
     double *fmax; /* F's maximum over each interval [m_V, m_V+1] (col_pass) */
     double *flo;  /* F's piece kcol[V] at m_V less its slack, -inf behind a hole: the lo target() starts from (col_pass) */
+    double *fhi;  /* F at m_V (on a break the higher of the two pieces): the hi target() starts from (col_pass) */
     int quick;    /* targets under flo decided in sweep_cone's loop (hidden_ok, no target height) */
     double *dom;  /* ndom ranges [dom[2i], dom[2i+1]) of m where column U is above F (col_pieces) */
     int ndom;
@@ -676,6 +677,7 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     const double *mc = sw->mcol[1] - sw->c.vlo;
     int *kc = sw->kcol - sw->c.vlo;
     double *fm = sw->fmin - sw->c.vlo, *fx = sw->fmax - sw->c.vlo, *fl = sw->flo - sw->c.vlo;
+    double *fh = sw->fhi - sw->c.vlo;
     const double *hu = sw->holes ? sw->hole_u : NULL;
     int k = 0;
     sw->pass_ok = U - sw->c.eu >= VS_PASS_U && U - sw->c.eu < 0.5 / VS_NARROW;
@@ -695,6 +697,7 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
             lo = dmin(lo, pval(&p[k - 1], mc[V]));
             hi = dmax(hi, pval(&p[k - 1], mc[V]));
         }
+        fh[V] = hi;
         while (k + 1 < F->n && p[k + 1].m <= m1) {
             double x = p[k + 1].m, y0 = pval(&p[k], x), y1 = pval(&p[k + 1], x);
             lo = dmin(lo, dmin(y0, y1));
@@ -707,6 +710,9 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
         fx[V] = dmax(hi, e);
     }
     fl[V1] = pval(&F->p[k], mc[V1]) - F->p[k].slack;
+    fh[V1] = pval(&F->p[k], mc[V1]);
+    if (k > 0 && F->p[k].m == mc[V1])
+        fh[V1] = dmax(fh[V1], pval(&F->p[k - 1], mc[V1]));
     if (hu && !(F->p[k].umax < hu[bin_of(mc[V1])]))
         fl[V1] = -INFINITY;
 }
@@ -1013,6 +1019,33 @@ static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
     sw->ndom = nd;
 }
 
+/* F = max(F, C) as merge_into with the column's dom ranges, F's pieces outside
+ * [-(u + 3) / u, (u + 3) / u] (by 1e-9) left out: no column after U reads F there (its
+ * rows V, |V - ev| <= u' + 2, and the strip's ends on column U'-1 have
+ * |m| <= (u' + 2) / (u' - 1) <= (u + 3) / u for u' >= u + 1), so the one piece reaching
+ * across each bound stands for F beyond it. Without this F kept the edges beyond the
+ * cone of every column (|m| in [1, 1 + 3/u]), about two a column, which every merge
+ * copied and every column pass walked past. */
+static void merge_f(sweep *sw, double u)
+{
+    pvec *F = &sw->F;
+    const pvec *C = &sw->C;
+    double lim = (u + 3.0) / u + 1e-9;
+    int a0, b0;
+    if ((C->n > 1 || C->p[0].qr != -INFINITY) && pv_reserve(sw, &sw->T, 2 * (F->n + C->n) + 1)) {
+        pvec t;
+        a0 = first_from(F->p, F->n, 0, -lim); /* the first piece starting at or past -lim */
+        a0 = a0 > 0 ? a0 - 1 : 0;             /* the one holding -lim */
+        b0 = first_from(F->p, F->n, a0 + 1, lim);
+        F->p[a0].m = -VS_MDOM; /* F's array is merge's input only: T gets the output */
+        F->p[b0].m = VS_MDOM;  /* the sentinel (b0 = F->n: it was) */
+        merge(&F->p[a0], b0 - a0, C->p, C->n, &sw->T, sw->dom, sw->ndom);
+        t = *F;
+        *F = sw->T;
+        sw->T = t;
+    }
+}
+
 /* Column U's edges and with `strip` the strip's into F, with the column pass: the
  * column's bounds per interval (colok, lcol, cslope) first, so the strip's edges are
  * tested against F with the column in before it is; then one merge of F with the
@@ -1046,7 +1079,7 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
     col_pieces(sw, V0, V1, u);
     if (!sw->oom) {
         merge_into(sw, &sw->C, &sw->G, NULL, 0);
-        merge_into(sw, &sw->F, &sw->C, sw->dom, sw->ndom);
+        merge_f(sw, u);
     }
     sw->hint_q = sw->hint_s = 0;
 }
@@ -1355,6 +1388,21 @@ static inline double diag_bound(const tgt_cols *t, int32_t V, double m)
     return isnan(b) ? INFINITY : b;
 }
 
+/* target()'s visible decision when it needs neither N nor the bilinear band: q above F
+ * at m_V (fhi), above N's maximum (so N is not looked at) and above the last cell's
+ * diagonal (its ends' bound, else last_cell's exact crossing), each by eps as target()
+ * decides. 0: target() decides. Columns with the column pass, no target height. */
+static inline int quick_visible(const sweep *sw, const tgt_cols *t, int32_t V)
+{
+    double q = t->qc[V], m = t->mc[V], eps = VS_EPS_ABS + VS_EPS_REL * fabs(q), hi = sw->fhi[V - t->vlo], lo;
+    int vis = q > hi + eps && q > t->nmax + 2.0 * eps;
+    if (vis && !(q > diag_bound(t, V, m) + eps)) {
+        last_cell(sw, V, t->u, m, INFINITY, &hi, &lo);
+        vis = q > hi + eps;
+    }
+    return vis;
+}
+
 /* Decides target (U, V) of column U (not a void) against F, or casts it. */
 static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
 {
@@ -1447,7 +1495,7 @@ static void sweep_cone(sweep *sw)
     const double ev = c->ev;
     const int strict = c->strict, nomax = sw->job->maxd2 == INFINITY, holes = sw->holes;
     const double *fl = sw->flo - c->vlo;
-    int quick;
+    int quick, quickv;
     tgt_cols t;
     int32_t U0 = (int32_t)floor(c->eu) + 1; /* the first column east of the eye */
     pv_clear(&sw->F);
@@ -1470,6 +1518,7 @@ static void sweep_cone(sweep *sw)
         sw->hint_q = 0;
         tgt_cols_init(sw, U, &t);
         quick = sw->quick && sw->pass_ok;
+        quickv = sw->visible_ok && !(sw->job->target_height > 0.0) && sw->pass_ok && U > U0 + 1;
         /* the cone's rows (|V - ev| within u: an interval, found from its ends), then per
          * row owned()'s distance test and the void test when there are any */
         while (V0 <= V1 && !in_cone(V0 - ev, u, strict))
@@ -1483,6 +1532,11 @@ static void sweep_cone(sweep *sw)
              * break target() takes the higher of two: this lo is at most its) */
             if (quick && t.qc[V] < fl[V] - (VS_EPS_ABS + VS_EPS_REL * fabs(t.qc[V]))) {
                 t.vis[V * t.vstride] = 0;
+                sw->swept++;
+                continue;
+            }
+            if (quickv && quick_visible(sw, &t, V)) {
+                t.vis[V * t.vstride] = 1;
                 sw->swept++;
                 continue;
             }
@@ -1514,13 +1568,13 @@ static void *cone_worker(void *arg)
             break;
         sw = &t->sw[k];
         size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
-        double *zb = malloc(16 * nv * sizeof *zb);
+        double *zb = malloc(17 * nv * sizeof *zb);
         int *kb = malloc(nv * sizeof *kb);
         uint8_t *ob = calloc(nv, 1);
         sw->panel = sw->c.vi == 0 ? malloc((size_t)VS_PANEL * nv * sizeof *sw->panel) : NULL;
         if (zb && kb && ob && (sw->c.vi != 0 || sw->panel) && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
             pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
-            for (size_t q = 0; q < 16 * nv; q++)
+            for (size_t q = 0; q < 17 * nv; q++)
                 zb[q] = NAN;
             for (int b = 0; b < 3; b++) {
                 sw->zcol[b] = zb + (size_t)b * nv;
@@ -1533,6 +1587,7 @@ static void *cone_worker(void *arg)
             sw->fmax = zb + 12 * nv;
             sw->dom = zb + 13 * nv; /* 2 nv: at most a range an interval */
             sw->flo = zb + 15 * nv;
+            sw->fhi = zb + 16 * nv;
             sw->kcol = kb;
             sw->colok = ob;
             sweep_cone(sw);
