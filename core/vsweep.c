@@ -87,6 +87,8 @@
 #define VS_PANEL 16
 /* Cells of a strip tested as one block (add_strip, block_under) */
 #define VS_BLOCK 8
+/* last_real's points stop this far (in cells) short of the target */
+#define VS_LAST_GAP 1e-3
 
 typedef struct piece {
     double m;      /* start; the piece ends where the next one starts */
@@ -838,6 +840,52 @@ static inline int under_nb(const strip_cols *x, int32_t k, int two, int32_t Va, 
     return lcu | (x->ok[k] & ((!two) | x->ok[k + 1]) & poly & vert);
 }
 
+/* under_nb's test under the column's polyline alone (its second term, ok being 1 without
+ * voids): the edge from column sample Va (interval k, and k + 1 with `two`) to (mb, qb),
+ * the same expressions; the interval of the far end (kb) and the vertex on its line (vx)
+ * given, as under_nb computes them. */
+static inline int poly_nb(const strip_cols *x, int32_t k, int two, int32_t Va, int32_t kb, int32_t vx, double mb,
+                          double qb)
+{
+    const double *mc = x->mc, *qc = x->qc, *cs = x->cs;
+    double ma = mc[Va], qa = qc[Va];
+    int poly = qb <= qc[vx] + cs[kb] * (mb - mc[vx]);
+    int vert = (!two) | ((((qa - qc[k + 1]) * (mb - mc[k + 1]) - (qb - qc[k + 1]) * (ma - mc[k + 1])) <= 0.0) ==
+                       (mb > ma));
+    return poly & vert;
+}
+
+/* block_facing's answer where every edge of the block is under the column's polyline:
+ * under_nb's second term alone for each edge, with the intervals block_facing gives it
+ * (spelt out: kb and vx as under_nb derives them there), no bound test, no branch. 1:
+ * block_facing would answer 1 (each under_nb is this term or'ed with another); 0: not
+ * known (block_facing decides). About a third of block_facing's work on facing terrain. */
+static inline int block_poly(const strip_cols *x, const double *mp, const double *qp, const double *zp,
+                             const double *zc, int32_t b, int32_t e, double ev, double u, int lin, int bil, int anti)
+{
+    int all = 0;
+    if (b > ev && e - ev <= u - 2.0 && e + 1 <= x->V1) {
+        all = 1;
+        for (int32_t V = b; V < e; V++) {
+            int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
+            int row = poly_nb(x, V, 0, V, V, V, mp[V], qp[V]);
+            int dm = poly_nb(x, V, 0, V + 1, V, V + 1, mp[V], qp[V]);
+            int dn = poly_nb(x, V, 1, V, V + 1, V + 1, mp[V + 1], qp[V + 1]);
+            all &= row & (lin | (main ? dm : dn));
+        }
+    } else if (e < ev && ev - b <= u - 2.0 && b - 1 >= x->V0) {
+        all = 1;
+        for (int32_t V = b; V < e; V++) {
+            int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
+            int row = poly_nb(x, V - 1, 0, V, V - 1, V, mp[V], qp[V]);
+            int dm = poly_nb(x, V - 1, 1, V + 1, V - 1, V, mp[V], qp[V]);
+            int dn = poly_nb(x, V, 0, V, V, V, mp[V + 1], qp[V + 1]);
+            all &= row & (lin | (main ? dm : dn));
+        }
+    }
+    return all;
+}
+
 /* Whether every edge of the strip's cells b .. e-1 (rows b .. e-1, each cell's diagonal)
  * passes strip_under's test, so that add_strip would leave each out: where the terrain
  * faces the eye they are under the column's polyline. Without holes only (with them a
@@ -906,7 +954,8 @@ static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
             bend = V + VS_BLOCK;
             int under = bend <= V1 && block_under(&x, mp, qp, V, bend);
             int facing = bend <= V1 && !under && !holes &&
-                         block_facing(&x, mp, qp, zpo, zco, V, bend, c->ev, u, lin, bil, anti);
+                         (block_poly(&x, mp, qp, zpo, zco, V, bend, c->ev, u, lin, bil, anti) ||
+                          block_facing(&x, mp, qp, zpo, zco, V, bend, c->ev, u, lin, bil, anti));
             if (under || facing) {
                 sw->blocks++;
                 sw->facing += (uint64_t)facing;
@@ -1280,7 +1329,7 @@ static int starts_clear(const sweep *sw, int32_t U, int32_t V)
  * run through it and the stationary point of q along it (z is quadratic along the ray,
  * so with w the distance q = A / w + B + C w: w = sqrt(A / C)), each evaluated on the
  * patch itself. Any of them is a real point; -inf when the ray crosses no cell there. */
-static double strip_real_max(const sweep *sw, int32_t U, double m)
+static double strip_real_max(const sweep *sw, int32_t U, double m, double amax)
 {
     const cone *c = &sw->c;
     double ez = sw->job->ez, best = -INFINITY, z[4], u0 = U - 1 - c->eu;
@@ -1304,6 +1353,7 @@ static double strip_real_max(const sweep *sw, int32_t U, double m)
         Z1 = (z[1] - z[0]) + (z[2] - z[0]) * m + k * b0;
         Z2 = k * m;
         A = Z2 * u0 * u0 - Z1 * u0 + Z0 - ez;
+        ahi = dmin(ahi, amax);
         cand[0] = alo;
         cand[1] = ahi;
         cand[2] = Z2 < 0.0 && A < 0.0 ? sqrt(A / Z2) - u0 : alo;
@@ -1323,8 +1373,19 @@ static double band_lo(const sweep *sw, const piece *p, double m, double hu)
 {
     double lo = -INFINITY;
     if (p->slack > 0.0 && p->slack < INFINITY && p->umax < hu)
-        lo = strip_real_max(sw, (int32_t)lround(p->umax + sw->c.eu), m);
+        lo = strip_real_max(sw, (int32_t)lround(p->umax + sw->c.eu), m, 1.0);
     return lo;
+}
+
+/* A lower bound of the surface's q on the ray m from real points of the target's own last
+ * strip (cells U-1..U), for a bilinear target its last cell's upper diagonal leaves
+ * undecided (the slope that faces away just before it): strip_real_max there, its points
+ * at least VS_LAST_GAP of a cell short of the target (so the crossing they prove is far
+ * inside the tracer's segment, which stops 2^-30 of it short of the target), when no hole
+ * is nearer than them. */
+static double last_real(const sweep *sw, int32_t U, double u, double m, double hu)
+{
+    return u - VS_LAST_GAP < hu ? strip_real_max(sw, U, m, 1.0 - VS_LAST_GAP) : -INFINITY;
 }
 
 /* What the targets of column U read, loaded once a column into a local (the compiler
@@ -1439,6 +1500,9 @@ static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
     /* in the bilinear slack of its piece: real points of that strip on the ray may prove it hidden */
     if (t->bil && q >= lo - eps && !(q > hi + eps && t->visible_ok))
         lo = dmax(lo, band_lo(sw, &Fp[k], m, hu));
+    /* above everything nearer but not clear of its last cell: real points there */
+    if (t->bil && q >= lo - eps && !(q > hi + eps && t->visible_ok))
+        lo = dmax(lo, last_real(sw, U, u, m, hu));
 decide:
 #ifdef TD_VSWEEP_DEBUG /* every proof checked against the cast */
     if (((q > hi + eps && t->visible_ok) || (q < lo - eps && (t->hidden_ok || starts_clear(sw, U, V))))) {
