@@ -1288,7 +1288,7 @@ static void cast(sweep *sw, int32_t U, int32_t V)
 
 /* The diagonal the segment to (U, V) crosses in its last strip, if it does not end at
  * (U, V) (column U buffered): raises *hi and *lo. */
-static void last_cell(const sweep *sw, int32_t V, double u, double m, double hu, double *hi, double *lo)
+static inline void last_cell(const sweep *sw, int32_t V, double u, double m, double hu, double *hi, double *lo)
 {
     double z[4], slack, a = fabs(m), s = 0.0, h = NAN, q;
     /* the cell's diagonal first (its twist): the divisions only for the one that counts */
