@@ -801,11 +801,17 @@ static inline int block_under(const strip_cols *x, const double *mp, const doubl
     while (kh < x->V1 && mc[kh] < mhi)
         kh++;
     double sum = 0.0; /* NaN when a sample is void: its hole cells are marked one by one */
-    for (int32_t V = b; V <= e; V++) {
-        top = dmax(top, dmax(qp[V], qc[V]));
-        sum += qp[V] + qc[V];
+    /* e = b + VS_BLOCK (add_strip): loops of a fixed count, then the intervals before b
+     * and from e the range reaches (one or none) */
+    for (int32_t i = 0; i <= VS_BLOCK; i++) {
+        top = dmax(top, dmax(qp[b + i], qc[b + i]));
+        sum += qp[b + i] + qc[b + i];
     }
-    for (int32_t k = kl; k < kh; k++)
+    for (int32_t i = 0; i < VS_BLOCK; i++)
+        low = dmin(low, lc[b + i]);
+    for (int32_t k = kl; k < b; k++)
+        low = dmin(low, lc[k]);
+    for (int32_t k = e; k < kh; k++)
         low = dmin(low, lc[k]);
     return mc[kl] <= mlo && mc[kh] >= mhi && top <= low && !isnan(sum);
 }
@@ -871,7 +877,7 @@ static inline int block_poly(const strip_cols *x, const double *mp, const double
             int row = poly_nb(x, V, 0, V, V, V, mp[V], qp[V]);
             int dm = poly_nb(x, V, 0, V + 1, V, V + 1, mp[V], qp[V]);
             int dn = poly_nb(x, V, 1, V, V + 1, V + 1, mp[V + 1], qp[V + 1]);
-            all &= row & (lin | (main ? dm : dn));
+            all &= row & (lin | (main & dm) | ((!main) & dn));
         }
     } else if (e < ev && ev - b <= u - 2.0 && b - 1 >= x->V0) {
         all = 1;
@@ -880,7 +886,7 @@ static inline int block_poly(const strip_cols *x, const double *mp, const double
             int row = poly_nb(x, V - 1, 0, V, V - 1, V, mp[V], qp[V]);
             int dm = poly_nb(x, V - 1, 1, V + 1, V - 1, V, mp[V], qp[V]);
             int dn = poly_nb(x, V, 0, V, V, V, mp[V + 1], qp[V + 1]);
-            all &= row & (lin | (main ? dm : dn));
+            all &= row & (lin | (main & dm) | ((!main) & dn));
         }
     }
     return all;
