@@ -633,27 +633,34 @@ static void camera_samples(const ctx *c, worker *w, const blk *b)
 {
     const int n = c->n, nn = n * n;
     const int32_t ns_row = b->bw * n; /* samples on a sample row of the block */
-    double px[TD_BLOCK * TD_SAMPLES_MAX], d[3][TD_BLOCK * TD_SAMPLES_MAX];
+    double px[TD_BLOCK * TD_SAMPLES_MAX], ax[TD_BLOCK * TD_SAMPLES_MAX], d[3][TD_BLOCK * TD_SAMPLES_MAX];
     const int persp = c->cam.projection == TD_PROJ_PERSPECTIVE;
     td_ray r = {.tmin = 0.0, .tmax = INFINITY};
+    double sub[TD_SAMPLES_MAX]; /* (s + 0.5) / n: x + sub[s] - 0.5 is the sample's x, the
+                                   same bits as computing it whole, without a division */
+    for (int s = 0; s < n; s++)
+        sub[s] = (s + 0.5) / n;
+    for (int32_t x = b->x0, k = 0; x < b->x1; x++) /* the sample columns, the same each row */
+        for (int sc = 0; sc < n; sc++)
+            px[k++] = x + sub[sc] - 0.5;
+    if (persp)
+        td_camera_abscissas(&c->cam, px, ns_row, ax);
     memcpy(r.o, c->cam.o, sizeof r.o);
     for (int32_t y = b->y0; y < b->y1; y++) {
         for (int sr = 0; sr < n; sr++) {
-            double py = y + (sr + 0.5) / n - 0.5;
-            for (int32_t x = b->x0, k = 0; x < b->x1; x++)
-                for (int sc = 0; sc < n; sc++)
-                    px[k++] = x + (sc + 0.5) / n - 0.5;
+            double py = y + sub[sr] - 0.5;
             if (persp)
-                td_camera_dirs(&c->cam, py, px, ns_row, d[0], d[1], d[2]);
+                td_camera_dirs(&c->cam, py, ax, ns_row, d[0], d[1], d[2]);
             smp *row = &w->s[(y - b->y0) * b->bw * nn + sr * n];
             for (int32_t k = 0, pix = 0; pix < b->bw; pix++) {
+                smp *sm = &row[pix * nn];
                 for (int sc = 0; sc < n; sc++, k++) {
                     if (persp) {
                         r.d[0] = d[0][k], r.d[1] = d[1][k], r.d[2] = d[2][k];
                     } else {
                         td_camera_ray(&c->cam, px[k], py, &r);
                     }
-                    sample_init(c, &r, &row[pix * nn + sc]);
+                    sample_init(c, &r, &sm[sc]);
                 }
             }
         }
