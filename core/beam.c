@@ -30,20 +30,28 @@ static double beam_box_max(const td_view *v, const double o[3], const double (*d
 double td_beam_floor(const td_view *v, const double o[3], const double (*d)[3], int nd, uint32_t *steps)
 {
     const td_grid *g = v->grid;
-    double zhi = INFINITY;
+    double zhi = INFINITY, run = 0.0; /* the corners' largest horizontal run a metre of descent */
     int ok = nd > 0 && !isnan(g->zmax) && isfinite(o[0]) && isfinite(o[1]) && isfinite(o[2]);
-    for (int k = 0; k < nd; k++)
+    for (int k = 0; k < nd; k++) {
         ok = ok && d[k][2] < 0.0 && isfinite(d[k][0]) && isfinite(d[k][1]);
+        run = ok ? fmax(run, hypot(d[k][0], d[k][1]) / -d[k][2]) : run;
+    }
     if (ok) {
         const double zeps = 1e-6 * (1.0 + fmax(fabs((double)g->zmin), fabs((double)g->zmax)));
         const double zlo = (double)g->zmin - zeps;
+        /* a band's box reaches TD_BEAM_BAND_CELLS cells past the beam's footprint */
+        double band = TD_BEAM_BAND_CELLS * fmin(g->sx, g->sy) / fmax(run, 1e-300);
         zhi = fmin(o[2], (double)g->zmax + zeps);
         for (int round = 0; round < TD_BEAM_ROUNDS && zhi > zlo; round++) {
-            double m = beam_box_max(v, o, d, nd, zlo, zhi);
+            /* the first round over every height the rays may meet terrain at, then bands */
+            double zb = round == 0 ? zlo : fmax(zlo, zhi - band);
+            double m = beam_box_max(v, o, d, nd, zb, zhi);
             (*steps)++;
-            /* no terrain under the box: nothing above zlo (the walls of the solid
-               surfaces reach below it) */
-            m = m == -INFINITY ? zlo : fmax(m + zeps, zlo);
+            /* no terrain under the band's box, or all of it below the band: the rays
+               cross the band freely (below zlo, the walls of the solid surfaces); the
+               next band twice as deep */
+            band *= m + zeps < zb ? 2.0 : 1.0;
+            m = m == -INFINITY ? zb : fmax(m + zeps, zb);
             if (m >= zhi)
                 break;
             zhi = m;

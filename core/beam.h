@@ -15,7 +15,16 @@
  * sample) and Z_lo = its lowest; while the highest corner M of any cell under the box
  * (td_view_max, plus the walk's zeps) is below Z_hi, no ray point between M and Z_hi can
  * be on or under the terrain (no surface rises above its cell's highest corner), so
- * Z_hi = M and again, up to TD_BEAM_ROUNDS times, never below Z_lo: the solid surfaces'
+ * Z_hi = M and again, up to TD_BEAM_ROUNDS times, never below Z_lo. After the first round
+ * the box is taken over a band [Z_hi - b, Z_hi] only (its points P_k over the band's two
+ * heights): the rays' points in the band lie over that smaller box, so its highest corner
+ * M bounds them the same way; a band whose box holds nothing as high as its bottom is
+ * crossed freely (Z_hi drops to its bottom, the next band twice as deep). b starts at
+ * TD_BEAM_BAND_CELLS cells of horizontal run of the beam's shallowest corner, so a band's
+ * box reaches about that far past the beam's footprint where the whole range's box
+ * reached (Z_hi - Z_lo) times the run: on trinidad's straight-down bench view, steps per
+ * camera ray 3.10 -> 2.63 and primary-stage instructions 334.3 -> 323.1 M (callgrind,
+ * triangle); picos's 348.6 -> 343.4 M. Z_hi never goes below Z_lo: the solid surfaces'
  * walls (the height plane's columns) reach below the lowest sample, so a ray that passes
  * under every cell may still meet one from the side. A ray of the beam then meets nothing
  * before it descends to Z_hi: render.c starts it at t = (E_z - Z_hi) / (-d_z) (less a
@@ -33,6 +42,7 @@
 #include "trace.h"
 
 #define TD_BEAM_ROUNDS 6 /* box-and-bound rounds a beam takes at most */
+#define TD_BEAM_BAND_CELLS 2.0 /* how far a band's box reaches past the footprint */
 
 /* The height Z_hi for the beam from eye o over corner directions d[0 .. nd) (see above);
  * adds to *steps one for each bound taken. */

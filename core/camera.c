@@ -246,8 +246,14 @@ void td_camera_ray(const td_camera *cam, double px, double py, td_ray *r)
     r->tmax = INFINITY;
 }
 
+void td_camera_abscissas(const td_camera *cam, const double *px, int n, double *ax)
+{
+    for (int k = 0; k < n; k++)
+        ax[k] = (px[k] + 0.5 - 0.5 * cam->width) / cam->focal_px;
+}
+
 TD_ROW_CLONES
-void td_camera_dirs(const td_camera *cam, double py, const double *px, int n, double *dx,
+void td_camera_dirs(const td_camera *cam, double py, const double *ax, int n, double *dx,
                     double *dy, double *dz)
 {
     /* td_camera_ray's perspective branch, term for term (no contraction: -ffp-contract=off) */
@@ -256,7 +262,7 @@ void td_camera_dirs(const td_camera *cam, double py, const double *px, int n, do
     const double r0 = cam->right[0], r1 = cam->right[1], r2 = cam->right[2];
     const double u0 = cam->up[0] * b, u1 = cam->up[1] * b, u2 = cam->up[2] * b;
     for (int k = 0; k < n; k++) {
-        double a = (px[k] + 0.5 - 0.5 * cam->width) / cam->focal_px;
+        double a = ax[k];
         double x = f0 + r0 * a - u0, y = f1 + r1 * a - u1, z = f2 + r2 * a - u2;
         double inv = 1.0 / sqrt(x * x + y * y + z * z);
         dx[k] = x * inv;

@@ -48,11 +48,16 @@ td_status td_camera_setup(const td_scene_camera *c, int32_t width, int32_t heigh
 /* The ray through pixel coordinates (px, py); tmin = 0, tmax = +inf. */
 void td_camera_ray(const td_camera *cam, double px, double py, td_ray *r);
 
+/* The image-plane abscissas of pixel columns px[k], k < n, of a perspective camera:
+ * ax[k] = (px[k] + 0.5 - width / 2) / focal_px, td_camera_ray's first step. Rows share
+ * them: a block computes its columns' once. */
+void td_camera_abscissas(const td_camera *cam, const double *px, int n, double *ax);
+
 /* The unit directions of the rays through pixels (px[k], py), k < n, of a perspective
- * camera, the same bits as td_camera_ray's, into dx, dy, dz (the rays start at cam->o).
- * One loop over a row that the compiler vectorises: the render's camera rays come a
- * sample row at a time. */
-void td_camera_dirs(const td_camera *cam, double py, const double *px, int n, double *dx,
+ * camera, from their abscissas ax[k] (td_camera_abscissas), the same bits as
+ * td_camera_ray's, into dx, dy, dz (the rays start at cam->o). One loop over a row that
+ * the compiler vectorises: the render's camera rays come a sample row at a time. */
+void td_camera_dirs(const td_camera *cam, double py, const double *ax, int n, double *dx,
                     double *dy, double *dz);
 
 /* Bounds the azimuths (atan2(d_y, d_x), radians) of the rays through the rectangle of

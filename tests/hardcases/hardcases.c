@@ -1173,6 +1173,8 @@ static int case_camera_coherence(hc_stats *st)
         {60, -20, 90, 64, 48, 0, 0}, {60, -20, -90, 48, 64, 0, 0}, {170, -10, 0, 96, 48, 0, 0},
         {170, -89, 30, 64, 64, 0, 0}, {70, 15, 0, 64, 48, 0, 1},   {70, 0, 0, 64, 48, 0, 1},
         {70, -30, 45, 64, 48, 0, 1},  {5, -2, 0, 64, 48, 0, 0},   {120, 60, 0, 64, 48, 0, 0},
+        /* upright cameras over several of render.c's tall blocks (64 and 32 rows) */
+        {70, -3, 0, 40, 150, 0, 0},   {60, -6.5, 0, 40, 150, 0, 0},
     };
     camera_set(st, cams, sizeof cams / sizeof cams[0]);
     return 0;

@@ -118,6 +118,40 @@ static void test_ray_project_round_trip(void **state)
     td_grid_free(g);
 }
 
+/* td_camera_dirs, from the columns' abscissas (computed once for all rows, as a render's
+ * block does), gives td_camera_ray's directions bit for bit: the render's camera rays and
+ * `terrad render --rays` (td_camera_ray) are the same rays. Sub-pixel columns, rolled and
+ * pitched cameras, a wide field of view. */
+static void test_dirs_match_ray(void **state)
+{
+    td_grid *g = terrain(33, 100.0);
+    td_scene_camera sc;
+    td_camera cam;
+    td_err err = {0};
+    const double views[3][4] = {{33, -20, 12, 57}, {280, -3, 0, 70}, {140, -80, 35, 170}};
+    (void)state;
+    for (int v = 0; v < 3; v++) {
+        pinhole(&sc, 100, -50, 800, views[v][0], views[v][1], views[v][2], views[v][3]);
+        assert_int_equal(td_camera_setup(&sc, 331, 203, g, &cam, &err), TD_OK);
+        double px[64], ax[64], dx[64], dy[64], dz[64];
+        for (int k = 0; k < 64; k++)
+            px[k] = 100 + k * 0.375 - 0.5; /* columns 100 .. 123, 8 sub-columns a pixel (3/8 apart) */
+        td_camera_abscissas(&cam, px, 64, ax);
+        for (int row = 0; row < 203; row += 29) {
+            double py = row + 0.125 - 0.5;
+            td_camera_dirs(&cam, py, ax, 64, dx, dy, dz);
+            for (int k = 0; k < 64; k++) {
+                td_ray r;
+                td_camera_ray(&cam, px[k], py, &r);
+                assert_memory_equal(&r.d[0], &dx[k], sizeof dx[k]);
+                assert_memory_equal(&r.d[1], &dy[k], sizeof dy[k]);
+                assert_memory_equal(&r.d[2], &dz[k], sizeof dz[k]);
+            }
+        }
+    }
+    td_grid_free(g);
+}
+
 static void test_photogrammetric_matches_pinhole(void **state)
 {
     td_grid *g = terrain(33, 100.0);
@@ -420,6 +454,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_known_projection),
         cmocka_unit_test(test_ray_project_round_trip),
+        cmocka_unit_test(test_dirs_match_ray),
         cmocka_unit_test(test_photogrammetric_matches_pinhole),
         cmocka_unit_test(test_orthographic),
         cmocka_unit_test(test_positions),
