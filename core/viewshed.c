@@ -380,6 +380,7 @@ typedef struct vs_ctx {
     const eye *eyes; /* neyes observers this pass */
     int neyes;
     int merge;       /* add to out's counts (a later pass) instead of writing them */
+    int direct;      /* the sweep writes out itself (vs_sweep_run: one observer, every sample) */
     const td_viewshed_opts *o;
     double maxd2;
     uint8_t *out;
@@ -538,20 +539,21 @@ static td_status vs_sweep_run(vs_ctx *c, int nthreads, uint8_t *vis, td_viewshed
 {
     const td_viewshed_opts *o = c->o;
     td_status rc = TD_OK;
-    if (!c->merge)
+    int direct = c->direct;
+    if (!c->merge && !direct)
         memset(c->out, TD_VS_OUTSIDE, (size_t)c->g->w * (size_t)c->g->h);
     for (int k = 0; k < c->neyes && rc == TD_OK; k++) {
         const eye *e = &c->eyes[k];
         td_vsweep_job job = {&e->view, o->surface, o->method, e->x, e->y, e->z, e->ground,
-                             o->target_height, c->maxd2, nthreads, o->cancel};
+                             o->target_height, c->maxd2, nthreads, o->cancel, direct};
         td_vsweep_stats vst;
-        rc = td_vsweep(&job, vis, &vst, err);
+        rc = td_vsweep(&job, direct ? c->out : vis, &vst, err);
         st->swept += vst.swept;
         st->rays += vst.rays;
         st->steps += vst.steps;
         st->blocks += vst.blocks;
         st->facing += vst.facing;
-        if (rc == TD_OK)
+        if (rc == TD_OK && !direct)
             vs_sweep_add(c, e, vis);
     }
     st->threads = nthreads < 4 ? nthreads : 4;
@@ -569,12 +571,16 @@ td_status td_viewshed(const td_view *v, const td_viewshed_opts *o, uint8_t *out,
     vs_ctx c;
     int nthreads = thread_count(o->threads, g->h), per = o->curvature ? 1 : o->nobs;
     int sweep = o->algo == TD_VS_ALGO_SWEEP && o->surface != TD_SURFACE_PLANE;
+    /* one observer, no max_distance, no voids: the sweep writes every sample, its 0 or 1
+     * being the count, straight into out (no memset of out, no vis, no vs_sweep_add: 2.9 MB
+     * of fresh pages and two passes on trinidad) */
+    int direct = sweep && o->nobs == 1 && o->max_distance == INFINITY && g->voids == 0;
     uint8_t *vis = NULL;
     td_status rc;
 
     memset(st, 0, sizeof *st);
     rc = td_viewshed_check(g, o, err);
-    if (rc == TD_OK && sweep && !(vis = malloc((size_t)g->w * (size_t)g->h)))
+    if (rc == TD_OK && sweep && !direct && !(vis = malloc((size_t)g->w * (size_t)g->h)))
         rc = td_err_set(err, TD_ENOMEM, "viewshed: out of memory");
     for (int first = 0; rc == TD_OK && first < o->nobs; first += per) {
         double t0 = td_clock_s(), t1;
@@ -588,6 +594,7 @@ td_status td_viewshed(const td_view *v, const td_viewshed_opts *o, uint8_t *out,
         c.eyes = eyes;
         c.neyes = per;
         c.merge = first > 0;
+        c.direct = direct;
         c.o = o;
         c.maxd2 = o->max_distance * o->max_distance;
         c.out = out;

@@ -376,6 +376,13 @@ static inline size_t cidx(const cone *c, int32_t U, int32_t V)
     return (size_t)j * (size_t)c->g->w + (size_t)i;
 }
 
+/* Sample (U, V)'s byte in vis (its rows north first with the job's north_first). */
+static inline size_t vidx(const cone *c, int north_first, int32_t U, int32_t V)
+{
+    int32_t i = c->ui * U + c->vi * V, j = c->uj * U + c->vj * V;
+    return (size_t)(north_first ? c->g->h - 1 - j : j) * (size_t)c->g->w + (size_t)i;
+}
+
 /* Corners z00, z10, z01, z11 of cone cell (U, V) (U..U+1, V..V+1); 0 if it is off the
  * grid or a hole. */
 static int cell(const cone *c, int32_t U, int32_t V, double z[4])
@@ -1294,7 +1301,7 @@ static void cast(sweep *sw, int32_t U, int32_t V)
     int r = td_viewshed_cast(j->v, j->surface, j->method, j->ex, j->ey, j->ez, i, jj, j->target_height, &steps);
     sw->rays += r == 0 || r == 1;
     sw->steps += steps;
-    sw->vis[cidx(c, U, V)] = r > 0;
+    sw->vis[vidx(c, j->north_first, U, V)] = r > 0;
 }
 
 /* The diagonal the segment to (U, V) crosses in its last strip, if it does not end at
@@ -1431,8 +1438,8 @@ static void tgt_cols_init(sweep *sw, int32_t U, tgt_cols *t)
     t->nmax = sw->nmax;
     t->hint_n = 0;
     t->hole_u = sw->holes ? sw->hole_u : NULL;
-    t->vis = sw->vis + cidx(c, U, 0);
-    t->vstride = c->vi == 0 ? (ptrdiff_t)c->g->w : 1;
+    t->vis = sw->vis + vidx(c, sw->job->north_first, U, 0);
+    t->vstride = c->vi == 0 ? (sw->job->north_first ? -(ptrdiff_t)c->g->w : (ptrdiff_t)c->g->w) : 1;
     t->u = U - c->eu;
     t->ez = sw->job->ez;
     t->th = sw->job->target_height;
@@ -1718,7 +1725,7 @@ td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st,
                 uint32_t steps = 0;
                 int r = td_viewshed_cast(job->v, job->surface, job->method, job->ex, job->ey, job->ez, i, j,
                                          job->target_height, &steps);
-                vis[(size_t)j * (size_t)g->w + (size_t)i] = r > 0;
+                vis[(size_t)(job->north_first ? g->h - 1 - j : j) * (size_t)g->w + (size_t)i] = r > 0;
             }
     for (started = 0; started < n - 1; started++)
         if (pthread_create(&th[started], NULL, cone_worker, t) != 0)

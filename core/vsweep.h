@@ -41,6 +41,7 @@ typedef struct td_vsweep_job {
     double maxd2;               /* horizontal distance squared beyond which samples are skipped */
     int threads;                /* the four cones over up to this many threads */
     const atomic_int *cancel;   /* may be NULL */
+    int north_first;            /* vis's rows north first (row h-1-j), as td_viewshed's counts */
 } td_vsweep_job;
 
 typedef struct td_vsweep_stats {
@@ -52,8 +53,9 @@ typedef struct td_vsweep_stats {
     int cancelled;
 } td_vsweep_stats;
 
-/* Writes vis[j * w + i] (south-based rows) = 1 visible, 0 not, for every non-void sample
- * within maxd2 of the eye; other bytes are left as they are. Returns TD_ENOMEM or
+/* Writes vis[j * w + i] (south-based rows; with north_first vis[(h-1-j) * w + i]) = 1
+ * visible, 0 not, for every non-void sample within maxd2 of the eye; other bytes are left
+ * as they are. Returns TD_ENOMEM or
  * TD_ECANCELED (err set), else TD_OK. */
 td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st, td_err *err);
 
