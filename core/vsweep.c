@@ -1647,9 +1647,20 @@ typedef struct cone_task {
     sweep sw[4];
 } cone_task;
 
+/* The cones this thread takes, one after the other, on one set of buffers: the column
+ * buffers sized for the longer side, and the envelope's lists handed from a cone to the
+ * next (fresh pages cost: allocated a cone at a time they were a quarter of the page
+ * faults of trinidad's whole command, docs/viewshed.md "Speed"). */
 static void *cone_worker(void *arg)
 {
     cone_task *t = arg;
+    const td_grid *g = t->job->v->grid;
+    size_t nmax = (size_t)(g->w > g->h ? g->w : g->h);
+    double *zb = malloc(17 * nmax * sizeof *zb);
+    int *kb = malloc(nmax * sizeof *kb);
+    uint8_t *ob = malloc(nmax);
+    float *panel = malloc((size_t)VS_PANEL * nmax * sizeof *panel);
+    sweep *prev = NULL;
     for (;;) {
         int k = atomic_fetch_add_explicit(&t->next, 1, memory_order_relaxed);
         sweep *sw;
@@ -1657,14 +1668,20 @@ static void *cone_worker(void *arg)
             break;
         sw = &t->sw[k];
         size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
-        double *zb = malloc(17 * nv * sizeof *zb);
-        int *kb = malloc(nv * sizeof *kb);
-        uint8_t *ob = calloc(nv, 1);
-        sw->panel = sw->c.vi == 0 ? malloc((size_t)VS_PANEL * nv * sizeof *sw->panel) : NULL;
-        if (zb && kb && ob && (sw->c.vi != 0 || sw->panel) && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
-            pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
+        if (prev) { /* the lists of the cone before (sweep_cone and near_strip clear them) */
+            pvec *from[5] = {&prev->F, &prev->G, &prev->T, &prev->N, &prev->C};
+            pvec *to[5] = {&sw->F, &sw->G, &sw->T, &sw->N, &sw->C};
+            for (int i = 0; i < 5; i++) {
+                *to[i] = *from[i];
+                *from[i] = (pvec){NULL, 0, 0};
+            }
+        }
+        sw->panel = sw->c.vi == 0 ? panel : NULL;
+        if (zb && kb && ob && panel && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) &&
+            pv_reserve(sw, &sw->T, 16) && pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
             for (size_t q = 0; q < 17 * nv; q++)
                 zb[q] = NAN;
+            memset(ob, 0, nv);
             for (int b = 0; b < 3; b++) {
                 sw->zcol[b] = zb + (size_t)b * nv;
                 sw->mcol[b] = zb + (size_t)(3 + b) * nv;
@@ -1683,12 +1700,13 @@ static void *cone_worker(void *arg)
         } else {
             sw->oom = 1;
         }
-        free(zb);
-        free(kb);
-        free(ob);
-        free(sw->panel);
         sw->panel = NULL;
+        prev = sw;
     }
+    free(zb);
+    free(kb);
+    free(ob);
+    free(panel);
     return NULL;
 }
 
