@@ -92,6 +92,12 @@
 #define VS_PANEL 16
 /* Cells of a strip tested as one block (add_strip, block_under) */
 #define VS_BLOCK 8
+/* Strips nearer than VS_SUB_U cells: bilinear cells whose twist is above VS_SUB_K (u - 1),
+ * a quarter of it being their upper diagonal's slack times u - 1, as VS_SUB x VS_SUB
+ * sub-cells (add_subcells; measured against other choices in docs/viewshed.md "Speed") */
+#define VS_SUB_U 64.0
+#define VS_SUB 2
+#define VS_SUB_K 0.04
 /* last_real's points stop this far (in cells) short of the target */
 #define VS_LAST_GAP 1e-3
 
@@ -951,6 +957,42 @@ static inline int block_facing(const strip_cols *x, const double *mp, const doub
     return all;
 }
 
+/* The bilinear cell (U-1..U, V..V+1) of a strip near the eye (u < VS_SUB_U), whose upper
+ * diagonal would stand for it: its VS_SUB x VS_SUB sub-cells' edges instead (the patch on
+ * a sub-cell is bilinear with the twist k / VS_SUB^2): the lines a = i / VS_SUB and
+ * b = j / VS_SUB across the cell, on which the patch is linear (real, slack 0), and each
+ * sub-cell's upper diagonal with its own slack, VS_SUB^2 times smaller. They bound the
+ * patch as the cell's upper triangulation does (each sub-cell's is under it: that one is
+ * concave, the sub-corners on the patch), and closer: a far target whose segment passes
+ * within a quarter twist over the distance of a cell near the eye was cast (from Blanca
+ * Peak, most of trinidad's 8,488 casts of visible targets). Only when the cell's diagonal
+ * is not left out (the patch is then under the envelope already). */
+static void add_subcells(sweep *sw, const double z[4], int32_t V, double u)
+{
+    const double ez = sw->job->ez, v0 = V - sw->c.ev, k = z[0] - z[1] - z[2] + z[3];
+    const double d = 1.0 / VS_SUB, sk = fabs(k) * d * d / 4.0;
+    double pm[VS_SUB + 1][VS_SUB + 1], pq[VS_SUB + 1][VS_SUB + 1]; /* the sub-corners projected */
+    for (int i = 0; i <= VS_SUB; i++)
+        for (int j = 0; j <= VS_SUB; j++) {
+            double a = i * d, b = j * d, up = u - 1.0 + a;
+            double zz = z[0] + (z[1] - z[0]) * a + (z[2] - z[0]) * b + k * a * b;
+            pm[i][j] = (v0 + b) / up;
+            pq[i][j] = (zz - ez) / up;
+        }
+    for (int i = 1; i < VS_SUB; i++) { /* the lines a = i d and b = i d */
+        add_seg(sw, pm[i][0], pq[i][0], pm[i][VS_SUB], pq[i][VS_SUB], 0.0, 1);
+        add_seg(sw, pm[0][i], pq[0][i], pm[VS_SUB][i], pq[VS_SUB][i], 0.0, 1);
+    }
+    for (int i = 0; i < VS_SUB; i++)
+        for (int j = 0; j < VS_SUB; j++) {
+            double slack = sk / (u - 1.0 + i * d);
+            if (k >= 0.0)
+                add_seg(sw, pm[i][j], pq[i][j], pm[i + 1][j + 1], pq[i + 1][j + 1], slack, 1);
+            else
+                add_seg(sw, pm[i + 1][j], pq[i + 1][j], pm[i][j + 1], pq[i][j + 1], slack, 1);
+        }
+}
+
 /* The edges of the strip between columns U-1 and U (rows, diagonals) into G, but those
  * the column pass shows under F once column U is in; marks the strip's holes. A block
  * of VS_BLOCK cells at a time when block_under leaves them all out (none is a hole). */
@@ -992,11 +1034,15 @@ static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
         below = left;
         if (left && !lin) { /* upper_main's diagonal; its slack (a division) if kept */
             double k = zl[0] - zl[1] - zl[2] + zl[3];
-            if (bil ? k >= 0.0 : !anti) {
-                if (!strip_under(&x, V + 1, mp[V], qp[V]))
-                    add_seg(sw, mp[V], qp[V], mc[V + 1], qc[V + 1], upper_slack(sw, zl, u - 1.0), 1);
-            } else if (!strip_under(&x, V, mp[V + 1], qp[V + 1])) {
-                add_seg(sw, mc[V], qc[V], mp[V + 1], qp[V + 1], upper_slack(sw, zl, u - 1.0), 1);
+            int main = bil ? k >= 0.0 : !anti;
+            /* the diagonal from (m_a, q_a) on column U to (m_b, q_b) on column U-1 */
+            double ma = main ? mc[V + 1] : mc[V], qa = main ? qc[V + 1] : qc[V];
+            double mb = main ? mp[V] : mp[V + 1], qb = main ? qp[V] : qp[V + 1];
+            if (!strip_under(&x, main ? V + 1 : V, mb, qb)) {
+                if (bil && u < VS_SUB_U && fabs(k) > VS_SUB_K * (u - 1.0))
+                    add_subcells(sw, zl, V, u);
+                else
+                    add_seg(sw, mb, qb, ma, qa, upper_slack(sw, zl, u - 1.0), 1);
             }
         }
     }
