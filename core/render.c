@@ -985,27 +985,26 @@ static void stage_shadows(worker *w, const blk *b)
     float *lit = w->scratch[TD_STAGE_SHADOWS];
     double o[TD_FAN][3];
     int at[TD_FAN], np = 0;
-    td_ray r;
+    /* straight rays on the full grid are batched (td_occluded_par); a sample on a coarse
+       level, or whose ray bends, is traced alone (occluded) */
+    const int batch = !c->plain_secondary, up = c->sun[2] > 0.0;
     for (int i = 0; i < b->ns; i++) {
-        smp *sm = &w->s[i];
-        float nn[3];
+        const smp *sm = &w->s[i];
         lit[i] = 0.0f;
-        memcpy(nn, sm->n, sizeof nn);
         /* none for a miss, under water, with the sun down, or on a face turned away from
            the sun (dark whatever lies between) */
-        if ((sm->flags & (F_HIT | F_WATER)) != F_HIT || c->sun[2] <= 0.0 ||
-            nn[0] * c->sun[0] + nn[1] * c->sun[1] + nn[2] * c->sun[2] <= 0.0) {
+        if ((sm->flags & (F_HIT | F_WATER)) != F_HIT || !up ||
+            sm->n[0] * c->sun[0] + sm->n[1] * c->sun[1] + sm->n[2] * c->sun[2] <= 0.0) {
             keep_ray(c, c->shadow_rays, b, i, NULL);
             continue;
         }
-        offset_origin(c, sm->p, nn, r.o);
+        td_ray r = {.tmin = 0.0, .tmax = INFINITY};
+        offset_origin(c, sm->p, sm->n, r.o);
         memcpy(r.d, c->sun, sizeof r.d);
-        r.tmin = 0.0;
-        r.tmax = INFINITY;
         keep_ray(c, c->shadow_rays, b, i, &r);
         w->st.rays[TD_RAY_SHADOW]++;
-        if (sm->level == 0 && !c->plain_secondary && !(c->curv2 && needs_curve(c, r.o, r.d, c->curv_smin2))) {
-            memcpy(o[np], r.o, sizeof o[np]); /* a straight ray on the full grid: batched */
+        if (batch && sm->level == 0 && !(c->curv2 && needs_curve(c, r.o, r.d, c->curv_smin2))) {
+            memcpy(o[np], r.o, sizeof o[np]);
             at[np++] = i;
             if (np == TD_FAN) {
                 shadows_flush(w, o, at, np, lit);
