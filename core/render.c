@@ -616,12 +616,13 @@ static int occluded(const ctx *c, worker *w, td_ray_kind kind, const td_view *v,
 /* ---- The stages: stage_<name> runs on one block, on_<name> says whether the render
  * needs it (asked once per render). Their order is TD_BLOCK_STAGE_LIST's. ---- */
 
-/* A sample record for camera ray r (not traced yet). */
-static void sample_init(const ctx *c, const td_ray *r, smp *sm)
+/* A sample record for the camera ray from o along d (not traced yet). */
+static inline void sample_init(const ctx *c, const double o[3], double dx, double dy, double dz, smp *sm)
 {
-    memcpy(sm->o, r->o, sizeof sm->o);
-    memcpy(sm->d, r->d, sizeof sm->d);
-    sm->flags = camera_bends(c, r) ? F_CURVE : 0; /* bent rays: the curvature stage */
+    sm->o[0] = o[0], sm->o[1] = o[1], sm->o[2] = o[2];
+    sm->d[0] = dx, sm->d[1] = dy, sm->d[2] = dz;
+    sm->flags = c->curv && needs_curve(c, sm->o, sm->d, c->curv_smin) ? F_CURVE : 0; /* bent rays:
+                                                                                   the curvature stage */
     sm->level = 0;
     sm->t = INFINITY;
     sm->tw = INFINITY;
@@ -649,7 +650,6 @@ static void camera_samples(const ctx *c, worker *w, const blk *b)
             px[k++] = x + sub[sc] - 0.5;
     if (persp)
         td_camera_abscissas(&c->cam, px, ns_row, ax);
-    memcpy(r.o, c->cam.o, sizeof r.o);
     for (int32_t y = b->y0; y < b->y1; y++) {
         for (int sr = 0; sr < n; sr++) {
             double py = y + sub[sr] - 0.5;
@@ -660,11 +660,11 @@ static void camera_samples(const ctx *c, worker *w, const blk *b)
                 smp *sm = &row[pix * nn];
                 for (int sc = 0; sc < n; sc++, k++) {
                     if (persp) {
-                        r.d[0] = d[0][k], r.d[1] = d[1][k], r.d[2] = d[2][k];
-                    } else {
+                        sample_init(c, c->cam.o, d[0][k], d[1][k], d[2][k], &sm[sc]);
+                    } else { /* an orthographic camera's rays start apart */
                         td_camera_ray(&c->cam, px[k], py, &r);
+                        sample_init(c, r.o, r.d[0], r.d[1], r.d[2], &sm[sc]);
                     }
-                    sample_init(c, &r, &sm[sc]);
                 }
             }
         }
