@@ -1752,11 +1752,14 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
             vstep(w, &p, sf, &st, cont, &h, &end, &t, &wall, &kk);
             occ |= h;
             cont &= ~(h | end) & von_grid(w, &st);
-            if (w->lit && vany(cont)) { /* lit_end, lane by lane */
-                vd z = vray_z(&p, st.t), bound = vb(INFINITY);
+            if (w->lit && vany(cont)) { /* lit_end: each lane's block's bound */
+                const td_sunlit *lit = w->lit;
+                vd z = vray_z(&p, st.t), bound;
+                /* a lane off cont reads block (0, 0), which every bound has, and is not used */
+                vi bi = __builtin_convertvector(vsel(cont, st.ci, vb(0.0)), vi) >> lit->shift;
+                vi bj = __builtin_convertvector(vsel(cont, st.cj, vb(0.0)), vi) >> lit->shift;
                 for (int l = 0; l < TD_LANES; l++)
-                    if (cont[l])
-                        bound[l] = td_sunlit_at(w->lit, (int32_t)st.ci[l], (int32_t)st.cj[l]);
+                    bound[l] = (double)lit->h[(size_t)bj[l] * lit->sj + (size_t)bi[l] * lit->si];
                 cont &= ~(vm)(z > bound + w->zeps);
             }
         }
