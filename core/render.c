@@ -724,14 +724,43 @@ typedef struct fan {
 static void fan_flush(worker *w, fan *f)
 {
     const ctx *c = w->c;
+    td_render_stats *st = &w->st;
     td_hit hits[TD_FAN];
     double zb[TD_FAN];
+    uint64_t steps = 0, nhit = 0, methods[TD_METHOD_COUNT] = {0};
     td_trace_fan(c->v, c->s->quality.method, c->s->quality.surface, c->cam.o, f->n, f->r, hits, zb);
+    /* count_camera and camera_keep for each ray (a fan: full grid, no silhouette
+       partition), the integer
+       counts added once; the height errors in ray order, as note_error adds them */
     for (int k = 0; k < f->n; k++) {
-        count_camera(c, &hits[k], 0, &zb[k], hits[k].steps, &w->st);
-        f->sm[k]->level = 0;
-        camera_keep(w, f->sm[k], &hits[k]);
+        const td_hit *h = &hits[k];
+        smp *sm = f->sm[k];
+        steps += h->steps;
+        methods[(unsigned)h->method < TD_METHOD_COUNT ? h->method : 0] += (unsigned)h->method < TD_METHOD_COUNT;
+        sm->level = 0;
+        if (h->t < INFINITY) {
+            nhit++;
+            if (!isnan(zb[k])) {
+                double e = fabs(h->p[2] - zb[k]);
+                st->height_err_sum_m += e;
+                st->height_err_max_m = e > st->height_err_max_m ? e : st->height_err_max_m;
+                st->height_err_hits++;
+            }
+            sm->flags |= F_HIT;
+            sm->t = h->t;
+            memcpy(sm->p, h->p, sizeof sm->p);
+            memcpy(sm->n, h->n, sizeof sm->n);
+            sm->ci = h->ci;
+            sm->cj = h->cj;
+        }
     }
+    st->steps += steps;
+    st->kind_steps[TD_RAY_PRIMARY] += steps;
+    st->rays[TD_RAY_PRIMARY] += (uint64_t)f->n;
+    st->lod_rays[0] += (uint64_t)f->n;
+    st->hits += nhit;
+    for (int m = 0; m < TD_METHOD_COUNT; m++)
+        st->method_rays[m] += methods[m];
     f->n = 0;
 }
 
