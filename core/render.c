@@ -730,8 +730,8 @@ static void fan_flush(worker *w, fan *f)
     uint64_t steps = 0, nhit = 0, methods[TD_METHOD_COUNT] = {0};
     td_trace_fan(c->v, c->s->quality.method, c->s->quality.surface, c->cam.o, f->n, f->r, hits, zb);
     /* count_camera and camera_keep for each ray (a fan: full grid, no silhouette
-       partition), the integer
-       counts added once; the height errors in ray order, as note_error adds them */
+       partition), the integer counts added once; the height errors in ray order, as
+       note_error adds them */
     for (int k = 0; k < f->n; k++) {
         const td_hit *h = &hits[k];
         smp *sm = f->sm[k];
