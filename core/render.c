@@ -468,6 +468,14 @@ static void trace_lod(const ctx *c, const td_ray *r, double t_clear, td_hit *hit
     *level = l;
 }
 
+/* A hit's height error into the stats (the sum in the order the hits come). */
+static inline void count_error(td_render_stats *st, double e)
+{
+    st->height_err_sum_m += e;
+    st->height_err_max_m = e > st->height_err_max_m ? e : st->height_err_max_m;
+    st->height_err_hits++;
+}
+
 /* How far a camera ray's hit lies above or below the exact surface (bilinear, full grid)
  * at its x, y: what the scene's surface and level of detail cost in accuracy, reported
  * with every render and pick. One interpolation per hit. NaN (and nothing counted) over
@@ -485,9 +493,7 @@ static double note_error(const ctx *c, const td_hit *h, int level, const double 
            : level == 0 ? td_grid_bilinear_cell(c->v->grid, h->ci, h->cj, p[0], p[1], &z, NULL)
                         : !c->v->grid->map && td_grid_bilinear(c->v->grid, p[0], p[1], &z, NULL)) {
         e = fabs(p[2] - z);
-        st->height_err_sum_m += e;
-        st->height_err_max_m = e > st->height_err_max_m ? e : st->height_err_max_m;
-        st->height_err_hits++;
+        count_error(st, e);
     }
     return e;
 }
@@ -534,20 +540,25 @@ static double trace_camera(const ctx *c, const td_ray *r, int bent, double t_cle
     return count_camera(c, hit, *level, NULL, steps, st);
 }
 
+/* A hit's point, normal and cell into its sample. */
+static inline void sample_hit(smp *sm, const td_hit *hit)
+{
+    sm->flags |= F_HIT;
+    sm->t = hit->t;
+    memcpy(sm->p, hit->p, sizeof sm->p);
+    memcpy(sm->n, hit->n, sizeof sm->n);
+    sm->ci = hit->ci;
+    sm->cj = hit->cj;
+}
+
 /* A camera ray's result into its sample: the method it ended with, and on a hit the
  * point, normal and cell. */
 static void keep_camera_hit(td_render_stats *st, const td_hit *hit, smp *sm)
 {
     if ((unsigned)hit->method < TD_METHOD_COUNT)
         st->method_rays[hit->method]++;
-    if (hit->t < INFINITY) {
-        sm->flags |= F_HIT;
-        sm->t = hit->t;
-        memcpy(sm->p, hit->p, sizeof sm->p);
-        memcpy(sm->n, hit->n, sizeof sm->n);
-        sm->ci = hit->ci;
-        sm->cj = hit->cj;
-    }
+    if (hit->t < INFINITY)
+        sample_hit(sm, hit);
 }
 
 /* A shadow or reflection ray on view v: bent about its origin when curvature is on and
@@ -740,18 +751,9 @@ static void fan_flush(worker *w, fan *f)
         sm->level = 0;
         if (h->t < INFINITY) {
             nhit++;
-            if (!isnan(zb[k])) {
-                double e = fabs(h->p[2] - zb[k]);
-                st->height_err_sum_m += e;
-                st->height_err_max_m = e > st->height_err_max_m ? e : st->height_err_max_m;
-                st->height_err_hits++;
-            }
-            sm->flags |= F_HIT;
-            sm->t = h->t;
-            memcpy(sm->p, h->p, sizeof sm->p);
-            memcpy(sm->n, h->n, sizeof sm->n);
-            sm->ci = h->ci;
-            sm->cj = h->cj;
+            if (!isnan(zb[k]))
+                count_error(st, fabs(h->p[2] - zb[k]));
+            sample_hit(sm, h);
         }
     }
     st->steps += steps;
