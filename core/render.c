@@ -1,7 +1,8 @@
 /* render.c: orchestration of a render: camera rays -> tracer -> the effects the scene
  * asks for -> pixels (see render.h for the stages and the contract).
  *
- * Parallelism: the image is cut into 16 x 16 pixel blocks; every thread (the caller
+ * Parallelism: the image is cut into blocks 16 pixels wide and 16 tall (64 or 32 for an
+ * upright camera: block_height); every thread (the caller
  * plus threads-1 pthreads) claims the next block with one atomic increment and runs the
  * whole pipeline on it in its own scratch, then writes the block's pixels, which no
  * other thread touches. No lock anywhere; counters (a td_render_stats) and stage times
