@@ -500,9 +500,9 @@ static double note_error(const ctx *c, const td_hit *h, int level, const double 
 }
 
 /* Whether the camera ray r is traced bent (see the top of the file). */
-static int camera_bends(const ctx *c, const td_ray *r)
+static int camera_bends(const ctx *c, const double o[3], const double d[3])
 {
-    return c->curv && needs_curve(c, r->o, r->d, c->curv_smin);
+    return c->curv && needs_curve(c, o, d, c->curv_smin);
 }
 
 /* A camera ray's counts: the ray, its steps, a hit and its height error (from zb, the
@@ -633,8 +633,7 @@ static inline void sample_init(const ctx *c, const double o[3], double dx, doubl
 {
     sm->o[0] = o[0], sm->o[1] = o[1], sm->o[2] = o[2];
     sm->d[0] = dx, sm->d[1] = dy, sm->d[2] = dz;
-    sm->flags = c->curv && needs_curve(c, sm->o, sm->d, c->curv_smin) ? F_CURVE : 0; /* bent rays:
-                                                                                   the curvature stage */
+    sm->flags = camera_bends(c, sm->o, sm->d) ? F_CURVE : 0; /* bent rays: the curvature stage */
     sm->level = 0;
     sm->t = INFINITY;
     sm->tw = INFINITY;
@@ -1761,7 +1760,7 @@ static void pick_one(const ctx *c, const double px[2], td_pick *pk, td_render_st
     pk->px = px[0];
     pk->py = px[1];
     td_camera_ray(&c->cam, pk->px, pk->py, &r);
-    pk->height_error_m = trace_camera(c, &r, camera_bends(c, &r), 0.0, &hit, &level, st);
+    pk->height_error_m = trace_camera(c, &r, camera_bends(c, r.o, r.d), 0.0, &hit, &level, st);
     pk->distance = INFINITY;
     if (hit.t < INFINITY) {
         pk->hit = 1;
