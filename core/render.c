@@ -1,7 +1,8 @@
 /* render.c: orchestration of a render: camera rays -> tracer -> the effects the scene
  * asks for -> pixels (see render.h for the stages and the contract).
  *
- * Parallelism: the image is cut into 16 x 16 pixel blocks; every thread (the caller
+ * Parallelism: the image is cut into blocks 16 pixels wide and 16 tall (64 or 32 for an
+ * upright camera: block_height); every thread (the caller
  * plus threads-1 pthreads) claims the next block with one atomic increment and runs the
  * whole pipeline on it in its own scratch, then writes the block's pixels, which no
  * other thread touches. No lock anywhere; counters (a td_render_stats) and stage times
@@ -468,6 +469,14 @@ static void trace_lod(const ctx *c, const td_ray *r, double t_clear, td_hit *hit
     *level = l;
 }
 
+/* A hit's height error into the stats (the sum in the order the hits come). */
+static inline void count_error(td_render_stats *st, double e)
+{
+    st->height_err_sum_m += e;
+    st->height_err_max_m = e > st->height_err_max_m ? e : st->height_err_max_m;
+    st->height_err_hits++;
+}
+
 /* How far a camera ray's hit lies above or below the exact surface (bilinear, full grid)
  * at its x, y: what the scene's surface and level of detail cost in accuracy, reported
  * with every render and pick. One interpolation per hit. NaN (and nothing counted) over
@@ -485,17 +494,15 @@ static double note_error(const ctx *c, const td_hit *h, int level, const double 
            : level == 0 ? td_grid_bilinear_cell(c->v->grid, h->ci, h->cj, p[0], p[1], &z, NULL)
                         : !c->v->grid->map && td_grid_bilinear(c->v->grid, p[0], p[1], &z, NULL)) {
         e = fabs(p[2] - z);
-        st->height_err_sum_m += e;
-        st->height_err_max_m = e > st->height_err_max_m ? e : st->height_err_max_m;
-        st->height_err_hits++;
+        count_error(st, e);
     }
     return e;
 }
 
 /* Whether the camera ray r is traced bent (see the top of the file). */
-static int camera_bends(const ctx *c, const td_ray *r)
+static int camera_bends(const ctx *c, const double o[3], const double d[3])
 {
-    return c->curv && needs_curve(c, r->o, r->d, c->curv_smin);
+    return c->curv && needs_curve(c, o, d, c->curv_smin);
 }
 
 /* A camera ray's counts: the ray, its steps, a hit and its height error (from zb, the
@@ -534,20 +541,25 @@ static double trace_camera(const ctx *c, const td_ray *r, int bent, double t_cle
     return count_camera(c, hit, *level, NULL, steps, st);
 }
 
+/* A hit's point, normal and cell into its sample. */
+static inline void sample_hit(smp *sm, const td_hit *hit)
+{
+    sm->flags |= F_HIT;
+    sm->t = hit->t;
+    memcpy(sm->p, hit->p, sizeof sm->p);
+    memcpy(sm->n, hit->n, sizeof sm->n);
+    sm->ci = hit->ci;
+    sm->cj = hit->cj;
+}
+
 /* A camera ray's result into its sample: the method it ended with, and on a hit the
  * point, normal and cell. */
 static void keep_camera_hit(td_render_stats *st, const td_hit *hit, smp *sm)
 {
     if ((unsigned)hit->method < TD_METHOD_COUNT)
         st->method_rays[hit->method]++;
-    if (hit->t < INFINITY) {
-        sm->flags |= F_HIT;
-        sm->t = hit->t;
-        memcpy(sm->p, hit->p, sizeof sm->p);
-        memcpy(sm->n, hit->n, sizeof sm->n);
-        sm->ci = hit->ci;
-        sm->cj = hit->cj;
-    }
+    if (hit->t < INFINITY)
+        sample_hit(sm, hit);
 }
 
 /* A shadow or reflection ray on view v: bent about its origin when curvature is on and
@@ -616,12 +628,12 @@ static int occluded(const ctx *c, worker *w, td_ray_kind kind, const td_view *v,
 /* ---- The stages: stage_<name> runs on one block, on_<name> says whether the render
  * needs it (asked once per render). Their order is TD_BLOCK_STAGE_LIST's. ---- */
 
-/* A sample record for camera ray r (not traced yet). */
-static void sample_init(const ctx *c, const td_ray *r, smp *sm)
+/* A sample record for the camera ray from o along d (not traced yet). */
+static inline void sample_init(const ctx *c, const double o[3], double dx, double dy, double dz, smp *sm)
 {
-    memcpy(sm->o, r->o, sizeof sm->o);
-    memcpy(sm->d, r->d, sizeof sm->d);
-    sm->flags = camera_bends(c, r) ? F_CURVE : 0; /* bent rays: the curvature stage */
+    sm->o[0] = o[0], sm->o[1] = o[1], sm->o[2] = o[2];
+    sm->d[0] = dx, sm->d[1] = dy, sm->d[2] = dz;
+    sm->flags = camera_bends(c, sm->o, sm->d) ? F_CURVE : 0; /* bent rays: the curvature stage */
     sm->level = 0;
     sm->t = INFINITY;
     sm->tw = INFINITY;
@@ -649,7 +661,6 @@ static void camera_samples(const ctx *c, worker *w, const blk *b)
             px[k++] = x + sub[sc] - 0.5;
     if (persp)
         td_camera_abscissas(&c->cam, px, ns_row, ax);
-    memcpy(r.o, c->cam.o, sizeof r.o);
     for (int32_t y = b->y0; y < b->y1; y++) {
         for (int sr = 0; sr < n; sr++) {
             double py = y + sub[sr] - 0.5;
@@ -660,11 +671,11 @@ static void camera_samples(const ctx *c, worker *w, const blk *b)
                 smp *sm = &row[pix * nn];
                 for (int sc = 0; sc < n; sc++, k++) {
                     if (persp) {
-                        r.d[0] = d[0][k], r.d[1] = d[1][k], r.d[2] = d[2][k];
-                    } else {
+                        sample_init(c, c->cam.o, d[0][k], d[1][k], d[2][k], &sm[sc]);
+                    } else { /* an orthographic camera's rays start apart */
                         td_camera_ray(&c->cam, px[k], py, &r);
+                        sample_init(c, r.o, r.d[0], r.d[1], r.d[2], &sm[sc]);
                     }
-                    sample_init(c, &r, &sm[sc]);
                 }
             }
         }
@@ -724,14 +735,34 @@ typedef struct fan {
 static void fan_flush(worker *w, fan *f)
 {
     const ctx *c = w->c;
+    td_render_stats *st = &w->st;
     td_hit hits[TD_FAN];
     double zb[TD_FAN];
+    uint64_t steps = 0, nhit = 0, methods[TD_METHOD_COUNT] = {0};
     td_trace_fan(c->v, c->s->quality.method, c->s->quality.surface, c->cam.o, f->n, f->r, hits, zb);
+    /* count_camera and camera_keep for each ray (a fan: full grid, no silhouette
+       partition), the integer counts added once; the height errors in ray order, as
+       note_error adds them */
     for (int k = 0; k < f->n; k++) {
-        count_camera(c, &hits[k], 0, &zb[k], hits[k].steps, &w->st);
-        f->sm[k]->level = 0;
-        camera_keep(w, f->sm[k], &hits[k]);
+        const td_hit *h = &hits[k];
+        smp *sm = f->sm[k];
+        steps += h->steps;
+        methods[(unsigned)h->method < TD_METHOD_COUNT ? h->method : 0] += (unsigned)h->method < TD_METHOD_COUNT;
+        sm->level = 0;
+        if (h->t < INFINITY) {
+            nhit++;
+            if (!isnan(zb[k]))
+                count_error(st, fabs(h->p[2] - zb[k]));
+            sample_hit(sm, h);
+        }
     }
+    st->steps += steps;
+    st->kind_steps[TD_RAY_PRIMARY] += steps;
+    st->rays[TD_RAY_PRIMARY] += (uint64_t)f->n;
+    st->lod_rays[0] += (uint64_t)f->n;
+    st->hits += nhit;
+    for (int m = 0; m < TD_METHOD_COUNT; m++)
+        st->method_rays[m] += methods[m];
     f->n = 0;
 }
 
@@ -985,27 +1016,26 @@ static void stage_shadows(worker *w, const blk *b)
     float *lit = w->scratch[TD_STAGE_SHADOWS];
     double o[TD_FAN][3];
     int at[TD_FAN], np = 0;
-    td_ray r;
+    /* straight rays on the full grid are batched (td_occluded_par); a sample on a coarse
+       level, or whose ray bends, is traced alone (occluded) */
+    const int batch = !c->plain_secondary, up = c->sun[2] > 0.0;
     for (int i = 0; i < b->ns; i++) {
-        smp *sm = &w->s[i];
-        float nn[3];
+        const smp *sm = &w->s[i];
         lit[i] = 0.0f;
-        memcpy(nn, sm->n, sizeof nn);
         /* none for a miss, under water, with the sun down, or on a face turned away from
            the sun (dark whatever lies between) */
-        if ((sm->flags & (F_HIT | F_WATER)) != F_HIT || c->sun[2] <= 0.0 ||
-            nn[0] * c->sun[0] + nn[1] * c->sun[1] + nn[2] * c->sun[2] <= 0.0) {
+        if ((sm->flags & (F_HIT | F_WATER)) != F_HIT || !up ||
+            sm->n[0] * c->sun[0] + sm->n[1] * c->sun[1] + sm->n[2] * c->sun[2] <= 0.0) {
             keep_ray(c, c->shadow_rays, b, i, NULL);
             continue;
         }
-        offset_origin(c, sm->p, nn, r.o);
+        td_ray r = {.tmin = 0.0, .tmax = INFINITY};
+        offset_origin(c, sm->p, sm->n, r.o);
         memcpy(r.d, c->sun, sizeof r.d);
-        r.tmin = 0.0;
-        r.tmax = INFINITY;
         keep_ray(c, c->shadow_rays, b, i, &r);
         w->st.rays[TD_RAY_SHADOW]++;
-        if (sm->level == 0 && !c->plain_secondary && !(c->curv2 && needs_curve(c, r.o, r.d, c->curv_smin2))) {
-            memcpy(o[np], r.o, sizeof o[np]); /* a straight ray on the full grid: batched */
+        if (batch && sm->level == 0 && !(c->curv2 && needs_curve(c, r.o, r.d, c->curv_smin2))) {
+            memcpy(o[np], r.o, sizeof o[np]);
             at[np++] = i;
             if (np == TD_FAN) {
                 shadows_flush(w, o, at, np, lit);
@@ -1730,7 +1760,7 @@ static void pick_one(const ctx *c, const double px[2], td_pick *pk, td_render_st
     pk->px = px[0];
     pk->py = px[1];
     td_camera_ray(&c->cam, pk->px, pk->py, &r);
-    pk->height_error_m = trace_camera(c, &r, camera_bends(c, &r), 0.0, &hit, &level, st);
+    pk->height_error_m = trace_camera(c, &r, camera_bends(c, r.o, r.d), 0.0, &hit, &level, st);
     pk->distance = INFINITY;
     if (hit.t < INFINITY) {
         pk->hit = 1;

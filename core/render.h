@@ -40,7 +40,8 @@
  * also the stem of the stage's two functions: stage_<name> runs it on one block,
  * on_<name> says whether the scene needs it), and the floats of per-sample scratch the
  * stage fills for later ones (allocated only when it runs). The block stages run in
- * this order on every 16 x 16 block; encode runs once on the whole image
+ * this order on every block of pixels (16 wide, 16 to 64 tall: render.c); encode runs
+ * once on the whole image
  * (td_render_encode). A new stage is a row here and those two functions. */
 #define TD_BLOCK_STAGE_LIST(X)                                                 \
     X(TD_STAGE_PRIMARY, primary, 0)                                            \

@@ -32,7 +32,7 @@
  *                  vectors, each lane the scalar code's operations in its order (the
  *                  Packets section says why that is the same bits, and the tests hold it
  *                  there); a change to a surface or to the walk's first cells changes both.
- *                  fan_packet() walks a fan's camera rays with it, occ_packet() a render's
+ *                  fan_packet() walks a fan's camera rays with it, occ_packets() a render's
  *                  shadow rays.
  *
  * Watertightness. The crossing test is a sign test on f(t) = z_ray(t) - surface(t).
@@ -948,8 +948,11 @@ static inline void unit_normal(const double nv[3], float n[3])
     n[2] = (float)(nv[2] / len);
 }
 
-/* Cells a ray started from a bound walks plainly before its method takes over. */
-#define TD_NEAR_CELLS 8
+/* Cells a ray started from a bound walks plainly before its method takes over. Measured
+ * (callgrind, primary stage, triangle, M instructions, 8 -> 16 -> 32 cells): trinidad level
+ * 168.6 -> 167.2 -> 167.7, rolled 260.3 -> 254.4 -> 255.6, straight down 313.9 -> 310.0 ->
+ * 309.6; picos grazing 279.0 -> 263.1 -> 255.5, rolled 431.4 -> 429.5 -> 442.7. */
+#define TD_NEAR_CELLS 16
 
 static inline int on_grid(const walk *w, const walk_state *st)
 {
@@ -1123,7 +1126,7 @@ void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r,
  * each its scalar twin's expressions in the same order). test_trace's test_batches_same
  * holds the packets to td_trace_from, memory for memory.
  *
- * Shadow rays (occ_packet) share a direction and differ in origin, and nearly all of a
+ * Shadow rays (occ_packets) share a direction and differ in origin, and nearly all of a
  * render's end lit within a few cells (trinidad's bench views: 99.96% of the level view's
  * 139,558, 99.8% of the straight-down view's 261,489, 84% of the grazing sunset's): a
  * packet walks their cells from their starts and checks the sun bound after each, where
@@ -1428,7 +1431,9 @@ typedef struct vstate {
     vd ci, cj, t, f, entry, t_end;
 } vstate;
 
-TD_HOT void vstart(const walk *w, vwalk *p, const vd d[3], vd tc, vstate *st, vm *go, vm *near)
+/* The packet's directions (walk_dir's part of vstart): per unit t in cell units, signs,
+ * reciprocals; *iz the reciprocal of dz. Shadow packets share one (occ_packets). */
+TD_HOT void vdir(const walk *w, vwalk *p, const vd d[3], vd *iz)
 {
     const td_grid *g = w->g;
     vd f[3];
@@ -1443,7 +1448,14 @@ TD_HOT void vstart(const walk *w, vwalk *p, const vd d[3], vd tc, vstate *st, vm
     p->sv = vone(p->pv) - vone(p->nv);
     p->iu = vsel(p->pu | p->nu, 1.0 / p->du, vb(INFINITY));
     p->iv = vsel(p->pv | p->nv, 1.0 / p->dv, vb(INFINITY));
-    vd iz = 1.0 / p->dz, t0 = vb(0.0), t1 = vb(INFINITY);
+    *iz = 1.0 / p->dz;
+}
+
+/* vstart with the directions set (vdir) */
+TD_HOT void vstart_at(const walk *w, vwalk *p, vd iz, vd tc, vstate *st, vm *go, vm *near)
+{
+    const td_grid *g = w->g;
+    vd t0 = vb(0.0), t1 = vb(INFINITY);
     vclip_slab(p->ou, p->du, p->iu, 0.0, (double)(g->w - 1), &t0, &t1);
     vclip_slab(p->ov, p->dv, p->iv, 0.0, (double)(g->h - 1), &t0, &t1);
     vclip_slab(p->oz, p->dz, iz, w->surf->solid ? -INFINITY : (double)g->zmin - w->zeps,
@@ -1465,6 +1477,13 @@ TD_HOT void vstart(const walk *w, vwalk *p, const vd d[3], vd tc, vstate *st, vm
     st->entry = vsel(moved, vcrossing(tev, teu), vb(ENTRY_START));
     st->f = vb(NAN);
     *near = *go & later;
+}
+
+TD_HOT void vstart(const walk *w, vwalk *p, const vd d[3], vd tc, vstate *st, vm *go, vm *near)
+{
+    vd iz;
+    vdir(w, p, d, &iz);
+    vstart_at(w, p, iz, tc, st, go, near);
 }
 
 /* advance() for the lanes of m */
@@ -1625,13 +1644,15 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
     p.ou = vb(w->ou), p.ov = vb(w->ov), p.oz = vb(w->oz);
     vstart(w, &p, d, tc, &st, &go, &near);
     cont = near;
-    /* run_walk's near loop while two lanes or more walk it (a lone lane is faster scalar) */
+    /* run_walk's near loop while a lane walks it (a lone lane handed to the scalar walk
+       there instead: 0.6-1.7% more instructions in the primary stage of trinidad's bench
+       views, 1-3% more time; its walk's setup is redone) */
     int k = 0;
     for (; k < TD_NEAR_CELLS; k++) {
         vm act = cont & von_grid(w, &st), h, end;
         vd t, wall;
         vcell kk;
-        if ((act[0] & 1) + (act[1] & 1) + (act[2] & 1) + (act[3] & 1) < 2)
+        if (!vany(act))
             break;
         n += vone(act);
         vstep(w, &p, sf, &st, act, &h, &end, &t, &wall, &kk);
@@ -1682,7 +1703,7 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
  * than the scalar walk's tile entry and block climb. */
 #define TD_OCC_NEAR_CELLS 16
 
-/* What a lane of occ_packet left: the rest of occluded_one's walk (the tiles, from blocks
+/* What a lane of occ_packets left: the rest of occluded_one's walk (the tiles, from blocks
  * of 2 x 2 cells up) from the cell, time, f and entry the lane stood at, after n steps. */
 static int occ_rest(const td_view *v, td_method m, walk *w, const double o[3],
                     const walk_state *at, uint32_t *steps)
@@ -1696,56 +1717,67 @@ static int occ_rest(const td_view *v, td_method m, walk *w, const double o[3],
     return tile_walk(v, m, w, &st, &hr, steps, &used) == STEP_HIT;
 }
 
-/* Shadow rays o[0 .. nl) (nl <= TD_LANES) along one direction d (walk_dir's scale 1), as
- * occluded_one asks each: the packet walks their cells from their clipped starts, four at
- * a time (vstep, each lane the scalar walk's bits), and a lane ends when it hits, when its
- * search ends or leaves the grid, or when it stands above the sun bound of its cell's
- * block (lit_end); a lane still walking after TD_OCC_NEAR_CELLS cells goes on alone. The
- * answers are td_occluded's; the steps are the cells walked (fewer than the max-mipmap's
- * climb for rays that end lit within a few cells, nearly all of a render's). */
-TD_ROW_CLONES static void occ_packet(const td_view *v, td_method m, walk *w, const double d[3],
-                                     const double (*o)[3], int nl, uint8_t *hit, uint32_t *steps)
+/* Shadow rays o[0 .. n) along one direction d (walk_dir's scale 1), as occluded_one asks
+ * each, four at a time: a packet walks its rays' cells from their clipped starts (vstep,
+ * each lane the scalar walk's bits), and a lane ends when it hits, when its search ends or
+ * leaves the grid, or when it stands above the sun bound of its cell's block (lit_end); a
+ * lane still walking after TD_OCC_NEAR_CELLS cells goes on alone. The direction is set up
+ * once for all the packets. The answers are td_occluded's; the steps are the cells walked
+ * (fewer than the max-mipmap's climb for rays that end lit within a few cells, nearly all
+ * of a render's). */
+TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, const double d[3],
+                                     const double (*o)[3], int n, uint8_t *hit, uint32_t *steps)
 {
     const td_grid *g = w->g;
-    const double(*q[TD_LANES])[3];
-    for (int l = 0; l < TD_LANES; l++) /* a packet short of rays repeats its first */
-        q[l] = &o[l < nl ? l : 0];
-    vd dv[3] = {vb(d[0]), vb(d[1]), vb(d[2])}, n = vb(0.0);
-    vwalk p;
-    vstate st;
-    vm go, near, occ = {0, 0, 0, 0}, cont;
     const td_surface sf = (td_surface)(w->surf - surfaces);
-    p.ou = (vd){(*q[0])[0], (*q[1])[0], (*q[2])[0], (*q[3])[0]} / g->sx; /* walk_origin */
-    p.ov = (vd){(*q[0])[1], (*q[1])[1], (*q[2])[1], (*q[3])[1]} / g->sy;
-    p.oz = (vd){(*q[0])[2], (*q[1])[2], (*q[2])[2], (*q[3])[2]};
-    vstart(w, &p, dv, vb(0.0), &st, &go, &near);
-    cont = go;
-    for (int k = 0; k < TD_OCC_NEAR_CELLS && vany(cont); k++) {
-        vm h, end;
-        vd t, wall;
-        vcell kk;
-        n += vone(cont);
-        vstep(w, &p, sf, &st, cont, &h, &end, &t, &wall, &kk);
-        occ |= h;
-        cont &= ~(h | end) & von_grid(w, &st);
-        if (w->lit && vany(cont)) { /* lit_end, lane by lane */
-            vd z = vray_z(&p, st.t), bound = vb(INFINITY);
-            for (int l = 0; l < TD_LANES; l++)
-                if (cont[l])
-                    bound[l] = td_sunlit_at(w->lit, (int32_t)st.ci[l], (int32_t)st.cj[l]);
-            cont &= ~(vm)(z > bound + w->zeps);
+    vd dv[3] = {vb(d[0]), vb(d[1]), vb(d[2])}, iz;
+    vwalk p = {.ou = vb(0.0)}; /* (the origins are set per packet) */
+    int k0 = 0;
+    vdir(w, &p, dv, &iz);
+    for (; n - k0 >= 2; k0 += TD_LANES) { /* a last lone ray is occluded_one's */
+        const int nl = n - k0 < TD_LANES ? n - k0 : TD_LANES;
+        const double(*q[TD_LANES])[3];
+        for (int l = 0; l < TD_LANES; l++) /* a packet short of rays repeats its first */
+            q[l] = &o[k0 + (l < nl ? l : 0)];
+        vd cells = vb(0.0);
+        vstate st;
+        vm go, near, occ = {0, 0, 0, 0}, cont;
+        p.ou = (vd){(*q[0])[0], (*q[1])[0], (*q[2])[0], (*q[3])[0]} / g->sx; /* walk_origin */
+        p.ov = (vd){(*q[0])[1], (*q[1])[1], (*q[2])[1], (*q[3])[1]} / g->sy;
+        p.oz = (vd){(*q[0])[2], (*q[1])[2], (*q[2])[2], (*q[3])[2]};
+        vstart_at(w, &p, iz, vb(0.0), &st, &go, &near);
+        cont = go;
+        for (int k = 0; k < TD_OCC_NEAR_CELLS && vany(cont); k++) {
+            vm h, end;
+            vd t, wall;
+            vcell kk;
+            cells += vone(cont);
+            vstep(w, &p, sf, &st, cont, &h, &end, &t, &wall, &kk);
+            occ |= h;
+            cont &= ~(h | end) & von_grid(w, &st);
+            if (w->lit && vany(cont)) { /* lit_end: each lane's block's bound */
+                const td_sunlit *lit = w->lit;
+                vd z = vray_z(&p, st.t), bound;
+                /* a lane off cont reads block (0, 0), which every bound has, and is not used */
+                vi bi = __builtin_convertvector(vsel(cont, st.ci, vb(0.0)), vi) >> lit->shift;
+                vi bj = __builtin_convertvector(vsel(cont, st.cj, vb(0.0)), vi) >> lit->shift;
+                for (int l = 0; l < TD_LANES; l++)
+                    bound[l] = (double)lit->h[(size_t)bj[l] * lit->sj + (size_t)bi[l] * lit->si];
+                cont &= ~(vm)(z > bound + w->zeps);
+            }
+        }
+        for (int l = 0; l < nl; l++) {
+            uint32_t s = (uint32_t)cells[l];
+            hit[k0 + l] = occ[l] != 0;
+            if (cont[l]) {
+                walk_state at = {.ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .t = st.t[l],
+                                 .f = st.f[l], .entry = (int)st.entry[l], .level = 1};
+                hit[k0 + l] = (uint8_t)occ_rest(v, m, w, o[k0 + l], &at, &s);
+            }
+            *steps += s;
         }
     }
-    for (int l = 0; l < nl; l++) {
-        uint32_t s = (uint32_t)n[l];
-        hit[l] = occ[l] != 0;
-        if (cont[l]) {
-            walk_state at = {.ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .t = st.t[l],
-                             .f = st.f[l], .entry = (int)st.entry[l], .level = 1};
-            hit[l] = (uint8_t)occ_rest(v, m, w, o[l], &at, &s);
-        }
-        *steps += s;
-    }
+    return k0 < n ? k0 : n;
 }
 
 /* Fan rays whose normals wait for one loop (unit_normal) */
@@ -1846,8 +1878,8 @@ void td_occluded_par(const td_view *v, td_method m, td_surface s, const double d
     /* packets of two rays or more, with a sun bound to end them lit (without one, a lane
        ends only on a hit or past the grid, and the max-mipmap's climb is the faster walk:
        measured 2.3x the packets' rate on trinidad's views with the bound off) */
-    for (; ok && scale == 1.0 && lit && n - k >= 2; k += TD_LANES)
-        occ_packet(v, m, &w, d, o + k, n - k < TD_LANES ? n - k : TD_LANES, hit + k, steps);
+    if (ok && scale == 1.0 && lit)
+        k = occ_packets(v, m, &w, d, o, n, hit, steps);
     for (; k < n; k++)
         hit[k] = ok && occluded_one(v, m, &w, o[k], 0.0, INFINITY, scale, steps);
 }
