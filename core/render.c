@@ -1178,14 +1178,17 @@ static int on_sky(const ctx *c)
 
 /* n x n samples -> one pixel: the nearest distance (depth formats) or the alpha-weighted
  * mean colour, gamma 2 and 8 bits. */
-static void stage_resolve(worker *w, const blk *b)
+/* A block's pixels from its samples (n x n a pixel): depth, or the alpha-weighted mean
+ * colour, square-rooted (the samples are in a linear space) to 8 bits. Inlined twice by
+ * stage_resolve, once with n = 1 (the common case: the loops over samples and channels
+ * unrolled, the division by the count gone; the same bits). */
+static inline __attribute__((always_inline)) void resolve_block(const ctx *c, const smp *s, const blk *b,
+                                                               const int n)
 {
-    const ctx *c = w->c;
-    const int n = c->n;
     for (int32_t y = b->y0; y < b->y1; y++) {
         for (int32_t x = b->x0; x < b->x1; x++) {
             int pix = (int)((y - b->y0) * b->bw + (x - b->x0));
-            const smp *sm = &w->s[pix * n * n];
+            const smp *sm = &s[pix * n * n];
             size_t o = (size_t)y * (size_t)c->cam.width + (size_t)x;
             if (c->depth_only) {
                 /* the nearest visible surface: with water, its surface where it is nearer */
@@ -1201,10 +1204,12 @@ static void stage_resolve(worker *w, const blk *b)
                 double acc[3] = {0.0, 0.0, 0.0}, a = 0.0;
                 for (int k = 0; k < n * n; k++) {
                     a += sm[k].alpha;
+#pragma GCC unroll 3
                     for (int ch = 0; ch < 3; ch++)
                         acc[ch] += sm[k].alpha * sm[k].rgb[ch];
                 }
                 uint8_t *dst = c->rgba + 4 * o;
+#pragma GCC unroll 3
                 for (int ch = 0; ch < 3; ch++) { /* compares, not libm's fmax/fmin calls */
                     double q = a == 1.0 ? acc[ch] : (a > 0.0 ? acc[ch] / a : 0.0); /* x/1 is x */
                     double v = sqrt(q > 0.0 ? q : 0.0);
@@ -1214,6 +1219,14 @@ static void stage_resolve(worker *w, const blk *b)
             }
         }
     }
+}
+
+static void stage_resolve(worker *w, const blk *b)
+{
+    if (w->c->n == 1)
+        resolve_block(w->c, w->s, b, 1);
+    else
+        resolve_block(w->c, w->s, b, w->c->n);
 }
 
 static int on_resolve(const ctx *c)
