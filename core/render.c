@@ -410,19 +410,22 @@ static void albedo_of(const ctx *c, const double p[3], float rgb[3])
         td_shade_hypsometric((p[2] - c->zlo) / c->zspan, rgb);
 }
 
-static void normal_of(const ctx *c, const td_hit *h, int level, float n[3])
+/* The shading normal of a hit at p in cell (ci, cj) of level `level` whose surface
+ * normal is hn: hn, or the smoothed normal there. */
+static void normal_of(const ctx *c, const double p[3], const float hn[3], int32_t ci, int32_t cj, int level,
+                      float n[3])
 {
     if (c->s->quality.smooth_normals)
-        td_shade_smooth_normal(c->views[level]->grid, h->ci, h->cj, h->p[0], h->p[1], n);
+        td_shade_smooth_normal(c->views[level]->grid, ci, cj, p[0], p[1], n);
     else
-        memcpy(n, h->n, sizeof h->n);
+        memcpy(n, hn, 3 * sizeof *n);
 }
 
 static void shade_plain(const ctx *c, const td_hit *h, int level, float rgb[3])
 {
     float alb[3], n[3];
     albedo_of(c, h->p, alb);
-    normal_of(c, h, level, n);
+    normal_of(c, h->p, h->n, h->ci, h->cj, level, n);
     td_shade_light(alb, n, c->sun, c->s->effects.ambient, 1.0, 1.0, rgb);
 }
 
@@ -1101,14 +1104,9 @@ static void stage_shade(worker *w, const blk *b)
             continue;
         float col[3] = {0.0f, 0.0f, 0.0f};
         if (sm->flags & F_HIT) {
-            td_hit h;
-            memcpy(h.p, sm->p, sizeof h.p);
-            memcpy(h.n, sm->n, sizeof h.n);
-            h.ci = sm->ci;
-            h.cj = sm->cj;
             float alb[3], nn[3];
-            albedo_of(c, h.p, alb);
-            normal_of(c, &h, sm->level, nn);
+            albedo_of(c, sm->p, alb);
+            normal_of(c, sm->p, sm->n, sm->ci, sm->cj, sm->level, nn);
             /* the floor under water is not shadowed or occluded (no rays for it) */
             int dry = !(sm->flags & F_WATER);
             double lit = lits && dry ? lits[i] : 1.0;
