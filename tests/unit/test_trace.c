@@ -20,6 +20,7 @@
 #include "sunlit.h"
 #include "terrain.h"
 #include "trace.h"
+#include "terrain_fixture.h"
 
 static void _fail_msg_near(double a, double b, double eps, const char *what, const char *file, int line)
 {
@@ -61,15 +62,7 @@ static td_accel *build_all(const td_grid *g, int k)
 
 static td_grid *procedural(int32_t w, int32_t h, uint64_t seed, int tile_log2)
 {
-    td_terrain_params p;
-    td_grid *g = NULL;
-    td_terrain_params_default(&p);
-    p.width = w;
-    p.height = h;
-    p.seed = seed;
-    p.spacing = 25.0;
-    assert_int_equal(td_terrain_generate(&p, tile_log2, &g, NULL), TD_OK);
-    return g;
+    return terrain_seeded(w, h, 25.0, seed, tile_log2);
 }
 
 /* Double-precision Moller-Trumbore, inclusive edges. */
