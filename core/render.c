@@ -750,7 +750,8 @@ static void fan_flush(worker *w, fan *f)
         const td_hit *h = &hits[k];
         smp *sm = f->sm[k];
         steps += h->steps;
-        methods[(unsigned)h->method < TD_METHOD_COUNT ? h->method : 0] += (unsigned)h->method < TD_METHOD_COUNT;
+        if ((unsigned)h->method < TD_METHOD_COUNT)
+            methods[h->method]++;
         sm->level = 0;
         if (h->t < INFINITY) {
             nhit++;
