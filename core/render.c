@@ -484,18 +484,16 @@ static inline void count_error(td_render_stats *st, double e)
  * at its x, y: what the scene's surface and level of detail cost in accuracy, reported
  * with every render and pick. One interpolation per hit. NaN (and nothing counted) over
  * a void. */
-static double note_error(const ctx *c, const td_hit *h, int level, const double *zb,
-                         td_render_stats *st)
+static double note_error(const ctx *c, const td_hit *h, int level, td_render_stats *st)
 {
     const double *p = h->p;
-    double z = zb ? *zb : NAN, e = NAN;
+    double z = NAN, e = NAN;
     /* on the full grid the hit's cell holds the point (no search for it; a fan's hits come
-       with that height, zb, from the same samples and arithmetic); a coarse level's hit on
-       a mapped (prepared, larger than memory) grid is not measured: it would read a
+       with that height from td_trace_fan, counted by fan_flush); a coarse level's hit on a
+       mapped (prepared, larger than memory) grid is not measured: it would read a
        full-resolution page per far pixel (9.2 k of a cold 4 GiB view's 10.5 k faults) */
-    if (zb ? !isnan(z)
-           : level == 0 ? td_grid_bilinear_cell(c->v->grid, h->ci, h->cj, p[0], p[1], &z, NULL)
-                        : !c->v->grid->map && td_grid_bilinear(c->v->grid, p[0], p[1], &z, NULL)) {
+    if (level == 0 ? td_grid_bilinear_cell(c->v->grid, h->ci, h->cj, p[0], p[1], &z, NULL)
+                   : !c->v->grid->map && td_grid_bilinear(c->v->grid, p[0], p[1], &z, NULL)) {
         e = fabs(p[2] - z);
         count_error(st, e);
     }
@@ -508,11 +506,10 @@ static int camera_bends(const ctx *c, const double o[3], const double d[3])
     return c->curv && needs_curve(c, o, d, c->curv_smin);
 }
 
-/* A camera ray's counts: the ray, its steps, a hit and its height error (from zb, the
- * exact surface's height there, when the caller has it). Returns the error (NaN for a miss
- * or over a void). */
-static double count_camera(const ctx *c, const td_hit *hit, int level, const double *zb,
-                           uint64_t steps, td_render_stats *st)
+/* A camera ray's counts: the ray, its steps, a hit and its height error. Returns the
+ * error (NaN for a miss or over a void). */
+static double count_camera(const ctx *c, const td_hit *hit, int level, uint64_t steps,
+                           td_render_stats *st)
 {
     double e = NAN;
     st->steps += steps;
@@ -520,7 +517,7 @@ static double count_camera(const ctx *c, const td_hit *hit, int level, const dou
     st->rays[TD_RAY_PRIMARY]++;
     if (hit->t < INFINITY) {
         st->hits++;
-        e = note_error(c, hit, level, zb, st);
+        e = note_error(c, hit, level, st);
     }
     return e;
 }
@@ -541,7 +538,7 @@ static double trace_camera(const ctx *c, const td_ray *r, int bent, double t_cle
     } else {
         trace_lod(c, r, t_clear, hit, level, &steps);
     }
-    return count_camera(c, hit, *level, NULL, steps, st);
+    return count_camera(c, hit, *level, steps, st);
 }
 
 /* A hit's point, normal and cell into its sample. */
