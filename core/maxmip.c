@@ -100,6 +100,26 @@ TD_ROW_CLONES static void level1(const float *restrict cell, int32_t nx, int32_t
     }
 }
 
+/* The tile's min4 (maxmip.h): each block's samples, its cells' corners, row by row
+ * through td_grid_corner; a NaN (void) stays. */
+static void blocks_min4(const td_grid *g, const td_tile *t, td_maxmip *m)
+{
+    for (int32_t by = 0; by < m->min4_h; by++) {
+        float *o = m->min4 + (size_t)by * (size_t)m->min4_w;
+        for (int32_t bx = 0; bx < m->min4_w; bx++)
+            o[bx] = INFINITY;
+        int32_t j1 = 4 * by + 4 < t->ny ? 4 * by + 4 : t->ny;
+        for (int32_t j = 4 * by; j <= j1; j++) {
+            for (int32_t i = 0; i <= t->nx; i++) {
+                float z = *td_grid_corner(&g->cz, t->i0 + i, t->j0 + j);
+                /* sample i is a corner of the blocks (i - 1) / 4 and i / 4 */
+                for (int32_t bx = i > 0 ? (i - 1) / 4 : 0; bx <= i / 4 && bx < m->min4_w; bx++)
+                    o[bx] = z < o[bx] || z != z ? z : o[bx];
+            }
+        }
+    }
+}
+
 td_status td_maxmip_build(const td_grid *g, size_t tile, td_maxmip **out, td_err *err)
 {
     td_status rc = TD_OK;
@@ -126,13 +146,17 @@ td_status td_maxmip_build(const td_grid *g, size_t tile, td_maxmip **out, td_err
         m->offset[l] = total;
         total += (size_t)m->dim[l] * (size_t)m->dim[l];
     }
+    m->min4_w = (t->nx + 3) / 4;
+    m->min4_h = (t->ny + 3) / 4;
     max = malloc(sizeof(float) * total);
     m->code = malloc(sizeof(uint16_t) * total);
-    if (!max || !m->code) {
+    m->min4 = malloc(sizeof(float) * (size_t)m->min4_w * (size_t)m->min4_h);
+    if (!max || !m->code || !m->min4) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for a max-mipmap");
         goto out;
     }
-    m->bytes = sizeof *m + sizeof(uint16_t) * total;
+    m->bytes = sizeof *m + sizeof(uint16_t) * total + sizeof(float) * (size_t)m->min4_w * (size_t)m->min4_h;
+    blocks_min4(g, t, m);
     td_grid_cell_max(g, t, cell);
     level1(cell, t->nx, t->ny, m->dim[1], max + m->offset[1]);
     for (int l = 2; l <= L; l++) {
@@ -164,6 +188,7 @@ void td_maxmip_free(td_maxmip *m)
 {
     if (m) {
         free(m->code);
+        free(m->min4);
         free(m);
     }
 }

@@ -3,7 +3,8 @@
  * >= 1 holds, per block of 2^L x 2^L cells, a bound on the highest corner of any non-hole
  * cell in it, which bounds every surface: a 16-bit code per block, decoded by
  * td_maxmip_bound to a height never below that corner and at most one step of the
- * tile's code above it (a block of holes only decodes to the tile's lowest code). */
+ * tile's code above it (a block of holes only decodes to the tile's lowest code). It also
+ * keeps each 4 x 4 block's lowest corner (min4), for the sun bound's shadow side. */
 #ifndef TD_MAXMIP_H
 #define TD_MAXMIP_H
 
@@ -16,6 +17,12 @@ struct td_maxmip {
     size_t offset[17];   /* offset of level L in `code` */
     double base, step;   /* code q stands for the height base + q * step (step > 0) */
     uint16_t *code;      /* all levels, row-major, south first */
+    /* Per block of 4 x 4 cells of the tile (min4_w x min4_h, fewer cells on its east and
+     * north edges), the lowest corner, NaN where one is void: the sun bound's shadow side
+     * reads them (sunlit.h). NULL in a prepared grid's tiles (prepaccel.c keeps the codes
+     * only). */
+    float *min4;
+    int32_t min4_w, min4_h;
     size_t bytes;
 };
 

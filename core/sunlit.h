@@ -24,7 +24,23 @@
  * on (sunlit.c has the figures). Blocks are 4 x 4 cells, or the next power of two up
  * that keeps the columns times strips to 2^21 (sunlit.c says why). A shadow ray whose
  * point is above its bound (with the walk's margin) is lit: td_occluded ends it there.
- * Sun at the zenith (no horizontal part) or below the horizon: no bound is built. */
+ * Sun at the zenith (no horizontal part) or below the horizon: no bound is built.
+ *
+ * The shadow side, per column and strip the same way: with m(ia, k) the lowest sample of
+ * the blocks strip k crosses in column ia (every surface lies at or above it there), a
+ * ray that passes through column ia in strip k below
+ *
+ *     L(ia, k) = max( m(ia, k), L(ia', k) - D tan )
+ *
+ * is below the surface there or goes on below L one column on (-inf where a void or the
+ * grid's edge is within the strip's blocks: a hole lets a ray pass under the surface
+ * without crossing it). A shadow ray that starts above the surface and passes below it
+ * crosses it on the way, and td_occluded's walk finds that crossing (it tests every cell
+ * the ray crosses, each surface's crossings inside a cell too). So a ray from a point
+ * above the surface under it and below its strip's L (margins of zeps either way) is
+ * shadowed: td_occluded answers at once. Built for in-memory grids when low sun over
+ * relief makes rays from the surface walk far (sunlit.c, build_lo); lo is NULL
+ * otherwise. */
 #ifndef TD_SUNLIT_H
 #define TD_SUNLIT_H
 
@@ -42,6 +58,7 @@ typedef struct td_sunlit {
     int32_t nst;    /* strips */
     int32_t kmin;   /* the first strip's k */
     float *h;       /* na * nst bounds: column ia, strip k at h[ia * nst + k - kmin] */
+    float *lo;      /* the shadow side's L, laid out as h (-inf: no claim), or NULL */
     size_t bytes;
 } td_sunlit;
 
@@ -74,6 +91,13 @@ static inline double td_sunlit_at(const td_sunlit *s, double u, double v)
 static inline double td_sunlit_col(const td_sunlit *s, ptrdiff_t k, int32_t ci, int32_t cj)
 {
     return (double)s->h[(size_t)((s->a_is_x ? ci : cj) >> s->shift) * (size_t)s->nst + (size_t)k];
+}
+
+/* The shadow side's L of strip k (td_sunlit_strip's, not -1) in the column of cell
+ * (ci, cj), with lo built */
+static inline double td_sunlit_lo(const td_sunlit *s, ptrdiff_t k, int32_t ci, int32_t cj)
+{
+    return (double)s->lo[(size_t)((s->a_is_x ? ci : cj) >> s->shift) * (size_t)s->nst + (size_t)k];
 }
 
 #endif

@@ -1718,6 +1718,32 @@ TD_HOT void vsun_strip(const td_sunlit *lit, const vwalk *p, vi *k, vm *has)
     *k = __builtin_convertvector(vsel(*has, kk, vb(0.0)), vi);
 }
 
+/* surely_shadowed for the lanes of m (their strips k) */
+TD_HOT vm vsurely_shadowed(const walk *w, td_surface sf, const vwalk *p, vi k, vm m)
+{
+    const td_sunlit *lit = w->lit;
+    const td_grid *g = w->g;
+    vm in = m & (vm)(p->ou >= 0.0) & (vm)(p->ov >= 0.0) & (vm)(p->ou <= (double)(g->w - 1)) &
+            (vm)(p->ov <= (double)(g->h - 1));
+    vm sure = {0, 0, 0, 0};
+    if (sf != TD_SURFACE_LINEAR && vany(in)) {
+        vd u = vsel(in, p->ou, vb(0.0)), v = vsel(in, p->ov, vb(0.0)), L;
+        vd ci = vmin(__builtin_convertvector(__builtin_convertvector(u, vi), vd), vb((double)w->cmax_i));
+        vd cj = vmin(__builtin_convertvector(__builtin_convertvector(v, vi), vd), vb((double)w->cmax_j));
+        vi ia = __builtin_convertvector(lit->a_is_x ? ci : cj, vi) >> lit->shift;
+        for (int l = 0; l < TD_LANES; l++)
+            L[l] = (double)lit->lo[(size_t)ia[l] * (size_t)lit->nst + (size_t)(in[l] ? k[l] : 0)];
+        vm cand = in & (vm)(p->oz < L - w->zeps);
+        if (vany(cand)) {
+            vcell c = vcorners(w, ci, cj, cand);
+            vd a = u - ci, b = v - cj;
+            vd h = sf == TD_SURFACE_TRIANGLE ? vtriangle_patch(c.c, a, b) : vbilinear_patch(c.c, a, b);
+            sure = sf == TD_SURFACE_PLANE ? cand : cand & (vm)(p->oz > h + w->zeps);
+        }
+    }
+    return sure;
+}
+
 /* What a lane of occ_packets left: the rest of occluded_one's walk (the tiles, from blocks
  * of 2 x 2 cells up) from the cell, time, f and entry the lane stood at, after n steps. */
 static int occ_rest(const td_view *v, td_method m, walk *w, const double o[3],
@@ -1764,9 +1790,15 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
         vstart_at(w, &p, iz, vb(0.0), &st, &go, &near);
         vi strip = {0, 0, 0, 0};
         vm has = {0, 0, 0, 0};
-        if (w->lit)
-            vsun_strip(w->lit, &p, &strip, &has);
         cont = go;
+        if (w->lit) {
+            vsun_strip(w->lit, &p, &strip, &has);
+            if (w->lit->lo && vany(has & go)) { /* surely shadowed: no walk */
+                vm sure = vsurely_shadowed(w, sf, &p, strip, has & go);
+                occ |= sure;
+                cont &= ~sure;
+            }
+        }
         for (int k = 0; k < TD_OCC_NEAR_CELLS && vany(cont); k++) {
             vm h, end;
             vd t, wall;
@@ -1868,6 +1900,31 @@ static int occluded_one(const td_view *v, td_method m, walk *w, const double o[3
     return hit;
 }
 
+/* Whether the shadow ray from o along the sun (w's direction and lit, the sun's bound
+ * with its shadow side) is surely shadowed (sunlit.h): o on the grid, above the surface
+ * under it and below its strip's L, by zeps each. The plane's cells are solid: below L is
+ * enough. The linear surface's height under o depends on the ray: no claim. */
+static int surely_shadowed(const walk *w, const td_sunlit *lit, const double o[3])
+{
+    const td_grid *g = w->g;
+    const td_surface sf = (td_surface)(w->surf - surfaces);
+    const double u = o[0] / g->sx, v = o[1] / g->sy;
+    int yes = 0;
+    if (lit && lit->lo && sf != TD_SURFACE_LINEAR && u >= 0.0 && v >= 0.0 && u <= (double)(g->w - 1) &&
+        v <= (double)(g->h - 1)) {
+        ptrdiff_t k = td_sunlit_strip(lit, u, v);
+        int32_t ci = (int32_t)u < w->cmax_i ? (int32_t)u : w->cmax_i;
+        int32_t cj = (int32_t)v < w->cmax_j ? (int32_t)v : w->cmax_j;
+        if (k >= 0 && o[2] < td_sunlit_lo(lit, k, ci, cj) - w->zeps) {
+            double c[4], a = u - ci, b = v - cj;
+            corners(g, ci, cj, c);
+            yes = sf == TD_SURFACE_PLANE ||
+                  o[2] > (sf == TD_SURFACE_TRIANGLE ? triangle_patch(c, a, b) : bilinear_patch(c, a, b)) + w->zeps;
+        }
+    }
+    return yes;
+}
+
 int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r,
                 const td_sunlit *lit, uint32_t *steps)
 {
@@ -1878,7 +1935,8 @@ int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r,
         walk_grid(&w, v->grid, s);
         if (walk_dir(&w, r->d, &scale)) {
             w.lit = lit;
-            hit = occluded_one(v, m, &w, r->o, r->tmin, r->tmax, scale, steps);
+            hit = (r->tmin == 0.0 && r->tmax == INFINITY && surely_shadowed(&w, lit, r->o)) ||
+                  occluded_one(v, m, &w, r->o, r->tmin, r->tmax, scale, steps);
         }
     }
     return hit;

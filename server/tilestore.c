@@ -241,7 +241,7 @@ static uint64_t maxmip_bound(const td_tile *t, int tile_log2, int param)
     uint64_t tt = (uint64_t)1 << tile_log2;
     (void)t;
     (void)param;
-    return sizeof(td_maxmip) + sizeof(uint16_t) * (tt * tt / 3 + 64);
+    return sizeof(td_maxmip) + sizeof(uint16_t) * (tt * tt / 3 + 64) + sizeof(float) * (tt / 4 + 1) * (tt / 4 + 1);
 }
 
 static void maxmip_attach(td_tile_accel *a, const void *obj) { a->maxmip = obj; }
@@ -257,8 +257,10 @@ static int maxmip_pieces(void *obj, td_cache_hdr *h, td_piece *pc)
     h->code_base = m->base;
     h->code_step = m->step;
     pc[0].ptr = m->code;
-    pc[0].len = (m->bytes - sizeof *m) / sizeof(uint16_t) * sizeof(uint16_t);
-    return 1;
+    pc[0].len = (m->offset[m->levels] + (size_t)m->dim[m->levels] * (size_t)m->dim[m->levels]) * sizeof(uint16_t);
+    pc[1].ptr = m->min4; /* the 4 x 4 blocks' minima (maxmip.h) */
+    pc[1].len = (size_t)m->min4_w * (size_t)m->min4_h * sizeof(float);
+    return 2;
 }
 
 static const char *maxmip_alloc(const td_cache_hdr *h, void **obj, size_t *bytes, td_piece *pc,
@@ -283,7 +285,8 @@ static const char *maxmip_alloc(const td_cache_hdr *h, void **obj, size_t *bytes
             why = "bad shape";
         total += (uint64_t)h->dim[l] * (uint64_t)h->dim[l];
     }
-    if (!why && h->payload != total * sizeof(uint16_t))
+    const uint64_t n4 = (uint64_t)((h->nx + 3) / 4) * (uint64_t)((h->ny + 3) / 4) * sizeof(float);
+    if (!why && h->payload != total * sizeof(uint16_t) + n4)
         why = "bad shape";
     if (why)
         goto out;
@@ -294,16 +297,21 @@ static const char *maxmip_alloc(const td_cache_hdr *h, void **obj, size_t *bytes
     }
     m->base = h->code_base;
     m->step = h->code_step;
-    m->code = malloc(h->payload ? h->payload : 1);
-    if (!m->code) {
+    m->min4_w = (h->nx + 3) / 4;
+    m->min4_h = (h->ny + 3) / 4;
+    m->code = malloc(total ? total * sizeof(uint16_t) : 1);
+    m->min4 = malloc(n4 ? n4 : 1);
+    if (!m->code || !m->min4) {
         why = "out of memory";
         goto out;
     }
     m->bytes = sizeof *m + h->payload;
     *bytes = m->bytes;
     pc[0].ptr = m->code;
-    pc[0].len = h->payload;
-    *npc = 1;
+    pc[0].len = total * sizeof(uint16_t);
+    pc[1].ptr = m->min4;
+    pc[1].len = n4;
+    *npc = 2;
 out:
     return why;
 }

@@ -29,6 +29,7 @@
 
 #include "image.h"
 #include "maxmip.h"
+#include "maxmip_same.h"
 #include "planes.h"
 #include "reference.h"
 #include "terrain.h"
@@ -332,9 +333,7 @@ static void test_disk_cache(void **state)
         td_planes *p = NULL;
         assert_int_equal(td_maxmip_build(v->grid, 9, &m, &e), TD_OK);
         assert_int_equal(td_planes_build(v->grid, 9, 8, &p, &e), TD_OK);
-        assert_int_equal(v->accel[9].maxmip->bytes, m->bytes);
-        assert_memory_equal(v->accel[9].maxmip->code, m->code, m->bytes - sizeof *m);
-        assert_true(v->accel[9].maxmip->base == m->base && v->accel[9].maxmip->step == m->step);
+        same_maxmip(v->accel[9].maxmip, m);
         assert_memory_equal(v->accel[9].planes->cone, p->cone, sizeof(td_cone) * (size_t)p->bnx * (size_t)p->bny);
         assert_memory_equal(v->accel[9].planes->apex, p->apex, sizeof(float) * ((size_t)p->k + 1));
         assert_true(v->accel[9].planes->slope_scale == p->slope_scale);
@@ -528,9 +527,7 @@ static void check_parts_fresh(td_store *s, const char *id)
         if (v->accel[t].maxmip) {
             td_maxmip *m = NULL;
             assert_int_equal(td_maxmip_build(v->grid, t, &m, &e), TD_OK);
-            assert_int_equal(v->accel[t].maxmip->bytes, m->bytes);
-            assert_memory_equal(v->accel[t].maxmip->code, m->code, m->bytes - sizeof *m);
-            assert_true(v->accel[t].maxmip->base == m->base && v->accel[t].maxmip->step == m->step);
+            same_maxmip(v->accel[t].maxmip, m);
             td_maxmip_free(m);
         }
         if (v->accel[t].planes) {

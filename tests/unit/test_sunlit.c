@@ -15,6 +15,7 @@
 #include <cmocka.h>
 
 #include "accel.h"
+#include "maxmip.h"
 #include "sunlit.h"
 #include "terrain.h"
 #include "trace.h"
@@ -47,9 +48,10 @@ static td_accel *accel(const td_grid *g, int threads)
 
 /* The bound's claims for one sun over grid g (with per-tile acceleration tiles, or NULL);
  * fewer: and that it saves steps. */
-static void check_sun(const td_grid *g, const td_tile_accel *tiles, const double sun[3], uint64_t *seed,
-                      int fewer)
+static size_t check_sun(const td_grid *g, const td_tile_accel *tiles, const double sun[3], uint64_t *seed,
+                        int fewer)
 {
+    size_t below = 0; /* points the shadow side holds shadowed */
     td_view v = {g, tiles};
     td_sunlit *lit = NULL;
     uint64_t with = 0, without = 0;
@@ -83,6 +85,17 @@ static void check_sun(const td_grid *g, const td_tile_accel *tiles, const double
         if (isnan(ground))
             continue;
         r.o[2] = ground + 0.5; /* from just above the surface: the same answer, fewer steps */
+        ptrdiff_t sk = td_sunlit_strip(lit, x / g->sx, y / g->sy);
+        if (lit->lo && sk >= 0 && r.o[2] < td_sunlit_lo(lit, sk, ci, cj) - 1e-3) {
+            /* below the shadow side: every surface under the point meets the ray */
+            for (int s = 0; s < TD_SURFACE_COUNT; s++) {
+                double under = td_surface_height(g, (td_surface)s, ci, cj, x, y);
+                td_trace(&v, TD_METHOD_INCREMENTAL, (td_surface)s, &r, &h);
+                if (s == TD_SURFACE_PLANE || (!isnan(under) && r.o[2] > under + 1e-3))
+                    assert_true(h.t < INFINITY);
+            }
+            below++;
+        }
         for (int s = 0; s < TD_SURFACE_COUNT; s++) {
             td_trace(&v, TD_METHOD_AUTO, (td_surface)s, &r, &h);
             assert_int_equal(td_occluded(&v, TD_METHOD_AUTO, (td_surface)s, &r, lit, &s1), h.t < INFINITY);
@@ -94,6 +107,7 @@ static void check_sun(const td_grid *g, const td_tile_accel *tiles, const double
     if (fewer) /* the walks the bound ends outweigh its checks */
         assert_true(with < without);
     td_sunlit_free(lit);
+    return below;
 }
 
 static void test_sunlit_bounds(void **state)
@@ -115,12 +129,33 @@ static void test_sunlit_bounds(void **state)
     assert_non_null(some);
     for (size_t k = 0; k < nt; k++)
         some[k].maxmip = k % 3 ? a->tiles[k].maxmip : NULL;
+    for (size_t k = 0; k < nt; k++) { /* each 4 x 4 block's lowest corner (maxmip.h's min4) */
+        const td_tile *t = &g->tiles[k];
+        const td_maxmip *mm = a->tiles[k].maxmip;
+        assert_int_equal(mm->min4_w, (t->nx + 3) / 4);
+        assert_int_equal(mm->min4_h, (t->ny + 3) / 4);
+        for (int32_t by = 0; by < mm->min4_h; by++)
+            for (int32_t bx = 0; bx < mm->min4_w; bx++) {
+                float m = INFINITY;
+                int voids = 0;
+                for (int32_t j = 4 * by; j <= 4 * by + 4 && j <= t->ny; j++)
+                    for (int32_t i = 4 * bx; i <= 4 * bx + 4 && i <= t->nx; i++) {
+                        float z = td_grid_at(g, t->i0 + i, t->j0 + j);
+                        voids += isnan(z);
+                        m = z < m ? z : m;
+                    }
+                float got = mm->min4[(size_t)by * (size_t)mm->min4_w + (size_t)bx];
+                assert_true(voids ? isnan(got) : got == m);
+            }
+    }
+    size_t below = 0;
     for (size_t k = 0; k < sizeof suns / sizeof suns[0]; k++) {
         double sun[3];
         sun_of(suns[k][0], suns[k][1], sun);
-        check_sun(g, a->tiles, sun, &seed, 1);
+        below += check_sun(g, a->tiles, sun, &seed, 1);
         check_sun(g, k % 2 ? NULL : some, sun, &seed, 1);
     }
+    assert_true(below > 100); /* the low suns' shadow side holds points (and the voids') */
     free(some);
     td_accel_free(a);
     td_grid_free(g);
