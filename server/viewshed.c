@@ -23,6 +23,7 @@
 
 #include "clock.h"
 #include "limit.h"
+#include "prefault.h"
 
 /* ---- answers -------------------------------------------------------------------------- */
 
@@ -301,6 +302,7 @@ static td_status work_viewshed(vs_job *j, td_http_req *hq, td_http_resp *r, td_v
                         (int)v->grid->h);
         goto out;
     }
+    td_prefault(counts, (size_t)v->grid->w * (size_t)v->grid->h); /* written whole next */
     rc = resolve(v->grid, &j->q, pts, e);
     j->q.o.obs = pts;
     j->q.o.nobs = j->q.npts;
