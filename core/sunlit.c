@@ -1,11 +1,13 @@
-/* sunlit.c: the per-block sun bound of sunlit.h, built by one sweep against the sun.
+/* sunlit.c: the sun bound of sunlit.h, per column of blocks and strip along the sun, built
+ * by one sweep against the sun.
  *
  * Called by td_render when a scene has shadows (one build per render, its time counted in
- * the shadows stage), read by td_occluded. Layout: one float per block of 2^shift cells
- * a side, in rows along the axis the sun crosses more slowly. The sweep visits those rows
- * starting from the sun's side, so every block's successors are done before it:
- * O(blocks), each block reading at most 4 maxima of two blocks and 3 bounds of the row
- * before, all in contiguous rows. */
+ * the shadows stage), read by td_occluded. Layout: one float per column of blocks of
+ * 2^shift cells a side (along the axis the sun crosses faster) and strip, the strips of a
+ * column contiguous. The sweep visits the columns from the sun's side, so every column's
+ * successor is done before it: per column, each strip's maximum over the <= 3 blocks it
+ * crosses (a window over the column's block maxima, shifted by the column's offset) and
+ * one bound of the column before, all in contiguous rows. */
 #include "sunlit.h"
 
 #include <math.h>
@@ -16,7 +18,7 @@
 #include "maxmip.h"
 
 /* Blocks of 2^shift cells a side: the finest shift from TD_SUNLIT_MIN_SHIFT up whose
- * blocks number at most TD_SUNLIT_MAX_BLOCKS (4 MB of bounds). A shadow ray ends at the
+ * columns times strips number at most TD_SUNLIT_MAX_BOUNDS (8 MB). A shadow ray ends at the
  * first cell where it rises above its block's bound, and a block's bound is at least its
  * own highest corner, so smaller blocks end rays sooner, for a build that grows with the
  * blocks. Measured (callgrind, trinidad's four bench views, shadows stage with the build,
@@ -24,20 +26,25 @@
  * rolled, straight down); 4-cell blocks 133.2 / 232.2 / 139.1 / 370.8; 2-cell blocks save
  * 2.5-14 M more in the rays and spend 18 M more in the build. */
 #define TD_SUNLIT_MIN_SHIFT 2
-#define TD_SUNLIT_MAX_BLOCKS ((size_t)1 << 20)
+/* Strips against the blocks' rows (the sweep before 2026-11-30, whose landing windows
+ * widened a block per block), callgrind, shadows stage with the build, M instructions,
+ * triangle surface, the bench's views: trinidad level 60.6 -> 60.6, grazing sunset
+ * 132.9 -> 110.2 (shadow steps 894,382 -> 685,290), rolled 73.7 -> 74.8, straight down
+ * 172.7 -> 174.7; picos level 81.0 -> 73.6, grazing 99.4 -> 100.4, rolled 223.6 -> 208.4,
+ * straight down 240.6 -> 238.9. Lit rays walk fewer cells where far terrain set the
+ * bound (low sun, long walks); where the block's own top did, a packet's strips cost a
+ * little. */
+#define TD_SUNLIT_MAX_BOUNDS ((uint64_t)1 << 21)
 
 /* The sweep's geometry: axis a is the sun's dominant one (the one it crosses blocks of
  * fastest), b the other; along a the step D crosses exactly one block (sign sa), along b
- * it moves del blocks (|del| <= 1). Bounds are kept in rows along b (td_sunlit's strides
- * say which way that is on the grid), with PAD blocks of -inf at each end of the sweep's
- * scratch rows so that a window needs no clamping. */
+ * it moves del blocks (|del| <= 1, the sign of the sun's b). The blocks' maxima are kept
+ * in rows along b, a row per column. */
 typedef struct sweep {
     int32_t na, nb; /* blocks along a and b */
     int a_is_x, sa;
     double del, decay;
 } sweep;
-
-#define PAD 2 /* the windows below reach at most 2 blocks either side */
 
 /* The nearest float at or above b (a bound must not round down): one ulp up from the
  * rounded float when it fell short (its bits + 1 when positive, - 1 when negative; the
@@ -87,60 +94,89 @@ static void block_maxima(const td_view *v, const sweep *w, int shift, float *bm)
     }
 }
 
-/* out[ib] = the max of p[PAD + ib + k] over k = lo .. hi (|lo|, |hi| <= PAD), a pass a k
- * over contiguous rows. */
-static void window_max(const float *p, int32_t lo, int32_t hi, size_t nb, float *out)
+/* The strips that cross column ia's blocks and M(ia, k) for them (sunlit.h): strip k
+ * crosses the blocks ib = k + lo .. k + hi of the column, lo and hi the same for every k,
+ * its range of B widened by a hair against the rounding of del and of a point's
+ * B - del A, which also takes both blocks a point on their common edge is in (a ray along
+ * that edge walks the cells of one of them: with the sun exactly along an axis, the strip
+ * of a point on a block's edge B = k crosses blocks k - 1 and k). Strips t (k = kmin + t)
+ * in [*ta, *tb) cross the column; m[t] for them (-inf where a strip's blocks are partly
+ * off it). row is the column's block maxima (nb of them). */
+static void strip_maxima(const sweep *w, const td_sunlit *s, int32_t ia, const float *row,
+                         size_t *ta, size_t *tb, float *pad, float *m)
 {
-    memcpy(out, p + PAD + lo, nb * sizeof *out);
-    for (int32_t k = lo + 1; k <= hi; k++)
-        for (size_t i = 0; i < nb; i++)
-            out[i] = p[PAD + k + (ptrdiff_t)i] > out[i] ? p[PAD + k + (ptrdiff_t)i] : out[i];
+    const double q = s->del, eps = 1e-9, x = q * ia;
+    const int64_t lo = (int64_t)floor(x + (q < 0.0 ? q : 0.0) - eps);
+    const int64_t hi = (int64_t)ceil(1.0 + x + (q > 0.0 ? q : 0.0) + eps) - 1;
+    const int64_t nst = s->nst, a = -(int64_t)s->kmin - hi, b = w->nb - (int64_t)s->kmin - lo;
+    *ta = (size_t)(a < 0 ? 0 : (a > nst ? nst : a));
+    *tb = (size_t)(b < (int64_t)*ta ? (int64_t)*ta : (b > nst ? nst : b));
+    /* pad[t]: block kmin + lo + t, or -inf off the column, for t in [ta, tb + hi - lo) */
+    const int64_t pe = (int64_t)*tb + (hi - lo), ib0 = (int64_t)s->kmin + lo;
+    const int64_t t0 = -ib0 > (int64_t)*ta ? (-ib0 < pe ? -ib0 : pe) : (int64_t)*ta; /* blocks from t0 */
+    const int64_t t1 = w->nb - ib0 < pe ? (w->nb - ib0 > t0 ? w->nb - ib0 : t0) : pe; /* to t1 */
+    for (int64_t t = (int64_t)*ta; t < t0; t++)
+        pad[t] = -INFINITY;
+    if (t1 > t0)
+        memcpy(pad + t0, row + (ib0 + t0), (size_t)(t1 - t0) * sizeof *pad);
+    for (int64_t t = t1; t < pe; t++)
+        pad[t] = -INFINITY;
+    if (*tb > *ta)
+        memcpy(m + *ta, pad + *ta, (*tb - *ta) * sizeof *m);
+    for (int64_t k = 1; k <= hi - lo; k++)
+        for (size_t t = *ta; t < *tb; t++)
+            m[t] = pad[t + (size_t)k] > m[t] ? pad[t + (size_t)k] : m[t];
 }
 
-/* The sweep against the sun (see the top of sunlit.h), rows of blocks from the sun's side.
- * Within D the rays from block ib of row ia cross the b-range [ib + min(del, 0),
- * ib + 1 + max(del, 0)) of rows ia and next and land in [ib + del, ib + 1 + del) of row
- * next: the blocks ib + r0 .. ib + r1 and ib + n0 .. ib + n1, offsets that are the same for
- * every ib (widened by a hair of b against the rounding of del; none when the sun is
- * exactly along an axis: del is then exactly 0 and the blocks line up). sc is scratch for
- * two padded rows (nb + 2 PAD floats) and two plain ones. */
-static void sweep_rows(const sweep *w, const float *bm, float *h, float *sc)
+/* The sweep against the sun (sunlit.h): columns from the sun's side, each strip's bound
+ * the larger of its maxima in this column and the next and the next column's bound less
+ * the decay, -inf for the strips that do not cross the column (a ray there has left the
+ * grid). The work is the strips that cross each column (about its blocks), not all of
+ * them. sc is scratch for 3 nst + 3 floats: the maxima of this column and the next, each
+ * -inf off the strips it has, and strip_maxima's pad. */
+static void sweep_strips(const sweep *w, const td_sunlit *s, const float *bm, float *h, float *sc)
 {
-    const double eps = w->del == 0.0 ? 0.0 : 1e-9;
-    const int32_t r0 = (int32_t)floor((w->del < 0.0 ? w->del : 0.0) - eps);
-    const int32_t r1 = (int32_t)ceil(1.0 + (w->del > 0.0 ? w->del : 0.0) + eps) - 1;
-    const int32_t n0 = (int32_t)floor(w->del - eps), n1 = (int32_t)ceil(1.0 + w->del + eps) - 1;
-    const size_t nb = (size_t)w->nb;
-    float *pm = sc, *pn = pm + nb + 2 * PAD, *m = pn + nb + 2 * PAD, *n = m + nb;
-    for (int k = 0; k < PAD; k++)
-        pm[k] = pn[k] = pm[nb + PAD + (size_t)k] = pn[nb + PAD + (size_t)k] = -INFINITY;
-    for (int32_t s = 0; s < w->na; s++) {
-        int32_t ia = w->sa > 0 ? w->na - 1 - s : s, next = ia + w->sa;
-        int has_next = next >= 0 && next < w->na;
-        const float *b0 = bm + (size_t)ia * nb, *b1 = has_next ? bm + (size_t)next * nb : b0;
-        const float *h1 = has_next ? h + (size_t)next * nb : NULL;
-        float *out = h + (size_t)ia * nb;
-        for (size_t k = 0; k < nb; k++) /* the row's and the next row's maxima; next bounds */
-            pm[PAD + k] = b0[k] > b1[k] ? b0[k] : b1[k];
-        for (size_t k = 0; k < nb; k++)
-            pn[PAD + k] = h1 ? h1[k] : -INFINITY;
-        window_max(pm, r0, r1, nb, m);
-        window_max(pn, n0, n1, nb, n);
-        for (size_t k = 0; k < nb; k++) {
-            float d = float_up((double)n[k] - w->decay); /* m is a float already */
-            out[k] = m[k] > d ? m[k] : d;
+    const size_t nst = (size_t)s->nst;
+    float *m = sc, *mn = m + nst, *pad = mn + nst, *tmp;
+    size_t ra = 0, rb = 0, na_ = 0, nb_ = 0; /* the strips m and mn hold */
+    for (size_t t = 0; t < 2 * nst; t++)
+        sc[t] = -INFINITY;
+    for (int32_t st = 0; st < w->na; st++) {
+        int32_t ia = w->sa > 0 ? w->na - 1 - st : st, next = ia + w->sa;
+        float *out = h + (size_t)ia * nst;
+        size_t ta, tb;
+        for (size_t t = ra; t < rb; t++) /* m held the column before next: clear it */
+            m[t] = -INFINITY;
+        strip_maxima(w, s, ia, bm + (size_t)ia * (size_t)w->nb, &ta, &tb, pad, m);
+        for (size_t t = 0; t < ta; t++)
+            out[t] = -INFINITY;
+        if (next >= 0 && next < w->na) {
+            const float *hn = h + (size_t)next * nst;
+            for (size_t t = ta; t < tb; t++) {
+                float d = float_up((double)hn[t] - w->decay), a = m[t] > mn[t] ? m[t] : mn[t];
+                out[t] = a > d ? a : d;
+            }
+        } else {
+            memcpy(out + ta, m + ta, (tb - ta) * sizeof *out);
         }
+        for (size_t t = tb; t < nst; t++)
+            out[t] = -INFINITY;
+        tmp = mn, mn = m, m = tmp; /* this column's maxima are the next one's mn */
+        ra = na_, rb = nb_, na_ = ta, nb_ = tb;
     }
 }
 
-/* The finest shift from TD_SUNLIT_MIN_SHIFT up whose blocks over the grid's cells number
- * at most TD_SUNLIT_MAX_BLOCKS. */
+/* The finest shift from TD_SUNLIT_MIN_SHIFT up whose columns times strips number at most
+ * TD_SUNLIT_MAX_BOUNDS for any sun (strips: at most the blocks across plus along, plus 4). */
 static int block_shift(const td_grid *g)
 {
     int shift = TD_SUNLIT_MIN_SHIFT;
-    while (shift < 30 && (size_t)((g->w - 2) >> shift) + 1 >
-                             TD_SUNLIT_MAX_BLOCKS / ((size_t)((g->h - 2) >> shift) + 1))
-        shift++;
+    for (; shift < 30; shift++) {
+        uint64_t bw = (uint64_t)((g->w - 2) >> shift) + 1, bh = (uint64_t)((g->h - 2) >> shift) + 1;
+        uint64_t na = bw > bh ? bw : bh;
+        if (na * (bw + bh + 4) <= TD_SUNLIT_MAX_BOUNDS)
+            break;
+    }
     return shift;
 }
 
@@ -166,21 +202,27 @@ td_status td_sunlit_build(const td_view *v, const double sun[3], td_sunlit **out
     w.del = (w.a_is_x ? ry / rx : rx / ry) * ((w.a_is_x ? sun[1] : sun[0]) < 0.0 ? -1.0 : 1.0);
     /* D crosses one block along a; the decay is kept a hair short of D tan */
     w.decay = S / (w.a_is_x ? rx : ry) * (sun[2] / hs) * (1.0 - 1e-9);
-    size_t n = (size_t)bw * (size_t)bh, rows = 4 * (size_t)w.nb + 4 * PAD; /* n <= 2^20 */
+    /* the strips: B - del A over the grid's [0, na] x [0, nb], a strip to spare each side */
+    const double q = w.del * w.sa; /* B's change per unit of A along the sun */
+    const double lam0 = q > 0.0 ? -q * w.na : 0.0, lam1 = w.nb + (q < 0.0 ? -q * w.na : 0.0);
+    const int32_t kmin = (int32_t)floor(lam0) - 1, nst = (int32_t)ceil(lam1) + 1 - kmin + 1;
+    size_t n = (size_t)bw * (size_t)bh, nh = (size_t)w.na * (size_t)nst; /* nh <= 2^21 */
     s = calloc(1, sizeof *s);
-    bm = malloc((n + rows) * sizeof *bm);
-    if (!s || !bm || !(s->h = malloc(n * sizeof *s->h))) {
-        rc = td_err_set(err, TD_ENOMEM, "out of memory for the sun bound (%zu blocks)", n);
+    bm = malloc((n + 3 * (size_t)nst + 3) * sizeof *bm);
+    if (!s || !bm || !(s->h = malloc(nh * sizeof *s->h))) {
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for the sun bound (%zu bounds)", nh);
         goto out;
     }
     s->shift = shift;
-    s->bw = bw;
-    s->bh = bh;
-    s->si = w.a_is_x ? (size_t)bh : 1;
-    s->sj = w.a_is_x ? 1 : (size_t)bw;
-    s->bytes = sizeof *s + n * sizeof *s->h;
+    s->a_is_x = w.a_is_x;
+    s->inv = 1.0 / S;
+    s->del = q;
+    s->na = w.na;
+    s->nst = nst;
+    s->kmin = kmin;
+    s->bytes = sizeof *s + nh * sizeof *s->h;
     block_maxima(v, &w, shift, bm);
-    sweep_rows(&w, bm, s->h, bm + n);
+    sweep_strips(&w, s, bm, s->h, bm + n);
     *out = s;
     s = NULL;
 out:

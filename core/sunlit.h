@@ -5,32 +5,43 @@
  *
  *     H(p) = sup over d > 0 of  T(p + d s_h) - d tan          (T: the terrain's height).
  *
- * Per block B of 2^shift x 2^shift cells this keeps an upper bound H_B of H over the
- * block, built once per render and sun by one sweep against the sun, from
+ * Blocks are 2^shift x 2^shift cells; A and B are a point's block coordinates along the
+ * axis s_h crosses blocks of faster (a) and the other (b), and along s_h B changes by
+ * del (|del| <= 1) per unit of A. The bound is kept per column of blocks along a (A in
+ * [ia, ia + 1]) and strip k of lateral coordinate B - del A in [k, k + 1): a ray toward
+ * the sun stays in its strip, so its bound is the same strip's one column on, from
  *
- *     H_B <= max( M(the blocks the rays from B cross within a step D),
- *                 max(H_B' over the <= 2 blocks B + D s_h lands in) - D tan )
+ *     H(ia, k) = max( M(ia, k), M(ia', k), H(ia', k) - D tan )     (ia' = ia + the sun's step)
  *
- * with D the distance over which s_h crosses exactly one block along its dominant axis
- * (so B + D s_h lies in the next row of blocks, in at most two of them) and M a block's
- * highest corner (td_view_max, or the max-mipmap's code for the block: both bound every
- * surface). The decay D tan per block makes far ridges matter only as much as they can:
- * with the sun at 30 degrees over 73 m cells and 16-cell blocks, a ridge 680 m lower per
- * block away. Blocks are 4 x 4 cells, or the next power of two up that keeps them to
- * 2^20 (sunlit.c says why). A shadow ray whose point is
- * above its block's bound (with the walk's margin) is lit: td_occluded ends it there.
+ * with D the distance over which s_h crosses exactly one column (a ray from column ia is
+ * in column ia' after D, in the same strip) and M(ia, k) the highest corner of the <= 3
+ * blocks strip k crosses in column ia (td_view_max, or the max-mipmap's code for the
+ * block: both bound every surface). The decay D tan per column makes far ridges matter
+ * only as much as they can: with the sun at 30 degrees over 73 m cells and 16-cell blocks,
+ * a ridge 680 m lower per column away. Blocks of rows (the sweep before 2026-11-30) took
+ * the bound of the <= 2 blocks a block's rays land in, a window one block wider with each
+ * step: a far ridge raised the bound of a band as wide as it is far, and lit rays walked
+ * on (sunlit.c has the figures). Blocks are 4 x 4 cells, or the next power of two up
+ * that keeps the columns times strips to 2^21 (sunlit.c says why). A shadow ray whose
+ * point is above its bound (with the walk's margin) is lit: td_occluded ends it there.
  * Sun at the zenith (no horizontal part) or below the horizon: no bound is built. */
 #ifndef TD_SUNLIT_H
 #define TD_SUNLIT_H
 
+#include <math.h>
+#include <stddef.h>
+
 #include "trace.h"
 
 typedef struct td_sunlit {
-    int shift;     /* blocks of 2^shift cells a side */
-    int32_t bw, bh; /* blocks across and up */
-    size_t si, sj;  /* block (bi, bj)'s bound is h[bj * sj + bi * si]: rows along the axis
-                       the sun crosses more slowly (the build's sweep order) */
-    float *h;      /* bw * bh bounds (+inf: no bound) */
+    int shift;      /* blocks of 2^shift cells a side */
+    int a_is_x;     /* the columns are along x (else y) */
+    double inv;     /* 2^-shift: blocks a cell */
+    double del;     /* B's change per unit of A along the sun */
+    int32_t na;     /* columns of blocks along a */
+    int32_t nst;    /* strips */
+    int32_t kmin;   /* the first strip's k */
+    float *h;       /* na * nst bounds: column ia, strip k at h[ia * nst + k - kmin] */
     size_t bytes;
 } td_sunlit;
 
@@ -39,10 +50,30 @@ typedef struct td_sunlit {
 td_status td_sunlit_build(const td_view *v, const double sun[3], td_sunlit **out, td_err *err);
 void td_sunlit_free(td_sunlit *s);
 
-/* The bound at cell (ci, cj) (a cell of the grid). */
-static inline double td_sunlit_at(const td_sunlit *s, int32_t ci, int32_t cj)
+/* The strip of the point (u, v) of the grid, in cells (u in [0, w - 1], v in [0, h - 1]):
+ * the index of its column 0 bound in h, or -1 for a point off the grid. A ray toward the
+ * sun keeps its strip (its B - del A is the same all along, to the rounding the strips'
+ * margins take). */
+static inline ptrdiff_t td_sunlit_strip(const td_sunlit *s, double u, double v)
 {
-    return (double)s->h[(size_t)(cj >> s->shift) * s->sj + (size_t)(ci >> s->shift) * s->si];
+    double A = (s->a_is_x ? u : v) * s->inv, B = (s->a_is_x ? v : u) * s->inv;
+    double k = floor(B - s->del * A) - s->kmin;
+    return k >= 0.0 && k < s->nst ? (ptrdiff_t)k : -1;
+}
+
+/* The bound at the point (u, v) of the grid, in cells (+inf off the grid) */
+static inline double td_sunlit_at(const td_sunlit *s, double u, double v)
+{
+    ptrdiff_t k = td_sunlit_strip(s, u, v);
+    double A = (s->a_is_x ? u : v) * s->inv;
+    size_t ia = A < s->na - 1 ? (size_t)A : (size_t)(s->na - 1);
+    return k >= 0 ? (double)s->h[ia * (size_t)s->nst + (size_t)k] : INFINITY;
+}
+
+/* The bound of strip k (td_sunlit_strip's, not -1) in the column of cell (ci, cj) */
+static inline double td_sunlit_col(const td_sunlit *s, ptrdiff_t k, int32_t ci, int32_t cj)
+{
+    return (double)s->h[(size_t)((s->a_is_x ? ci : cj) >> s->shift) * (size_t)s->nst + (size_t)k];
 }
 
 #endif

@@ -151,6 +151,7 @@ typedef struct walk {
     double zeps;       /* margin kept above every bound before skipping */
     int32_t cmax_i, cmax_j; /* last cell index: w-2, h-2 */
     const td_sunlit *lit;   /* occlusion toward the sun: where the ray is surely lit */
+    ptrdiff_t lit_k;        /* the ray's strip of lit (td_sunlit_strip; -1: none) */
 } walk;
 
 /* How the walk entered its cell: at the ray's start, or across a sample column (u), a
@@ -605,8 +606,8 @@ static inline int in_box(const walk_state *st, const box *b)
  * bound of the block it is in. */
 TD_HOT int lit_end(const walk *w, const walk_state *st)
 {
-    return w->lit && st->ci >= 0 && st->cj >= 0 && st->ci <= w->cmax_i && st->cj <= w->cmax_j &&
-           ray_z(w, st->t) > td_sunlit_at(w->lit, st->ci, st->cj) + w->zeps;
+    return w->lit && w->lit_k >= 0 && st->ci >= 0 && st->cj >= 0 && st->ci <= w->cmax_i &&
+           st->cj <= w->cmax_j && ray_z(w, st->t) > td_sunlit_col(w->lit, w->lit_k, st->ci, st->cj) + w->zeps;
 }
 
 /* Exit times of the box along each axis. */
@@ -826,6 +827,7 @@ TD_HOT void walk_grid(walk *w, const td_grid *g, td_surface s)
     w->cz = g->cz;
     w->surf = &surfaces[s];
     w->lit = NULL;
+    w->lit_k = -1;
     w->cmax_i = g->w - 2;
     w->cmax_j = g->h - 2;
     w->zeps = 1e-6 * (1.0 + dmax(fabs((double)g->zmin), fabs((double)g->zmax)));
@@ -1703,6 +1705,19 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
  * than the scalar walk's tile entry and block climb. */
 #define TD_OCC_NEAR_CELLS 16
 
+
+/* td_sunlit_strip for every lane's origin: *has the lanes that have one, *k its index (0
+ * for the others) */
+TD_HOT void vsun_strip(const td_sunlit *lit, const vwalk *p, vi *k, vm *has)
+{
+    vd A = (lit->a_is_x ? p->ou : p->ov) * lit->inv, B = (lit->a_is_x ? p->ov : p->ou) * lit->inv;
+    vd lam = B - lit->del * A, safe = vsel((vm)(vabs(lam) < 0x1p30), lam, vb(0.0));
+    vd f = __builtin_convertvector(__builtin_convertvector(safe, vi), vd);
+    vd kk = f - vone((vm)(f > safe)) - (double)lit->kmin; /* floor */
+    *has = (vm)(lam == safe) & (vm)(kk >= 0.0) & (vm)(kk < (double)lit->nst);
+    *k = __builtin_convertvector(vsel(*has, kk, vb(0.0)), vi);
+}
+
 /* What a lane of occ_packets left: the rest of occluded_one's walk (the tiles, from blocks
  * of 2 x 2 cells up) from the cell, time, f and entry the lane stood at, after n steps. */
 static int occ_rest(const td_view *v, td_method m, walk *w, const double o[3],
@@ -1712,6 +1727,7 @@ static int occ_rest(const td_view *v, td_method m, walk *w, const double o[3],
     hit_rec hr = {.t = INFINITY};
     td_method used = walk_method(m);
     walk_origin(w, o);
+    w->lit_k = w->lit ? td_sunlit_strip(w->lit, w->ou, w->ov) : -1;
     walk_clip(w, &st, 0.0, INFINITY, 1.0); /* the lane's t_end, the bits vstart clipped to */
     st = *at;
     return tile_walk(v, m, w, &st, &hr, steps, &used) == STEP_HIT;
@@ -1746,6 +1762,10 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
         p.ov = (vd){(*q[0])[1], (*q[1])[1], (*q[2])[1], (*q[3])[1]} / g->sy;
         p.oz = (vd){(*q[0])[2], (*q[1])[2], (*q[2])[2], (*q[3])[2]};
         vstart_at(w, &p, iz, vb(0.0), &st, &go, &near);
+        vi strip = {0, 0, 0, 0};
+        vm has = {0, 0, 0, 0};
+        if (w->lit)
+            vsun_strip(w->lit, &p, &strip, &has);
         cont = go;
         for (int k = 0; k < TD_OCC_NEAR_CELLS && vany(cont); k++) {
             vm h, end;
@@ -1758,12 +1778,11 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
             if (w->lit && vany(cont)) { /* lit_end: each lane's block's bound */
                 const td_sunlit *lit = w->lit;
                 vd z = vray_z(&p, st.t), bound;
-                /* a lane off cont reads block (0, 0), which every bound has, and is not used */
-                vi bi = __builtin_convertvector(vsel(cont, st.ci, vb(0.0)), vi) >> lit->shift;
-                vi bj = __builtin_convertvector(vsel(cont, st.cj, vb(0.0)), vi) >> lit->shift;
+                /* a lane off cont reads column 0, which every strip has, and is not used */
+                vi ia = __builtin_convertvector(vsel(cont, lit->a_is_x ? st.ci : st.cj, vb(0.0)), vi) >> lit->shift;
                 for (int l = 0; l < TD_LANES; l++)
-                    bound[l] = (double)lit->h[(size_t)bj[l] * lit->sj + (size_t)bi[l] * lit->si];
-                cont &= ~(vm)(z > bound + w->zeps);
+                    bound[l] = (double)lit->h[(size_t)ia[l] * (size_t)lit->nst + (size_t)strip[l]];
+                cont &= ~((vm)(z > bound + w->zeps) & has);
             }
         }
         for (int l = 0; l < nl; l++) {
@@ -1836,6 +1855,7 @@ static int occluded_one(const td_view *v, td_method m, walk *w, const double o[3
     td_method used = walk_method(m);
     int hit = 0;
     walk_origin(w, o);
+    w->lit_k = w->lit ? td_sunlit_strip(w->lit, w->ou, w->ov) : -1;
     if (walk_clip(w, &st, tmin, tmax, scale)) {
         start_cell(w, &st);
         /* from the surface: blocks of 2 x 2 cells first, then up (measured on the

@@ -56,18 +56,23 @@ static void check_sun(const td_grid *g, const td_tile_accel *tiles, const double
     assert_int_equal(td_sunlit_build(&v, sun, &lit, NULL), TD_OK);
     assert_non_null(lit);
     assert_int_equal(lit->shift, 2); /* the finest blocks for a grid this small: 4 x 4 cells */
-    for (int32_t by = 0; by < lit->bh; by++) /* a block's own samples are below its bound */
-        for (int32_t bx = 0; bx < lit->bw; bx++) {
-            int32_t S = 1 << lit->shift;
-            double m = td_view_max(&v, bx * S, bx * S + S - 1, by * S, by * S + S - 1);
-            assert_true(td_sunlit_at(lit, bx * S, by * S) >= m);
+    const int32_t S = 1 << lit->shift;
+    for (int32_t cj = 0; cj <= g->h - 2; cj++) /* every point is below the bound of its strip */
+        for (int32_t ci = 0; ci <= g->w - 2; ci++) {   /* and column: its cell's block's top */
+            double u = ci + rnd(seed), w = cj + rnd(seed), bound = td_sunlit_at(lit, u, w);
+            int32_t bx = ci / S, by = cj / S;
+            ptrdiff_t k = td_sunlit_strip(lit, u, w);
+            assert_true(k >= 0);
+            assert_true(td_sunlit_col(lit, k, ci, cj) == bound);
+            assert_true(bound >= td_view_max(&v, bx * S, bx * S + S - 1, by * S, by * S + S - 1));
         }
     for (int k = 0; k < 4000; k++) {
         double x = rnd(seed) * (g->w - 1) * g->sx, y = rnd(seed) * (g->h - 1) * g->sy;
         int32_t ci = (int32_t)(x / g->sx), cj = (int32_t)(y / g->sy);
         ci = ci > g->w - 2 ? g->w - 2 : ci;
         cj = cj > g->h - 2 ? g->h - 2 : cj;
-        double bound = td_sunlit_at(lit, ci, cj), ground = td_surface_height(g, TD_SURFACE_BILINEAR, ci, cj, x, y);
+        double bound = td_sunlit_at(lit, x / g->sx, y / g->sy);
+        double ground = td_surface_height(g, TD_SURFACE_BILINEAR, ci, cj, x, y);
         td_ray r = {{x, y, bound + 1e-3 * (1.0 + fabs(bound))}, {sun[0], sun[1], sun[2]}, 0.0, INFINITY};
         td_hit h;
         uint32_t s0 = 0, s1 = 0;
@@ -139,6 +144,44 @@ static void test_sunlit_small_tiles(void **state)
     td_grid_free(g);
 }
 
+/* A strip keeps to its own: over flat ground at 0 with one spike 1000 m high, a low sun
+ * along x a little north of east; the bound is at least the spike's top less the decay
+ * over the distance on the strip through it, and nothing off that strip's reach is raised
+ * at all (the blocks' sweep before the strips raised a band as wide as the spike was
+ * far: every block whose rays' landing windows led to it). */
+static void test_sunlit_strips(void **state)
+{
+    td_grid *g = NULL;
+    double sun[3];
+    (void)state;
+    assert_int_equal(td_grid_create(400, 120, 10.0, 10.0, 5, NULL, &g, NULL), TD_OK);
+    for (size_t k = 0; k < (size_t)g->w * (size_t)g->h; k++)
+        g->z[k] = 0.0f;
+    g->z[(size_t)60 * (size_t)g->w + 300] = 1000.0f; /* the spike at sample (300, 60) */
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_view v = {g, NULL};
+    sun_of(80.0, 5.0, sun); /* toward the east, 10 degrees north of it, 5 degrees up */
+    td_sunlit *lit = NULL;
+    assert_int_equal(td_sunlit_build(&v, sun, &lit, NULL), TD_OK);
+    assert_non_null(lit);
+    const double tan5 = tan(5.0 * M_PI / 180.0), drift = sun[1] / sun[0]; /* cells north per cell east */
+    int raised = 0;
+    for (int32_t i = 0; i < 300; i++)
+        for (int32_t j = 0; j <= g->h - 2; j++) {
+            double u = i + 0.5, w = j + 0.5, bound = td_sunlit_at(lit, u, w);
+            /* where the ray from (u, w) passes x = 300, and how far it went */
+            double off = w + drift * (300.0 - u) - 60.0, dist = (300.0 - u) * 10.0 / cos(10.0 * M_PI / 180.0);
+            if (fabs(off) < 0.25) /* on the spike's line: shaded by it, and the bound says so */
+                assert_true(bound >= 1000.0 - dist * tan5 - 1e-3);
+            else if (fabs(off) > 3 * 4 + 1) /* three blocks off it: nothing above the ground */
+                assert_true(bound <= 0.0f + 1e-6);
+            raised += bound > 1.0;
+        }
+    assert_true(raised > 0 && raised < 300 * 40); /* a band along the line, not the grid */
+    td_sunlit_free(lit);
+    td_grid_free(g);
+}
+
 /* No bound for a sun at the zenith or below the horizon. */
 static void test_sunlit_none(void **state)
 {
@@ -165,6 +208,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_sunlit_bounds),
         cmocka_unit_test(test_sunlit_small_tiles),
+        cmocka_unit_test(test_sunlit_strips),
         cmocka_unit_test(test_sunlit_none),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
