@@ -69,7 +69,25 @@ TD_ROW_CLONES static void codes_of(double base, double step, const float *restri
         c = c < 1.0 ? 1.0 : (c > 65535.0 ? 65535.0 : c);
         q[i] = v[i] > -INFINITY ? (uint16_t)c : 0;
     }
+    /* one step of each loop below for all at once, then their tests, in loops that
+     * vectorise (flags, no branch): a step is all that an estimate ever needed on the
+     * DEMs measured, so the loops (scalar) run only for a tile with a code still to move.
+     * The loops end on the one code whatever they start from. Issue 18: trinidad's build
+     * 55.2 -> 41.9 M instructions, the same codes. */
+    int move = 0;
     for (size_t i = 0; i < n; i++) {
+        int c = q[i];
+        double x = (double)v[i];
+        c += (c > 0) & (c < 65535) & (base + (double)c * step < x);
+        c -= (c > 1) & (base + (double)(c - 1) * step >= x);
+        q[i] = (uint16_t)c;
+    }
+    for (size_t i = 0; i < n; i++) {
+        double c = (double)q[i], x = (double)v[i];
+        move |= (q[i] > 0) & (base + c * step < x) & (q[i] < 65535);
+        move |= (q[i] > 1) & (base + (c - 1.0) * step >= x);
+    }
+    for (size_t i = 0; i < n && move; i++) {
         while (q[i] > 0 && base + (double)q[i] * step < (double)v[i] && q[i] < 65535)
             q[i]++;
         while (q[i] > 1 && base + (double)(q[i] - 1) * step >= (double)v[i])

@@ -24,6 +24,7 @@
 
 #include "accel.h"
 #include "dem.h"
+#include "prefault.h"
 #include "viewshed_api.h" /* the encoder and the figures, shared with the service */
 
 typedef struct vs_cli {
@@ -189,6 +190,7 @@ static int vs_run(vs_cli *c)
         fprintf(stderr, "terrad viewshed: out of memory\n");
         goto out;
     }
+    td_prefault(counts, (size_t)g->w * (size_t)g->h); /* written whole next (prefault.h) */
     if (td_viewshed(&v, &c->o, counts, &st, &err)) {
         fprintf(stderr, "terrad viewshed: %s\n", err.msg);
         goto out;

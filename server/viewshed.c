@@ -23,6 +23,8 @@
 
 #include "clock.h"
 #include "limit.h"
+#include "prefault.h"
+#include "rlepng.h"
 
 /* ---- answers -------------------------------------------------------------------------- */
 
@@ -30,7 +32,7 @@ td_status td_vs_encode(const td_grid *g, int nobs, uint8_t *counts, td_buf *out,
 {
     if (nobs == 1)
         td_viewshed_gray(counts, (size_t)g->w * (size_t)g->h, counts);
-    return td_image_encode_gray8(counts, g->w, g->h, out, err);
+    return td_rlepng_gray8(counts, g->w, g->h, out, err);
 }
 
 json_t *td_vs_answer(const char *dataset, const td_grid *g, const td_viewshed_opts *o,
@@ -301,6 +303,7 @@ static td_status work_viewshed(vs_job *j, td_http_req *hq, td_http_resp *r, td_v
                         (int)v->grid->h);
         goto out;
     }
+    td_prefault(counts, (size_t)v->grid->w * (size_t)v->grid->h); /* written whole next */
     rc = resolve(v->grid, &j->q, pts, e);
     j->q.o.obs = pts;
     j->q.o.nobs = j->q.npts;
