@@ -119,20 +119,17 @@ static void adler_run(rle_enc *e, unsigned v, size_t n)
 /* The length of the run of p[0] in p[0 .. n), 8 bytes at a time. */
 static size_t run_len(const uint8_t *p, size_t n)
 {
-    uint64_t rep = 0x0101010101010101ull * p[0], x = 0;
+    uint64_t rep = 0x0101010101010101ull * p[0], x;
     size_t k = 0;
     while (k + 8 <= n) {
         memcpy(&x, p + k, 8);
         x ^= rep;
         if (x)
-            break;
+            return k + (size_t)__builtin_ctzll(x) / 8; /* little-endian load: byte 0 is the low one */
         k += 8;
     }
-    if (x) /* a byte that differs in the 8 at k: little-endian, byte 0 is the low one */
-        k += (size_t)__builtin_ctzll(x) / 8;
-    else
-        while (k < n && p[k] == p[0])
-            k++;
+    while (k < n && p[k] == p[0])
+        k++;
     return k;
 }
 
