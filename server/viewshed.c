@@ -24,7 +24,6 @@
 #include "clock.h"
 #include "limit.h"
 #include "prefault.h"
-#include "rlepng.h"
 
 /* ---- answers -------------------------------------------------------------------------- */
 
@@ -32,7 +31,7 @@ td_status td_vs_encode(const td_grid *g, int nobs, uint8_t *counts, td_buf *out,
 {
     if (nobs == 1)
         td_viewshed_gray(counts, (size_t)g->w * (size_t)g->h, counts);
-    return td_rlepng_gray8(counts, g->w, g->h, out, err);
+    return td_image_encode_gray8(counts, g->w, g->h, out, err);
 }
 
 json_t *td_vs_answer(const char *dataset, const td_grid *g, const td_viewshed_opts *o,
