@@ -19,6 +19,7 @@
 
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "simd.h"
 
@@ -118,22 +119,56 @@ TD_ROW_CLONES static void level1(const float *restrict cell, int32_t nx, int32_t
     }
 }
 
-/* The tile's min4 (maxmip.h): each block's samples, its cells' corners, row by row
- * through td_grid_corner; a NaN (void) stays. */
-static void blocks_min4(const td_grid *g, const td_tile *t, td_maxmip *m)
+/* NaN-sticky minimum (a void stays) */
+static inline float min_void(float v, float z) { return z < v || z != z ? z : v; }
+
+/* The tile's min4 (maxmip.h): per row of blocks, the minimum of its 5 sample rows sample
+ * by sample (runs of contiguous samples, td_grid_run: a loop that vectorises; the one that
+ * keeps NaN only in a grid with voids), then of each block's 5 columns. col is scratch
+ * for twice the tile's nx + 1 samples. */
+TD_ROW_CLONES static void blocks_min4(const td_grid *g, const td_tile *t, td_maxmip *m,
+                                      float *restrict col)
 {
     for (int32_t by = 0; by < m->min4_h; by++) {
-        float *o = m->min4 + (size_t)by * (size_t)m->min4_w;
-        for (int32_t bx = 0; bx < m->min4_w; bx++)
-            o[bx] = INFINITY;
         int32_t j1 = 4 * by + 4 < t->ny ? 4 * by + 4 : t->ny;
         for (int32_t j = 4 * by; j <= j1; j++) {
-            for (int32_t i = 0; i <= t->nx; i++) {
-                float z = *td_grid_corner(&g->cz, t->i0 + i, t->j0 + j);
-                /* sample i is a corner of the blocks (i - 1) / 4 and i / 4 */
-                for (int32_t bx = i > 0 ? (i - 1) / 4 : 0; bx <= i / 4 && bx < m->min4_w; bx++)
-                    o[bx] = z < o[bx] || z != z ? z : o[bx];
+            for (int32_t i = 0, n; i <= t->nx; i += n) {
+                const float *restrict s = td_grid_corner(&g->cz, t->i0 + i, t->j0 + j);
+                n = td_grid_run(&g->cz, t->i0 + i, t->nx + 1 - i);
+                if (j == 4 * by)
+                    memcpy(col + i, s, (size_t)n * sizeof *col);
+                else if (g->voids) /* a void's NaN kept */
+                    for (int32_t k = 0; k < n; k++)
+                        col[i + k] = min_void(col[i + k], s[k]);
+                else /* the common case, the plain minimum: vminps */
+                    for (int32_t k = 0; k < n; k++)
+                        col[i + k] = s[k] < col[i + k] ? s[k] : col[i + k];
             }
+        }
+        /* q[i]: the minimum of col[i .. i + 3] (pairs, then pairs of pairs), so that a
+           whole block is min(q[4 bx], col[4 bx + 4]) */
+        float *restrict q = col + t->nx + 1, *o = m->min4 + (size_t)by * (size_t)m->min4_w;
+        const int32_t np = t->nx - 3; /* the i with i + 3 <= nx */
+        if (g->voids) {
+            for (int32_t i = 0; i < np; i++)
+                q[i] = min_void(min_void(col[i], col[i + 1]), min_void(col[i + 2], col[i + 3]));
+        } else {
+            for (int32_t i = 0; i + 1 <= t->nx; i++)
+                q[i] = col[i + 1] < col[i] ? col[i + 1] : col[i];
+            for (int32_t i = 0; i < np; i++)
+                q[i] = q[i + 2] < q[i] ? q[i + 2] : q[i];
+        }
+        for (int32_t bx = 0; bx < m->min4_w; bx++) {
+            int32_t i1 = 4 * bx + 4 < t->nx ? 4 * bx + 4 : t->nx;
+            float v;
+            if (i1 == 4 * bx + 4) { /* a whole block */
+                v = min_void(q[4 * bx], col[i1]);
+            } else { /* the tile's east edge */
+                v = col[4 * bx];
+                for (int32_t i = 4 * bx + 1; i <= i1; i++)
+                    v = min_void(v, col[i]);
+            }
+            o[bx] = v;
         }
     }
 }
@@ -153,7 +188,7 @@ td_status td_maxmip_build(const td_grid *g, size_t tile, td_maxmip **out, td_err
 
     *out = NULL;
     m = calloc(1, sizeof *m);
-    cell = malloc(sizeof(float) * (size_t)t->nx * (size_t)t->ny);
+    cell = malloc(sizeof(float) * ((size_t)t->nx * (size_t)t->ny + 2 * ((size_t)t->nx + 1)));
     if (!m || !cell) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for a max-mipmap");
         goto out;
@@ -174,7 +209,7 @@ td_status td_maxmip_build(const td_grid *g, size_t tile, td_maxmip **out, td_err
         goto out;
     }
     m->bytes = sizeof *m + sizeof(uint16_t) * total + sizeof(float) * (size_t)m->min4_w * (size_t)m->min4_h;
-    blocks_min4(g, t, m);
+    blocks_min4(g, t, m, cell); /* cell: nx x ny floats, free until level1 */
     td_grid_cell_max(g, t, cell);
     level1(cell, t->nx, t->ny, m->dim[1], max + m->offset[1]);
     for (int l = 2; l <= L; l++) {

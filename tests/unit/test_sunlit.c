@@ -46,6 +46,31 @@ static td_accel *accel(const td_grid *g, int threads)
     return a;
 }
 
+/* Each 4 x 4 block's lowest corner (maxmip.h's min4), NaN where one is void, against
+ * brute force over the samples. */
+static void check_min4(const td_grid *g, const td_accel *a)
+{
+    for (size_t k = 0; k < (size_t)g->tiles_x * (size_t)g->tiles_y; k++) {
+        const td_tile *t = &g->tiles[k];
+        const td_maxmip *mm = a->tiles[k].maxmip;
+        assert_int_equal(mm->min4_w, (t->nx + 3) / 4);
+        assert_int_equal(mm->min4_h, (t->ny + 3) / 4);
+        for (int32_t by = 0; by < mm->min4_h; by++)
+            for (int32_t bx = 0; bx < mm->min4_w; bx++) {
+                float m = INFINITY;
+                int voids = 0;
+                for (int32_t j = 4 * by; j <= 4 * by + 4 && j <= t->ny; j++)
+                    for (int32_t i = 4 * bx; i <= 4 * bx + 4 && i <= t->nx; i++) {
+                        float z = td_grid_at(g, t->i0 + i, t->j0 + j);
+                        voids += isnan(z);
+                        m = z < m ? z : m;
+                    }
+                float got = mm->min4[(size_t)by * (size_t)mm->min4_w + (size_t)bx];
+                assert_true(voids ? isnan(got) : got == m);
+            }
+    }
+}
+
 /* The bound's claims for one sun over grid g (with per-tile acceleration tiles, or NULL);
  * fewer: and that it saves steps. */
 static size_t check_sun(const td_grid *g, const td_tile_accel *tiles, const double sun[3], uint64_t *seed,
@@ -129,25 +154,7 @@ static void test_sunlit_bounds(void **state)
     assert_non_null(some);
     for (size_t k = 0; k < nt; k++)
         some[k].maxmip = k % 3 ? a->tiles[k].maxmip : NULL;
-    for (size_t k = 0; k < nt; k++) { /* each 4 x 4 block's lowest corner (maxmip.h's min4) */
-        const td_tile *t = &g->tiles[k];
-        const td_maxmip *mm = a->tiles[k].maxmip;
-        assert_int_equal(mm->min4_w, (t->nx + 3) / 4);
-        assert_int_equal(mm->min4_h, (t->ny + 3) / 4);
-        for (int32_t by = 0; by < mm->min4_h; by++)
-            for (int32_t bx = 0; bx < mm->min4_w; bx++) {
-                float m = INFINITY;
-                int voids = 0;
-                for (int32_t j = 4 * by; j <= 4 * by + 4 && j <= t->ny; j++)
-                    for (int32_t i = 4 * bx; i <= 4 * bx + 4 && i <= t->nx; i++) {
-                        float z = td_grid_at(g, t->i0 + i, t->j0 + j);
-                        voids += isnan(z);
-                        m = z < m ? z : m;
-                    }
-                float got = mm->min4[(size_t)by * (size_t)mm->min4_w + (size_t)bx];
-                assert_true(voids ? isnan(got) : got == m);
-            }
-    }
+    check_min4(g, a);
     size_t below = 0;
     for (size_t k = 0; k < sizeof suns / sizeof suns[0]; k++) {
         double sun[3];
@@ -170,6 +177,12 @@ static void test_sunlit_small_tiles(void **state)
     (void)state;
     td_grid *g = terrain(61, 47, 25.0, 1);
     td_accel *a = accel(g, 1);
+    check_min4(g, a); /* no voids: the plain minimum's loops; tiles of 2 cells */
+    td_grid *g8 = terrain(61, 47, 25.0, 3); /* and of 8: whole blocks and an east edge */
+    td_accel *a8 = accel(g8, 1);
+    check_min4(g8, a8);
+    td_accel_free(a8);
+    td_grid_free(g8);
     for (int k = 0; k < 4; k++) {
         double sun[3];
         sun_of(20.0 + 90.0 * k, 5.0 + 10.0 * k, sun);
