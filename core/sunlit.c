@@ -23,10 +23,14 @@
  * first cell where it rises above its block's bound, and a block's bound is at least its
  * own highest corner, so smaller blocks end rays sooner, for a build that grows with the
  * blocks. Measured (callgrind, trinidad's four bench views, shadows stage with the build,
- * M instructions): 16-cell blocks 144.5 / 323.8 / 184.1 / 420.6 (level, grazing sunset,
- * rolled, straight down); 4-cell blocks 133.2 / 232.2 / 139.1 / 370.8; 2-cell blocks save
- * 2.5-14 M more in the rays and spend 18 M more in the build. */
-#define TD_SUNLIT_MIN_SHIFT 2
+ * M instructions, blocks' rows): 16-cell blocks 144.5 / 323.8 / 184.1 / 420.6 (level,
+ * grazing sunset, rolled, straight down); 4-cell blocks 133.2 / 232.2 / 139.1 / 370.8;
+ * 2-cell blocks save 2.5-14 M more in the rays and spend 18 M more in the build. With
+ * strips, 2-cell blocks on picos (714 x 482; trinidad's 2401 x 1201 takes 4 within the
+ * cap): level 73.7 -> 62.4, rolled 148.1 -> 117.5, straight down 239.4 -> 195.4, grazing
+ * sunset 18.0 -> 22.4 (its shadow side's build, from the 4 x 4 minima, 4 times the
+ * entries). */
+#define TD_SUNLIT_MIN_SHIFT 1
 /* Strips against the blocks' rows (the sweep before 2026-11-30, whose landing windows
  * widened a block per block), callgrind, shadows stage with the build, M instructions,
  * triangle surface, the bench's views: trinidad level 60.6 -> 60.6, grazing sunset
@@ -108,22 +112,25 @@ static inline float float_down(double b) { return -float_up(-b); }
 
 /* Each block's lowest sample (its cells' corners; NaN where one is void) into the sweep's
  * rows like block_maxima, from the tiles' max-mipmaps' min4 (maxmip.h: 4 x 4 blocks, the
- * tiles' multiples of 4 cells). Returns 0 (bm unusable) when a tile has none. */
-static int block_minima(const td_view *v, const sweep *w, float *bm)
+ * tiles' multiples of 4 cells); blocks of 2 x 2 cells (shift 1) take their 4 x 4 block's,
+ * which is at most theirs. Returns 0 (bm unusable) when a tile has none. */
+static int block_minima(const td_view *v, const sweep *w, int shift, float *bm)
 {
     const td_grid *g = v->grid;
     const size_t si = w->a_is_x ? (size_t)w->nb : 1, sj = w->a_is_x ? 1 : (size_t)w->nb;
+    const int32_t bw = w->a_is_x ? w->na : w->nb, bh = w->a_is_x ? w->nb : w->na;
+    const int up = 2 - shift; /* 4 x 4 blocks are 2^up blocks a side */
     const size_t nt = (size_t)g->tiles_x * (size_t)g->tiles_y;
-    int ok = v->accel != NULL && g->tile_log2 >= 2;
+    int ok = v->accel != NULL && g->tile_log2 >= 2 && (shift == 1 || shift == 2);
     for (size_t ti = 0; ti < nt && ok; ti++) {
         const td_tile *t = &g->tiles[ti];
         const td_maxmip *mm = v->accel[ti].maxmip;
+        const int32_t bx0 = t->i0 >> shift, by0 = t->j0 >> shift;
         ok = mm && mm->min4;
-        for (int32_t by = 0; ok && by < mm->min4_h; by++) {
-            float *row = bm + (size_t)((t->j0 >> 2) + by) * sj + (size_t)(t->i0 >> 2) * si;
-            const float *m4 = mm->min4 + (size_t)by * (size_t)mm->min4_w;
-            for (int32_t bx = 0; bx < mm->min4_w; bx++)
-                row[(size_t)bx * si] = m4[bx];
+        for (int32_t by = by0; ok && by < bh && (by - by0) >> up < mm->min4_h; by++) {
+            const float *m4 = mm->min4 + (size_t)((by - by0) >> up) * (size_t)mm->min4_w;
+            for (int32_t bx = bx0; bx < bw && (bx - bx0) >> up < mm->min4_w; bx++)
+                bm[(size_t)by * sj + (size_t)bx * si] = m4[(bx - bx0) >> up];
         }
     }
     return ok;
@@ -231,7 +238,7 @@ static td_status build_lo(const td_view *v, const sweep *w, int shift, double de
 {
     td_status rc = TD_OK;
     size_t nh = (size_t)w->na * (size_t)s->nst;
-    if (shift != 2 || ahead < (size_t)w->na * (size_t)w->nb / 8 / TD_SUNLIT_LO_AHEAD || !block_minima(v, w, bm))
+    if (ahead < (size_t)w->na * (size_t)w->nb / 8 / TD_SUNLIT_LO_AHEAD || !block_minima(v, w, shift, bm))
         goto out;
     s->lo = malloc(nh * sizeof *s->lo);
     if (!s->lo) {

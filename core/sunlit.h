@@ -21,7 +21,7 @@
  * a ridge 680 m lower per column away. Blocks of rows (the sweep before 2026-11-30) took
  * the bound of the <= 2 blocks a block's rays land in, a window one block wider with each
  * step: a far ridge raised the bound of a band as wide as it is far, and lit rays walked
- * on (sunlit.c has the figures). Blocks are 4 x 4 cells, or the next power of two up
+ * on (sunlit.c has the figures). Blocks are 2 x 2 cells, or the next power of two up
  * that keeps the columns times strips to 2^21 (sunlit.c says why). A shadow ray whose
  * point is above its bound (with the walk's margin) is lit: td_occluded ends it there.
  * Sun at the zenith (no horizontal part) or below the horizon: no bound is built.
@@ -38,9 +38,10 @@
  * crosses it on the way, and td_occluded's walk finds that crossing (it tests every cell
  * the ray crosses, each surface's crossings inside a cell too). So a ray from a point
  * above the surface under it and below its strip's L (margins of zeps either way) is
- * shadowed: td_occluded answers at once. Built for in-memory grids when low sun over
- * relief makes rays from the surface walk far (sunlit.c, build_lo); lo is NULL
- * otherwise. */
+ * shadowed: td_occluded answers at once. Built when low sun over relief makes rays from
+ * the surface walk far (sunlit.c, build_lo), from the max-mipmaps' 4 x 4 minima (a 2 x 2
+ * block takes its 4 x 4 block's); lo is NULL otherwise, and where a tile has no minima
+ * (a prepared grid's). */
 #ifndef TD_SUNLIT_H
 #define TD_SUNLIT_H
 
