@@ -1726,7 +1726,7 @@ TD_HOT vm vsurely_shadowed(const walk *w, td_surface sf, const vwalk *p, vi k, v
     vm in = m & (vm)(p->ou >= 0.0) & (vm)(p->ov >= 0.0) & (vm)(p->ou <= (double)(g->w - 1)) &
             (vm)(p->ov <= (double)(g->h - 1));
     vm sure = {0, 0, 0, 0};
-    if (sf != TD_SURFACE_LINEAR && vany(in)) {
+    if (vany(in)) {
         vd u = vsel(in, p->ou, vb(0.0)), v = vsel(in, p->ov, vb(0.0)), L;
         vd ci = vmin(__builtin_convertvector(__builtin_convertvector(u, vi), vd), vb((double)w->cmax_i));
         vd cj = vmin(__builtin_convertvector(__builtin_convertvector(v, vi), vd), vb((double)w->cmax_j));
@@ -1736,8 +1736,11 @@ TD_HOT vm vsurely_shadowed(const walk *w, td_surface sf, const vwalk *p, vi k, v
         vm cand = in & (vm)(p->oz < L - w->zeps);
         if (vany(cand)) {
             vcell c = vcorners(w, ci, cj, cand);
-            vd a = u - ci, b = v - cj;
-            vd h = sf == TD_SURFACE_TRIANGLE ? vtriangle_patch(c.c, a, b) : vbilinear_patch(c.c, a, b);
+            vd a = u - ci, b = v - cj, h; /* the surface under the origin (t = 0) */
+            if (sf == TD_SURFACE_LINEAR)
+                h = vlinear_under(p, &c, ci, cj, vb(0.0));
+            else
+                h = sf == TD_SURFACE_TRIANGLE ? vtriangle_patch(c.c, a, b) : vbilinear_patch(c.c, a, b);
             sure = sf == TD_SURFACE_PLANE ? cand : cand & (vm)(p->oz > h + w->zeps);
         }
     }
@@ -1902,24 +1905,27 @@ static int occluded_one(const td_view *v, td_method m, walk *w, const double o[3
 
 /* Whether the shadow ray from o along the sun (w's direction and lit, the sun's bound
  * with its shadow side) is surely shadowed (sunlit.h): o on the grid, above the surface
- * under it and below its strip's L, by zeps each. The plane's cells are solid: below L is
- * enough. The linear surface's height under o depends on the ray: no claim. */
-static int surely_shadowed(const walk *w, const td_sunlit *lit, const double o[3])
+ * under it (the linear surface's under this ray, as the walk's first cell takes it) and
+ * below its strip's L, by zeps each. The plane's cells are solid: below L is enough. */
+static int surely_shadowed(walk *w, const td_sunlit *lit, const double o[3])
 {
     const td_grid *g = w->g;
     const td_surface sf = (td_surface)(w->surf - surfaces);
     const double u = o[0] / g->sx, v = o[1] / g->sy;
     int yes = 0;
-    if (lit && lit->lo && sf != TD_SURFACE_LINEAR && u >= 0.0 && v >= 0.0 && u <= (double)(g->w - 1) &&
-        v <= (double)(g->h - 1)) {
+    if (lit && lit->lo && u >= 0.0 && v >= 0.0 && u <= (double)(g->w - 1) && v <= (double)(g->h - 1)) {
         ptrdiff_t k = td_sunlit_strip(lit, u, v);
-        int32_t ci = (int32_t)u < w->cmax_i ? (int32_t)u : w->cmax_i;
-        int32_t cj = (int32_t)v < w->cmax_j ? (int32_t)v : w->cmax_j;
-        if (k >= 0 && o[2] < td_sunlit_lo(lit, k, ci, cj) - w->zeps) {
-            double c[4], a = u - ci, b = v - cj;
-            corners(g, ci, cj, c);
-            yes = sf == TD_SURFACE_PLANE ||
-                  o[2] > (sf == TD_SURFACE_TRIANGLE ? triangle_patch(c, a, b) : bilinear_patch(c, a, b)) + w->zeps;
+        cell_seg sg = {.ci = (int32_t)u < w->cmax_i ? (int32_t)u : w->cmax_i,
+                       .cj = (int32_t)v < w->cmax_j ? (int32_t)v : w->cmax_j};
+        if (k >= 0 && o[2] < td_sunlit_lo(lit, k, sg.ci, sg.cj) - w->zeps) {
+            double a = u - sg.ci, b = v - sg.cj, h = -INFINITY;
+            corners(g, sg.ci, sg.cj, sg.c);
+            walk_origin(w, o);
+            if (sf == TD_SURFACE_LINEAR)
+                h = linear_under(w, &sg, 0.0);
+            else if (sf != TD_SURFACE_PLANE)
+                h = sf == TD_SURFACE_TRIANGLE ? triangle_patch(sg.c, a, b) : bilinear_patch(sg.c, a, b);
+            yes = o[2] > h + w->zeps;
         }
     }
     return yes;
