@@ -1453,16 +1453,40 @@ TD_HOT void vdir(const walk *w, vwalk *p, const vd d[3], vd *iz)
     *iz = 1.0 / p->dz;
 }
 
+/* The packet's rays clipped to the grid's box and heights (walk_clip): *t0 where each
+ * search starts, st->t_end where it ends */
+TD_HOT void vclip(const walk *w, const vwalk *p, vd iz, vd *t0, vstate *st)
+{
+    const td_grid *g = w->g;
+    vd t1 = vb(INFINITY);
+    *t0 = vb(0.0);
+    vclip_slab(p->ou, p->du, p->iu, 0.0, (double)(g->w - 1), t0, &t1);
+    vclip_slab(p->ov, p->dv, p->iv, 0.0, (double)(g->h - 1), t0, &t1);
+    vclip_slab(p->oz, p->dz, iz, w->surf->solid ? -INFINITY : (double)g->zmin - w->zeps,
+               (double)g->zmax + w->zeps, t0, &t1);
+    st->t_end = t1;
+}
+
+/* vstart_at for rays that start at their clip (tc 0: shadow packets): *go the lanes whose
+ * search is not empty, each in the cell of its clip's start */
+TD_HOT void vstart_clip(const walk *w, vwalk *p, vd iz, vstate *st, vm *go)
+{
+    vd t0;
+    vclip(w, p, iz, &t0, st);
+    *go = (vm)(t0 <= st->t_end);
+    st->ci = vcell_along(vray_u(p, t0), p->nu, 0.0, (double)w->cmax_i);
+    st->cj = vcell_along(vray_v(p, t0), p->nv, 0.0, (double)w->cmax_j);
+    st->t = t0;
+    st->entry = vb(ENTRY_START);
+    st->f = vb(NAN);
+}
+
 /* vstart with the directions set (vdir) */
 TD_HOT void vstart_at(const walk *w, vwalk *p, vd iz, vd tc, vstate *st, vm *go, vm *near)
 {
-    const td_grid *g = w->g;
-    vd t0 = vb(0.0), t1 = vb(INFINITY);
-    vclip_slab(p->ou, p->du, p->iu, 0.0, (double)(g->w - 1), &t0, &t1);
-    vclip_slab(p->ov, p->dv, p->iv, 0.0, (double)(g->h - 1), &t0, &t1);
-    vclip_slab(p->oz, p->dz, iz, w->surf->solid ? -INFINITY : (double)g->zmin - w->zeps,
-               (double)g->zmax + w->zeps, &t0, &t1);
-    st->t_end = t1;
+    vd t0;
+    vclip(w, p, iz, &t0, st);
+    vd t1 = st->t_end;
     *go = (vm)(t0 <= t1) & ~(vm)(tc > t1);
     vm later = (vm)(tc > t0);
     vd ci = vcell_along(vray_u(p, tc), p->nu, 0.0, (double)w->cmax_i);
@@ -1786,11 +1810,11 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
             q[l] = &o[k0 + (l < nl ? l : 0)];
         vd cells = vb(0.0);
         vstate st;
-        vm go, near, occ = {0, 0, 0, 0}, cont;
+        vm go, occ = {0, 0, 0, 0}, cont;
         p.ou = (vd){(*q[0])[0], (*q[1])[0], (*q[2])[0], (*q[3])[0]} / g->sx; /* walk_origin */
         p.ov = (vd){(*q[0])[1], (*q[1])[1], (*q[2])[1], (*q[3])[1]} / g->sy;
         p.oz = (vd){(*q[0])[2], (*q[1])[2], (*q[2])[2], (*q[3])[2]};
-        vstart_at(w, &p, iz, vb(0.0), &st, &go, &near);
+        vstart_clip(w, &p, iz, &st, &go);
         vi strip = {0, 0, 0, 0};
         vm has = {0, 0, 0, 0};
         cont = go;
