@@ -431,8 +431,13 @@ static void shade_plain(const ctx *c, const td_hit *h, int level, float rgb[3])
 
 static void offset_origin(const ctx *c, const double p[3], const float n[3], double o[3])
 {
-    for (int k = 0; k < 3; k++)
-        o[k] = p[k] + c->eps * (double)n[k];
+    /* each coordinate computed before any is stored: o may alias nothing it reads, but the
+       compiler cannot know (a loop reloaded eps and p after every store) */
+    const double e = c->eps, x = p[0] + e * (double)n[0], y = p[1] + e * (double)n[1];
+    const double z = p[2] + e * (double)n[2];
+    o[0] = x;
+    o[1] = y;
+    o[2] = z;
 }
 
 /* A camera ray over the levels of detail (see the top of the file); *level is the level
@@ -1026,7 +1031,7 @@ static void stage_shadows(worker *w, const blk *b)
     int at[TD_FAN], np = 0;
     /* straight rays on the full grid are batched (td_occluded_par); a sample on a coarse
        level, or whose ray bends, is traced alone (occluded) */
-    const int batch = !c->plain_secondary, up = c->sun[2] > 0.0;
+    const int batch = !c->plain_secondary, up = c->sun[2] > 0.0, bends = batch && c->curv2;
     for (int i = 0; i < b->ns; i++) {
         const smp *sm = &w->s[i];
         lit[i] = 0.0f;
@@ -1046,7 +1051,7 @@ static void stage_shadows(worker *w, const blk *b)
             td_ray r = sun_ray(c, q);
             keep_ray(c, c->shadow_rays, b, i, &r);
         }
-        if (batch && sm->level == 0 && !(c->curv2 && needs_curve(c, q, c->sun, c->curv_smin2))) {
+        if (batch && sm->level == 0 && !(bends && needs_curve(c, q, c->sun, c->curv_smin2))) {
             at[np++] = i;
             if (np == TD_FAN) {
                 shadows_flush(w, o, at, np, lit);
