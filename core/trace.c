@@ -1765,7 +1765,7 @@ TD_HOT vm vsurely_shadowed(const walk *w, td_surface sf, const vwalk *p, vi k, v
                 h = vlinear_under(p, &c, ci, cj, vb(0.0));
             else
                 h = sf == TD_SURFACE_TRIANGLE ? vtriangle_patch(c.c, a, b) : vbilinear_patch(c.c, a, b);
-            sure = sf == TD_SURFACE_PLANE ? cand : cand & (vm)(p->oz > h + w->zeps);
+            sure = w->surf->solid ? cand : cand & (vm)(p->oz > h + w->zeps);
         }
     }
     return sure;
@@ -1929,12 +1929,12 @@ static int occluded_one(const td_view *v, td_method m, walk *w, const double o[3
 
 /* Whether the shadow ray from o along the sun (w's direction and lit, the sun's bound
  * with its shadow side) is surely shadowed (sunlit.h): o on the grid, above the surface
- * under it (the linear surface's under this ray, as the walk's first cell takes it) and
- * below its strip's L, by zeps each. The plane's cells are solid: below L is enough. */
+ * under it (the surface's `under` at t = 0, as the walk's first cell takes it: the linear
+ * surface's depends on the ray) and below its strip's L, by zeps each. A solid surface
+ * (the plane's cells): below L is enough. */
 static int surely_shadowed(walk *w, const td_sunlit *lit, const double o[3])
 {
     const td_grid *g = w->g;
-    const td_surface sf = (td_surface)(w->surf - surfaces);
     const double u = o[0] / g->sx, v = o[1] / g->sy;
     int yes = 0;
     if (lit && lit->lo && u >= 0.0 && v >= 0.0 && u <= (double)(g->w - 1) && v <= (double)(g->h - 1)) {
@@ -1942,14 +1942,9 @@ static int surely_shadowed(walk *w, const td_sunlit *lit, const double o[3])
         cell_seg sg = {.ci = (int32_t)u < w->cmax_i ? (int32_t)u : w->cmax_i,
                        .cj = (int32_t)v < w->cmax_j ? (int32_t)v : w->cmax_j};
         if (k >= 0 && o[2] < td_sunlit_lo(lit, k, sg.ci, sg.cj) - w->zeps) {
-            double a = u - sg.ci, b = v - sg.cj, h = -INFINITY;
             corners(g, sg.ci, sg.cj, sg.c);
             walk_origin(w, o);
-            if (sf == TD_SURFACE_LINEAR)
-                h = linear_under(w, &sg, 0.0);
-            else if (sf != TD_SURFACE_PLANE)
-                h = sf == TD_SURFACE_TRIANGLE ? triangle_patch(sg.c, a, b) : bilinear_patch(sg.c, a, b);
-            yes = o[2] > h + w->zeps;
+            yes = w->surf->solid || o[2] > w->surf->under(w, &sg, 0.0) + w->zeps;
         }
     }
     return yes;

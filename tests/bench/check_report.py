@@ -223,6 +223,8 @@ for r in rows:
         # with the sun bound on, its shadow side may answer every ray without a walk (0)
         check(num(r[18]) >= 0 and all(num(x) > 0 for x in r[19:21]),
               what + ": steps per shadow ray >= 0 with the sun bound, > 0 without")
+        check(num(r[18]) <= min(num(x) for x in r[19:21]),
+              what + ": the sun bound takes no more steps per shadow ray than without it")
     b = best.setdefault((r[0], r[1]), {"p": {}, "s": {}, "steps": {}})
     b["p"][r[2]] = num(r[6])
     if r[15] != "-":
