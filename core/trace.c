@@ -1495,10 +1495,11 @@ TD_HOT void vstart_at(const walk *w, vwalk *p, vd iz, vd tc, vstate *st, vm *go,
     vd tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
     vd te = vmax(teu, tev);
     vm moved = later & (vm)(te > t0);
-    vd si = vcell_along(vray_u(p, t0), p->nu, 0.0, (double)w->cmax_i);
-    vd sj = vcell_along(vray_v(p, t0), p->nv, 0.0, (double)w->cmax_j);
-    st->ci = vsel(moved, ci, si);
-    st->cj = vsel(moved, cj, sj);
+    st->ci = ci, st->cj = cj;
+    if (vany(~moved)) { /* lanes that start at their clip (rare in a camera's fan) */
+        st->ci = vsel(moved, ci, vcell_along(vray_u(p, t0), p->nu, 0.0, (double)w->cmax_i));
+        st->cj = vsel(moved, cj, vcell_along(vray_v(p, t0), p->nv, 0.0, (double)w->cmax_j));
+    }
     st->t = vsel(moved, te, t0);
     st->entry = vsel(moved, vcrossing(tev, teu), vb(ENTRY_START));
     st->f = vb(NAN);
@@ -1524,9 +1525,9 @@ TD_HOT void vadvance(const vwalk *p, vstate *st, vm m, vd kind, vd t, vd f)
 
 /* One step of the near walk (walk_cell, then cell_test where it does not reject) for the
  * lanes of act: *hit gets the lanes that hit (their t in *th, the plane's wall in *hwall,
- * the cell's corners in *hk), *end those whose search ends in the cell. */
+ * *end those whose search ends in the cell; a lane that hits stays in its cell). */
 TD_HOT void vstep(const walk *w, const vwalk *p, td_surface sf, vstate *st, vm act, vm *hit,
-                  vm *end, vd *th, vd *hwall, vcell *hk)
+                  vm *end, vd *th, vd *hwall)
 {
     vd tu = vtime_u(p, st->ci + vone(p->pu)), tv = vtime_v(p, st->cj + vone(p->pv));
     vd tb = vmin(tu, tv), kind = vcrossing(tu, tv);
@@ -1554,11 +1555,12 @@ TD_HOT void vstep(const walk *w, const vwalk *p, td_surface sf, vstate *st, vm a
     *hit = h;
     *th = t;
     *hwall = wall;
-    *hk = k;
     vm go_on = test & ~h;
     *end = go_on & (vm)(exit == ENTRY_START);
-    vadvance(p, st, quick, kind, tb, vb(NAN));
-    vadvance(p, st, go_on & ~*end, exit, tb2, vsel(cross, fb, vb(NAN)));
+    /* the lanes over the cell (quick) and those that go on, in one pass: their masks are
+       disjoint */
+    vadvance(p, st, quick | (go_on & ~*end), vsel(quick, kind, exit), vsel(quick, tb, tb2),
+             vsel(cross, fb, vb(NAN)));
 }
 
 TD_HOT vm von_grid(const walk *w, const vstate *st)
@@ -1690,7 +1692,6 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
     vstate st;
     vm go, near, hit = {0, 0, 0, 0}, cont;
     vd n = vb(0.0), th = vb(INFINITY), hw = vb(0.0);
-    vcell hk = {{vb(0.0), vb(0.0), vb(0.0), vb(0.0)}};
     const td_surface sf = (td_surface)(w->surf - surfaces);
     p.ou = vb(w->ou), p.ov = vb(w->ov), p.oz = vb(w->oz);
     vstart(w, &p, d, tc, &st, &go, &near);
@@ -1702,46 +1703,56 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
     for (; k < TD_NEAR_CELLS; k++) {
         vm act = cont & von_grid(w, &st), h, end;
         vd t, wall;
-        vcell kk;
         if (!vany(act))
             break;
         n += vone(act);
-        vstep(w, &p, sf, &st, act, &h, &end, &t, &wall, &kk);
+        vstep(w, &p, sf, &st, act, &h, &end, &t, &wall);
         th = vsel(h, t, th);
         hw = vsel(h, wall, hw);
-        for (int i = 0; i < 4; i++)
-            hk.c[i] = vsel(h, kk.c[i], hk.c[i]);
         hit |= h;
         cont &= ~(h | end);
     }
     /* a lane still walking goes on alone (packet_rest); one that starts behind its clip
        (no near walk) is trace_one's */
     vm rest = cont, finished = ~go | (near & ~rest);
+    vcell hk = vcorners(w, st.ci, st.cj, hit); /* the hit cell's: a lane that hits stays there */
     vhit hv = vhits(w, &p, sf, o, d, th, st.ci, st.cj, hw, &hk);
+    /* the finished lanes' records (trace_one's, as fan_one keeps them: tmin 0 for a fan, a
+       miss all zero but t and the cell), made as vectors and stored a lane at a time */
+    typedef float vf __attribute__((vector_size(4 * TD_LANES)));
+    vd ht = vsel(hit, vsel((vm)(th < 0.0), vb(0.0), th), vb(INFINITY)), hz = vsel(hit, hv.zb, vb(NAN));
+    vd hp[3];
+    vf hn[3];
+    for (int i = 0; i < 3; i++) {
+        hp[i] = vsel(hit, hv.p[i], vb(0.0));
+        hn[i] = __builtin_convertvector(vsel(hit, hv.nv[i], vb(0.0)), vf);
+    }
+    vi hci = __builtin_convertvector(vsel(hit, st.ci, vb(-1.0)), vi);
+    vi hcj = __builtin_convertvector(vsel(hit, st.cj, vb(-1.0)), vi);
+    vi hs = __builtin_convertvector(n, vi);
+    vm all = finished | rest;
     for (int l = 0; l < nl; l++) {
         td_hit *h = &hits[lane[l]];
-        done[l] = (finished | rest)[l] != 0;
+        done[l] = all[l] != 0;
+        memset(h, 0, sizeof *h); /* its padding too: tests compare records whole */
         if (rest[l]) {
             walk_state at = {.ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .t = st.t[l],
                              .f = st.f[l], .entry = (int)st.entry[l], .level = 0};
             double nv[3];
-            memset(h, 0, sizeof *h);
             packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], k, h, nv);
             fan_keep(w->g, h, nv, zb ? &zb[lane[l]] : NULL);
-        } else if (done[l]) { /* trace_one's hit record, as fan_one keeps it */
-            int hl = hit[l] != 0;
-            memset(h, 0, sizeof *h); /* its padding too: tests compare records whole */
-            h->t = hl ? (th[l] < 0.0 ? 0.0 : th[l]) : INFINITY; /* trace_one's tmin, 0 for a fan */
+        } else if (done[l]) {
+            h->t = ht[l];
             for (int i = 0; i < 3; i++) {
-                h->p[i] = hl ? hv.p[i][l] : 0.0;
-                h->n[i] = hl ? (float)hv.nv[i][l] : 0.0f;
+                h->p[i] = hp[i][l];
+                h->n[i] = hn[i][l];
             }
-            h->ci = hl ? (int32_t)st.ci[l] : -1;
-            h->cj = hl ? (int32_t)st.cj[l] : -1;
-            h->steps = (uint32_t)n[l];
+            h->ci = hci[l];
+            h->cj = hcj[l];
+            h->steps = (uint32_t)hs[l];
             h->method = walk_method(m);
             if (zb)
-                zb[lane[l]] = hl ? hv.zb[l] : NAN;
+                zb[lane[l]] = hz[l];
         }
     }
 }
@@ -1855,9 +1866,8 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
         for (int k = 0; k < TD_OCC_NEAR_CELLS && vany(cont); k++) {
             vm h, end;
             vd t, wall;
-            vcell kk;
             cells += vone(cont);
-            vstep(w, &p, sf, &st, cont, &h, &end, &t, &wall, &kk);
+            vstep(w, &p, sf, &st, cont, &h, &end, &t, &wall);
             occ |= h;
             cont &= ~(h | end) & von_grid(w, &st);
             if (w->lit && vany(cont)) { /* lit_end: each lane's block's bound */
