@@ -1717,42 +1717,30 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
     vm rest = cont, finished = ~go | (near & ~rest);
     vcell hk = vcorners(w, st.ci, st.cj, hit); /* the hit cell's: a lane that hits stays there */
     vhit hv = vhits(w, &p, sf, o, d, th, st.ci, st.cj, hw, &hk);
-    /* the finished lanes' records (trace_one's, as fan_one keeps them: tmin 0 for a fan, a
-       miss all zero but t and the cell), made as vectors and stored a lane at a time */
-    typedef float vf __attribute__((vector_size(4 * TD_LANES)));
-    vd ht = vsel(hit, vsel((vm)(th < 0.0), vb(0.0), th), vb(INFINITY)), hz = vsel(hit, hv.zb, vb(NAN));
-    vd hp[3];
-    vf hn[3];
-    for (int i = 0; i < 3; i++) {
-        hp[i] = vsel(hit, hv.p[i], vb(0.0));
-        hn[i] = __builtin_convertvector(vsel(hit, hv.nv[i], vb(0.0)), vf);
-    }
-    vi hci = __builtin_convertvector(vsel(hit, st.ci, vb(-1.0)), vi);
-    vi hcj = __builtin_convertvector(vsel(hit, st.cj, vb(-1.0)), vi);
-    vi hs = __builtin_convertvector(n, vi);
-    vm all = finished | rest;
     for (int l = 0; l < nl; l++) {
         td_hit *h = &hits[lane[l]];
-        done[l] = all[l] != 0;
-        memset(h, 0, sizeof *h); /* its padding too: tests compare records whole */
+        done[l] = (finished | rest)[l] != 0;
         if (rest[l]) {
             walk_state at = {.ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .t = st.t[l],
                              .f = st.f[l], .entry = (int)st.entry[l], .level = 0};
             double nv[3];
+            memset(h, 0, sizeof *h);
             packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], k, h, nv);
             fan_keep(w->g, h, nv, zb ? &zb[lane[l]] : NULL);
-        } else if (done[l]) {
-            h->t = ht[l];
+        } else if (done[l]) { /* trace_one's hit record, as fan_one keeps it */
+            int hl = hit[l] != 0;
+            memset(h, 0, sizeof *h); /* its padding too: tests compare records whole */
+            h->t = hl ? (th[l] < 0.0 ? 0.0 : th[l]) : INFINITY; /* trace_one's tmin, 0 for a fan */
             for (int i = 0; i < 3; i++) {
-                h->p[i] = hp[i][l];
-                h->n[i] = hn[i][l];
+                h->p[i] = hl ? hv.p[i][l] : 0.0;
+                h->n[i] = hl ? (float)hv.nv[i][l] : 0.0f;
             }
-            h->ci = hci[l];
-            h->cj = hcj[l];
-            h->steps = (uint32_t)hs[l];
+            h->ci = hl ? (int32_t)st.ci[l] : -1;
+            h->cj = hl ? (int32_t)st.cj[l] : -1;
+            h->steps = (uint32_t)n[l];
             h->method = walk_method(m);
             if (zb)
-                zb[lane[l]] = hz[l];
+                zb[lane[l]] = hl ? hv.zb[l] : NAN;
         }
     }
 }
