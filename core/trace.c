@@ -1867,15 +1867,25 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
     vdir(w, &p, dv, &iz);
     for (; n - k0 >= 2; k0 += TD_LANES) { /* a last lone ray is occluded_one's */
         const int nl = n - k0 < TD_LANES ? n - k0 : TD_LANES;
-        const double(*q[TD_LANES])[3];
-        for (int l = 0; l < TD_LANES; l++) /* a packet short of rays repeats its first */
-            q[l] = &o[k0 + (l < nl ? l : 0)];
         vd cells = vb(0.0);
         vstate st;
         vm go, occ = {0, 0, 0, 0}, cont;
-        p.ou = (vd){(*q[0])[0], (*q[1])[0], (*q[2])[0], (*q[3])[0]} / g->sx; /* walk_origin */
-        p.ov = (vd){(*q[0])[1], (*q[1])[1], (*q[2])[1], (*q[3])[1]} / g->sy;
-        p.oz = (vd){(*q[0])[2], (*q[1])[2], (*q[2])[2], (*q[3])[2]};
+        if (nl == TD_LANES) { /* four origins, x y z each: three loads and their transpose */
+            vd a0 = vload(o[k0]), a1 = vload(o[k0] + 4), a2 = vload(o[k0] + 8);
+            typedef int64_t vx __attribute__((vector_size(32)));
+            vd x01 = __builtin_shuffle(a0, a1, (vx){0, 3, 6, 0}), y01 = __builtin_shuffle(a0, a1, (vx){1, 4, 7, 0});
+            vd z01 = __builtin_shuffle(a0, a1, (vx){2, 5, 0, 0});
+            p.ou = __builtin_shuffle(x01, a2, (vx){0, 1, 2, 5});
+            p.ov = __builtin_shuffle(y01, a2, (vx){0, 1, 2, 6});
+            p.oz = __builtin_shuffle(z01, a2, (vx){0, 1, 4, 7});
+        } else { /* a packet short of rays repeats its first */
+            for (int l = 0; l < TD_LANES; l++) {
+                const double *q = o[k0 + (l < nl ? l : 0)];
+                p.ou[l] = q[0], p.ov[l] = q[1], p.oz[l] = q[2];
+            }
+        }
+        p.ou /= g->sx; /* walk_origin */
+        p.ov /= g->sy;
         vstart_clip(w, &p, iz, &st, &go);
         vi strip = {0, 0, 0, 0};
         vm has = {0, 0, 0, 0};
