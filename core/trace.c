@@ -1905,7 +1905,8 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
             vstep(w, &p, sf, &st, cont, &h, &end, &t, &wall);
             occ |= h;
             cont &= ~(h | end) & von_grid(w, &st);
-            if (w->lit && vany(cont)) { /* lit_end: each lane's block's bound */
+            if (w->lit) { /* lit_end: each lane's block's bound (a packet with no lane left
+                             looks too: cheaper than asking first) */
                 const td_sunlit *lit = w->lit;
                 vd z = vray_z(&p, st.t);
                 /* a lane off cont reads column 0, which every strip has, and is not used;
