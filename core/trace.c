@@ -1705,7 +1705,7 @@ TD_HOT vd vload(const double *a)
  * fan_one would leave it. Returns the lanes finished (bit l: ray k0 + l); the caller traces
  * the others with fan_one. A lane that is not a packet's (packet_lane: a ray to trace,
  * whose direction needs no rescaling) is left to fan_one from the start. */
-TD_ROW_CLONES static int fan_packet(const td_view *v, td_method m, walk *w, const double o[3],
+TD_PACKET_CLONES static int fan_packet(const td_view *v, td_method m, walk *w, const double o[3],
                                     const td_fan *f, int k0, int nl, td_fan_hits *h)
 {
     vd d[3] = {vload(&f->dx[k0]), vload(&f->dy[k0]), vload(&f->dz[k0])}, tc = vload(&f->t_clear[k0]);
@@ -1856,7 +1856,7 @@ static int occ_rest(const td_view *v, td_method m, walk *w, const double o[3],
  * once for all the packets. The answers are td_occluded's; the steps are the cells walked
  * (fewer than the max-mipmap's climb for rays that end lit within a few cells, nearly all
  * of a render's). */
-TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, const double d[3],
+TD_PACKET_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, const double d[3],
                                      const double (*o)[3], int n, uint8_t *hit, uint32_t *steps)
 {
     const td_grid *g = w->g;
