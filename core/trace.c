@@ -674,7 +674,7 @@ static int walk_run(const walk *restrict w, const td_tile *tile, const td_tile_a
 /* Hierarchical: test the block of the current level that holds the current cell; skip
  * it if the ray stays above its maximum up to the block's exit (and go up a level), else
  * descend a level; at level 0 walk the cell. */
-static int hier_run(const walk *restrict w, const td_tile *tile, const td_tile_accel *ta,
+TD_PACKET_CLONES static int hier_run(const walk *restrict w, const td_tile *tile, const td_tile_accel *ta,
                     walk_state *restrict st, uint32_t *steps, hit_rec *hit)
 {
     int rc = STEP_CONTINUE;
