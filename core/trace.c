@@ -1872,12 +1872,11 @@ TD_PACKET_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, 
         vm go, occ = {0, 0, 0, 0}, cont;
         if (nl == TD_LANES) { /* four origins, x y z each: three loads and their transpose */
             vd a0 = vload(o[k0]), a1 = vload(o[k0] + 4), a2 = vload(o[k0] + 8);
-            typedef int64_t vx __attribute__((vector_size(32)));
-            vd x01 = __builtin_shuffle(a0, a1, (vx){0, 3, 6, 0}), y01 = __builtin_shuffle(a0, a1, (vx){1, 4, 7, 0});
-            vd z01 = __builtin_shuffle(a0, a1, (vx){2, 5, 0, 0});
-            p.ou = __builtin_shuffle(x01, a2, (vx){0, 1, 2, 5});
-            p.ov = __builtin_shuffle(y01, a2, (vx){0, 1, 2, 6});
-            p.oz = __builtin_shuffle(z01, a2, (vx){0, 1, 4, 7});
+            vd x01 = __builtin_shufflevector(a0, a1, 0, 3, 6, 0), y01 = __builtin_shufflevector(a0, a1, 1, 4, 7, 0);
+            vd z01 = __builtin_shufflevector(a0, a1, 2, 5, 0, 0);
+            p.ou = __builtin_shufflevector(x01, a2, 0, 1, 2, 5);
+            p.ov = __builtin_shufflevector(y01, a2, 0, 1, 2, 6);
+            p.oz = __builtin_shufflevector(z01, a2, 0, 1, 4, 7);
         } else { /* a packet short of rays repeats its first */
             for (int l = 0; l < TD_LANES; l++) {
                 const double *q = o[k0 + (l < nl ? l : 0)];
