@@ -1088,36 +1088,46 @@ static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
     piece *cp;
     int n = 1, nd = 0; /* C's count and the ranges', in locals: the stores could alias them */
     int run = 0;       /* the interval before counted: its piece ends where this one starts */
+    int indom = 0;     /* the interval before ended a dom range (its end is m_V) */
+    double lastm = -VS_MDOM; /* the start of C's last piece (an empty one when !run) */
     sw->ndom = 0;
     if (!pv_reserve(sw, C, 2 * (V1 - V0) + 4))
         return;
     pv_clear(C);
     cp = C->p;
+    /* the tests on the last piece and the last range read locals, not what the loop just
+     * stored (the same pieces and ranges: m_V increases with V, so a range ends at m_V
+     * exactly when interval V-1 was one) */
     for (int32_t V = V0; V < V1; V++) {
-        double top;
-        if (!ok[V] || dmax(qc[V], qc[V + 1]) <= fm[V]) {
+        double top, m0 = mc[V], q0 = qc[V], q1 = qc[V + 1];
+        int d;
+        if (!ok[V] || dmax(q0, q1) <= fm[V]) {
             if (run) { /* the run's end: empty from there */
                 cp[n] = empty_piece;
-                cp[n].m = mc[V];
+                cp[n].m = m0;
+                lastm = m0;
                 n++;
             }
             run = 0;
+            indom = 0;
             continue;
         }
         /* above F's maximum there by far more than rounding: a range for merge */
-        top = dmin(qc[V], qc[V + 1]);
-        if (top > fx[V] + 1e-9 * (1.0 + fabs(top))) {
-            if (nd > 0 && dom[2 * nd - 1] == mc[V])
+        top = dmin(q0, q1);
+        d = top > fx[V] + 1e-9 * (1.0 + fabs(top));
+        if (d) {
+            if (indom)
                 dom[2 * nd - 1] = mc[V + 1];
             else {
-                dom[2 * nd] = mc[V];
+                dom[2 * nd] = m0;
                 dom[2 * nd + 1] = mc[V + 1];
                 nd++;
             }
         }
-        if (!run && cp[n - 1].m >= mc[V]) /* the first empty piece, of zero width */
+        indom = d;
+        if (!run && lastm >= m0) /* the first empty piece, of zero width */
             n--;
-        cp[n] = (piece){mc[V], mc[V], qc[V], cs[V], 0.0, u};
+        cp[n] = (piece){m0, m0, q0, cs[V], 0.0, u};
         n++;
         run = 1;
     }
@@ -1144,12 +1154,16 @@ static void merge_f(sweep *sw, double u)
     pvec *F = &sw->F;
     const pvec *C = &sw->C;
     double lim = (u + 3.0) / u + 1e-9;
+    /* and within the grid's rows: a later column's samples and strip ends (rows vlo ..
+     * vhi, at u' - 1 >= u) have m in [(vlo - ev) / u, (vhi - ev) / u] (vlo <= ev <= vhi) */
+    double mlo = dmax(-lim, dmin(0.0, sw->c.vlo - sw->c.ev) / u - 1e-9);
+    double mhi = dmin(lim, dmax(0.0, sw->c.vhi - sw->c.ev) / u + 1e-9);
     int a0, b0;
     if ((C->n > 1 || C->p[0].qr != -INFINITY) && pv_reserve(sw, &sw->T, 2 * (F->n + C->n) + 1)) {
         pvec t;
-        a0 = first_from(F->p, F->n, 0, -lim); /* the first piece starting at or past -lim */
-        a0 = a0 > 0 ? a0 - 1 : 0;             /* the one holding -lim */
-        b0 = first_from(F->p, F->n, a0 + 1, lim);
+        a0 = first_from(F->p, F->n, 0, mlo); /* the first piece starting at or past mlo */
+        a0 = a0 > 0 ? a0 - 1 : 0;            /* the one holding mlo */
+        b0 = first_from(F->p, F->n, a0 + 1, mhi);
         F->p[a0].m = -VS_MDOM; /* F's array is merge's input only: T gets the output */
         F->p[b0].m = VS_MDOM;  /* the sentinel (b0 = F->n: it was) */
         merge(&F->p[a0], b0 - a0, C->p, C->n, &sw->T, sw->dom, sw->ndom);
