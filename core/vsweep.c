@@ -1190,8 +1190,25 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
             merge_span(&out, F, kc[V], nf, L->p, 0, L->n, m0, m1, &last);
         } else if (top > fx[V] + 1e-9 * (1.0 + fabs(top))) {
             emit(&out, m0, &e[0], &last);
-        } else { /* the edge against F's pieces kc[V] .. over [m0, m1], as merge */
-            merge_span(&out, F, kc[V], nf, e, 0, 1, m0, m1, &last);
+        } else { /* the edge against F's pieces kc[V] .. over [m0, m1], as merge_span */
+            double cur = m0;
+            for (int k = kc[V]; cur < m1; k++) {
+                const piece *pa = &F[k];
+                double nx = dmin(F[k + 1].m, m1);
+                if (nx > cur) {
+                    double d0 = pval(pa, cur) - pval(e, cur), d1 = pval(pa, nx) - pval(e, nx);
+                    if (pa->qr == -INFINITY || (d0 <= 0.0 && d1 <= 0.0)) {
+                        emit(&out, cur, e, &last);
+                    } else if (d0 >= 0.0 && d1 >= 0.0) {
+                        emit(&out, cur, pa, &last);
+                    } else {
+                        double c = cur + (nx - cur) * (d0 / (d0 - d1));
+                        emit(&out, cur, d0 > 0.0 ? pa : e, &last);
+                        emit(&out, c > cur ? (c < nx ? c : nx) : cur, d0 > 0.0 ? e : pa, &last);
+                    }
+                    cur = nx;
+                }
+            }
         }
         /* e and L's pieces are gone: a later piece at their address would be taken for
          * theirs (emit joins F's next piece by same_line all the same) */
