@@ -35,16 +35,18 @@
  *
  * The column pass (from u = VS_PASS_U on). One walk along F per column (col_pass) gives
  * each target its piece of F and F's minimum and maximum over each interval [m_V, m_V+1]
- * between the column's samples; a column edge under that minimum is left out, the others become
- * pieces straight from the column's arrays (col_pieces: they meet end to end in m order).
+ * between the column's samples; a column edge under that minimum is left out, the others
+ * become pieces straight from the column's arrays (they meet end to end in m order).
  * A strip edge ends on the column and spans one or two of its intervals: it is left out
  * when under the lower bound of F there once the column is in (lcol) or under the
- * column's polyline (facing slopes), else tested exactly by add_seg; then one merge puts
- * the column and the strip's survivors into F, copying the column's pieces without
- * comparisons where the column is above F's maximum (dom). The answers do not change (an edge left
+ * column's polyline (facing slopes), else tested exactly by add_seg (into G); then one
+ * pass (col_merge) builds the new F from the old one interval by interval: F's own pieces
+ * where the column's edge does not count, the edge alone where it is above F's maximum,
+ * the two compared elsewhere, and G's pieces merged where there are any (merge_span).
+ * The answers do not change (an edge left
  * out is under F, as add_seg's own test decides); the work does (docs/viewshed.md
  * "Speed"): picos's sweep went from 376 M to 198 M instructions (callgrind), and F, about
- * two pieces a row, is copied once a column instead of twice; trinidad's 2.23 G -> 1.78 G
+ * two pieces a row, is written once a column; trinidad's 2.23 G -> 1.78 G
  * with the skips, band_lo, and the loops' contexts (tgt_cols, strip_cols: locals the
  * compiler keeps, where sw's fields were reloaded after every byte written to vis). The
  * east and west cones read their columns, strided in the grid, 16 at a time (panel).
@@ -53,7 +55,7 @@
  * also keeps each row's starting lo (flo), so that sweep_cone decides a target under it
  * without calling target() (trinidad 1.64 G -> 1.40 G, docs/viewshed.md "Speed"), and
  * F's value there (fhi), so that it decides the visible ones too (quick_visible); F is
- * kept to the m the columns still to come read (merge_f), facing blocks are tried under
+ * kept to the m the columns still to come read (col_merge), facing blocks are tried under
  * the column's polyline alone first (block_poly), and a bilinear target its last cell's
  * upper diagonal leaves undecided is proved hidden by real points of that last strip
  * (last_real): trinidad 1.46 G -> 1.29 G, casts 15,775 -> 9,430 (2026-11-30 07:00).
