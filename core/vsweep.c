@@ -1235,6 +1235,7 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
     double *lc = sw->lcol - c->vlo, *cs = sw->cslope - c->vlo, u = U - c->eu, z[4], zl[4];
     uint8_t *ok = sw->colok - c->vlo;
     const int holes = sw->holes;
+    int above = 0; /* column edges above F's minimum: those col_merge puts in */
     /* without voids every cell beside the column is there (the rows V0 .. V1 of columns
      * U-1 .. U+1 are loaded and on the grid): the loop without a branch, which the
      * compiler runs two intervals to a register (the same operations, so the same bits) */
@@ -1244,17 +1245,23 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
             lc[V] = dmax(fm[V], dmin(qc[V], qc[V + 1]));
             cs[V] = (qc[V + 1] - qc[V]) / (mc[V + 1] - mc[V]);
         }
+        for (int32_t V = V0; V < V1 && !above; V++)
+            above = dmax(qc[V], qc[V + 1]) > fm[V];
     }
     for (int32_t V = V0; V < V1 && holes; V++) {
         ok[V] = (uint8_t)((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl));
         lc[V] = ok[V] ? dmax(fm[V], dmin(qc[V], qc[V + 1])) : fm[V];
         cs[V] = ok[V] ? (qc[V + 1] - qc[V]) / (mc[V + 1] - mc[V]) : 0.0;
+        above |= ok[V] && dmax(qc[V], qc[V + 1]) > fm[V];
     }
     pv_clear(&sw->G);
     if (strip)
         add_strip(sw, V0, V1, u);
-    col_merge(sw, V0, V1, u);
-    if (!sw->oom) {
+    /* nothing to put in (the whole column and strip under F, as often behind a ridge):
+     * F stays as it is, uncopied (and untrimmed this column) */
+    if (above || sw->G.n > 1 || sw->G.p[0].qr != -INFINITY)
+        col_merge(sw, V0, V1, u);
+    if (!sw->oom && (above || sw->G.n > 1 || sw->G.p[0].qr != -INFINITY)) {
         pvec t;
         t = sw->F;
         sw->F = sw->C;
