@@ -125,39 +125,23 @@ static void append_bin(td_horizon *h, double e)
     h->done = d1 >= h->dmax;
 }
 
-double td_horizon_clear(td_horizon *h, double e, uint32_t *steps)
+double td_horizon_extend(td_horizon *h, double e_lo, uint32_t *steps)
 {
-    double at = 0.0;
-    double e_lo = e - 1e-12 * (1.0 + fabs(e));
+    double at = INFINITY;
     uint32_t built = 0;
-    if (!h->v || !(e_lo > -INFINITY)) {
-        at = 0.0;
-    } else if (h->n > 0 && h->p[h->n - 1] >= e_lo) {
-        /* the first bin whose running maximum reaches e: near the last one asked for,
-           since rays come in rising elevation */
-        int k = h->last < h->n ? h->last : h->n - 1;
-        while (k > 0 && h->p[k - 1] >= e_lo)
-            k--;
-        while (h->p[k] < e_lo)
-            k++;
-        h->last = k;
-        at = h->d[k];
-    } else {
-        at = INFINITY;
-        while (!h->done && h->n < TD_HORIZON_BINS) {
-            if (!reachable(h, h->d[h->n], e_lo))
-                break; /* a miss: nothing left can rise to the ray */
-            append_bin(h, e_lo);
-            built++;
-            if (h->p[h->n - 1] >= e_lo) {
-                h->last = h->n - 1;
-                at = h->d[h->n - 1];
-                break;
-            }
+    while (!h->done && h->n < TD_HORIZON_BINS) {
+        if (!reachable(h, h->d[h->n], e_lo))
+            break; /* a miss: nothing left can rise to the ray */
+        append_bin(h, e_lo);
+        built++;
+        if (h->p[h->n - 1] >= e_lo) {
+            h->last = h->n - 1;
+            at = h->d[h->n - 1];
+            break;
         }
-        if (at == INFINITY && !h->done && h->n == TD_HORIZON_BINS)
-            at = h->d[h->n]; /* out of bins: nothing before their end */
     }
+    if (at == INFINITY && !h->done && h->n == TD_HORIZON_BINS)
+        at = h->d[h->n]; /* out of bins: nothing before their end */
     *steps += built;
     return at;
 }

@@ -33,6 +33,8 @@
 #ifndef TD_HORIZON_H
 #define TD_HORIZON_H
 
+#include <math.h>
+
 #include "trace.h"
 
 #define TD_HORIZON_BINS 1024 /* bins a wedge keeps; past them rays start at the last one */
@@ -61,9 +63,34 @@ typedef struct td_horizon {
  * 0 (and the wedge gives no bound) if the wedge is wider than pi/2. */
 int td_horizon_begin(td_horizon *h, const td_view *v, const double o[3], double az0, double az1);
 
+/* td_horizon_clear's part that builds bins: for a ray of elevation bound e_lo above every
+ * bin built so far (h->n 0, or p[n - 1] < e_lo). */
+double td_horizon_extend(td_horizon *h, double e_lo, uint32_t *steps);
+
 /* The horizontal distance from the eye before which a ray of the wedge with elevation
  * tangent e (d_z / |d_xy|) meets nothing: 0 if nothing is known, +inf if it meets nothing
- * at all. Builds bins as needed, adding one to *steps for each. */
-double td_horizon_clear(td_horizon *h, double e, uint32_t *steps);
+ * at all. Builds bins as needed, adding one to *steps for each. Inline: most rays of a
+ * wedge find their bin among those built (the primary stage calls it for every ray). */
+static inline double td_horizon_clear(td_horizon *h, double e, uint32_t *steps)
+{
+    double at = 0.0;
+    const double e_lo = e - 1e-12 * (1.0 + fabs(e));
+    if (!h->v || !(e_lo > -INFINITY)) {
+        at = 0.0;
+    } else if (h->n > 0 && h->p[h->n - 1] >= e_lo) {
+        /* the first bin whose running maximum reaches e: near the last one asked for,
+           since rays come in rising elevation */
+        int k = h->last < h->n ? h->last : h->n - 1;
+        while (k > 0 && h->p[k - 1] >= e_lo)
+            k--;
+        while (h->p[k] < e_lo)
+            k++;
+        h->last = k;
+        at = h->d[k];
+    } else {
+        at = td_horizon_extend(h, e_lo, steps);
+    }
+    return at;
+}
 
 #endif

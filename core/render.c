@@ -669,9 +669,15 @@ static void camera_samples(const ctx *c, worker *w, const blk *b)
     for (int32_t y = b->y0; y < b->y1; y++) {
         for (int sr = 0; sr < n; sr++) {
             double py = y + sub[sr] - 0.5;
+            smp *row = &w->s[(y - b->y0) * b->bw * nn + sr * n];
             if (persp)
                 td_camera_dirs(&c->cam, py, ax, ns_row, d[0], d[1], d[2]);
-            smp *row = &w->s[(y - b->y0) * b->bw * nn + sr * n];
+            if (persp && n == 1) { /* a sample row is a pixel row of w->s: one loop (about
+                                      35 instructions a sample less than the general one) */
+                for (int32_t k = 0; k < ns_row; k++)
+                    sample_init(c, c->cam.o, d[0][k], d[1][k], d[2][k], &row[k]);
+                continue;
+            }
             for (int32_t k = 0, pix = 0; pix < b->bw; pix++) {
                 smp *sm = &row[pix * nn];
                 for (int sc = 0; sc < n; sc++, k++) {

@@ -1495,10 +1495,11 @@ TD_HOT void vstart_at(const walk *w, vwalk *p, vd iz, vd tc, vstate *st, vm *go,
     vd tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
     vd te = vmax(teu, tev);
     vm moved = later & (vm)(te > t0);
-    vd si = vcell_along(vray_u(p, t0), p->nu, 0.0, (double)w->cmax_i);
-    vd sj = vcell_along(vray_v(p, t0), p->nv, 0.0, (double)w->cmax_j);
-    st->ci = vsel(moved, ci, si);
-    st->cj = vsel(moved, cj, sj);
+    st->ci = ci, st->cj = cj;
+    if (vany(~moved)) { /* lanes that start at their clip (rare in a camera's fan) */
+        st->ci = vsel(moved, ci, vcell_along(vray_u(p, t0), p->nu, 0.0, (double)w->cmax_i));
+        st->cj = vsel(moved, cj, vcell_along(vray_v(p, t0), p->nv, 0.0, (double)w->cmax_j));
+    }
     st->t = vsel(moved, te, t0);
     st->entry = vsel(moved, vcrossing(tev, teu), vb(ENTRY_START));
     st->f = vb(NAN);
@@ -1524,9 +1525,9 @@ TD_HOT void vadvance(const vwalk *p, vstate *st, vm m, vd kind, vd t, vd f)
 
 /* One step of the near walk (walk_cell, then cell_test where it does not reject) for the
  * lanes of act: *hit gets the lanes that hit (their t in *th, the plane's wall in *hwall,
- * the cell's corners in *hk), *end those whose search ends in the cell. */
+ * *end those whose search ends in the cell; a lane that hits stays in its cell). */
 TD_HOT void vstep(const walk *w, const vwalk *p, td_surface sf, vstate *st, vm act, vm *hit,
-                  vm *end, vd *th, vd *hwall, vcell *hk)
+                  vm *end, vd *th, vd *hwall)
 {
     vd tu = vtime_u(p, st->ci + vone(p->pu)), tv = vtime_v(p, st->cj + vone(p->pv));
     vd tb = vmin(tu, tv), kind = vcrossing(tu, tv);
@@ -1554,11 +1555,12 @@ TD_HOT void vstep(const walk *w, const vwalk *p, td_surface sf, vstate *st, vm a
     *hit = h;
     *th = t;
     *hwall = wall;
-    *hk = k;
     vm go_on = test & ~h;
     *end = go_on & (vm)(exit == ENTRY_START);
-    vadvance(p, st, quick, kind, tb, vb(NAN));
-    vadvance(p, st, go_on & ~*end, exit, tb2, vsel(cross, fb, vb(NAN)));
+    /* the lanes over the cell (quick) and those that go on, in one pass: their masks are
+       disjoint */
+    vadvance(p, st, quick | (go_on & ~*end), vsel(quick, kind, exit), vsel(quick, tb, tb2),
+             vsel(cross, fb, vb(NAN)));
 }
 
 TD_HOT vm von_grid(const walk *w, const vstate *st)
@@ -1579,7 +1581,7 @@ static int packet_lane(const td_fan_ray *r)
  * normal's vector (surface_normal's, from the corners each lane read at its hit), in
  * vectors; fan_packet stores the lanes that hit. */
 typedef struct vhit {
-    vd p[3], nv[3];
+    vd p[3], nv[3]; /* nv: the unit normal (unit_normal's, before its rounding to float) */
     vd zb; /* td_grid_bilinear_cell's height at the point (td_trace_fan's zb) */
 } vhit;
 
@@ -1612,6 +1614,9 @@ TD_HOT vhit vhits(const walk *w, const vwalk *q, td_surface sf, const double o[3
         h.nv[1] = -g1 / w->g->sy;
         h.nv[2] = vb(1.0);
     }
+    vd len = vsqrt(h.nv[0] * h.nv[0] + h.nv[1] * h.nv[1] + h.nv[2] * h.nv[2]); /* unit_normal */
+    for (int i = 0; i < 3; i++)
+        h.nv[i] = h.nv[i] / len;
     return h;
 }
 
@@ -1648,12 +1653,34 @@ static void packet_rest(const td_view *v, td_method m, walk *w, const double o[3
     hit->method = used;
 }
 
+/* A fan ray's hit record finished as td_trace_from finishes it (its unit normal), and its
+ * zb (NaN for a miss) */
+static void fan_keep(const td_grid *g, td_hit *h, const double nv[3], double *zb)
+{
+    if (h->t < INFINITY)
+        unit_normal(nv, h->n);
+    if (zb)
+        *zb = hit_bilinear(g, h);
+}
+
+/* A fan ray traced alone (trace_one; an invalid call, ok 0, is a miss) */
+static void fan_one(const td_view *v, td_method m, walk *w, const double o[3], const td_fan_ray *r,
+                    int ok, td_hit *h, double *zb)
+{
+    double nv[3];
+    memset(h, 0, sizeof *h);
+    trace_one(v, m, w, o, r->d, 0.0, INFINITY, ok ? r->t_clear : INFINITY, h, nv);
+    fan_keep(v->grid, h, nv, ok ? zb : NULL);
+    if (zb && !ok)
+        *zb = NAN;
+}
+
 /* The near walk of fan rays rays[lane[0 .. nl)] (nl <= TD_LANES; see the section's
- * comment): for each lane it finishes, hits[] and nv[] (at k - k0) as trace_one leaves
- * them and done[l] = 1; the caller traces the others with trace_one. */
+ * comment): for each lane it finishes, hits[] and zb[] as fan_one would leave them and
+ * done[l] = 1; the caller traces the others with fan_one. */
 TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, const double o[3],
-                                     const td_fan_ray *rays, const int *lane, int nl, int k0,
-                                     td_hit *hits, double (*nv)[3], double *zb, int *done)
+                                     const td_fan_ray *rays, const int *lane, int nl, td_hit *hits,
+                                     double *zb, int *done)
 {
     const td_fan_ray *r[TD_LANES];
     for (int l = 0; l < TD_LANES; l++) /* a packet short of rays repeats its first */
@@ -1665,7 +1692,6 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
     vstate st;
     vm go, near, hit = {0, 0, 0, 0}, cont;
     vd n = vb(0.0), th = vb(INFINITY), hw = vb(0.0);
-    vcell hk = {{vb(0.0), vb(0.0), vb(0.0), vb(0.0)}};
     const td_surface sf = (td_surface)(w->surf - surfaces);
     p.ou = vb(w->ou), p.ov = vb(w->ov), p.oz = vb(w->oz);
     vstart(w, &p, d, tc, &st, &go, &near);
@@ -1677,45 +1703,44 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
     for (; k < TD_NEAR_CELLS; k++) {
         vm act = cont & von_grid(w, &st), h, end;
         vd t, wall;
-        vcell kk;
         if (!vany(act))
             break;
         n += vone(act);
-        vstep(w, &p, sf, &st, act, &h, &end, &t, &wall, &kk);
+        vstep(w, &p, sf, &st, act, &h, &end, &t, &wall);
         th = vsel(h, t, th);
         hw = vsel(h, wall, hw);
-        for (int i = 0; i < 4; i++)
-            hk.c[i] = vsel(h, kk.c[i], hk.c[i]);
         hit |= h;
         cont &= ~(h | end);
     }
     /* a lane still walking goes on alone (packet_rest); one that starts behind its clip
        (no near walk) is trace_one's */
     vm rest = cont, finished = ~go | (near & ~rest);
+    vcell hk = vcorners(w, st.ci, st.cj, hit); /* the hit cell's: a lane that hits stays there */
     vhit hv = vhits(w, &p, sf, o, d, th, st.ci, st.cj, hw, &hk);
     for (int l = 0; l < nl; l++) {
         td_hit *h = &hits[lane[l]];
         done[l] = (finished | rest)[l] != 0;
-        h->t = INFINITY; /* a miss unless the lane hit (a lane not done: trace_one's) */
-        h->ci = h->cj = -1;
-        h->steps = (uint32_t)n[l];
-        h->method = walk_method(m);
         if (rest[l]) {
             walk_state at = {.ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .t = st.t[l],
                              .f = st.f[l], .entry = (int)st.entry[l], .level = 0};
-            packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], k, h, nv[lane[l] - k0]);
-            if (zb)
-                zb[lane[l]] = hit_bilinear(w->g, h);
-        } else if (hit[l]) {
-            h->t = th[l] < 0.0 ? 0.0 : th[l]; /* trace_one's tmin, 0 for a fan */
-            h->ci = (int32_t)st.ci[l];
-            h->cj = (int32_t)st.cj[l];
+            double nv[3];
+            memset(h, 0, sizeof *h);
+            packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], k, h, nv);
+            fan_keep(w->g, h, nv, zb ? &zb[lane[l]] : NULL);
+        } else if (done[l]) { /* trace_one's hit record, as fan_one keeps it */
+            int hl = hit[l] != 0;
+            memset(h, 0, sizeof *h); /* its padding too: tests compare records whole */
+            h->t = hl ? (th[l] < 0.0 ? 0.0 : th[l]) : INFINITY; /* trace_one's tmin, 0 for a fan */
             for (int i = 0; i < 3; i++) {
-                h->p[i] = hv.p[i][l];
-                nv[lane[l] - k0][i] = hv.nv[i][l];
+                h->p[i] = hl ? hv.p[i][l] : 0.0;
+                h->n[i] = hl ? (float)hv.nv[i][l] : 0.0f;
             }
+            h->ci = hl ? (int32_t)st.ci[l] : -1;
+            h->cj = hl ? (int32_t)st.cj[l] : -1;
+            h->steps = (uint32_t)n[l];
+            h->method = walk_method(m);
             if (zb)
-                zb[lane[l]] = hv.zb[l];
+                zb[lane[l]] = hl ? hv.zb[l] : NAN;
         }
     }
 }
@@ -1829,9 +1854,8 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
         for (int k = 0; k < TD_OCC_NEAR_CELLS && vany(cont); k++) {
             vm h, end;
             vd t, wall;
-            vcell kk;
             cells += vone(cont);
-            vstep(w, &p, sf, &st, cont, &h, &end, &t, &wall, &kk);
+            vstep(w, &p, sf, &st, cont, &h, &end, &t, &wall);
             occ |= h;
             cont &= ~(h | end) & von_grid(w, &st);
             if (w->lit && vany(cont)) { /* lit_end: each lane's block's bound */
@@ -1858,9 +1882,6 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
     return k0 < n ? k0 : n;
 }
 
-/* Fan rays whose normals wait for one loop (unit_normal) */
-#define TD_FAN_MAX 64
-
 void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3], int n,
                   const td_fan_ray *rays, td_hit *hits, double *zb)
 {
@@ -1870,38 +1891,20 @@ void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3]
         walk_grid(&w, v->grid, s);
         walk_origin(&w, o);
     }
-    double nv[TD_FAN_MAX][3];
-    for (int k0 = 0; k0 < n; k0 += TD_FAN_MAX) {
-        int k1 = n - k0 < TD_FAN_MAX ? n : k0 + TD_FAN_MAX;
-        int lane[TD_FAN_MAX], nl = 0;
-        for (int k = k0; k < k1; k++) {
-            memset(&hits[k], 0, sizeof hits[k]);
-            if (zb)
-                zb[k] = NAN; /* a miss's; a hit's below */
-            if (ok && packet_lane(&rays[k])) {
-                lane[nl++] = k;
-            } else {
-                trace_one(v, m, &w, o, rays[k].d, 0.0, INFINITY, ok ? rays[k].t_clear : INFINITY,
-                          &hits[k], nv[k - k0]);
-                if (zb && ok)
-                    zb[k] = hit_bilinear(v->grid, &hits[k]);
-            }
+    int lane[TD_LANES], nl = 0, done[TD_LANES];
+    for (int k = 0; k < n; k++) {
+        if (ok && packet_lane(&rays[k])) { /* into the packet; it runs when full */
+            lane[nl++] = k;
+        } else {
+            fan_one(v, m, &w, o, &rays[k], ok, &hits[k], zb ? &zb[k] : NULL);
         }
-        for (int q = 0; q < nl; q += TD_LANES) { /* the packets, then what they left */
-            int np = nl - q < TD_LANES ? nl - q : TD_LANES, done[TD_LANES];
-            fan_packet(v, m, &w, o, rays, lane + q, np, k0, hits, nv, zb, done);
-            for (int l = 0; l < np; l++) {
-                int k = lane[q + l];
-                if (!done[l]) {
-                    trace_one(v, m, &w, o, rays[k].d, 0.0, INFINITY, rays[k].t_clear, &hits[k], nv[k - k0]);
-                    if (zb)
-                        zb[k] = hit_bilinear(v->grid, &hits[k]);
-                }
-            }
+        if (nl == TD_LANES || (k == n - 1 && nl > 0)) {
+            fan_packet(v, m, &w, o, rays, lane, nl, hits, zb, done);
+            for (int l = 0; l < nl; l++) /* what the packet left */
+                if (!done[l])
+                    fan_one(v, m, &w, o, &rays[lane[l]], 1, &hits[lane[l]], zb ? &zb[lane[l]] : NULL);
+            nl = 0;
         }
-        for (int k = k0; k < k1; k++)
-            if (hits[k].t < INFINITY)
-                unit_normal(nv[k - k0], hits[k].n);
     }
 }
 
