@@ -1569,14 +1569,6 @@ TD_HOT vm von_grid(const walk *w, const vstate *st)
            (vm)(st->cj <= (double)w->cmax_j);
 }
 
-/* Whether a fan ray can be a packet's lane: a ray to trace (t_clear finite) whose
- * direction needs no rescaling (walk_dir's scale 1). */
-static int packet_lane(const td_fan_ray *r)
-{
-    double dlen = dmax(fabs(r->d[0]), dmax(fabs(r->d[1]), fabs(r->d[2])));
-    return r->t_clear < INFINITY && dlen >= 0x1p-20 && dlen <= 0x1p20;
-}
-
 /* The packet's hits as trace_one writes them (keep_hit) for every lane: the point and the
  * normal's vector (surface_normal's, from the corners each lane read at its hit), in
  * vectors; fan_packet stores the lanes that hit. */
@@ -1653,41 +1645,71 @@ static void packet_rest(const td_view *v, td_method m, walk *w, const double o[3
     hit->method = used;
 }
 
-/* A fan ray's hit record finished as td_trace_from finishes it (its unit normal), and its
- * zb (NaN for a miss) */
-static void fan_keep(const td_grid *g, td_hit *h, const double nv[3], double *zb)
+/* Ray k's record in a fan's hits: x as td_trace_from leaves it, and its zb */
+static void fan_store(td_fan_hits *h, int k, const td_hit *x, double zb)
 {
-    if (h->t < INFINITY)
-        unit_normal(nv, h->n);
-    if (zb)
-        *zb = hit_bilinear(g, h);
+    h->t[k] = x->t;
+    h->px[k] = x->p[0], h->py[k] = x->p[1], h->pz[k] = x->p[2];
+    h->nx[k] = x->n[0], h->ny[k] = x->n[1], h->nz[k] = x->n[2];
+    h->ci[k] = x->ci, h->cj[k] = x->cj;
+    h->steps[k] = x->steps;
+    h->method[k] = (int32_t)x->method;
+    h->zb[k] = zb;
 }
 
-/* A fan ray traced alone (trace_one; an invalid call, ok 0, is a miss) */
-static void fan_one(const td_view *v, td_method m, walk *w, const double o[3], const td_fan_ray *r,
-                    int ok, td_hit *h, double *zb)
+void td_fan_hit(const td_fan_hits *h, int k, td_hit *out)
 {
-    double nv[3];
-    memset(h, 0, sizeof *h);
-    trace_one(v, m, w, o, r->d, 0.0, INFINITY, ok ? r->t_clear : INFINITY, h, nv);
-    fan_keep(v->grid, h, nv, ok ? zb : NULL);
-    if (zb && !ok)
-        *zb = NAN;
+    memset(out, 0, sizeof *out);
+    out->t = h->t[k];
+    out->p[0] = h->px[k], out->p[1] = h->py[k], out->p[2] = h->pz[k];
+    out->n[0] = h->nx[k], out->n[1] = h->ny[k], out->n[2] = h->nz[k];
+    out->ci = h->ci[k], out->cj = h->cj[k];
+    out->steps = h->steps[k];
+    out->method = (td_method)h->method[k];
 }
 
-/* The near walk of fan rays rays[lane[0 .. nl)] (nl <= TD_LANES; see the section's
- * comment): for each lane it finishes, hits[] and zb[] as fan_one would leave them and
- * done[l] = 1; the caller traces the others with fan_one. */
-TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, const double o[3],
-                                     const td_fan_ray *rays, const int *lane, int nl, td_hit *hits,
-                                     double *zb, int *done)
+/* A fan ray's hit record finished as td_trace_from finishes it (its unit normal), into
+ * slot k with its zb */
+static void fan_keep(const td_grid *g, td_hit *x, const double nv[3], td_fan_hits *h, int k)
 {
-    const td_fan_ray *r[TD_LANES];
-    for (int l = 0; l < TD_LANES; l++) /* a packet short of rays repeats its first */
-        r[l] = &rays[lane[l < nl ? l : 0]];
-    vd d[3], tc = {r[0]->t_clear, r[1]->t_clear, r[2]->t_clear, r[3]->t_clear};
-    for (int i = 0; i < 3; i++)
-        d[i] = (vd){r[0]->d[i], r[1]->d[i], r[2]->d[i], r[3]->d[i]};
+    if (x->t < INFINITY)
+        unit_normal(nv, x->n);
+    fan_store(h, k, x, hit_bilinear(g, x));
+}
+
+/* Fan ray k traced alone (trace_one; an invalid call, ok 0, is a miss) */
+static void fan_one(const td_view *v, td_method m, walk *w, const double o[3], const td_fan *f, int k,
+                    int ok, td_fan_hits *h)
+{
+    double nv[3], d[3] = {f->dx[k], f->dy[k], f->dz[k]};
+    td_hit x;
+    memset(&x, 0, sizeof x);
+    trace_one(v, m, w, o, d, 0.0, INFINITY, ok ? f->t_clear[k] : INFINITY, &x, nv);
+    if (ok)
+        fan_keep(v->grid, &x, nv, h, k);
+    else
+        fan_store(h, k, &x, NAN);
+}
+
+/* Loads four doubles from a (no alignment asked) */
+TD_HOT vd vload(const double *a)
+{
+    vd x;
+    memcpy(&x, a, sizeof x);
+    return x;
+}
+
+/* The near walk of fan rays k0 .. k0 + 3 (see the section's comment; nl of them the
+ * fan's, the slots past its last ray copies of ray k0): each lane it finishes gets its record in h as
+ * fan_one would leave it. Returns the lanes finished (bit l: ray k0 + l); the caller traces
+ * the others with fan_one. A lane that is not a packet's (packet_lane: a ray to trace,
+ * whose direction needs no rescaling) is left to fan_one from the start. */
+TD_ROW_CLONES static int fan_packet(const td_view *v, td_method m, walk *w, const double o[3],
+                                    const td_fan *f, int k0, int nl, td_fan_hits *h)
+{
+    vd d[3] = {vload(&f->dx[k0]), vload(&f->dy[k0]), vload(&f->dz[k0])}, tc = vload(&f->t_clear[k0]);
+    vd dlen = vmax(vabs(d[0]), vmax(vabs(d[1]), vabs(d[2])));
+    vm lane = (vm)(tc < INFINITY) & (vm)(dlen >= 0x1p-20) & (vm)(dlen <= 0x1p20); /* packet_lane */
     vwalk p;
     vstate st;
     vm go, near, hit = {0, 0, 0, 0}, cont;
@@ -1695,54 +1717,69 @@ TD_ROW_CLONES static void fan_packet(const td_view *v, td_method m, walk *w, con
     const td_surface sf = (td_surface)(w->surf - surfaces);
     p.ou = vb(w->ou), p.ov = vb(w->ov), p.oz = vb(w->oz);
     vstart(w, &p, d, tc, &st, &go, &near);
+    go &= lane;
+    near &= lane;
     cont = near;
     /* run_walk's near loop while a lane walks it (a lone lane handed to the scalar walk
        there instead: 0.6-1.7% more instructions in the primary stage of trinidad's bench
        views, 1-3% more time; its walk's setup is redone) */
     int k = 0;
     for (; k < TD_NEAR_CELLS; k++) {
-        vm act = cont & von_grid(w, &st), h, end;
+        vm act = cont & von_grid(w, &st), hl, end;
         vd t, wall;
         if (!vany(act))
             break;
         n += vone(act);
-        vstep(w, &p, sf, &st, act, &h, &end, &t, &wall);
-        th = vsel(h, t, th);
-        hw = vsel(h, wall, hw);
-        hit |= h;
-        cont &= ~(h | end);
+        vstep(w, &p, sf, &st, act, &hl, &end, &t, &wall);
+        th = vsel(hl, t, th);
+        hw = vsel(hl, wall, hw);
+        hit |= hl;
+        cont &= ~(hl | end);
     }
     /* a lane still walking goes on alone (packet_rest); one that starts behind its clip
        (no near walk) is trace_one's */
-    vm rest = cont, finished = ~go | (near & ~rest);
+    vm rest = cont, done = lane & (~go | near);
     vcell hk = vcorners(w, st.ci, st.cj, hit); /* the hit cell's: a lane that hits stays there */
     vhit hv = vhits(w, &p, sf, o, d, th, st.ci, st.cj, hw, &hk);
-    for (int l = 0; l < nl; l++) {
-        td_hit *h = &hits[lane[l]];
-        done[l] = (finished | rest)[l] != 0;
-        if (rest[l]) {
+    /* every lane's record as trace_one leaves a finished one (tmin 0 for a fan; a miss all
+       zero but t, the cell -1, steps and method), stored a vector at a time; the lanes
+       that are not finished here are written again below or by the caller */
+    typedef float vf __attribute__((vector_size(4 * TD_LANES)));
+    vd ht = vsel(hit, vsel((vm)(th < 0.0), vb(0.0), th), vb(INFINITY));
+    vd hp[3] = {vsel(hit, hv.p[0], vb(0.0)), vsel(hit, hv.p[1], vb(0.0)), vsel(hit, hv.p[2], vb(0.0))};
+    vf hn[3];
+    for (int i = 0; i < 3; i++)
+        hn[i] = __builtin_convertvector(vsel(hit, hv.nv[i], vb(0.0)), vf);
+    vi hci = __builtin_convertvector(vsel(hit, st.ci, vb(-1.0)), vi);
+    vi hcj = __builtin_convertvector(vsel(hit, st.cj, vb(-1.0)), vi);
+    vi hs = __builtin_convertvector(n, vi), hm = __builtin_convertvector(vb((double)walk_method(m)), vi);
+    vd hz = vsel(hit, hv.zb, vb(NAN));
+    memcpy(&h->t[k0], &ht, sizeof ht);
+    memcpy(&h->px[k0], &hp[0], sizeof ht);
+    memcpy(&h->py[k0], &hp[1], sizeof ht);
+    memcpy(&h->pz[k0], &hp[2], sizeof ht);
+    memcpy(&h->nx[k0], &hn[0], sizeof hn[0]);
+    memcpy(&h->ny[k0], &hn[1], sizeof hn[1]);
+    memcpy(&h->nz[k0], &hn[2], sizeof hn[2]);
+    memcpy(&h->ci[k0], &hci, sizeof hci);
+    memcpy(&h->cj[k0], &hcj, sizeof hcj);
+    memcpy(&h->steps[k0], &hs, sizeof hs);
+    memcpy(&h->method[k0], &hm, sizeof hm);
+    memcpy(&h->zb[k0], &hz, sizeof hz);
+    int fin = 0;
+    for (int l = 0; l < TD_LANES; l++) {
+        fin |= (done[l] != 0) << l;
+        if (rest[l] && l < nl) {
             walk_state at = {.ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .t = st.t[l],
                              .f = st.f[l], .entry = (int)st.entry[l], .level = 0};
-            double nv[3];
-            memset(h, 0, sizeof *h);
-            packet_rest(v, m, w, o, rays[lane[l]].d, &at, (uint32_t)n[l], k, h, nv);
-            fan_keep(w->g, h, nv, zb ? &zb[lane[l]] : NULL);
-        } else if (done[l]) { /* trace_one's hit record, as fan_one keeps it */
-            int hl = hit[l] != 0;
-            memset(h, 0, sizeof *h); /* its padding too: tests compare records whole */
-            h->t = hl ? (th[l] < 0.0 ? 0.0 : th[l]) : INFINITY; /* trace_one's tmin, 0 for a fan */
-            for (int i = 0; i < 3; i++) {
-                h->p[i] = hl ? hv.p[i][l] : 0.0;
-                h->n[i] = hl ? (float)hv.nv[i][l] : 0.0f;
-            }
-            h->ci = hl ? (int32_t)st.ci[l] : -1;
-            h->cj = hl ? (int32_t)st.cj[l] : -1;
-            h->steps = (uint32_t)n[l];
-            h->method = walk_method(m);
-            if (zb)
-                zb[lane[l]] = hl ? hv.zb[l] : NAN;
+            double nv[3], dl[3] = {d[0][l], d[1][l], d[2][l]};
+            td_hit x;
+            memset(&x, 0, sizeof x);
+            packet_rest(v, m, w, o, dl, &at, (uint32_t)n[l], k, &x, nv);
+            fan_keep(w->g, &x, nv, h, k0 + l);
         }
     }
+    return fin;
 }
 
 /* Cells a packet of shadow rays walks together before a lane still walking goes on alone.
@@ -1830,15 +1867,25 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
     vdir(w, &p, dv, &iz);
     for (; n - k0 >= 2; k0 += TD_LANES) { /* a last lone ray is occluded_one's */
         const int nl = n - k0 < TD_LANES ? n - k0 : TD_LANES;
-        const double(*q[TD_LANES])[3];
-        for (int l = 0; l < TD_LANES; l++) /* a packet short of rays repeats its first */
-            q[l] = &o[k0 + (l < nl ? l : 0)];
         vd cells = vb(0.0);
         vstate st;
         vm go, occ = {0, 0, 0, 0}, cont;
-        p.ou = (vd){(*q[0])[0], (*q[1])[0], (*q[2])[0], (*q[3])[0]} / g->sx; /* walk_origin */
-        p.ov = (vd){(*q[0])[1], (*q[1])[1], (*q[2])[1], (*q[3])[1]} / g->sy;
-        p.oz = (vd){(*q[0])[2], (*q[1])[2], (*q[2])[2], (*q[3])[2]};
+        if (nl == TD_LANES) { /* four origins, x y z each: three loads and their transpose */
+            vd a0 = vload(o[k0]), a1 = vload(o[k0] + 4), a2 = vload(o[k0] + 8);
+            typedef int64_t vx __attribute__((vector_size(32)));
+            vd x01 = __builtin_shuffle(a0, a1, (vx){0, 3, 6, 0}), y01 = __builtin_shuffle(a0, a1, (vx){1, 4, 7, 0});
+            vd z01 = __builtin_shuffle(a0, a1, (vx){2, 5, 0, 0});
+            p.ou = __builtin_shuffle(x01, a2, (vx){0, 1, 2, 5});
+            p.ov = __builtin_shuffle(y01, a2, (vx){0, 1, 2, 6});
+            p.oz = __builtin_shuffle(z01, a2, (vx){0, 1, 4, 7});
+        } else { /* a packet short of rays repeats its first */
+            for (int l = 0; l < TD_LANES; l++) {
+                const double *q = o[k0 + (l < nl ? l : 0)];
+                p.ou[l] = q[0], p.ov[l] = q[1], p.oz[l] = q[2];
+            }
+        }
+        p.ou /= g->sx; /* walk_origin */
+        p.ov /= g->sy;
         vstart_clip(w, &p, iz, &st, &go);
         vi strip = {0, 0, 0, 0};
         vm has = {0, 0, 0, 0};
@@ -1882,29 +1929,26 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
     return k0 < n ? k0 : n;
 }
 
-void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3], int n,
-                  const td_fan_ray *rays, td_hit *hits, double *zb)
+void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3], int n, td_fan *f,
+                  td_fan_hits *h)
 {
     walk w;
     int ok = valid_call(v->grid, m, s);
+    n = n < TD_FAN_MAX ? n : TD_FAN_MAX;
     if (ok) {
         walk_grid(&w, v->grid, s);
         walk_origin(&w, o);
     }
-    int lane[TD_LANES], nl = 0, done[TD_LANES];
-    for (int k = 0; k < n; k++) {
-        if (ok && packet_lane(&rays[k])) { /* into the packet; it runs when full */
-            lane[nl++] = k;
-        } else {
-            fan_one(v, m, &w, o, &rays[k], ok, &hits[k], zb ? &zb[k] : NULL);
+    for (int k0 = 0; k0 < n; k0 += TD_LANES) {
+        const int nl = n - k0 < TD_LANES ? n - k0 : TD_LANES;
+        for (int l = nl; l < TD_LANES; l++) { /* a packet short of rays repeats its first */
+            f->dx[k0 + l] = f->dx[k0], f->dy[k0 + l] = f->dy[k0], f->dz[k0 + l] = f->dz[k0];
+            f->t_clear[k0 + l] = f->t_clear[k0];
         }
-        if (nl == TD_LANES || (k == n - 1 && nl > 0)) {
-            fan_packet(v, m, &w, o, rays, lane, nl, hits, zb, done);
-            for (int l = 0; l < nl; l++) /* what the packet left */
-                if (!done[l])
-                    fan_one(v, m, &w, o, &rays[lane[l]], 1, &hits[lane[l]], zb ? &zb[lane[l]] : NULL);
-            nl = 0;
-        }
+        int fin = ok ? fan_packet(v, m, &w, o, f, k0, nl, h) : 0;
+        for (int l = 0; l < nl; l++) /* what the packet left */
+            if (!(fin >> l & 1))
+                fan_one(v, m, &w, o, f, k0 + l, ok, h);
     }
 }
 

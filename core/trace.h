@@ -109,20 +109,40 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
 void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r, double t_clear,
                    td_hit *hit);
 
-/* A camera ray of a fan: its direction and where it may start (td_trace_from's t_clear;
- * +inf: a miss known without tracing). */
-typedef struct td_fan_ray {
-    double d[3];
-    double t_clear;
-} td_fan_ray;
+/* A fan: camera rays from one origin, as arrays (a packet of four loads each as one
+ * vector): ray k's direction (dx[k], dy[k], dz[k]) and where it may start, t_clear[k]
+ * (td_trace_from's; +inf: a miss known without tracing). At most TD_FAN_MAX rays; the
+ * TD_FAN_PAD slots past them are td_trace_fan's (a last short packet's padding). */
+#define TD_FAN_MAX 64
+#define TD_FAN_PAD 3
+typedef struct td_fan {
+    double dx[TD_FAN_MAX + TD_FAN_PAD], dy[TD_FAN_MAX + TD_FAN_PAD], dz[TD_FAN_MAX + TD_FAN_PAD];
+    double t_clear[TD_FAN_MAX + TD_FAN_PAD];
+} td_fan;
 
-/* td_trace_from for n rays from one origin o, each over [0, +inf): the camera rays of a
- * render, which share the walk's setup of the grid and the origin. hits[k] is the hit
- * td_trace_from gives rays[k], bit for bit. zb (NULL: not wanted) gets for each hit the
- * bilinear surface's height at its x, y in its cell, td_grid_bilinear_cell's value bit for
- * bit (what the render's height error compares with), NaN for a miss or a void cell. */
-void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3], int n,
-                  const td_fan_ray *rays, td_hit *hits, double *zb);
+/* A fan's hits, as arrays (stored a vector at a time from the packets): ray k's td_hit
+ * fields (t, p = (px, py, pz), n = (nx, ny, nz), ci, cj, steps, method), and zb[k], the
+ * bilinear surface's height at its x, y in its cell (td_grid_bilinear_cell's value bit
+ * for bit: what the render's height error compares with; NaN for a miss or a void cell).
+ * td_fan_hit reads one back as a td_hit. */
+typedef struct td_fan_hits {
+    double t[TD_FAN_MAX + TD_FAN_PAD], px[TD_FAN_MAX + TD_FAN_PAD], py[TD_FAN_MAX + TD_FAN_PAD];
+    double pz[TD_FAN_MAX + TD_FAN_PAD], zb[TD_FAN_MAX + TD_FAN_PAD];
+    float nx[TD_FAN_MAX + TD_FAN_PAD], ny[TD_FAN_MAX + TD_FAN_PAD], nz[TD_FAN_MAX + TD_FAN_PAD];
+    int32_t ci[TD_FAN_MAX + TD_FAN_PAD], cj[TD_FAN_MAX + TD_FAN_PAD];
+    uint32_t steps[TD_FAN_MAX + TD_FAN_PAD];
+    int32_t method[TD_FAN_MAX + TD_FAN_PAD]; /* a td_method */
+} td_fan_hits;
+
+/* td_trace_from for the first n (<= TD_FAN_MAX) rays of fan f from origin o, each over
+ * [0, +inf): the camera rays of a render, which share the walk's setup of the grid and
+ * the origin. Ray k's hit (td_fan_hit(h, k, ..)) is the one td_trace_from gives it, bit for
+ * bit. Writes f's padding slots. */
+void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3], int n, td_fan *f,
+                  td_fan_hits *h);
+
+/* Ray k's hit of a traced fan as td_trace_from writes one (every other byte zero). */
+void td_fan_hit(const td_fan_hits *h, int k, td_hit *out);
 
 /* Whether the ray meets the surface in [tmin, tmax] (td_trace's hit is finite), for rays
  * that leave the surface (shadow and ambient-occlusion rays): it climbs the max-mipmap

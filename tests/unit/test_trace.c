@@ -497,7 +497,11 @@ static void test_batches_same(void **state)
     const double origins[2][3] = {{-300.0, -250.0, g->zmax + 400.0},
                                   {2400.0, 2000.0, 0.5 * (g->zmin + g->zmax)}};
     enum { N = 150 };
-    static td_fan_ray fan[N];
+    static struct {
+        double d[3], t_clear;
+    } fan[N];
+    static td_fan f;
+    static td_fan_hits fh;
     static td_hit hits[N];
     static double po[N][3], zb[N];
     uint8_t occ[N];
@@ -531,7 +535,18 @@ static void test_batches_same(void **state)
                     if (!isfinite(fan[k].t_clear))
                         fan[k].t_clear = k % 3 == 1 ? INFINITY : 0.0;
                 }
-                td_trace_fan(&v, (td_method)m, (td_surface)sf, origins[oi], N, fan, hits, zb);
+                for (int k0 = 0; k0 < N; k0 += TD_FAN_MAX) { /* fans of TD_FAN_MAX, the last short */
+                    int nf = N - k0 < TD_FAN_MAX ? N - k0 : TD_FAN_MAX;
+                    for (int k = 0; k < nf; k++) {
+                        f.dx[k] = fan[k0 + k].d[0], f.dy[k] = fan[k0 + k].d[1], f.dz[k] = fan[k0 + k].d[2];
+                        f.t_clear[k] = fan[k0 + k].t_clear;
+                    }
+                    td_trace_fan(&v, (td_method)m, (td_surface)sf, origins[oi], nf, &f, &fh);
+                    for (int k = 0; k < nf; k++) {
+                        td_fan_hit(&fh, k, &hits[k0 + k]);
+                        zb[k0 + k] = fh.zb[k];
+                    }
+                }
                 int hit_count = 0;
                 for (int k = 0; k < N; k++) {
                     td_ray r = {{origins[oi][0], origins[oi][1], origins[oi][2]},
@@ -650,12 +665,15 @@ static void test_fan_cells(void **state)
                     double u0 = 12.0 - 3.0 * su + offsets[oi], v0 = 12.0 - 3.0 * sv;
                     /* a start in a cell, on its sample lines (at a sample point when on the
                        diagonal), and one cell on */
-                    td_fan_ray fr = {{su * g->sx, sv * g->sy, 0.0}, 1.5 + 0.5 * (dir / 4)};
+                    td_fan f = {.dx = {su * g->sx}, .dy = {sv * g->sy}, .dz = {0.0},
+                                .t_clear = {1.5 + 0.5 * (dir / 4)}};
+                    td_fan_hits fh;
                     const double o[3] = {u0 * g->sx, v0 * g->sy, heights[hi]};
-                    td_ray r = {{o[0], o[1], o[2]}, {fr.d[0], fr.d[1], fr.d[2]}, 0.0, INFINITY};
+                    td_ray r = {{o[0], o[1], o[2]}, {f.dx[0], f.dy[0], f.dz[0]}, 0.0, INFINITY};
                     td_hit hf, h1;
-                    td_trace_fan(&v, TD_METHOD_AUTO, (td_surface)sf, o, 1, &fr, &hf, NULL);
-                    td_trace_from(&v, TD_METHOD_AUTO, (td_surface)sf, &r, fr.t_clear, &h1);
+                    td_trace_fan(&v, TD_METHOD_AUTO, (td_surface)sf, o, 1, &f, &fh);
+                    td_fan_hit(&fh, 0, &hf);
+                    td_trace_from(&v, TD_METHOD_AUTO, (td_surface)sf, &r, f.t_clear[0], &h1);
                     assert_memory_equal(&hf, &h1, sizeof hf);
                     hits += h1.t < INFINITY;
                     tried++;
