@@ -1144,6 +1144,7 @@ void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r,
 typedef double vd __attribute__((vector_size(32)));
 typedef int64_t vm __attribute__((vector_size(32))); /* a lane mask: all ones or zero */
 typedef int32_t vi __attribute__((vector_size(16)));
+typedef float vf __attribute__((vector_size(16)));
 #define TD_LANES 4
 
 TD_HOT vd vb(double x) { return (vd){x, x, x, x}; }
@@ -1744,7 +1745,6 @@ TD_ROW_CLONES static int fan_packet(const td_view *v, td_method m, walk *w, cons
     /* every lane's record as trace_one leaves a finished one (tmin 0 for a fan; a miss all
        zero but t, the cell -1, steps and method), stored a vector at a time; the lanes
        that are not finished here are written again below or by the caller */
-    typedef float vf __attribute__((vector_size(4 * TD_LANES)));
     vd ht = vsel(hit, vsel((vm)(th < 0.0), vb(0.0), th), vb(INFINITY));
     vd hp[3] = {vsel(hit, hv.p[0], vb(0.0)), vsel(hit, hv.p[1], vb(0.0)), vsel(hit, hv.p[2], vb(0.0))};
     vf hn[3];
@@ -1905,13 +1905,18 @@ TD_ROW_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, con
             vstep(w, &p, sf, &st, cont, &h, &end, &t, &wall);
             occ |= h;
             cont &= ~(h | end) & von_grid(w, &st);
-            if (w->lit && vany(cont)) { /* lit_end: each lane's block's bound */
+            if (w->lit) { /* lit_end: each lane's block's bound (a packet with no lane left
+                             looks too: cheaper than asking first) */
                 const td_sunlit *lit = w->lit;
-                vd z = vray_z(&p, st.t), bound;
-                /* a lane off cont reads column 0, which every strip has, and is not used */
+                vd z = vray_z(&p, st.t);
+                /* a lane off cont reads column 0, which every strip has, and is not used;
+                   the index fits an int32 (at most TD_SUNLIT_MAX_BOUNDS bounds) */
                 vi ia = __builtin_convertvector(vsel(cont, lit->a_is_x ? st.ci : st.cj, vb(0.0)), vi) >> lit->shift;
+                vi at = ia * lit->nst + strip;
+                vf hb;
                 for (int l = 0; l < TD_LANES; l++)
-                    bound[l] = (double)lit->h[(size_t)ia[l] * (size_t)lit->nst + (size_t)strip[l]];
+                    hb[l] = lit->h[at[l]];
+                vd bound = __builtin_convertvector(hb, vd);
                 cont &= ~((vm)(z > bound + w->zeps) & has);
             }
         }
