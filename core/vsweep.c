@@ -35,16 +35,18 @@
  *
  * The column pass (from u = VS_PASS_U on). One walk along F per column (col_pass) gives
  * each target its piece of F and F's minimum and maximum over each interval [m_V, m_V+1]
- * between the column's samples; a column edge under that minimum is left out, the others become
- * pieces straight from the column's arrays (col_pieces: they meet end to end in m order).
+ * between the column's samples; a column edge under that minimum is left out, the others
+ * become pieces straight from the column's arrays (they meet end to end in m order).
  * A strip edge ends on the column and spans one or two of its intervals: it is left out
  * when under the lower bound of F there once the column is in (lcol) or under the
- * column's polyline (facing slopes), else tested exactly by add_seg; then one merge puts
- * the column and the strip's survivors into F, copying the column's pieces without
- * comparisons where the column is above F's maximum (dom). The answers do not change (an edge left
+ * column's polyline (facing slopes), else tested exactly by add_seg (into G); then one
+ * pass (col_merge) builds the new F from the old one interval by interval: F's own pieces
+ * where the column's edge does not count, the edge alone where it is above F's maximum,
+ * the two compared elsewhere, and G's pieces merged where there are any (merge_span).
+ * The answers do not change (an edge left
  * out is under F, as add_seg's own test decides); the work does (docs/viewshed.md
  * "Speed"): picos's sweep went from 376 M to 198 M instructions (callgrind), and F, about
- * two pieces a row, is copied once a column instead of twice; trinidad's 2.23 G -> 1.78 G
+ * two pieces a row, is written once a column; trinidad's 2.23 G -> 1.78 G
  * with the skips, band_lo, and the loops' contexts (tgt_cols, strip_cols: locals the
  * compiler keeps, where sw's fields were reloaded after every byte written to vis). The
  * east and west cones read their columns, strided in the grid, 16 at a time (panel).
@@ -53,7 +55,7 @@
  * also keeps each row's starting lo (flo), so that sweep_cone decides a target under it
  * without calling target() (trinidad 1.64 G -> 1.40 G, docs/viewshed.md "Speed"), and
  * F's value there (fhi), so that it decides the visible ones too (quick_visible); F is
- * kept to the m the columns still to come read (merge_f), facing blocks are tried under
+ * kept to the m the columns still to come read (col_merge), facing blocks are tried under
  * the column's polyline alone first (block_poly), and a bilinear target its last cell's
  * upper diagonal leaves undecided is proved hidden by real points of that last strip
  * (last_real): trinidad 1.46 G -> 1.29 G, casts 15,775 -> 9,430 (2026-11-30 07:00).
@@ -150,8 +152,6 @@ typedef struct sweep {
     double *flo;  /* F's piece kcol[V] at m_V less its slack, -inf behind a hole: the lo target() starts from (col_pass) */
     double *fhi;  /* F at m_V (on a break the higher of the two pieces): the hi target() starts from (col_pass) */
     int quick;    /* targets under flo decided in sweep_cone's loop (hidden_ok, no target height) */
-    double *dom;  /* ndom ranges [dom[2i], dom[2i+1]) of m where column U is above F (col_pieces) */
-    int ndom;
     /* east and west cones, whose columns are strided in the grid: VS_PANEL columns from
      * panel_u on, rows panel_v0..panel_v1, read a row's run of floats at a time (panel) */
     float *panel;
@@ -219,40 +219,6 @@ static inline void emit(pvec *o, double m, const piece *src, const piece **last)
     *last = src;
 }
 
-/* merge's step over [cur, e), where b is above a: b's pieces out (joined as merge's own
- * steps would join them), a's skipped; *ia, *ib left on the pieces holding e. 0 when a
- * list ends first. */
-static inline int merge_won(const piece *a, int na, const piece *b, int nb, double cur, double e, int *ia,
-                            int *ib, pvec *out, const piece **last)
-{
-    int i = *ia, j = *ib, ok;
-    while (j < nb && b[j + 1].m <= cur) /* the pieces holding cur (past zero widths) */
-        j++;
-    while (i < na && a[i + 1].m <= cur)
-        i++;
-    ok = j < nb && i < na;
-    if (ok) {
-        int j0 = j + 1;
-        emit(out, cur, &b[j], last);
-        /* b's pieces after the first start after it and no two neighbours share a line
-         * (b is a merge's output or col_pieces'), so emit would append each: copied whole */
-        while (b[j + 1].m < e)
-            j++;
-        if (j >= j0) {
-            memcpy(&out->p[out->n], &b[j0], (size_t)(j - j0 + 1) * sizeof *b);
-            out->n += j - j0 + 1;
-            *last = &b[j];
-        }
-        while (j < nb && b[j + 1].m <= e)
-            j++;
-        while (i < na && a[i + 1].m <= e)
-            i++;
-    }
-    *ia = i;
-    *ib = j;
-    return ok;
-}
-
 /* The first k >= k0 with k == n or p[k].m >= m (p's starts do not decrease): by steps
  * that double, then halving (the run of F under an empty stretch of the column's pieces
  * is hundreds of pieces long where the terrain is hidden: scanned one by one it was a
@@ -278,13 +244,10 @@ static inline int first_from(const piece *p, int n, int k0, double m)
 }
 
 /* out = max(a, b), both covering [a[0].m, end] with a[na].m = b[nb].m = end; out needs
- * room for 2 (na + nb) + 1 pieces. Ties go to a (the older). dom: ndom sorted disjoint
- * ranges [dom[2i], dom[2i+1]) of m where b is known to be above a by a margin (the column
- * pass's, col_pieces): there b's pieces are copied and a's skipped, without comparing
- * them (b wins every comparison there, and joins as it would). */
-static void merge(const piece *a, int na, const piece *b, int nb, pvec *outp, const double *dom, int ndom)
+ * room for 2 (na + nb) + 1 pieces. Ties go to a (the older). */
+static void merge(const piece *a, int na, const piece *b, int nb, pvec *outp)
 {
-    int ia = 0, ib = 0, id = 0;
+    int ia = 0, ib = 0;
     double cur = a[0].m, end = a[na].m;
     const piece *last = NULL;
     pvec o = *outp, *out = &o; /* a local: the stores of pieces and of last leave it in registers */
@@ -292,15 +255,6 @@ static void merge(const piece *a, int na, const piece *b, int nb, pvec *outp, co
     while (cur < end && ia < na && ib < nb) {
         double ea, eb, nx;
         const piece *pa, *pb;
-        while (id < ndom && dom[2 * id + 1] <= cur)
-            id++;
-        if (id < ndom && dom[2 * id] <= cur) { /* in a range where b is above a */
-            double e = dmin(dom[2 * id + 1], end);
-            if (!merge_won(a, na, b, nb, cur, e, &ia, &ib, out, &last))
-                break;
-            cur = e;
-            continue;
-        }
         ea = a[ia + 1].m;
         eb = b[ib + 1].m;
         nx = ea < eb ? ea : eb;
@@ -568,7 +522,7 @@ static void g_insert(sweep *sw, const piece *p, double m0, double m1)
         b[3] = empty_piece;
         b[3].m = VS_MDOM;
         if (pv_reserve(sw, T, 2 * (G->n - k + 3) + 1) && pv_reserve(sw, G, k + 2 * (G->n - k + 3) + 1)) {
-            merge(&G->p[k], G->n - k, b, 3, T, NULL, 0);
+            merge(&G->p[k], G->n - k, b, 3, T);
             memcpy(&G->p[k], T->p, (size_t)(T->n + 1) * sizeof *T->p);
             G->n = k + T->n;
         }
@@ -618,12 +572,12 @@ static void add_edge_uv(sweep *sw, double ua, double va, double za, double ub, d
     add_seg(sw, va / ua, (za - ez) / ua, vb / ub, (zb - ez) / ub, slack, 1);
 }
 
-/* *dst = max(*dst, *src) (through T; nothing to do when src is empty); dom, ndom as merge. */
-static void merge_into(sweep *sw, pvec *dst, const pvec *src, const double *dom, int ndom)
+/* *dst = max(*dst, *src) (through T; nothing to do when src is empty). */
+static void merge_into(sweep *sw, pvec *dst, const pvec *src)
 {
     if ((src->n > 1 || src->p[0].qr != -INFINITY) && pv_reserve(sw, &sw->T, 2 * (dst->n + src->n) + 1)) {
         pvec t;
-        merge(dst->p, dst->n, src->p, src->n, &sw->T, dom, ndom);
+        merge(dst->p, dst->n, src->p, src->n, &sw->T);
         t = *dst;
         *dst = sw->T;
         sw->T = t;
@@ -633,7 +587,7 @@ static void merge_into(sweep *sw, pvec *dst, const pvec *src, const double *dom,
 /* F = max(F, G). */
 static void merge_g(sweep *sw)
 {
-    merge_into(sw, &sw->F, &sw->G, NULL, 0);
+    merge_into(sw, &sw->F, &sw->G);
     sw->hint_q = sw->hint_s = 0;
 }
 
@@ -1074,89 +1028,199 @@ static void add_column_near(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
     merge_g(sw);
 }
 
-/* Column U's edges as pieces of C, from -VS_MDOM to VS_MDOM: each counted interval
- * [m_V, m_V+1] not under F (fmin) is its edge's line (they meet end to end, in m
- * order: no search, no insertion), the rest empty. */
-static void col_pieces(sweep *sw, int32_t V0, int32_t V1, double u)
+/* o += F's pieces j0 .. j1-1, the first from m (F's pieces after it start after m, none
+ * of zero width, no two neighbours on one line: copied whole, as emit would append each). */
+static inline void f_run(pvec *o, const piece *F, int j0, int j1, double m, const piece **last)
+{
+    emit(o, m, &F[j0], last);
+    if (j1 > j0 + 1) {
+        memcpy(&o->p[o->n], &F[j0 + 1], (size_t)(j1 - j0 - 1) * sizeof *F);
+        o->n += j1 - j0 - 1;
+        *last = &F[j1 - 1];
+    }
+}
+
+/* out += max(a, b) over [x0, x1), as merge computes it: a[ia] and b[ib] the pieces
+ * holding x0, each piece ending where the next starts (a's na-th, b's nb-th piece, or x1:
+ * a piece past them is not read). Where b is empty, a's pieces are copied whole. */
+static void merge_span(pvec *out, const piece *a, int ia, int na, const piece *b, int ib, int nb, double x0,
+                       double x1, const piece **last)
+{
+    double cur = x0;
+    while (cur < x1) {
+        double ea = ia + 1 < na ? a[ia + 1].m : x1, eb = ib + 1 < nb ? b[ib + 1].m : x1;
+        double nx = dmin(dmin(ea, eb), x1);
+        const piece *pa = &a[ia], *pb = &b[ib];
+        if (nx > cur) {
+            if (pb->qr == -INFINITY) { /* b empty up to eb: a's pieces that start before it */
+                int k = first_from(a, na, ia + 1, dmin(eb, x1));
+                emit(out, cur, pa, last);
+                if (k > ia + 1) {
+                    memcpy(&out->p[out->n], &a[ia + 1], (size_t)(k - ia - 1) * sizeof *a);
+                    out->n += k - ia - 1;
+                    *last = &a[k - 1];
+                    ia = k - 1;
+                    ea = ia + 1 < na ? a[ia + 1].m : x1;
+                    nx = dmin(dmin(ea, eb), x1);
+                }
+            } else if (pa->qr == -INFINITY) {
+                emit(out, cur, pb, last);
+            } else {
+                double d0 = pval(pa, cur) - pval(pb, cur), d1 = pval(pa, nx) - pval(pb, nx);
+                if (d0 >= 0.0 && d1 >= 0.0) {
+                    emit(out, cur, pa, last);
+                } else if (d0 <= 0.0 && d1 <= 0.0) {
+                    emit(out, cur, pb, last);
+                } else {
+                    double c = cur + (nx - cur) * (d0 / (d0 - d1));
+                    emit(out, cur, d0 > 0.0 ? pa : pb, last);
+                    emit(out, c > cur ? (c < nx ? c : nx) : cur, d0 > 0.0 ? pb : pa, last);
+                }
+            }
+            cur = nx;
+        }
+        if (ea <= cur && ia + 1 < na)
+            ia++;
+        if (eb <= cur && ib + 1 < nb)
+            ib++;
+    }
+}
+
+/* Where col_merge is in G: i the piece holding the last span's start, nx the first piece
+ * after i with a surface (or G's count), G empty over [.., free) from there. */
+typedef struct gpos {
+    int i, nx;
+    double free;
+} gpos;
+
+/* Whether G has a piece with a surface in [x0, x1) (the spans come in increasing m). */
+static inline int g_in(const pvec *G, gpos *g, double x0, double x1)
+{
+    int any = 0;
+    if (x1 > g->free) {
+        while (g->i + 1 < G->n && G->p[g->i + 1].m <= x0)
+            g->i++;
+        if (g->nx <= g->i)
+            for (g->nx = g->i + 1; g->nx < G->n && G->p[g->nx].qr == -INFINITY; g->nx++)
+                ;
+        any = G->p[g->i].qr != -INFINITY || (g->nx < G->n && G->p[g->nx].m < x1);
+        g->free = any ? x0 : (g->nx < G->n ? G->p[g->nx].m : VS_MDOM);
+    }
+    return any;
+}
+
+/* o += F over [x0, x1) (F's pieces j0 .. j1-1, j0 holding x0), with G's pieces there
+ * (merge_span) when it has any. */
+static inline void f_span(pvec *o, const piece *F, int j0, int j1, const pvec *G, gpos *g, double x0, double x1,
+                          const piece **last)
+{
+    if (g_in(G, g, x0, x1))
+        merge_span(o, F, j0, j1, G->p, g->i, G->n, x0, x1, last);
+    else
+        f_run(o, F, j0, j1, x0, last);
+}
+
+/* C = max(F, column U's edges, G: the strip's survivors), from the column pass's walk
+ * (kcol: F's piece at each m_V; fmin, fmax over each interval), without building the
+ * column's pieces and merging twice (the column's with G's, then with F, each a copy):
+ * per interval [m_V, m_V+1] F's own pieces where the column's edge does not count or is
+ * under F (fmin), the edge alone where it is above F's maximum by far more than rounding,
+ * else the edge against F's pieces there as merge compares them; where G has pieces,
+ * max(F, max(edge, G)) by merge_span. F's pieces outside [mlo, mhi] are left out: no
+ * later column reads F there (its samples and its strip's ends on column U'-1, rows vlo ..
+ * vhi at u' - 1 >= u, have m in [(vlo - ev) / u, (vhi - ev) / u] and |m| <= (u + 3) / u),
+ * so the one piece reaching across each bound stands for F beyond it. */
+static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
 {
     const int32_t o = sw->c.vlo;
     const double *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o, *fm = sw->fmin - o, *cs = sw->cslope - o;
-    const uint8_t *ok = sw->colok - o;
     const double *fx = sw->fmax - o;
-    double *dom = sw->dom;
-    pvec *C = &sw->C;
-    piece *cp;
-    int n = 1, nd = 0; /* C's count and the ranges', in locals: the stores could alias them */
-    int run = 0;       /* the interval before counted: its piece ends where this one starts */
-    sw->ndom = 0;
-    if (!pv_reserve(sw, C, 2 * (V1 - V0) + 4))
+    const uint8_t *ok = sw->colok - o;
+    const int *kc = sw->kcol - o;
+    const piece *F = sw->F.p;
+    const pvec *G = &sw->G;
+    const int nf = sw->F.n;
+    double lim = (u + 3.0) / u + 1e-9;
+    double mlo = dmax(-lim, dmin(0.0, sw->c.vlo - sw->c.ev) / u - 1e-9);
+    double mhi = dmin(lim, dmax(0.0, sw->c.vhi - sw->c.ev) / u + 1e-9);
+    const piece *last = NULL;
+    pvec out, *L = &sw->T;
+    gpos gi = {0, 0, -VS_MDOM};
+    int a0, b0, run = -1; /* run: the first interval of a run where F stays (-1: none) */
+    if (!pv_reserve(sw, &sw->C, 2 * (nf + G->n + 2 * (V1 - V0)) + 8) || !pv_reserve(sw, L, 2 * G->n + 8))
         return;
-    pv_clear(C);
-    cp = C->p;
+    out = sw->C;
+    out.n = 0;
+    a0 = first_from(F, nf, 0, mlo); /* the first piece starting at or past mlo */
+    a0 = a0 > 0 ? a0 - 1 : 0;       /* the one holding mlo (m_V0 > mlo: a0 <= kc[V0]) */
+    b0 = first_from(F, nf, a0 + 1, mhi);
+    f_span(&out, F, a0, kc[V0] + (F[kc[V0]].m < mc[V0]), G, &gi, -VS_MDOM, mc[V0], &last);
     for (int32_t V = V0; V < V1; V++) {
-        double top;
-        if (!ok[V] || dmax(qc[V], qc[V + 1]) <= fm[V]) {
-            if (run) { /* the run's end: empty from there */
-                cp[n] = empty_piece;
-                cp[n].m = mc[V];
-                n++;
-            }
-            run = 0;
+        double m0 = mc[V], m1 = mc[V + 1], q0 = qc[V], q1 = qc[V + 1], top;
+        piece e[2];
+        int gin;
+        if (!ok[V] || dmax(q0, q1) <= fm[V]) {
+            run = run < 0 ? V : run;
             continue;
         }
-        /* above F's maximum there by far more than rounding: a range for merge */
-        top = dmin(qc[V], qc[V + 1]);
-        if (top > fx[V] + 1e-9 * (1.0 + fabs(top))) {
-            if (nd > 0 && dom[2 * nd - 1] == mc[V])
-                dom[2 * nd - 1] = mc[V + 1];
-            else {
-                dom[2 * nd] = mc[V];
-                dom[2 * nd + 1] = mc[V + 1];
-                nd++;
+        if (run >= 0) /* F over [m_run, m_V) */
+            f_span(&out, F, kc[run], kc[V] + (F[kc[V]].m < m0), G, &gi, mc[run], m0, &last);
+        run = -1;
+        top = dmin(q0, q1);
+        gin = g_in(G, &gi, m0, m1);
+        if (!gin && top > fx[V] + 1e-9 * (1.0 + fabs(top))) {
+            /* appended as emit would: its line is no other piece's (umax = u is this
+             * column's alone), so it joins nothing; emit when it must replace a piece of
+             * zero width */
+            piece *d = &out.p[out.n];
+            if (d[-1].m < m0) {
+                *d = (piece){m0, m0, q0, cs[V], 0.0, u};
+                out.n++;
+                last = NULL;
+                continue;
             }
         }
-        if (!run && cp[n - 1].m >= mc[V]) /* the first empty piece, of zero width */
-            n--;
-        cp[n] = (piece){mc[V], mc[V], qc[V], cs[V], 0.0, u};
-        n++;
-        run = 1;
+        e[0] = (piece){m0, m0, q0, cs[V], 0.0, u};
+        e[1] = empty_piece;
+        e[1].m = m1;
+        if (gin) { /* the edge with G's pieces there (L), then with F */
+            const piece *lt = NULL;
+            L->n = 0;
+            merge_span(L, e, 0, 1, G->p, gi.i, G->n, m0, m1, &lt);
+            L->p[L->n] = empty_piece;
+            L->p[L->n].m = m1;
+            merge_span(&out, F, kc[V], nf, L->p, 0, L->n, m0, m1, &last);
+        } else if (top > fx[V] + 1e-9 * (1.0 + fabs(top))) {
+            emit(&out, m0, &e[0], &last);
+        } else { /* the edge against F's pieces kc[V] .. over [m0, m1], as merge_span */
+            double cur = m0;
+            for (int k = kc[V]; cur < m1; k++) {
+                const piece *pa = &F[k];
+                double nx = dmin(F[k + 1].m, m1);
+                if (nx > cur) {
+                    double d0 = pval(pa, cur) - pval(e, cur), d1 = pval(pa, nx) - pval(e, nx);
+                    if (pa->qr == -INFINITY || (d0 <= 0.0 && d1 <= 0.0)) {
+                        emit(&out, cur, e, &last);
+                    } else if (d0 >= 0.0 && d1 >= 0.0) {
+                        emit(&out, cur, pa, &last);
+                    } else {
+                        double c = cur + (nx - cur) * (d0 / (d0 - d1));
+                        emit(&out, cur, d0 > 0.0 ? pa : e, &last);
+                        emit(&out, c > cur ? (c < nx ? c : nx) : cur, d0 > 0.0 ? e : pa, &last);
+                    }
+                    cur = nx;
+                }
+            }
+        }
+        /* e and L's pieces are gone: a later piece at their address would be taken for
+         * theirs (emit joins F's next piece by same_line all the same) */
+        last = NULL;
     }
-    if (run) {
-        cp[n] = empty_piece;
-        cp[n].m = mc[V1];
-        n++;
-    }
-    cp[n] = empty_piece;
-    cp[n].m = VS_MDOM;
-    C->n = n;
-    sw->ndom = nd;
-}
-
-/* F = max(F, C) as merge_into with the column's dom ranges, F's pieces outside
- * [-(u + 3) / u, (u + 3) / u] (by 1e-9) left out: no column after U reads F there (its
- * rows V, |V - ev| <= u' + 2, and the strip's ends on column U'-1 have
- * |m| <= (u' + 2) / (u' - 1) <= (u + 3) / u for u' >= u + 1), so the one piece reaching
- * across each bound stands for F beyond it. Without this F kept the edges beyond the
- * cone of every column (|m| in [1, 1 + 3/u]), about two a column, which every merge
- * copied and every column pass walked past. */
-static void merge_f(sweep *sw, double u)
-{
-    pvec *F = &sw->F;
-    const pvec *C = &sw->C;
-    double lim = (u + 3.0) / u + 1e-9;
-    int a0, b0;
-    if ((C->n > 1 || C->p[0].qr != -INFINITY) && pv_reserve(sw, &sw->T, 2 * (F->n + C->n) + 1)) {
-        pvec t;
-        a0 = first_from(F->p, F->n, 0, -lim); /* the first piece starting at or past -lim */
-        a0 = a0 > 0 ? a0 - 1 : 0;             /* the one holding -lim */
-        b0 = first_from(F->p, F->n, a0 + 1, lim);
-        F->p[a0].m = -VS_MDOM; /* F's array is merge's input only: T gets the output */
-        F->p[b0].m = VS_MDOM;  /* the sentinel (b0 = F->n: it was) */
-        merge(&F->p[a0], b0 - a0, C->p, C->n, &sw->T, sw->dom, sw->ndom);
-        t = *F;
-        *F = sw->T;
-        sw->T = t;
-    }
+    run = run < 0 ? V1 : run;
+    f_span(&out, F, kc[run], b0, G, &gi, mc[run], VS_MDOM, &last);
+    out.p[out.n] = empty_piece;
+    out.p[out.n].m = VS_MDOM;
+    sw->C = out;
 }
 
 /* Column U's edges and with `strip` the strip's into F, with the column pass: the
@@ -1171,6 +1235,7 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
     double *lc = sw->lcol - c->vlo, *cs = sw->cslope - c->vlo, u = U - c->eu, z[4], zl[4];
     uint8_t *ok = sw->colok - c->vlo;
     const int holes = sw->holes;
+    int above = 0; /* column edges above F's minimum: those col_merge puts in */
     /* without voids every cell beside the column is there (the rows V0 .. V1 of columns
      * U-1 .. U+1 are loaded and on the grid): the loop without a branch, which the
      * compiler runs two intervals to a register (the same operations, so the same bits) */
@@ -1180,19 +1245,27 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
             lc[V] = dmax(fm[V], dmin(qc[V], qc[V + 1]));
             cs[V] = (qc[V + 1] - qc[V]) / (mc[V + 1] - mc[V]);
         }
+        for (int32_t V = V0; V < V1 && !above; V++)
+            above = dmax(qc[V], qc[V + 1]) > fm[V];
     }
     for (int32_t V = V0; V < V1 && holes; V++) {
         ok[V] = (uint8_t)((U < c->uhi && cellz(sw, zc, zn, V, z)) || cellz(sw, zp, zc, V, zl));
         lc[V] = ok[V] ? dmax(fm[V], dmin(qc[V], qc[V + 1])) : fm[V];
         cs[V] = ok[V] ? (qc[V + 1] - qc[V]) / (mc[V + 1] - mc[V]) : 0.0;
+        above |= ok[V] && dmax(qc[V], qc[V + 1]) > fm[V];
     }
     pv_clear(&sw->G);
     if (strip)
         add_strip(sw, V0, V1, u);
-    col_pieces(sw, V0, V1, u);
-    if (!sw->oom) {
-        merge_into(sw, &sw->C, &sw->G, NULL, 0);
-        merge_f(sw, u);
+    /* nothing to put in (the whole column and strip under F, as often behind a ridge):
+     * F stays as it is, uncopied (and untrimmed this column) */
+    if (above || sw->G.n > 1 || sw->G.p[0].qr != -INFINITY)
+        col_merge(sw, V0, V1, u);
+    if (!sw->oom && (above || sw->G.n > 1 || sw->G.p[0].qr != -INFINITY)) {
+        pvec t;
+        t = sw->F;
+        sw->F = sw->C;
+        sw->C = t;
     }
     sw->hint_q = sw->hint_s = 0;
 }
@@ -1702,7 +1775,7 @@ static void *cone_worker(void *arg)
     cone_task *t = arg;
     const td_grid *g = t->job->v->grid;
     size_t nmax = (size_t)(g->w > g->h ? g->w : g->h);
-    double *zb = malloc(17 * nmax * sizeof *zb);
+    double *zb = malloc(15 * nmax * sizeof *zb);
     int *kb = malloc(nmax * sizeof *kb);
     uint8_t *ob = malloc(nmax);
     float *panel = malloc((size_t)VS_PANEL * nmax * sizeof *panel);
@@ -1725,7 +1798,7 @@ static void *cone_worker(void *arg)
         sw->panel = sw->c.vi == 0 ? panel : NULL;
         if (zb && kb && ob && panel && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) &&
             pv_reserve(sw, &sw->T, 16) && pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
-            for (size_t q = 0; q < 17 * nv; q++)
+            for (size_t q = 0; q < 15 * nv; q++)
                 zb[q] = NAN;
             memset(ob, 0, nv);
             for (int b = 0; b < 3; b++) {
@@ -1737,9 +1810,8 @@ static void *cone_worker(void *arg)
             sw->lcol = zb + 10 * nv;
             sw->cslope = zb + 11 * nv;
             sw->fmax = zb + 12 * nv;
-            sw->dom = zb + 13 * nv; /* 2 nv: at most a range an interval */
-            sw->flo = zb + 15 * nv;
-            sw->fhi = zb + 16 * nv;
+            sw->flo = zb + 13 * nv;
+            sw->fhi = zb + 14 * nv;
             sw->kcol = kb;
             sw->colok = ob;
             sweep_cone(sw);
