@@ -18,6 +18,7 @@ void td_accel_opts_default(td_accel_opts *o)
     o->maxmip = 1;
     o->planes = 1;
     o->planes_k = TD_PLANES_K_DEFAULT;
+    o->minima = 1;
     o->threads = 0;
 }
 
@@ -39,6 +40,7 @@ typedef struct build_job {
     td_accel *a;
     int what; /* 0 maxmip, 1 planes */
     int k;
+    int minima; /* td_accel_opts.minima */
     atomic_size_t next;
     atomic_int failed;
     td_err err; /* first failure */
@@ -56,7 +58,7 @@ static void *build_worker(void *arg)
             break;
         if (job->what == 0) {
             td_maxmip *m = NULL;
-            rc = td_maxmip_build(job->g, i, &m, &err);
+            rc = td_maxmip_build_opts(job->g, i, job->minima, &m, &err);
             job->a->tiles[i].maxmip = m;
         } else {
             td_planes *p = NULL;
@@ -74,11 +76,11 @@ static void *build_worker(void *arg)
     return NULL;
 }
 
-static td_status run_build(const td_grid *g, td_accel *a, int what, int k, int threads,
+static td_status run_build(const td_grid *g, td_accel *a, int what, const td_accel_opts *o, int threads,
                            double *seconds, td_err *err)
 {
     td_status rc = TD_OK;
-    build_job job = {.g = g, .a = a, .what = what, .k = k};
+    build_job job = {.g = g, .a = a, .what = what, .k = o->planes_k, .minima = o->minima};
     pthread_t tid[256];
     int started = 0;
     double t0 = td_clock_s();
@@ -128,14 +130,14 @@ td_status td_accel_build(const td_grid *g, const td_accel_opts *o, td_accel **ou
     }
     stats.tiles = (int64_t)a->ntiles;
     if (o->maxmip) {
-        rc = run_build(g, a, 0, 0, threads, &stats.maxmip_seconds, err);
+        rc = run_build(g, a, 0, o, threads, &stats.maxmip_seconds, err);
         if (rc != TD_OK)
             goto out;
         for (size_t i = 0; i < a->ntiles; i++)
             stats.maxmip_bytes += a->tiles[i].maxmip->bytes;
     }
     if (o->planes) {
-        rc = run_build(g, a, 1, o->planes_k, threads, &stats.planes_seconds, err);
+        rc = run_build(g, a, 1, o, threads, &stats.planes_seconds, err);
         if (rc != TD_OK)
             goto out;
         for (size_t i = 0; i < a->ntiles; i++)

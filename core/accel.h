@@ -18,6 +18,8 @@ typedef struct td_accel_opts {
     int planes;   /* build parameter planes */
     int planes_k; /* slices for the planes (>= 1) */
     int threads;  /* <= 0: one per core */
+    int minima;   /* the max-mipmaps keep their 4 x 4 blocks' minima (maxmip.h; the sun
+                     bound's shadow side reads them): 1 by default */
 } td_accel_opts;
 
 typedef struct td_accel_stats {

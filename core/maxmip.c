@@ -175,6 +175,11 @@ TD_ROW_CLONES static void blocks_min4(const td_grid *g, const td_tile *t, td_max
 
 td_status td_maxmip_build(const td_grid *g, size_t tile, td_maxmip **out, td_err *err)
 {
+    return td_maxmip_build_opts(g, tile, 1, out, err);
+}
+
+td_status td_maxmip_build_opts(const td_grid *g, size_t tile, int minima, td_maxmip **out, td_err *err)
+{
     td_status rc = TD_OK;
     const td_tile *t = &g->tiles[tile];
     const int32_t n = t->nx > t->ny ? t->nx : t->ny;
@@ -199,17 +204,18 @@ td_status td_maxmip_build(const td_grid *g, size_t tile, td_maxmip **out, td_err
         m->offset[l] = total;
         total += (size_t)m->dim[l] * (size_t)m->dim[l];
     }
-    m->min4_w = (t->nx + 3) / 4;
-    m->min4_h = (t->ny + 3) / 4;
+    m->min4_w = minima ? (t->nx + 3) / 4 : 0;
+    m->min4_h = minima ? (t->ny + 3) / 4 : 0;
     max = malloc(sizeof(float) * total);
     m->code = malloc(sizeof(uint16_t) * total);
-    m->min4 = malloc(sizeof(float) * (size_t)m->min4_w * (size_t)m->min4_h);
-    if (!max || !m->code || !m->min4) {
+    m->min4 = minima ? malloc(sizeof(float) * (size_t)m->min4_w * (size_t)m->min4_h) : NULL;
+    if (!max || !m->code || (minima && !m->min4)) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for a max-mipmap");
         goto out;
     }
     m->bytes = sizeof *m + sizeof(uint16_t) * total + sizeof(float) * (size_t)m->min4_w * (size_t)m->min4_h;
-    blocks_min4(g, t, m, cell); /* cell: nx x ny floats, free until level1 */
+    if (minima)
+        blocks_min4(g, t, m, cell); /* cell: nx x ny floats, free until level1 */
     td_grid_cell_max(g, t, cell);
     level1(cell, t->nx, t->ny, m->dim[1], max + m->offset[1]);
     for (int l = 2; l <= L; l++) {

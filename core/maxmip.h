@@ -20,7 +20,7 @@ struct td_maxmip {
     /* Per block of 4 x 4 cells of the tile (min4_w x min4_h, fewer cells on its east and
      * north edges), the lowest corner, NaN where one is void: the sun bound's shadow side
      * reads them (sunlit.h). NULL in a prepared grid's tiles (prepaccel.c keeps the codes
-     * only). */
+     * only) and where the build was asked for none (td_maxmip_build_opts). */
     float *min4;
     int32_t min4_w, min4_h;
     size_t bytes;
@@ -39,6 +39,10 @@ static inline double td_maxmip_bound(const td_maxmip *m, int L, int32_t bi, int3
 }
 
 td_status td_maxmip_build(const td_grid *g, size_t tile, td_maxmip **out, td_err *err);
+
+/* td_maxmip_build, with the 4 x 4 blocks' minima only when `minima` (min4 NULL without:
+ * a viewshed or `terrad trace` has no sun bound to read them). */
+td_status td_maxmip_build_opts(const td_grid *g, size_t tile, int minima, td_maxmip **out, td_err *err);
 void td_maxmip_free(td_maxmip *m);
 
 #endif

@@ -324,6 +324,7 @@ static td_status lowered_view(const td_view *v, td_method m, double c, double px
     }
     td_accel_opts_for(m, &ao);
     ao.threads = threads;
+    ao.minima = 0; /* no sun bound to read them */
     if (ao.maxmip || ao.planes)
         rc = td_accel_build(e->lowered, &ao, &e->acc, NULL, err);
     e->view.accel = e->acc ? e->acc->tiles : NULL;

@@ -235,6 +235,7 @@ static int load_dem(trace_run *run)
     run->load_s = td_clock_s() - t0;
     td_accel_opts_for(run->method, &aopts);
     aopts.planes_k = run->k;
+    aopts.minima = 0; /* no sun bound to read them */
     aopts.threads = run->threads;
     if ((aopts.maxmip || aopts.planes) && td_accel_build(run->g, &aopts, &run->acc, &run->astats, &err) != TD_OK) {
         fprintf(stderr, "terrad trace: %s: %s\n", run->dem, err.msg);

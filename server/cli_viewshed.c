@@ -177,6 +177,7 @@ static int vs_run(vs_cli *c)
     ck[1] = clock();
     td_accel_opts_for(c->o.method, &ao);
     ao.threads = c->o.threads;
+    ao.minima = 0; /* no sun bound to read them */
     if ((ao.maxmip || ao.planes) && td_accel_build(g, &ao, &acc, NULL, &err)) {
         fprintf(stderr, "terrad viewshed: %s: %s\n", c->dem, err.msg);
         goto out;
