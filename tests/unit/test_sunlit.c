@@ -169,6 +169,50 @@ static void test_sunlit_bounds(void **state)
     td_grid_free(g);
 }
 
+/* Max-mipmaps built without the blocks' minima (td_accel_opts.minima 0: terrad viewshed and
+ * trace): the same codes, base and step as with them, no min4, and a sun bound on them
+ * has no shadow side; its answers (check_sun: td_occluded as td_trace) still hold, as
+ * for a prepared grid's tiles. */
+static void test_sunlit_without_minima(void **state)
+{
+    uint64_t seed = 4242;
+    (void)state;
+    td_grid *g = terrain(200, 160, 30.0, 6);
+    td_accel *with = accel(g, 1), *without = NULL;
+    td_accel_opts o;
+    td_accel_opts_default(&o);
+    assert_int_equal(o.minima, 1);
+    o.threads = 1;
+    o.minima = 0;
+    assert_int_equal(td_accel_build(g, &o, &without, NULL, NULL), TD_OK);
+    for (size_t k = 0; k < with->ntiles; k++) {
+        const td_maxmip *a = with->tiles[k].maxmip, *b = without->tiles[k].maxmip;
+        size_t n = a->offset[a->levels] + (size_t)a->dim[a->levels] * (size_t)a->dim[a->levels];
+        assert_non_null(a->min4);
+        assert_null(b->min4);
+        assert_int_equal(b->min4_w * b->min4_h, 0);
+        assert_int_equal(a->levels, b->levels);
+        assert_memory_equal(&a->base, &b->base, sizeof a->base);
+        assert_memory_equal(&a->step, &b->step, sizeof a->step);
+        assert_memory_equal(a->code, b->code, n * sizeof *a->code);
+        assert_true(b->bytes < a->bytes);
+    }
+    double sun[3];
+    sun_of(250.0, 3.0, sun); /* low over relief: the full build's bound has a shadow side */
+    td_view v1 = {g, with->tiles}, v0 = {g, without->tiles};
+    td_sunlit *l1 = NULL, *l0 = NULL;
+    assert_int_equal(td_sunlit_build(&v1, sun, &l1, NULL), TD_OK);
+    assert_int_equal(td_sunlit_build(&v0, sun, &l0, NULL), TD_OK);
+    assert_non_null(l1->lo);
+    assert_null(l0->lo);
+    td_sunlit_free(l1);
+    td_sunlit_free(l0);
+    check_sun(g, without->tiles, sun, &seed, 1);
+    td_accel_free(with);
+    td_accel_free(without);
+    td_grid_free(g);
+}
+
 /* Blocks larger than the grid's tiles (tiles of 2 x 2 cells, blocks of 4 x 4): the
  * maxima from the samples, block by block; the same claims (not fewer steps: on a grid
  * this small and this finely tiled the walks are short either way). */
@@ -257,6 +301,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_sunlit_bounds),
         cmocka_unit_test(test_sunlit_small_tiles),
+        cmocka_unit_test(test_sunlit_without_minima),
         cmocka_unit_test(test_sunlit_strips),
         cmocka_unit_test(test_sunlit_none),
     };
