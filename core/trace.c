@@ -950,11 +950,16 @@ static inline void unit_normal(const double nv[3], float n[3])
     n[2] = (float)(nv[2] / len);
 }
 
-/* Cells a ray started from a bound walks plainly before its method takes over. Measured
- * (callgrind, primary stage, triangle, M instructions, 8 -> 16 -> 32 cells): trinidad level
- * 168.6 -> 167.2 -> 167.7, rolled 260.3 -> 254.4 -> 255.6, straight down 313.9 -> 310.0 ->
- * 309.6; picos grazing 279.0 -> 263.1 -> 255.5, rolled 431.4 -> 429.5 -> 442.7. */
-#define TD_NEAR_CELLS 16
+/* Cells a ray started from a bound walks plainly before its method takes over (a fan's
+ * packet walks them four rays at a time). Measured first (callgrind, primary stage,
+ * triangle, M instructions, 8 -> 16 -> 32 cells): trinidad level 168.6 -> 167.2 -> 167.7,
+ * rolled 260.3 -> 254.4 -> 255.6, straight down 313.9 -> 310.0 -> 309.6; picos grazing 279.0
+ * -> 263.1 -> 255.5, rolled 431.4 -> 429.5 -> 442.7: 16 then. Once the packets had their
+ * records as arrays, -O3 and an AVX-512 clone, their cells cost less than the max-mipmap
+ * walk's steps that take over: primary stage, ms (median of 5, chrt), 16 -> 32 -> 64:
+ * picos rolled 37.2 -> 36.3 -> 38.5, picos grazing 19.5 -> 18.2 -> 21.9, trinidad level
+ * 11.8 -> 11.4 -> 11.9, rolled 19.0 -> 18.5 -> 19.6, straight down 21.9 (32) -> 22.4. */
+#define TD_NEAR_CELLS 32
 
 static inline int on_grid(const walk *w, const walk_state *st)
 {
