@@ -1637,7 +1637,7 @@ static void packet_rest(const td_view *v, td_method m, walk *w, const double o[3
     hit_rec hr = {.t = INFINITY};
     td_method used = walk_method(m);
     double scale = 1.0;
-    walk_dir(w, d, &scale); /* scale 1: packet_lane */
+    walk_dir(w, d, &scale); /* scale 1: fan_packet's lanes */
     walk_clip(w, &st, 0.0, INFINITY, scale);
     st = *at;
     hit->t = INFINITY;
@@ -1706,16 +1706,16 @@ TD_HOT vd vload(const double *a)
 }
 
 /* The near walk of fan rays k0 .. k0 + 3 (see the section's comment; nl of them the
- * fan's, the slots past its last ray copies of ray k0): each lane it finishes gets its record in h as
- * fan_one would leave it. Returns the lanes finished (bit l: ray k0 + l); the caller traces
- * the others with fan_one. A lane that is not a packet's (packet_lane: a ray to trace,
- * whose direction needs no rescaling) is left to fan_one from the start. */
+ * fan's, the slots past its last ray copies of ray k0): each lane it finishes gets its
+ * record in h as fan_one would leave it. Returns the lanes finished (bit l: ray k0 + l);
+ * the caller traces the others with fan_one. A lane that cannot be a packet's (a ray
+ * known to miss, or whose direction walk_dir would rescale) is left to fan_one whole. */
 TD_PACKET_CLONES static int fan_packet(const td_view *v, td_method m, walk *w, const double o[3],
                                     const td_fan *f, int k0, int nl, td_fan_hits *h)
 {
     vd d[3] = {vload(&f->dx[k0]), vload(&f->dy[k0]), vload(&f->dz[k0])}, tc = vload(&f->t_clear[k0]);
     vd dlen = vmax(vabs(d[0]), vmax(vabs(d[1]), vabs(d[2])));
-    vm lane = (vm)(tc < INFINITY) & (vm)(dlen >= 0x1p-20) & (vm)(dlen <= 0x1p20); /* packet_lane */
+    vm lane = (vm)(tc < INFINITY) & (vm)(dlen >= 0x1p-20) & (vm)(dlen <= 0x1p20); /* scale 1 */
     vwalk p;
     vstate st;
     vm go, near, hit = {0, 0, 0, 0}, cont;
