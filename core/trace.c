@@ -1877,7 +1877,8 @@ TD_PACKET_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, 
         vm go, occ = {0, 0, 0, 0}, cont;
         if (nl == TD_LANES) { /* four origins, x y z each: three loads and their transpose */
             vd a0 = vload(o[k0]), a1 = vload(o[k0] + 4), a2 = vload(o[k0] + 8);
-            vd x01 = __builtin_shufflevector(a0, a1, 0, 3, 6, 0), y01 = __builtin_shufflevector(a0, a1, 1, 4, 7, 0);
+            vd x01 = __builtin_shufflevector(a0, a1, 0, 3, 6, 0);
+            vd y01 = __builtin_shufflevector(a0, a1, 1, 4, 7, 0);
             vd z01 = __builtin_shufflevector(a0, a1, 2, 5, 0, 0);
             p.ou = __builtin_shufflevector(x01, a2, 0, 1, 2, 5);
             p.ov = __builtin_shufflevector(y01, a2, 0, 1, 2, 6);
