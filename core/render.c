@@ -836,6 +836,10 @@ static void trace_slice(worker *w, fan *f, const blk *b, int32_t xa, int32_t xb,
                 td_horizon_begin(&w->hz, c->v, c->cam.o, az0, az1);
     if (c->beam)
         floor_z = slice_floor(w, px0, py0, px1, py1, hz_ok, &boxes);
+    /* a slice the beam bounds (its rays all steep) starts from the floor alone: the
+       horizon's bins cost more there than they save (trinidad straight down: 22.0 -> 19.5
+       ms in the primary stage, 19,239 -> 1,873 bins; levi 15.3 -> 12.8 ms) */
+    const int use_hz = hz_ok && floor_z == INFINITY;
     int32_t nmaj = rows ? (yb - ya) * n : (xb - xa) * n, nmin = rows ? (xb - xa) * n : (yb - ya) * n;
     /* sample index = (pixel row * bw + pixel column) * n^2 + sub-row * n + sub-column:
        along a sample row (column) of the slice the index steps by n^2 a pixel and by 1
@@ -860,7 +864,7 @@ static void trace_slice(worker *w, fan *f, const blk *b, int32_t xa, int32_t xb,
             double hk = sqrt(sm->d[0] * sm->d[0] + sm->d[1] * sm->d[1]), t_clear = 0.0;
             if (sm->flags & F_CURVE)
                 continue;
-            if (hz_ok && hk > 1e-9) {
+            if (use_hz && hk > 1e-9) {
                 double e = sm->d[2] / hk;
                 double dc = e >= e_miss ? INFINITY : td_horizon_clear(&w->hz, e, &bins);
                 e_miss = dc == INFINITY && e < e_miss ? e : e_miss;
@@ -870,7 +874,7 @@ static void trace_slice(worker *w, fan *f, const blk *b, int32_t xa, int32_t xb,
             if (floor_z < INFINITY && sm->d[2] < 0.0) {
                 double t = (c->cam.o[2] - floor_z) / -sm->d[2] * (1.0 - 1e-12);
                 t_clear = t > t_clear ? t : t_clear;
-                w->st.coherent_rays += !hz_ok;
+                w->st.coherent_rays++;
             }
             fan_add(w, f, sm, t_clear);
         }
