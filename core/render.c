@@ -113,8 +113,9 @@
  * traced as fans from the camera (td_trace_fan: grid and origin set up once, the rays
  * and their hits as arrays that the packets load and store a vector at a time: primary
  * stage 144.3 -> 127.0 M instructions, 14.20 -> 12.69 ms on trinidad's level view, 22.91
- * -> 21.01 rolled, 27.40 -> 24.39 straight down, median of 9), and its straight shadow rays on the full grid
- * as parallel rays along the sun (td_occluded_par: grid and direction set up once). Each
+ * -> 21.01 rolled, 27.40 -> 24.39 straight down, median of 9), and its straight shadow
+ * rays on the full grid as parallel rays along the sun (td_occluded_par: grid and
+ * direction set up once). Each
  * gives the bits the ray-by-ray calls give (same pictures and stats). Measured with
  * callgrind on trinidad's level bench view (triangle), the batches alone: primary stage
  * 325.7 -> 292.1 M instructions, shadows 164.4 -> 139.5 M; with 2 slices, known misses kept

@@ -1757,7 +1757,8 @@ TD_PACKET_CLONES static int fan_packet(const td_view *v, td_method m, walk *w, c
         hn[i] = __builtin_convertvector(vsel(hit, hv.nv[i], vb(0.0)), vf);
     vi hci = __builtin_convertvector(vsel(hit, st.ci, vb(-1.0)), vi);
     vi hcj = __builtin_convertvector(vsel(hit, st.cj, vb(-1.0)), vi);
-    vi hs = __builtin_convertvector(n, vi), hm = __builtin_convertvector(vb((double)walk_method(m)), vi);
+    const int32_t wm = (int32_t)walk_method(m);
+    vi hs = __builtin_convertvector(n, vi), hm = {wm, wm, wm, wm};
     vd hz = vsel(hit, hv.zb, vb(NAN));
     memcpy(&h->t[k0], &ht, sizeof ht);
     memcpy(&h->px[k0], &hp[0], sizeof ht);
