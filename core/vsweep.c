@@ -1664,6 +1664,41 @@ decide:
     }
 }
 
+/* Column U's targets V0 .. V1 (the cone's rows) in the common case: every one owned (no
+ * max_distance), no voids, both quick decisions on (sweep_cone's quick and quickv). The
+ * same tests as sweep_cone's loop, in that order and with the same expressions (so the
+ * same bits), in a function of its own: inlined into cone_worker with everything else,
+ * the loop kept its pointers and flags on the stack (about 34 instructions a target for
+ * the loop, owned()'s and the void test and the hidden test, callgrind). */
+static void targets_plain(sweep *sw, tgt_cols *t, int32_t U, int32_t V0, int32_t V1)
+{
+    const double *qc = t->qc, *fl = sw->flo - t->vlo;
+    uint8_t *vis = t->vis;
+    const ptrdiff_t vs = t->vstride;
+    uint64_t n = 0;
+    for (int32_t V = V0; V <= V1; V++) {
+        double q = qc[V];
+        if (q < fl[V] - (VS_EPS_ABS + VS_EPS_REL * fabs(q))) {
+            vis[V * vs] = 0;
+            n++;
+        } else if (quick_visible(sw, t, V)) {
+#ifdef TD_VSWEEP_DEBUG /* the proof checked against the cast, as target()'s */
+            const td_vsweep_job *j = sw->job;
+            const cone *c = &sw->c;
+            uint32_t st = 0;
+            if (td_viewshed_cast(j->v, j->surface, j->method, j->ex, j->ey, j->ez, c->ui * U + c->vi * V,
+                                 c->uj * U + c->vj * V, j->target_height, &st) <= 0)
+                fprintf(stderr, "MISMATCH quick_visible U %d V %d\n", U, V);
+#endif
+            vis[V * vs] = 1;
+            n++;
+        } else {
+            target(sw, t, U, V);
+        }
+    }
+    sw->swept += n;
+}
+
 /* Whether a sample dv rows from the eye's is in the cone at distance u (strict: north and
  * south, whose diagonals belong to east and west). */
 static inline int in_cone(double dv, double u, int strict)
@@ -1726,6 +1761,10 @@ static void sweep_cone(sweep *sw)
             V0++;
         while (V1 >= V0 && !in_cone(V1 - ev, u, strict))
             V1--;
+        if (nomax && !holes && quick && quickv) {
+            targets_plain(sw, &t, U, V0, V1);
+            V1 = V0 - 1; /* done */
+        }
         for (int32_t V = V0; V <= V1; V++) {
             if ((!nomax && !owned(sw, U, V, u)) || (holes && isnan(t.zc[V])))
                 continue;
