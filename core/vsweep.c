@@ -647,7 +647,7 @@ static void mark_hole(sweep *sw, double ua, double ub, double va, double vb)
  * 1423.8 M instructions, the valley sample 596 -> 496 M, picos 145.4 -> 136.5 M. */
 static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
 {
-    const pvec *F = &sw->F;
+    const piece *p = sw->F.p; /* locals: the stores to kc (int) could alias F's count */
     const double *mc = sw->mcol[1] - sw->c.vlo;
     int *kc = sw->kcol - sw->c.vlo;
     double *fm = sw->fmin - sw->c.vlo, *fx = sw->fmax - sw->c.vlo, *fl = sw->flo - sw->c.vlo;
@@ -657,12 +657,19 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     sw->pass_ok = U - sw->c.eu >= VS_PASS_U && U - sw->c.eu < 0.5 / VS_NARROW;
     if (!sw->pass_ok)
         return;
-    /* one walk: the pieces up to m_V0, then each interval's breaks as k passes them */
-    while (k + 1 < F->n && F->p[k + 1].m <= mc[V0])
+#ifdef TD_VSWEEP_DEBUG
+    if (!(p[sw->F.n].m == VS_MDOM && fabs(mc[V0]) < VS_MDOM && fabs(mc[V1]) < VS_MDOM)) {
+        fprintf(stderr, "col_pass: F's sentinel at %g, m %g .. %g\n", p[sw->F.n].m, mc[V0], mc[V1]);
+        abort();
+    }
+#endif
+    /* one walk: the pieces up to m_V0, then each interval's breaks as k passes them. F's
+     * sentinel p[n] starts at VS_MDOM, past every m_V here (|m_V| < VS_MDOM with pass_ok):
+     * the walks stop there without a test of k against n */
+    while (p[k + 1].m <= mc[V0])
         k++;
     kc[V0] = k;
     for (int32_t V = V0; V < V1; V++) {
-        const piece *p = F->p;
         double m1 = mc[V + 1], lo = pval(&p[k], mc[V]), hi = lo, e;
         fl[V] = lo - p[k].slack;
         if (hu && !(p[k].umax < hu[bin_of(mc[V])])) /* a hole nearer: no lower bound (target()) */
@@ -672,7 +679,7 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
             hi = dmax(hi, pval(&p[k - 1], mc[V]));
         }
         fh[V] = hi;
-        while (k + 1 < F->n && p[k + 1].m <= m1) {
+        while (p[k + 1].m <= m1) {
             double x = p[k + 1].m, y0 = pval(&p[k], x), y1 = pval(&p[k + 1], x);
             lo = dmin(lo, dmin(y0, y1));
             hi = dmax(hi, dmax(y0, y1));
@@ -683,11 +690,11 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
         fm[V] = dmin(lo, e);
         fx[V] = dmax(hi, e);
     }
-    fl[V1] = pval(&F->p[k], mc[V1]) - F->p[k].slack;
-    fh[V1] = pval(&F->p[k], mc[V1]);
-    if (k > 0 && F->p[k].m == mc[V1])
-        fh[V1] = dmax(fh[V1], pval(&F->p[k - 1], mc[V1]));
-    if (hu && !(F->p[k].umax < hu[bin_of(mc[V1])]))
+    fl[V1] = pval(&p[k], mc[V1]) - p[k].slack;
+    fh[V1] = pval(&p[k], mc[V1]);
+    if (k > 0 && p[k].m == mc[V1])
+        fh[V1] = dmax(fh[V1], pval(&p[k - 1], mc[V1]));
+    if (hu && !(p[k].umax < hu[bin_of(mc[V1])]))
         fl[V1] = -INFINITY;
 }
 
