@@ -1163,13 +1163,20 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
     b0 = first_from(F, nf, a0 + 1, mhi);
     f_span(&out, F, a0, kc[V0] + (F[kc[V0]].m < mc[V0]), G, &gi, -VS_MDOM, mc[V0], &last);
     for (int32_t V = V0; V < V1; V++) {
-        double m0 = mc[V], m1 = mc[V + 1], q0 = qc[V], q1 = qc[V + 1], top;
+        double m0, m1, q0, q1, top;
         piece e[2];
         int gin;
-        if (!ok[V] || dmax(q0, q1) <= fm[V]) {
-            run = run < 0 ? V : run;
-            continue;
+        if (!ok[V] || dmax(qc[V], qc[V + 1]) <= fm[V]) { /* a run where F stays, to its end */
+            run = V;
+            while (++V < V1 && (!ok[V] || dmax(qc[V], qc[V + 1]) <= fm[V]))
+                ;
+            if (V == V1)
+                break;
         }
+        m0 = mc[V];
+        m1 = mc[V + 1];
+        q0 = qc[V];
+        q1 = qc[V + 1];
         if (run >= 0) /* F over [m_run, m_V) */
             f_span(&out, F, kc[run], kc[V] + (F[kc[V]].m < m0), G, &gi, mc[run], m0, &last);
         run = -1;
