@@ -1544,6 +1544,7 @@ static double last_real(const sweep *sw, int32_t U, double u, double m, double h
  * offset by the rows' origin. */
 typedef struct tgt_cols {
     const double *mc, *zc, *qc, *qp;
+    const double *fh;    /* fhi (col_pass), valid with pass */
     const int *kc;       /* valid with pass */
     const piece *Fp, *Np;
     const double *hole_u; /* NULL without holes */
@@ -1565,6 +1566,7 @@ static void tgt_cols_init(sweep *sw, int32_t U, tgt_cols *t)
     t->qc = sw->qcol[1] - c->vlo;
     t->qp = sw->qcol[0] - c->vlo;
     t->kc = sw->kcol - c->vlo;
+    t->fh = sw->fhi - c->vlo;
     t->Fp = sw->F.p;
     t->Np = sw->N.p;
     t->nn = sw->N.n;
@@ -1606,7 +1608,7 @@ static inline double diag_bound(const tgt_cols *t, int32_t V, double m)
  * decides. 0: target() decides. Columns with the column pass, no target height. */
 static inline int quick_visible(const sweep *sw, const tgt_cols *t, int32_t V)
 {
-    double q = t->qc[V], m = t->mc[V], eps = VS_EPS_ABS + VS_EPS_REL * fabs(q), hi = sw->fhi[V - t->vlo], lo;
+    double q = t->qc[V], m = t->mc[V], eps = VS_EPS_ABS + VS_EPS_REL * fabs(q), hi = t->fh[V], lo;
     int vis = q > hi + eps && q > t->nmax + 2.0 * eps;
     if (vis && !(q > diag_bound(t, V, m) + eps)) {
         last_cell(sw, V, t->u, m, INFINITY, &hi, &lo);
@@ -1686,6 +1688,8 @@ decide:
  * the loop, owned()'s and the void test and the hidden test, callgrind). */
 static void targets_plain(sweep *sw, tgt_cols *t, int32_t U, int32_t V0, int32_t V1)
 {
+    const tgt_cols lt = *t; /* a copy quick_visible reads: its address is not taken elsewhere,
+                               so the bytes written to vis are known not to change it */
     const double *qc = t->qc, *fl = sw->flo - t->vlo;
     uint8_t *vis = t->vis;
     const ptrdiff_t vs = t->vstride;
@@ -1695,7 +1699,7 @@ static void targets_plain(sweep *sw, tgt_cols *t, int32_t U, int32_t V0, int32_t
         if (q < fl[V] - (VS_EPS_ABS + VS_EPS_REL * fabs(q))) {
             vis[V * vs] = 0;
             n++;
-        } else if (quick_visible(sw, t, V)) {
+        } else if (quick_visible(sw, &lt, V)) {
 #ifdef TD_VSWEEP_DEBUG /* the proof checked against the cast, as target()'s */
             const td_vsweep_job *j = sw->job;
             const cone *c = &sw->c;
