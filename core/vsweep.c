@@ -75,7 +75,11 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
+#include "simd.h"
 #include "viewshed.h"
 
 #define VS_EPS_ABS 1e-6
@@ -164,6 +168,26 @@ typedef struct sweep {
 /* max and min of values that are never NaN here, inline (fmax, fmin are calls to libm) */
 static inline double dmax(double a, double b) { return a > b ? a : b; }
 static inline double dmin(double a, double b) { return a < b ? a : b; }
+
+/* Two doubles (GCC and clang vector extensions; an SSE2 register): the strip's block tests
+ * (block_under, block_poly) two cells at a time, each lane the scalar expression (no FMA
+ * in C11 mode: the same bits). */
+typedef double vd2 __attribute__((vector_size(16)));
+typedef long long vl2 __attribute__((vector_size(16)));
+/* dmax and dmin lane by lane (maxpd and minpd are a > b ? a : b and a < b ? a : b) */
+#if defined(__SSE2__)
+static inline vd2 vmax2(vd2 a, vd2 b) { return (vd2)_mm_max_pd((__m128d)a, (__m128d)b); }
+static inline vd2 vmin2(vd2 a, vd2 b) { return (vd2)_mm_min_pd((__m128d)a, (__m128d)b); }
+#else
+static inline vd2 vmax2(vd2 a, vd2 b) { vd2 r = {dmax(a[0], b[0]), dmax(a[1], b[1])}; return r; }
+static inline vd2 vmin2(vd2 a, vd2 b) { vd2 r = {dmin(a[0], b[0]), dmin(a[1], b[1])}; return r; }
+#endif
+static inline vd2 ld2(const double *p)
+{
+    vd2 v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
 
 static const piece empty_piece = {0.0, 0.0, -INFINITY, 0.0, 0.0, 0.0};
 
@@ -779,15 +803,21 @@ static inline int block_under(const strip_cols *x, const double *mp, const doubl
         kl--;
     while (kh < x->V1 && mc[kh] < mhi)
         kh++;
-    double sum = 0.0; /* NaN when a sample is void: its hole cells are marked one by one */
-    /* e = b + VS_BLOCK (add_strip): loops of a fixed count, then the intervals before b
-     * and from e the range reaches (one or none) */
-    for (int32_t i = 0; i <= VS_BLOCK; i++) {
-        top = dmax(top, dmax(qp[b + i], qc[b + i]));
-        sum += qp[b + i] + qc[b + i];
+    double sum; /* NaN when a sample is void: its hole cells are marked one by one */
+    /* e = b + VS_BLOCK (add_strip): two lanes at a time, then sample e, and the intervals
+     * before b and from e the range reaches (one or none). The maxima and minima are exact
+     * in any order; the order of the sum changes only its value, not whether it is NaN
+     * (the q are finite or NaN), and with a NaN the answer is 0 whatever top and low are */
+    vd2 t2 = vmax2(ld2(qp + b), ld2(qc + b)), s2 = ld2(qp + b) + ld2(qc + b), l2 = ld2(lc + b);
+    for (int32_t i = 2; i < VS_BLOCK; i += 2) {
+        vd2 a = ld2(qp + b + i), c = ld2(qc + b + i);
+        t2 = vmax2(t2, vmax2(a, c));
+        s2 += a + c;
+        l2 = vmin2(l2, ld2(lc + b + i));
     }
-    for (int32_t i = 0; i < VS_BLOCK; i++)
-        low = dmin(low, lc[b + i]);
+    top = dmax(dmax(t2[0], t2[1]), dmax(qp[e], qc[e]));
+    sum = s2[0] + s2[1] + qp[e] + qc[e];
+    low = dmin(l2[0], l2[1]);
     for (int32_t k = kl; k < b; k++)
         low = dmin(low, lc[k]);
     for (int32_t k = e; k < kh; k++)
@@ -848,27 +878,35 @@ static inline int poly_nb(const strip_cols *x, int32_t k, int two, int32_t Va, i
 static inline int block_poly(const strip_cols *x, const double *mp, const double *qp, const double *zp,
                              const double *zc, int32_t b, int32_t e, double ev, double u, int lin, int bil, int anti)
 {
-    int all = 0;
-    if (b > ev && e - ev <= u - 2.0 && e + 1 <= x->V1) {
-        all = 1;
-        for (int32_t V = b; V < e; V++) {
-            int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
-            int row = poly_nb(x, V, 0, V, V, V, mp[V], qp[V]);
-            int dm = poly_nb(x, V, 0, V + 1, V, V + 1, mp[V], qp[V]);
-            int dn = poly_nb(x, V, 1, V, V + 1, V + 1, mp[V + 1], qp[V + 1]);
-            all &= row & (lin | (main & dm) | ((!main) & dn));
+    const double *mc = x->mc, *qc = x->qc, *cs = x->cs;
+    const vl2 lm = {-(long long)lin, -(long long)lin};
+    const vl2 fixed = {-(long long)!anti, -(long long)!anti};
+    vl2 all = {-1, -1};
+    int side = b > ev && e - ev <= u - 2.0 && e + 1 <= x->V1 ? 1 : (e < ev && ev - b <= u - 2.0 && b - 1 >= x->V0 ? -1 : 0);
+    /* cells V, V+1 a vector at a time (VS_BLOCK is even), each lane the
+     * scalar expression of poly_nb for its cell (the same operations in the same order:
+     * the same bits) */
+    for (int32_t V = b; V < e && side; V += 2) {
+        vd2 zp0 = ld2(zp + V), zc0 = ld2(zc + V), zp1 = ld2(zp + V + 1), zc1 = ld2(zc + V + 1);
+        vd2 mp0 = ld2(mp + V), qp0 = ld2(qp + V), mp1 = ld2(mp + V + 1), qp1 = ld2(qp + V + 1);
+        vd2 mc0 = ld2(mc + V), qc0 = ld2(qc + V), mc1 = ld2(mc + V + 1), qc1 = ld2(qc + V + 1);
+        vl2 main = bil ? (vl2)(zp0 - zc0 - zp1 + zc1 >= 0.0) : fixed, row, dm, dn;
+        if (side > 0) {
+            vd2 cs0 = ld2(cs + V), cs1 = ld2(cs + V + 1);
+            row = (vl2)(qp0 <= qc0 + cs0 * (mp0 - mc0));               /* poly_nb(x, V, 0, V, V, V, ..) */
+            dm = (vl2)(qp0 <= qc1 + cs0 * (mp0 - mc1));                /* poly_nb(x, V, 0, V + 1, V, V + 1, ..) */
+            dn = (vl2)(qp1 <= qc1 + cs1 * (mp1 - mc1)) &               /* poly_nb(x, V, 1, V, V + 1, V + 1, ..) */
+                 ~((vl2)(((qc0 - qc1) * (mp1 - mc1) - (qp1 - qc1) * (mc0 - mc1)) <= 0.0) ^ (vl2)(mp1 > mc0));
+        } else {
+            vd2 csm = ld2(cs + V - 1), cs0 = ld2(cs + V);
+            row = (vl2)(qp0 <= qc0 + csm * (mp0 - mc0));               /* poly_nb(x, V - 1, 0, V, V - 1, V, ..) */
+            dm = row &                                                 /* poly_nb(x, V - 1, 1, V + 1, V - 1, V, ..) */
+                 ~((vl2)(((qc1 - qc0) * (mp0 - mc0) - (qp0 - qc0) * (mc1 - mc0)) <= 0.0) ^ (vl2)(mp0 > mc1));
+            dn = (vl2)(qp1 <= qc0 + cs0 * (mp1 - mc0));                /* poly_nb(x, V, 0, V, V, V, ..) */
         }
-    } else if (e < ev && ev - b <= u - 2.0 && b - 1 >= x->V0) {
-        all = 1;
-        for (int32_t V = b; V < e; V++) {
-            int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
-            int row = poly_nb(x, V - 1, 0, V, V - 1, V, mp[V], qp[V]);
-            int dm = poly_nb(x, V - 1, 1, V + 1, V - 1, V, mp[V], qp[V]);
-            int dn = poly_nb(x, V, 0, V, V, V, mp[V + 1], qp[V + 1]);
-            all &= row & (lin | (main & dm) | ((!main) & dn));
-        }
+        all &= row & (lm | (main & dm) | (~main & dn));
     }
-    return all;
+    return side != 0 && (all[0] & all[1]) != 0;
 }
 
 /* Whether every edge of the strip's cells b .. e-1 (rows b .. e-1, each cell's diagonal)
@@ -957,7 +995,7 @@ static void add_subcells(sweep *sw, const double z[4], int32_t V, double u)
 /* The edges of the strip between columns U-1 and U (rows, diagonals) into G, but those
  * the column pass shows under F once column U is in; marks the strip's holes. A block
  * of VS_BLOCK cells at a time when block_under leaves them all out (none is a hole). */
-static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
+TD_ROW_CLONES static void add_strip(sweep *sw, int32_t V0, int32_t V1, double u)
 {
     const cone *c = &sw->c;
     const int32_t o = c->vlo;
@@ -1458,7 +1496,6 @@ static inline void last_cell(const sweep *sw, int32_t V, double u, double m, dou
             *lo = dmax(*lo, q - slack);
     }
 }
-
 
 /* Whether the segment to (U, V) starts clearly above the surface where the tracer starts
  * it (by 2^-44 of the eye's height, 16 times what starts_under tolerates): then a real
