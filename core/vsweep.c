@@ -921,9 +921,10 @@ static inline int block_poly(const strip_cols *x, const double *mp, const double
  * would find (checked against it with TD_VSWEEP_DEBUG). The first cell with an edge
  * above ends the test (1423.8 -> 1421.3 M instructions on trinidad from Blanca Peak
  * against testing all 16 edges). */
-static inline int block_facing(const strip_cols *x, const double *mp, const double *qp, const double *zp,
-                               const double *zc, int32_t b, int32_t e, double ev, double u, int lin, int bil,
-                               int anti)
+#ifdef TD_VSWEEP_DEBUG /* the scalar test block_facing does two cells at a time */
+static int block_facing_scalar(const strip_cols *x, const double *mp, const double *qp, const double *zp,
+                                    const double *zc, int32_t b, int32_t e, double ev, double u, int lin, int bil,
+                                    int anti)
 {
     int all = 1;
     if (b > ev && e - ev <= u - 2.0 && e + 1 <= x->V1) {
@@ -954,6 +955,59 @@ static inline int block_facing(const strip_cols *x, const double *mp, const doub
         all = 0;
     }
     return all;
+}
+#endif
+
+static inline int block_facing(const strip_cols *x, const double *mp, const double *qp, const double *zp,
+                               const double *zc, int32_t b, int32_t e, double ev, double u, int lin, int bil,
+                               int anti)
+{
+    const double *mc = x->mc, *qc = x->qc, *lc = x->lc, *cs = x->cs;
+    const vl2 lm = {-(long long)lin, -(long long)lin}, fixed = {-(long long)!anti, -(long long)!anti};
+    vl2 all = {-1, -1};
+    int side = b > ev && e - ev <= u - 2.0 && e + 1 <= x->V1 ? 1 : (e < ev && ev - b <= u - 2.0 && b - 1 >= x->V0 ? -1 : 0);
+    /* two cells at a time, each lane under_nb's expression for its edge (ok is 1: no voids
+     * here), the same operations in the same order; a pair with an edge above ends it */
+    for (int32_t V = b; V < e && side && (all[0] & all[1]); V += 2) {
+        vd2 zp0 = ld2(zp + V), zc0 = ld2(zc + V), zp1 = ld2(zp + V + 1), zc1 = ld2(zc + V + 1);
+        vd2 mp0 = ld2(mp + V), qp0 = ld2(qp + V), mp1 = ld2(mp + V + 1), qp1 = ld2(qp + V + 1);
+        vd2 mc0 = ld2(mc + V), qc0 = ld2(qc + V), mc1 = ld2(mc + V + 1), qc1 = ld2(qc + V + 1);
+        vd2 lc0 = ld2(lc + V), cs0 = ld2(cs + V);
+        vl2 main = bil ? (vl2)(zp0 - zc0 - zp1 + zc1 >= 0.0) : fixed, row, dm, dn, kb;
+        if (side > 0) {
+            vd2 lc1 = ld2(lc + V + 1), cs1 = ld2(cs + V + 1), t, cb;
+            t = vmax2(qc0, qp0); /* under_nb(x, V, 0, V, mp[V], qp[V]) */
+            row = (vl2)(t <= lc0) | (vl2)(qp0 <= qc0 + cs0 * (mp0 - mc0));
+            t = vmax2(qc1, qp0); /* under_nb(x, V, 0, V + 1, mp[V], qp[V]) */
+            dm = (vl2)(t <= lc0) | (vl2)(qp0 <= qc1 + cs0 * (mp0 - mc1));
+            t = vmax2(qc0, qp1); /* under_nb(x, V, 1, V, mp[V + 1], qp[V + 1]) */
+            kb = (vl2)(mp1 < mc0);
+            cb = (vd2)(((vl2)cs0 & kb) | ((vl2)cs1 & ~kb));
+            dn = ((vl2)(t <= lc0) & (vl2)(t <= lc1)) |
+                 ((vl2)(qp1 <= qc1 + cb * (mp1 - mc1)) &
+                  ~((vl2)(((qc0 - qc1) * (mp1 - mc1) - (qp1 - qc1) * (mc0 - mc1)) <= 0.0) ^ (vl2)(mp1 > mc0)));
+        } else {
+            vd2 lcm = ld2(lc + V - 1), csm = ld2(cs + V - 1), t, cb;
+            t = vmax2(qc0, qp0); /* under_nb(x, V - 1, 0, V, mp[V], qp[V]) */
+            row = (vl2)(t <= lcm) | (vl2)(qp0 <= qc0 + csm * (mp0 - mc0));
+            t = vmax2(qc1, qp0); /* under_nb(x, V - 1, 1, V + 1, mp[V], qp[V]) */
+            kb = (vl2)(mp0 < mc1);
+            cb = (vd2)(((vl2)csm & kb) | ((vl2)cs0 & ~kb));
+            dm = ((vl2)(t <= lcm) & (vl2)(t <= lc0)) |
+                 ((vl2)(qp0 <= qc0 + cb * (mp0 - mc0)) &
+                  ~((vl2)(((qc1 - qc0) * (mp0 - mc0) - (qp0 - qc0) * (mc1 - mc0)) <= 0.0) ^ (vl2)(mp0 > mc1)));
+            t = vmax2(qc0, qp1); /* under_nb(x, V, 0, V, mp[V + 1], qp[V + 1]) */
+            dn = (vl2)(t <= lc0) | (vl2)(qp1 <= qc0 + cs0 * (mp1 - mc0));
+        }
+        all &= row & (lm | (main & dm) | (~main & dn));
+    }
+#ifdef TD_VSWEEP_DEBUG
+    if ((side != 0 && (all[0] & all[1]) != 0) != block_facing_scalar(x, mp, qp, zp, zc, b, e, ev, u, lin, bil, anti)) {
+        fprintf(stderr, "block_facing: cells %d .. %d differ from the scalar test\n", b, e);
+        abort();
+    }
+#endif
+    return side != 0 && (all[0] & all[1]) != 0;
 }
 
 /* The bilinear cell (U-1..U, V..V+1) of a strip near the eye (u < VS_SUB_U), whose upper
