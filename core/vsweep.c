@@ -875,6 +875,34 @@ static inline int poly_nb(const strip_cols *x, int32_t k, int two, int32_t Va, i
  * (spelt out: kb and vx as under_nb derives them there), no bound test, no branch. 1:
  * block_facing would answer 1 (each under_nb is this term or'ed with another); 0: not
  * known (block_facing decides). About a third of block_facing's work on facing terrain. */
+#ifdef TD_VSWEEP_DEBUG /* the scalar test block_poly does two cells at a time */
+static int block_poly_scalar(const strip_cols *x, const double *mp, const double *qp, const double *zp,
+                                  const double *zc, int32_t b, int32_t e, double ev, double u, int lin, int bil, int anti)
+{
+    int all = 0;
+    if (b > ev && e - ev <= u - 2.0 && e + 1 <= x->V1) {
+        all = 1;
+        for (int32_t V = b; V < e; V++) {
+            int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
+            int row = poly_nb(x, V, 0, V, V, V, mp[V], qp[V]);
+            int dm = poly_nb(x, V, 0, V + 1, V, V + 1, mp[V], qp[V]);
+            int dn = poly_nb(x, V, 1, V, V + 1, V + 1, mp[V + 1], qp[V + 1]);
+            all &= row & (lin | (main & dm) | ((!main) & dn));
+        }
+    } else if (e < ev && ev - b <= u - 2.0 && b - 1 >= x->V0) {
+        all = 1;
+        for (int32_t V = b; V < e; V++) {
+            int main = bil ? zp[V] - zc[V] - zp[V + 1] + zc[V + 1] >= 0.0 : !anti;
+            int row = poly_nb(x, V - 1, 0, V, V - 1, V, mp[V], qp[V]);
+            int dm = poly_nb(x, V - 1, 1, V + 1, V - 1, V, mp[V], qp[V]);
+            int dn = poly_nb(x, V, 0, V, V, V, mp[V + 1], qp[V + 1]);
+            all &= row & (lin | (main & dm) | ((!main) & dn));
+        }
+    }
+    return all;
+}
+#endif
+
 static inline int block_poly(const strip_cols *x, const double *mp, const double *qp, const double *zp,
                              const double *zc, int32_t b, int32_t e, double ev, double u, int lin, int bil, int anti)
 {
@@ -906,6 +934,12 @@ static inline int block_poly(const strip_cols *x, const double *mp, const double
         }
         all &= row & (lm | (main & dm) | (~main & dn));
     }
+#ifdef TD_VSWEEP_DEBUG
+    if ((side != 0 && (all[0] & all[1]) != 0) != block_poly_scalar(x, mp, qp, zp, zc, b, e, ev, u, lin, bil, anti)) {
+        fprintf(stderr, "block_poly: cells %d .. %d differ from the scalar test\n", b, e);
+        abort();
+    }
+#endif
     return side != 0 && (all[0] & all[1]) != 0;
 }
 
