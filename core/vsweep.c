@@ -1714,13 +1714,13 @@ static void tgt_cols_init(sweep *sw, int32_t U, tgt_cols *t)
 
 /* An upper bound of what last_cell may add to hi for target (U, V): its diagonal's point
  * lies on the edge between two samples, so its q is at most theirs (+inf when a sample is
- * off the grid: then last_cell decides). */
-static inline double diag_bound(const tgt_cols *t, int32_t V, double m)
+ * off the grid: then last_cell decides). side: the sign of m_V (V against the eye's row). */
+static inline double diag_bound(const tgt_cols *t, int32_t V, int side)
 {
     double b = -INFINITY;
-    if (t->lin || m == 0.0)
+    if (t->lin || side == 0)
         b = -INFINITY;
-    else if (m > 0.0)
+    else if (side > 0)
         b = V - 1 >= t->vlo ? dmax(t->qc[V - 1], t->qp[V]) : INFINITY;
     else
         b = V + 1 <= t->vhi ? dmax(t->qp[V], t->qc[V + 1]) : INFINITY;
@@ -1731,11 +1731,11 @@ static inline double diag_bound(const tgt_cols *t, int32_t V, double m)
  * at m_V (fhi), above N's maximum (so N is not looked at) and above the last cell's
  * diagonal (its ends' bound, else last_cell's exact crossing), each by eps as target()
  * decides. 0: target() decides. Columns with the column pass, no target height. */
-static inline int quick_visible(const sweep *sw, const tgt_cols *t, int32_t V)
+static inline int quick_visible(const sweep *sw, const tgt_cols *t, int32_t V, int side)
 {
     double q = t->qc[V], m = t->mc[V], eps = VS_EPS_ABS + VS_EPS_REL * fabs(q), hi = t->fh[V], lo;
     int vis = q > hi + eps && q > t->nmax + 2.0 * eps;
-    if (vis && !(q > diag_bound(t, V, m) + eps)) {
+    if (vis && !(q > diag_bound(t, V, side) + eps)) {
         last_cell(sw, V, t->u, m, INFINITY, &hi, &lo);
         vis = q > hi + eps;
     }
@@ -1773,7 +1773,7 @@ static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
     if (t->th > 0.0)
         hi = dmax(hi, (zt - t->ez) / u);
     /* clear of everything nearer and of its last cell's diagonal's ends: visible without it */
-    if (!(t->visible_ok && q > dmax(hi, diag_bound(t, V, m)) + eps))
+    if (!(t->visible_ok && q > dmax(hi, diag_bound(t, V, (m > 0.0) - (m < 0.0))) + eps))
         last_cell(sw, V, u, m, hu, &hi, &lo);
     /* in the bilinear slack of its piece: real points of that strip on the ray may prove it hidden */
     if (t->bil && q >= lo - eps && !(q > hi + eps && t->visible_ok))
@@ -1811,20 +1811,21 @@ decide:
  * same bits), in a function of its own: inlined into cone_worker with everything else,
  * the loop kept its pointers and flags on the stack (about 34 instructions a target for
  * the loop, owned()'s and the void test and the hidden test, callgrind). */
-static void targets_plain(sweep *sw, tgt_cols *t, int32_t U, int32_t V0, int32_t V1)
+/* targets_plain's rows Va .. Vb, on one side of the eye's row (side: the sign of their m,
+ * a constant where it is inlined: diag_bound's tests fold). The number decided here. */
+static inline __attribute__((always_inline)) uint64_t targets_run(sweep *sw, const tgt_cols *lt, tgt_cols *t,
+                                                                  int32_t U, int32_t Va, int32_t Vb, int side)
 {
-    const tgt_cols lt = *t; /* a copy quick_visible reads: its address is not taken elsewhere,
-                               so the bytes written to vis are known not to change it */
-    const double *qc = t->qc, *fl = sw->flo - t->vlo;
-    uint8_t *vis = t->vis;
-    const ptrdiff_t vs = t->vstride;
+    const double *qc = lt->qc, *fl = sw->flo - lt->vlo;
+    uint8_t *vis = lt->vis;
+    const ptrdiff_t vs = lt->vstride;
     uint64_t n = 0;
-    for (int32_t V = V0; V <= V1; V++) {
+    for (int32_t V = Va; V <= Vb; V++) {
         double q = qc[V];
         if (q < fl[V] - (VS_EPS_ABS + VS_EPS_REL * fabs(q))) {
             vis[V * vs] = 0;
             n++;
-        } else if (quick_visible(sw, &lt, V)) {
+        } else if (quick_visible(sw, lt, V, side)) {
 #ifdef TD_VSWEEP_DEBUG /* the proof checked against the cast, as target()'s */
             const td_vsweep_job *j = sw->job;
             const cone *c = &sw->c;
@@ -1839,6 +1840,19 @@ static void targets_plain(sweep *sw, tgt_cols *t, int32_t U, int32_t V0, int32_t
             target(sw, t, U, V);
         }
     }
+    return n;
+}
+
+static void targets_plain(sweep *sw, tgt_cols *t, int32_t U, int32_t V0, int32_t V1)
+{
+    const tgt_cols lt = *t; /* a copy quick_visible reads: its address is not taken elsewhere,
+                               so the bytes written to vis are known not to change it */
+    const double ev = sw->c.ev;
+    /* the rows under the eye's row (m < 0), on it (m = 0: ev a row) and over it */
+    int32_t Vm = (int32_t)dmin(dmax(ceil(ev), (double)V0), (double)V1 + 1.0), Vp = Vm + (Vm <= V1 && Vm == ev);
+    uint64_t n = targets_run(sw, &lt, t, U, V0, Vm - 1, -1);
+    n += targets_run(sw, &lt, t, U, Vm, Vp - 1, 0);
+    n += targets_run(sw, &lt, t, U, Vp, V1, 1);
     sw->swept += n;
 }
 
@@ -1918,7 +1932,7 @@ static void sweep_cone(sweep *sw)
                 sw->swept++;
                 continue;
             }
-            if (quickv && quick_visible(sw, &t, V)) {
+            if (quickv && quick_visible(sw, &t, V, (t.mc[V] > 0.0) - (t.mc[V] < 0.0))) {
 #ifdef TD_VSWEEP_DEBUG /* the proof checked against the cast, as target()'s */
                 uint32_t st = 0;
                 const td_vsweep_job *j = sw->job;
