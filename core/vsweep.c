@@ -661,6 +661,40 @@ static void mark_hole(sweep *sw, double ua, double ub, double va, double vb)
         sw->hole_u[b] = dmin(sw->hole_u[b], dmax(ua, 0.0));
 }
 
+/* col_pass's walk over rows V0 .. V1-1 from F's piece k holding m_V0 (returned: the one
+ * holding m_V1); inlined twice, with and without holes (hu NULL: its test folds). */
+static inline __attribute__((always_inline)) int col_walk(const piece *p, const double *mc, int *kc, double *fm,
+                                                          double *fx, double *fl, double *fh, const double *hu,
+                                                          int k, int32_t V0, int32_t V1)
+{
+    /* at: F's piece k at m_V, where the interval before ended (the same k and m, so the
+     * same bits as computed again) */
+    double at = pval(&p[k], mc[V0]);
+    for (int32_t V = V0; V < V1; V++) {
+        double m1 = mc[V + 1], lo = at, hi = lo, e;
+        fl[V] = lo - p[k].slack;
+        if (hu && !(p[k].umax < hu[bin_of(mc[V])])) /* a hole nearer: no lower bound (target()) */
+            fl[V] = -INFINITY;
+        if (k > 0 && p[k].m == mc[V]) { /* on a break: the piece ending there holds m_V too */
+            lo = dmin(lo, pval(&p[k - 1], mc[V]));
+            hi = dmax(hi, pval(&p[k - 1], mc[V]));
+        }
+        fh[V] = hi;
+        while (p[k + 1].m <= m1) {
+            double x = p[k + 1].m, y0 = pval(&p[k], x), y1 = pval(&p[k + 1], x);
+            lo = dmin(lo, dmin(y0, y1));
+            hi = dmax(hi, dmax(y0, y1));
+            k++;
+        }
+        kc[V + 1] = k;
+        e = pval(&p[k], m1);
+        fm[V] = dmin(lo, e);
+        fx[V] = dmax(hi, e);
+        at = e;
+    }
+    return k;
+}
+
 /* The column pass over column U's rows V0..V1 (m increasing with V): kcol[V] the piece of
  * F holding m_V (as find), fmin[V] F's minimum over [m_V, m_V+1] (at its ends and the
  * breaks between: F is linear in between), one walk along F instead of a search per
@@ -693,27 +727,7 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     while (p[k + 1].m <= mc[V0])
         k++;
     kc[V0] = k;
-    for (int32_t V = V0; V < V1; V++) {
-        double m1 = mc[V + 1], lo = pval(&p[k], mc[V]), hi = lo, e;
-        fl[V] = lo - p[k].slack;
-        if (hu && !(p[k].umax < hu[bin_of(mc[V])])) /* a hole nearer: no lower bound (target()) */
-            fl[V] = -INFINITY;
-        if (k > 0 && p[k].m == mc[V]) { /* on a break: the piece ending there holds m_V too */
-            lo = dmin(lo, pval(&p[k - 1], mc[V]));
-            hi = dmax(hi, pval(&p[k - 1], mc[V]));
-        }
-        fh[V] = hi;
-        while (p[k + 1].m <= m1) {
-            double x = p[k + 1].m, y0 = pval(&p[k], x), y1 = pval(&p[k + 1], x);
-            lo = dmin(lo, dmin(y0, y1));
-            hi = dmax(hi, dmax(y0, y1));
-            k++;
-        }
-        kc[V + 1] = k;
-        e = pval(&p[k], m1);
-        fm[V] = dmin(lo, e);
-        fx[V] = dmax(hi, e);
-    }
+    k = hu ? col_walk(p, mc, kc, fm, fx, fl, fh, hu, k, V0, V1) : col_walk(p, mc, kc, fm, fx, fl, fh, NULL, k, V0, V1);
     fl[V1] = pval(&p[k], mc[V1]) - p[k].slack;
     fh[V1] = pval(&p[k], mc[V1]);
     if (k > 0 && p[k].m == mc[V1])
