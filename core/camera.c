@@ -286,15 +286,19 @@ static int vertical_inside(const td_camera *cam, double s, double px0, double py
     return in;
 }
 
-int td_camera_azimuths(const td_camera *cam, double px0, double py0, double px1, double py1,
-                       double *az0, double *az1)
+int td_camera_azimuths_poly(const td_camera *cam, const double (*p)[2], int np, double *az0, double *az1)
 {
-    int ok = cam->projection == TD_PROJ_PERSPECTIVE && !vertical_inside(cam, 1.0, px0, py0, px1, py1) &&
-             !vertical_inside(cam, -1.0, px0, py0, px1, py1);
+    double bx0 = INFINITY, by0 = INFINITY, bx1 = -INFINITY, by1 = -INFINITY;
+    for (int k = 0; k < np; k++) { /* the polygon's box: the vanishing point kept off it */
+        bx0 = p[k][0] < bx0 ? p[k][0] : bx0, bx1 = p[k][0] > bx1 ? p[k][0] : bx1;
+        by0 = p[k][1] < by0 ? p[k][1] : by0, by1 = p[k][1] > by1 ? p[k][1] : by1;
+    }
+    int ok = np > 0 && cam->projection == TD_PROJ_PERSPECTIVE && !vertical_inside(cam, 1.0, bx0, by0, bx1, by1) &&
+             !vertical_inside(cam, -1.0, bx0, by0, bx1, by1);
     double ref = 0.0, lo = 0.0, hi = 0.0;
-    for (int k = 0; ok && k < 4; k++) {
+    for (int k = 0; ok && k < np; k++) {
         td_ray r;
-        td_camera_ray(cam, (k & 1) ? px1 : px0, (k & 2) ? py1 : py0, &r);
+        td_camera_ray(cam, p[k][0], p[k][1], &r);
         double a = atan2(r.d[1], r.d[0]);
         if (k == 0)
             ref = a;
@@ -306,6 +310,13 @@ int td_camera_azimuths(const td_camera *cam, double px0, double py0, double px1,
     *az0 = ref + lo;
     *az1 = ref + hi;
     return ok;
+}
+
+int td_camera_azimuths(const td_camera *cam, double px0, double py0, double px1, double py1,
+                       double *az0, double *az1)
+{
+    const double p[4][2] = {{px0, py0}, {px1, py0}, {px0, py1}, {px1, py1}};
+    return td_camera_azimuths_poly(cam, p, 4, az0, az1);
 }
 
 void td_camera_rising(const td_camera *cam, double px, double py, double vert[2])

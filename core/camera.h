@@ -69,6 +69,10 @@ void td_camera_dirs(const td_camera *cam, double py, const double *ax, int n, do
 int td_camera_azimuths(const td_camera *cam, double px0, double py0, double px1, double py1,
                        double *az0, double *az1);
 
+/* The same for the convex polygon of pixel coordinates p[0 .. np) (its extremes are at
+ * its vertices); the vanishing point is kept off the polygon's bounding box. */
+int td_camera_azimuths_poly(const td_camera *cam, const double (*p)[2], int np, double *az0, double *az1);
+
 /* The image direction (unit; px right, py down) in which a point seen at pixel (px, py)
  * moves as it rises: elevation grows that way along the pixel's vanishing-point line.
  * Straight up the image (0, -1) where no direction follows (orthographic camera). */

@@ -1160,6 +1160,7 @@ TD_HOT vd vclamp01(vd x) { return vsel((vm)(x < 0.0), vb(0.0), vsel((vm)(x > 1.0
 TD_HOT vd vabs(vd x) { return (vd)((vm)x & ~(vm)vb(-0.0)); }
 TD_HOT vm vnan(vd x) { return (vm)(x != x); }
 TD_HOT int vany(vm m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
+TD_HOT int vall(vm m) { return (m[0] & m[1] & m[2] & m[3]) != 0; }
 
 /* One packet's rays: direction per unit t (cell units), signs as masks, reciprocals. */
 typedef struct vwalk {
@@ -1826,14 +1827,16 @@ TD_HOT vm vsurely_shadowed(const walk *w, td_surface sf, const vwalk *p, vi k, v
         for (int l = 0; l < TD_LANES; l++)
             L[l] = (double)lit->lo[(size_t)ia[l] * (size_t)lit->nst + (size_t)(in[l] ? k[l] : 0)];
         vm cand = in & (vm)(p->oz < L - w->zeps);
-        if (vany(cand)) {
+        if (w->surf->solid) {
+            sure = cand; /* below L is enough */
+        } else if (vany(cand)) {
             vcell c = vcorners(w, ci, cj, cand);
             vd a = u - ci, b = v - cj, h; /* the surface under the origin (t = 0) */
             if (sf == TD_SURFACE_LINEAR)
                 h = vlinear_under(p, &c, ci, cj, vb(0.0));
             else
                 h = sf == TD_SURFACE_TRIANGLE ? vtriangle_patch(c.c, a, b) : vbilinear_patch(c.c, a, b);
-            sure = w->surf->solid ? cand : cand & (vm)(p->oz > h + w->zeps);
+            sure = cand & (vm)(p->oz > h + w->zeps);
         }
     }
     return sure;
@@ -1861,9 +1864,13 @@ static int occ_rest(const td_view *v, td_method m, walk *w, const double o[3],
  * lane still walking after TD_OCC_NEAR_CELLS cells goes on alone. The direction is set up
  * once for all the packets. The answers are td_occluded's; the steps are the cells walked
  * (fewer than the max-mipmap's climb for rays that end lit within a few cells, nearly all
- * of a render's). */
-TD_PACKET_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, const double d[3],
-                                     const double (*o)[3], int n, uint8_t *hit, uint32_t *steps)
+ * of a render's). With lo_first (a bound with a shadow side: low sun over relief) the
+ * lanes surely shadowed are asked first, and a packet of four such lanes starts no walk
+ * (picos's grazing bench view, plane: 73,549 of its 73,639 shadow rays; the shadows stage 20.5 ->
+ * 15.0 M instructions with vsurely_shadowed's solid surface answered before its corners). */
+static inline __attribute__((always_inline)) int occ_packets_of(const td_view *v, td_method m, walk *w,
+                                                                  const double d[3], const double (*o)[3], int n,
+                                                                  uint8_t *hit, uint32_t *steps, const int lo_first)
 {
     const td_grid *g = w->g;
     const td_surface sf = (td_surface)(w->surf - surfaces);
@@ -1876,6 +1883,8 @@ TD_PACKET_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, 
         vd cells = vb(0.0);
         vstate st;
         vm go, occ = {0, 0, 0, 0}, cont;
+        vi strip = {0, 0, 0, 0};
+        vm has = {0, 0, 0, 0};
         if (nl == TD_LANES) { /* four origins, x y z each: three loads and their transpose */
             vd a0 = vload(o[k0]), a1 = vload(o[k0] + 4), a2 = vload(o[k0] + 8);
             vd x01 = __builtin_shufflevector(a0, a1, 0, 3, 6, 0);
@@ -1892,17 +1901,21 @@ TD_PACKET_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, 
         }
         p.ou /= g->sx; /* walk_origin */
         p.ov /= g->sy;
-        vstart_clip(w, &p, iz, &st, &go);
-        vi strip = {0, 0, 0, 0};
-        vm has = {0, 0, 0, 0};
-        cont = go;
-        if (w->lit) {
+        if (lo_first) { /* surely shadowed (as td_occluded asks it, before the walk) */
             vsun_strip(w->lit, &p, &strip, &has);
-            if (w->lit->lo && vany(has & go)) { /* surely shadowed: no walk */
-                vm sure = vsurely_shadowed(w, sf, &p, strip, has & go);
-                occ |= sure;
-                cont &= ~sure;
+            occ = vany(has) ? vsurely_shadowed(w, sf, &p, strip, has) : occ;
+            if (vall(occ)) { /* no walk to start */
+                for (int l = 0; l < nl; l++)
+                    hit[k0 + l] = 1;
+                continue;
             }
+            vstart_clip(w, &p, iz, &st, &go);
+            cont = go & ~occ;
+        } else {
+            vstart_clip(w, &p, iz, &st, &go);
+            cont = go;
+            if (w->lit)
+                vsun_strip(w->lit, &p, &strip, &has);
         }
         for (int k = 0; k < TD_OCC_NEAR_CELLS && vany(cont); k++) {
             vm h, end;
@@ -1938,6 +1951,22 @@ TD_PACKET_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, 
         }
     }
     return k0 < n ? k0 : n;
+}
+
+/* occ_packets_of for a sun bound with a shadow side (lo) and for one without or none:
+ * two functions, so that the common one's loop is compiled as it was before lo_first
+ * (asking lo before vstart_clip in one body made the level and rolled views' shadows
+ * stage 5% slower; on picos's grazing view, lo_first takes it from 2.53 to 2.13 ms) */
+TD_PACKET_CLONES static int occ_packets_lo(const td_view *v, td_method m, walk *w, const double d[3],
+                                        const double (*o)[3], int n, uint8_t *hit, uint32_t *steps)
+{
+    return occ_packets_of(v, m, w, d, o, n, hit, steps, 1);
+}
+
+TD_PACKET_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, const double d[3],
+                                     const double (*o)[3], int n, uint8_t *hit, uint32_t *steps)
+{
+    return occ_packets_of(v, m, w, d, o, n, hit, steps, 0);
 }
 
 void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3], int n, td_fan *f,
@@ -2040,7 +2069,7 @@ void td_occluded_par(const td_view *v, td_method m, td_surface s, const double d
        ends only on a hit or past the grid, and the max-mipmap's climb is the faster walk:
        measured 2.3x the packets' rate on trinidad's views with the bound off) */
     if (ok && scale == 1.0 && lit)
-        k = occ_packets(v, m, &w, d, o, n, hit, steps);
+        k = lit->lo ? occ_packets_lo(v, m, &w, d, o, n, hit, steps) : occ_packets(v, m, &w, d, o, n, hit, steps);
     for (; k < n; k++)
         hit[k] = ok && occluded_one(v, m, &w, o[k], 0.0, INFINITY, scale, steps);
 }

@@ -1164,8 +1164,9 @@ static int case_camera(hc_stats *st)
 
 /* The cameras of the coherence devices (issue 12): level, straight down, the vanishing
  * point of verticals inside the image (looking steeply down: every azimuth), roll 90,
- * fov 170, and a camera below the terrain's crests (looking up at slopes, level and
- * down). Each renders the same depths from horizons as from the rays' starts. */
+ * rolled 20-135 degrees, fov 170, and a camera below the terrain's crests (looking up at
+ * slopes, level and down). Each renders the same depths from horizons as from the rays'
+ * starts. */
 static int case_camera_coherence(hc_stats *st)
 {
     static const hc_cam cams[] = {
@@ -1175,6 +1176,10 @@ static int case_camera_coherence(hc_stats *st)
         {70, -30, 45, 64, 48, 0, 1},  {5, -2, 0, 64, 48, 0, 0},   {120, 60, 0, 64, 48, 0, 0},
         /* upright cameras over several of render.c's tall blocks (64 and 32 rows) */
         {70, -3, 0, 40, 150, 0, 0},   {60, -6.5, 0, 40, 150, 0, 0},
+        /* rolled cameras, their blocks cut into bands along the verticals (render.c's
+           trace_band), partial blocks at the image's edges included */
+        {70, -10, 35, 64, 48, 0, 0},  {70, -10, -35, 61, 45, 0, 0}, {60, -20, 135, 64, 48, 0, 0},
+        {70, -5, 20, 45, 61, 0, 1},
     };
     camera_set(st, cams, sizeof cams / sizeof cams[0]);
     return 0;
