@@ -889,6 +889,22 @@ static inline int poly_nb(const strip_cols *x, int32_t k, int two, int32_t Va, i
  * (spelt out: kb and vx as under_nb derives them there), no bound test, no branch. 1:
  * block_facing would answer 1 (each under_nb is this term or'ed with another); 0: not
  * known (block_facing decides). About a third of block_facing's work on facing terrain. */
+/* A block test's answer; with TD_VSWEEP_DEBUG checked against the scalar test it stands
+ * for (the call is not made otherwise). */
+#ifdef TD_VSWEEP_DEBUG
+static int vs_checked(const char *what, int got, int want, int32_t b, int32_t e)
+{
+    if (got != want) {
+        fprintf(stderr, "%s: cells %d .. %d: %d, the scalar test %d\n", what, b, e, got, want);
+        abort();
+    }
+    return got;
+}
+#define VS_CHECKED(what, got, scalar) vs_checked(what, got, scalar, b, e)
+#else
+#define VS_CHECKED(what, got, scalar) (got)
+#endif
+
 #ifdef TD_VSWEEP_DEBUG /* the scalar test block_poly does two cells at a time */
 static int block_poly_scalar(const strip_cols *x, const double *mp, const double *qp, const double *zp,
                                   const double *zc, int32_t b, int32_t e, double ev, double u, int lin, int bil, int anti)
@@ -948,13 +964,8 @@ static inline int block_poly(const strip_cols *x, const double *mp, const double
         }
         all &= row & (lm | (main & dm) | (~main & dn));
     }
-#ifdef TD_VSWEEP_DEBUG
-    if ((side != 0 && (all[0] & all[1]) != 0) != block_poly_scalar(x, mp, qp, zp, zc, b, e, ev, u, lin, bil, anti)) {
-        fprintf(stderr, "block_poly: cells %d .. %d differ from the scalar test\n", b, e);
-        abort();
-    }
-#endif
-    return side != 0 && (all[0] & all[1]) != 0;
+    return VS_CHECKED("block_poly", side != 0 && (all[0] & all[1]) != 0,
+                      block_poly_scalar(x, mp, qp, zp, zc, b, e, ev, u, lin, bil, anti));
 }
 
 /* Whether every edge of the strip's cells b .. e-1 (rows b .. e-1, each cell's diagonal)
@@ -1049,13 +1060,8 @@ static inline int block_facing(const strip_cols *x, const double *mp, const doub
         }
         all &= row & (lm | (main & dm) | (~main & dn));
     }
-#ifdef TD_VSWEEP_DEBUG
-    if ((side != 0 && (all[0] & all[1]) != 0) != block_facing_scalar(x, mp, qp, zp, zc, b, e, ev, u, lin, bil, anti)) {
-        fprintf(stderr, "block_facing: cells %d .. %d differ from the scalar test\n", b, e);
-        abort();
-    }
-#endif
-    return side != 0 && (all[0] & all[1]) != 0;
+    return VS_CHECKED("block_facing", side != 0 && (all[0] & all[1]) != 0,
+                      block_facing_scalar(x, mp, qp, zp, zc, b, e, ev, u, lin, bil, anti));
 }
 
 /* The bilinear cell (U-1..U, V..V+1) of a strip near the eye (u < VS_SUB_U), whose upper
