@@ -854,6 +854,7 @@ static void check_span(const strip_cols *x, int32_t Va, double mb, int32_t k, in
 #define VS_SPAN(x, Va, mb, k, two) ((void)0)
 #endif
 
+#ifdef TD_VSWEEP_DEBUG /* the scalar edge tests of block_poly and block_facing (their checks) */
 /* under_strip's answer with every test evaluated (no branch: block_facing's edges, where
  * the bilinear cell's diagonal, main or not, is a coin toss for the branch predictor);
  * reads interval k + 1 (a row of the column's, so within the arrays) even without `two`. */
@@ -883,6 +884,7 @@ static inline int poly_nb(const strip_cols *x, int32_t k, int two, int32_t Va, i
                        (mb > ma));
     return poly & vert;
 }
+#endif
 
 /* block_facing's answer where every edge of the block is under the column's polyline:
  * under_nb's second term alone for each edge, with the intervals block_facing gives it
