@@ -163,6 +163,13 @@
  * straight-down views), so steep blocks keep their columns. */
 #define TD_BAND_LEAN 0.2
 #define TD_BANDS 2
+/* TD_BANDS_FAR bands (5.5 pixels at roll 35) after a leaning block whose camera rays took
+ * more than TD_BAND_FAR steps each (a worker's last: rough terrain where rays that graze
+ * ridges walk far): picos's rolled view 312.4 -> 276.0 M instructions, 31.4 -> 28.2 ms;
+ * trinidad's 173.9 -> 175.0 M, 17.5 -> 17.8 ms, levi's 175.5 -> 175.0 M. Thresholds of 3,
+ * 5 and 8 steps cost trinidad and levi 1-3%, 20 gained picos less (283.8 M). */
+#define TD_BANDS_FAR 4
+#define TD_BAND_FAR 12.0
 #define TD_BAND_STEP (2.0 * TD_DEG) /* the bands follow the verticals to this angle */
 #define TD_BAND_SAMPLES (TD_BLOCK * TD_BLOCK * TD_SAMPLES_MAX * TD_SAMPLES_MAX) /* a block's, at most */
 #define TD_BAND_BUCKETS (2 * TD_BLOCK * TD_SAMPLES_MAX) /* buckets along the verticals, at most */
@@ -249,7 +256,8 @@ typedef struct ctx ctx;
  * same shape and lean takes it as it is. */
 typedef struct band_sort {
     int32_t lean, bw, bh, n;          /* n 0: nothing sorted yet */
-    int end[TD_BANDS];                /* where each band's samples end in order */
+    int32_t nbands;
+    int end[TD_BANDS_FAR];            /* where each band's samples end in order */
     int16_t *order;                   /* the block's sample indices, band by band */
 } band_sort;
 
@@ -259,6 +267,7 @@ typedef struct worker {
     smp *s;
     td_horizon hz;                  /* the primary stage's wedge (horizon device) */
     band_sort bs;                   /* the last leaning block's order (trace_band) */
+    int band_far;                   /* its camera rays took more than TD_BAND_FAR steps */
     float *scratch[TD_STAGE_COUNT]; /* per sample, for the stages whose row asks for it */
     td_render_stats st;             /* this thread's counts (stage_ms left 0: stage_s) */
     double stage_s[TD_STAGE_COUNT];
@@ -985,17 +994,17 @@ static void trace_slice(worker *w, fan *f, const blk *b, int32_t xa, int32_t xb,
  * verticals run along vert: bs->order and bs->end. A sample's band and its bucket along
  * the verticals (1 / n pixel a bucket) from its position; a counting sort, band by band,
  * bucket by bucket, each bucket in index order. */
-static void band_order(band_sort *bs, int32_t bw, int32_t bh, int n, const double vert[2])
+static void band_order(band_sort *bs, int32_t bw, int32_t bh, int n, const double vert[2], int nbands)
 {
     const int nn = n * n, nx = bw * n, ny = bh * n;
     const double a[2] = {-vert[1], vert[0]}, hw = 0.5 * (bw - 1.0 / n), hh = 0.5 * (bh - 1.0 / n);
     const double sext = fabs(a[0]) * hw + fabs(a[1]) * hh, rext = fabs(vert[0]) * hw + fabs(vert[1]) * hh;
     const int nb = (int)fmin(2.0 * rext * n + 1.0, TD_BAND_BUCKETS); /* buckets along the verticals */
-    int count[TD_BANDS * TD_BAND_BUCKETS + 1];
+    int count[TD_BANDS_FAR * TD_BAND_BUCKETS + 1];
     int16_t key[TD_BAND_SAMPLES];
     /* a sample's band, (a . p + sext) * qs, and bucket, (vert . p + rext) * n (p from the
        block's centre), each the sum of a column's part and a row's */
-    const double qs = TD_BANDS / (2.0 * sext);
+    const double qs = nbands / (2.0 * sext);
     double qx[TD_BLOCK * TD_SAMPLES_MAX], rx[TD_BLOCK * TD_SAMPLES_MAX];
     int xoff[TD_BLOCK * TD_SAMPLES_MAX]; /* sample index of (k, 0) */
     for (int k = 0; k < nx; k++) {
@@ -1003,24 +1012,24 @@ static void band_order(band_sort *bs, int32_t bw, int32_t bh, int n, const doubl
         qx[k] = (a[0] * x + sext) * qs, rx[k] = (vert[0] * x + rext) * n;
         xoff[k] = k / n * nn + k % n;
     }
-    memset(count, 0, sizeof count[0] * (size_t)(TD_BANDS * nb + 1));
+    memset(count, 0, sizeof count[0] * (size_t)(nbands * nb + 1));
     for (int ys = 0; ys < ny; ys++) {
         const double y = (double)ys / n - hh, qy = a[1] * y * qs, ry = vert[1] * y * n;
         const int row = ys / n * bw * nn + ys % n * n; /* sample index of (0, ys) */
         for (int xs = 0; xs < nx; xs++) {
             /* (int) truncates: a rounding below 0 is 0; past the last, clamped */
             int q = (int)(qx[xs] + qy), r = (int)(rx[xs] + ry);
-            q = q < TD_BANDS ? q : TD_BANDS - 1;
+            q = q < nbands ? q : nbands - 1;
             r = r < nb ? r : nb - 1;
             key[row + xoff[xs]] = (int16_t)(q * nb + r);
             count[q * nb + r + 1]++;
         }
     }
-    for (int k = 1; k <= TD_BANDS * nb; k++)
+    for (int k = 1; k <= nbands * nb; k++)
         count[k] += count[k - 1];
     for (int i = 0; i < nx * ny; i++)
         bs->order[count[key[i]]++] = (int16_t)i; /* count[k] now ends bucket k */
-    for (int q = 0; q < TD_BANDS; q++)
+    for (int q = 0; q < nbands; q++)
         bs->end[q] = count[(q + 1) * nb - 1];
 }
 
@@ -1037,25 +1046,25 @@ static void band_order(band_sort *bs, int32_t bw, int32_t bh, int n, const doubl
  * The order is the same for blocks of one shape whose verticals lean alike, so the bands
  * follow the verticals to TD_BAND_STEP and a worker keeps its last order (sorting every
  * block cost 5 M of trinidad's rolled view's 178). */
-static void trace_band(worker *w, fan *f, const blk *b, const double vert[2])
+static void trace_band(worker *w, fan *f, const blk *b, const double vert[2], int nbands)
 {
     const int n = w->c->n;
     const int32_t bh = b->y1 - b->y0, lean = (int32_t)lround(atan2(vert[1], vert[0]) / TD_BAND_STEP);
     const double vq[2] = {cos(lean * TD_BAND_STEP), sin(lean * TD_BAND_STEP)}; /* the verticals, to the step */
     band_sort *bs = &w->bs;
-    if (bs->lean != lean || bs->bw != b->bw || bs->bh != bh || bs->n != n) {
-        band_order(bs, b->bw, bh, n, vq);
-        bs->lean = lean, bs->bw = b->bw, bs->bh = bh, bs->n = n;
+    if (bs->lean != lean || bs->bw != b->bw || bs->bh != bh || bs->n != n || bs->nbands != nbands) {
+        band_order(bs, b->bw, bh, n, vq, nbands);
+        bs->lean = lean, bs->bw = b->bw, bs->bh = bh, bs->n = n, bs->nbands = nbands;
     }
     const double X0 = b->x0 + 0.5 / n - 0.5, Y0 = b->y0 + 0.5 / n - 0.5, X1 = b->x1 - 0.5 / n - 0.5,
                  Y1 = b->y1 - 0.5 / n - 0.5;
     band bd = {.a = {-vq[1], vq[0]}, .c = {0.5 * (X0 + X1), 0.5 * (Y0 + Y1)}};
     const double sext = fabs(bd.a[0]) * 0.5 * (X1 - X0) + fabs(bd.a[1]) * 0.5 * (Y1 - Y0);
-    for (int q = 0, at = 0; q < TD_BANDS; q++) {
+    for (int q = 0, at = 0; q < nbands; q++) {
         double poly[TD_SLICE_CORNERS][2];
         /* the first and last bands open-ended, as the keys' clamps make them */
-        bd.lo = q == 0 ? -INFINITY : -sext + 2.0 * sext * q / TD_BANDS;
-        bd.hi = q == TD_BANDS - 1 ? INFINITY : -sext + 2.0 * sext * (q + 1) / TD_BANDS;
+        bd.lo = q == 0 ? -INFINITY : -sext + 2.0 * sext * q / nbands;
+        bd.hi = q == nbands - 1 ? INFINITY : -sext + 2.0 * sext * (q + 1) / nbands;
         if (at < bs->end[q]) {
             const int np = band_polygon(X0, Y0, X1, Y1, &bd, poly);
             const slice_start ss = slice_begin(w, (const double(*)[2])poly, np);
@@ -1110,7 +1119,12 @@ static void stage_primary(worker *w, const blk *b)
         td_ray mid;
         td_camera_ray(&c->cam, 0.5 * (b->x0 + b->x1 - 1), 0.5 * (b->y0 + b->y1 - 1), &mid);
         if (lean > TD_BAND_LEAN && b->ns <= TD_BAND_SAMPLES && -mid.d[2] < hypot(mid.d[0], mid.d[1])) {
-            trace_band(w, fp, b, vert);
+            const uint64_t s0 = w->st.kind_steps[TD_RAY_PRIMARY], r0 = w->st.rays[TD_RAY_PRIMARY];
+            trace_band(w, fp, b, vert, w->band_far ? TD_BANDS_FAR : TD_BANDS);
+            if (fp && fp->n > 0)
+                fan_flush(w, fp);
+            const uint64_t ds = w->st.kind_steps[TD_RAY_PRIMARY] - s0, dr = w->st.rays[TD_RAY_PRIMARY] - r0;
+            w->band_far = (double)ds > TD_BAND_FAR * (double)dr;
         } else {
             for (int q = 0; q < TD_SLICES; q++) {
                 int32_t s0 = len * q / TD_SLICES, s1 = len * (q + 1) / TD_SLICES;

@@ -1098,6 +1098,55 @@ static void pick_all_matches_render(const td_view *v, int32_t w, int32_t h, int 
     td_render_result_free(&r);
 }
 
+/* Rolled cameras over picos (rough: rays that graze ridges walk far), whose blocks
+ * render.c cuts into bands along the verticals (two, or four after a block whose rays took
+ * many steps): the depths of the rays traced from their starts, bit for bit, on every
+ * surface, on one thread and on three (the workers' band orders differ). */
+static void test_rolled_bands(void **state)
+{
+    char dem_path[256];
+    td_grid *g = NULL;
+    td_accel *a = NULL;
+    td_accel_opts ao;
+    td_err err = {0};
+    (void)state;
+    snprintf(dem_path, sizeof dem_path, "%s/picos-dtm.asc", TERRAD_TEST_DATA);
+    assert_int_equal(td_dem_load(dem_path, NULL, &g, &err), TD_OK);
+    td_accel_opts_for(TD_METHOD_AUTO, &ao);
+    assert_int_equal(td_accel_build(g, &ao, &a, NULL, &err), TD_OK);
+    td_view v = {g, a->tiles};
+    static const double rolls[] = {35.0, -50.0};
+    for (size_t ri = 0; ri < sizeof rolls / sizeof rolls[0]; ri++)
+        for (int surf = 0; surf < TD_SURFACE_COUNT; surf++) {
+            td_render_result r[3];
+            td_scene sc;
+            td_scene_defaults(&sc);
+            snprintf(sc.dataset, sizeof sc.dataset, "picos");
+            sc.camera.x = 560.0, sc.camera.y = 2781.0, sc.camera.z = 2557.0;
+            sc.camera.heading = 140.0, sc.camera.pitch = -10.0, sc.camera.roll = rolls[ri], sc.camera.fov = 70.0;
+            sc.image.width = 256, sc.image.height = 192;
+            sc.image.format = TD_FORMAT_DEPTH32F;
+            sc.quality.method = TD_METHOD_AUTO;
+            sc.quality.surface = (td_surface)surf;
+            for (int k = 0; k < 3; k++) {
+                td_render_opts o;
+                td_render_opts_default(&o);
+                o.threads = k == 1 ? 3 : 1;
+                o.off = k == 2 ? TD_RENDER_OFF_CAMERA : 0;
+                assert_int_equal(td_render(&v, &sc, &o, &r[k], &err), TD_OK);
+            }
+            for (int k = 0; k < 2; k++)
+                assert_memory_equal(r[k].depth, r[2].depth, sizeof(float) * 256 * 192);
+            assert_true(r[0].stats.hits > 256 * 192 / 4 && r[0].stats.hits < 256 * 192);
+            /* the horizon starts the rays nearer their hits: fewer than 2/3 of the steps */
+            assert_true(r[0].stats.kind_steps[TD_RAY_PRIMARY] * 3 < r[2].stats.kind_steps[TD_RAY_PRIMARY] * 2);
+            for (int k = 0; k < 3; k++)
+                td_render_result_free(&r[k]);
+        }
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
 static void test_pick_traces_the_render_rays(void **state)
 {
     td_view v = {grid, NULL};
@@ -1198,6 +1247,7 @@ int main(void)
         cmocka_unit_test(test_golden_images),
         cmocka_unit_test(test_stats_add),
         cmocka_unit_test(test_pick_traces_the_render_rays),
+        cmocka_unit_test(test_rolled_bands),
         cmocka_unit_test(test_limits_in_core),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
