@@ -1100,8 +1100,9 @@ static void pick_all_matches_render(const td_view *v, int32_t w, int32_t h, int 
 
 /* Rolled cameras over picos (rough: rays that graze ridges walk far), whose blocks
  * render.c cuts into bands along the verticals (two, or four after a block whose rays took
- * many steps): the depths of the rays traced from their starts, bit for bit, on every
- * surface, on one thread and on three (the workers' band orders differ). */
+ * many steps), and an upright one (two column slices, or four): the depths of the rays
+ * traced from their starts, bit for bit, on every surface, on one thread and on three (the
+ * workers' band orders and slice counts differ). */
 static void test_rolled_bands(void **state)
 {
     char dem_path[256];
@@ -1115,7 +1116,7 @@ static void test_rolled_bands(void **state)
     td_accel_opts_for(TD_METHOD_AUTO, &ao);
     assert_int_equal(td_accel_build(g, &ao, &a, NULL, &err), TD_OK);
     td_view v = {g, a->tiles};
-    static const double rolls[] = {35.0, -50.0};
+    static const double rolls[] = {35.0, -50.0, 0.0}; /* upright: 2 or 4 column slices */
     for (size_t ri = 0; ri < sizeof rolls / sizeof rolls[0]; ri++)
         for (int surf = 0; surf < TD_SURFACE_COUNT; surf++) {
             td_render_result r[3];
