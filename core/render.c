@@ -73,7 +73,8 @@
  *              rising elevation so each reuses the bins below it; where the verticals
  *              lean in the image (a rolled camera), into TD_BANDS bands along them
  *              (trace_band: picos's rolled bench view 362.6 -> 312.1 M instructions,
- *              10.7 -> 8.5 steps a camera ray); td_trace_from starts
+ *              10.7 -> 8.5 steps a camera ray); after a block whose rays walked far,
+ *              into TD_BANDS_FAR bands or TD_SLICES_FAR slices; td_trace_from starts
  *              the ray at the boundary of the cell its bound falls in, so its hit is
  *              td_trace's. Rays above every bin are misses without a walk.
  *   beam       the slices the horizon cannot bound (their azimuths span a quarter turn or
