@@ -79,14 +79,21 @@ void td_demraw_rules(const td_demside *sc, td_demutil_f32 *p)
              sc->path);
 }
 
+/* A row of the file's bytes in place: to the host's order, then checked. */
+static td_status raw_row_finish(const char *path, const td_demutil_f32 *p, float *row, int32_t w, int32_t r,
+                                td_err *err)
+{
+    if (!host_is_little())
+        swap32(row, (size_t)w);
+    return td_demutil_f32_row(path, p, row, w, r, err);
+}
+
 td_status td_demraw_row(const char *path, const td_demutil_f32 *p, FILE *f, float *row, int32_t w,
                         int32_t r, td_err *err)
 {
     td_status rc = td_demutil_read_row(path, f, row, 4, (size_t)w, r, err);
-    if (rc == TD_OK && !host_is_little())
-        swap32(row, (size_t)w);
     if (rc == TD_OK)
-        rc = td_demutil_f32_row(path, p, row, w, r, err);
+        rc = raw_row_finish(path, p, row, w, r, err);
     return rc;
 }
 
@@ -98,20 +105,16 @@ td_status td_demraw_row(const char *path, const td_demutil_f32 *p, FILE *f, floa
  * shrinks it under us would fault (as the prepared grids' mappings, prepared.c, would);
  * its size was checked against the sidecar just before. 0: not mapped (the caller reads;
  * *rc as it was). */
-static int raw_map(const char *path, const td_demside *sc, FILE *f, td_grid *g, td_status *rc,
+static int raw_map(const char *path, const td_demutil_f32 *p, FILE *f, td_grid *g, td_status *rc,
                    td_err *err)
 {
     size_t row = (size_t)g->w * sizeof(float), bytes = row * (size_t)g->h;
-    td_demutil_f32 p;
     const char *m = mmap(NULL, bytes, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fileno(f), 0);
     int mapped = m != MAP_FAILED;
-    td_demraw_rules(sc, &p);
     for (int32_t r = 0; mapped && r < g->h && *rc == TD_OK; r++) {
         float *dst = td_demutil_file_row(g, r);
         memcpy(dst, m + (size_t)r * row, row);
-        if (!host_is_little())
-            swap32(dst, (size_t)g->w);
-        *rc = td_demutil_f32_row(path, &p, dst, g->w, r, err);
+        *rc = raw_row_finish(path, p, dst, g->w, r, err);
     }
     if (mapped)
         munmap((void *)m, bytes);
@@ -128,8 +131,8 @@ static td_status raw_read(const char *path, const td_demside *sc, FILE *f, td_gr
 {
     td_status rc = TD_OK;
     td_demutil_f32 p;
-    int mapped = raw_map(path, sc, f, g, &rc, err);
     td_demraw_rules(sc, &p);
+    int mapped = raw_map(path, &p, f, g, &rc, err);
     if (!mapped && (size_t)g->w * sizeof(float) >= 4096)
         setvbuf(f, NULL, _IONBF, 0); /* before any read of f */
     for (int32_t r = 0; !mapped && r < g->h && rc == TD_OK; r++)

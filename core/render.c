@@ -264,6 +264,7 @@ typedef struct ctx ctx;
 typedef struct band_sort {
     int32_t lean, bw, bh, n;          /* n 0: nothing sorted yet */
     int32_t nbands;
+    double sext;                      /* half the block's width across the verticals */
     int end[TD_BANDS_FAR];            /* where each band's samples end in order */
     int16_t *order;                   /* the block's sample indices, band by band */
 } band_sort;
@@ -1038,6 +1039,7 @@ static void band_order(band_sort *bs, int32_t bw, int32_t bh, int n, const doubl
         bs->order[count[key[i]]++] = (int16_t)i; /* count[k] now ends bucket k */
     for (int q = 0; q < nbands; q++)
         bs->end[q] = count[(q + 1) * nb - 1];
+    bs->sext = sext;
 }
 
 /* A block whose verticals lean in the image (a rolled camera): its samples cut into
@@ -1066,7 +1068,7 @@ static void trace_band(worker *w, fan *f, const blk *b, const double vert[2], in
     const double X0 = b->x0 + 0.5 / n - 0.5, Y0 = b->y0 + 0.5 / n - 0.5, X1 = b->x1 - 0.5 / n - 0.5,
                  Y1 = b->y1 - 0.5 / n - 0.5;
     band bd = {.a = {-vq[1], vq[0]}, .c = {0.5 * (X0 + X1), 0.5 * (Y0 + Y1)}};
-    const double sext = fabs(bd.a[0]) * 0.5 * (X1 - X0) + fabs(bd.a[1]) * 0.5 * (Y1 - Y0);
+    const double sext = bs->sext; /* the bands' bounds are the sort's */
     for (int q = 0, at = 0; q < nbands; q++) {
         double poly[TD_SLICE_CORNERS][2];
         /* the first and last bands open-ended, as the keys' clamps make them */
