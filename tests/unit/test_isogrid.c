@@ -22,6 +22,20 @@
 #include "isogrid.h"
 #include "iso_reference.h"
 
+/* Under the address sanitizer (Debug, about 20x slower: 157 s of CI's ASan tree on a
+ * 2-core Zen 3) a quarter of the random rays; the plain build, which CI runs too, traces
+ * them all. */
+#if defined(__SANITIZE_ADDRESS__)
+#define RANDOM_RAYS_SHARE 4
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define RANDOM_RAYS_SHARE 4
+#endif
+#endif
+#ifndef RANDOM_RAYS_SHARE
+#define RANDOM_RAYS_SHARE 1
+#endif
+
 static double rnd(uint64_t *s)
 {
     *s = *s * 6364136223846793005ull + 1442695040888963407ull;
@@ -288,6 +302,7 @@ static void judge(const td_iso *l, const td_ray *r, tally *t) { judge_on(l, l, r
 static void random_rays_on(const td_iso *l, const td_iso *fl, int n, uint64_t *seed, tally *t)
 {
     double X = (l->nx - 1) * l->a, Y = (l->ny - 1) * l->b, dz = l->zmax - l->zmin + 1.0;
+    n /= RANDOM_RAYS_SHARE;
     for (int k = 0; k < n; k++) {
         double o[3] = {(rnd(seed) * 1.4 - 0.2) * X, (rnd(seed) * 1.4 - 0.2) * Y,
                        l->zmin + rnd(seed) * 1.5 * dz};
@@ -329,7 +344,7 @@ static void test_iso_rays_reference(void **state)
     td_iso_free(l);
     print_message("random rays: %d agree, %d ties, %d wrong\n", t.agree, t.tie, t.wrong);
     assert_int_equal(t.wrong, 0);
-    assert_true(t.agree >= 20900);
+    assert_true(t.agree >= 20900 / RANDOM_RAYS_SHARE);
 }
 
 /* Hard cases on lattice m (the reference on fl, see judge_on): rays along each of the
@@ -599,7 +614,7 @@ static void test_iso_packed_trace(void **state)
     td_grid_free(g);
     print_message("packed: %d agree, %d ties, %d wrong\n", t.agree, t.tie, t.wrong);
     assert_int_equal(t.wrong, 0);
-    assert_true(t.agree >= 20000);
+    assert_true(t.agree >= 20000 / RANDOM_RAYS_SHARE);
 }
 
 /* The levels of detail's isometric twins: even rows are the square level's samples, odd
