@@ -54,7 +54,9 @@
  * or, where the terrain faces the eye, under the column's polyline (block_facing); col_pass
  * also keeps each row's starting lo (flo), so that sweep_cone decides a target under it
  * without calling target() (trinidad 1.64 G -> 1.40 G, docs/viewshed.md "Speed"), and
- * F's value there (fhi), so that it decides the visible ones too (quick_visible); F is
+ * F's value there (fhi), so that it decides the visible ones too (quick_visible; fhi
+ * raised to the last cell's diagonal, for a column's rows that may be visible in one
+ * vector pass, last_diags: 903.0 -> 840.4 M, 2026-11-30 15:30); F is
  * kept to the m the columns still to come read (col_merge), facing blocks are tried under
  * the column's polyline alone first (block_poly), and a bilinear target its last cell's
  * upper diagonal leaves undecided is proved hidden by real points of that last strip
@@ -104,6 +106,8 @@
 #define VS_SUB_U 64.0
 #define VS_SUB 2
 #define VS_SUB_K 0.04
+/* Rows whose last cells' diagonals last_diags computes, or skips when none may be visible */
+#define VS_DIAG 8
 /* last_real's points stop this far (in cells) short of the target */
 #define VS_LAST_GAP 1e-3
 
@@ -1607,6 +1611,14 @@ static inline void last_cell(const sweep *sw, int32_t V, double u, double m, dou
     }
 }
 
+/* Rows V0 .. V1 split at the eye's row: m < 0 below *Vm, m = 0 from *Vm to *Vp - 1 (ev a
+ * row), m > 0 from *Vp. */
+static inline void eye_rows(double ev, int32_t V0, int32_t V1, int32_t *Vm, int32_t *Vp)
+{
+    *Vm = (int32_t)dmin(dmax(ceil(ev), (double)V0), (double)V1 + 1.0);
+    *Vp = *Vm + (*Vm <= V1 && *Vm == ev);
+}
+
 /* Whether the segment to (U, V) starts clearly above the surface where the tracer starts
  * it (by 2^-44 of the eye's height, 16 times what starts_under tolerates): then a real
  * surface point above it later proves it hidden, as for an eye above the ground (the
@@ -1750,18 +1762,114 @@ static inline double diag_bound(const tgt_cols *t, int32_t V, int side)
 }
 
 /* target()'s visible decision when it needs neither N nor the bilinear band: q above F
- * at m_V (fhi), above N's maximum (so N is not looked at) and above the last cell's
- * diagonal (its ends' bound, else last_cell's exact crossing), each by eps as target()
- * decides. 0: target() decides. Columns with the column pass, no target height. */
-static inline int quick_visible(const sweep *sw, const tgt_cols *t, int32_t V, int side)
+ * at m_V and the last cell's diagonal (fhi raised by last_diags), and above N's maximum
+ * (so N is not looked at), each by eps as target() decides. 0: target() decides (so
+ * also where q clears only the diagonal's ends, diag_bound, which target() then finds).
+ * Columns with the column pass, no target height. */
+static inline int quick_visible(const tgt_cols *t, int32_t V)
 {
-    double q = t->qc[V], m = t->mc[V], eps = VS_EPS_ABS + VS_EPS_REL * fabs(q), hi = t->fh[V], lo;
-    int vis = q > hi + eps && q > t->nmax + 2.0 * eps;
-    if (vis && !(q > diag_bound(t, V, side) + eps)) {
-        last_cell(sw, V, t->u, m, INFINITY, &hi, &lo);
-        vis = q > hi + eps;
+    double q = t->qc[V], eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
+    return q > t->fh[V] + eps && q > t->nmax + 2.0 * eps;
+}
+
+/* The constants of last_diags' lanes */
+typedef struct diag_k {
+    vd2 ez, u1, kmul, kadd, ea, er;
+} diag_k;
+
+/* last_diags for rows V and V+1 (only V when n is 1), on one side of the eye's row (side
+ * a constant where it is inlined): m < 0, cell V's main diagonal (U-1, V)-(U, V+1);
+ * m > 0, cell V-1's other one (U, V-1)-(U-1, V). last_cell's expressions lane by lane. */
+static inline void diag_pair(const double *zp, const double *zc, const double *mc, double *fh, const diag_k *d,
+                             int32_t V, int n, int side)
+{
+    const vd2 one = {1.0, 1.0}, zero = {0.0, 0.0};
+    const vl2 absm = {INT64_MAX, INT64_MAX};
+    int32_t W = side < 0 ? V : V - 1; /* the cell's lower row */
+    vd2 z0 = ld2(zp + W), z1 = ld2(zc + W), z2 = ld2(zp + W + 1), z3 = ld2(zc + W + 1), h0 = ld2(fh + V);
+    vd2 a = (vd2)((vl2)ld2(mc + V) & absm), s = a / (one + a), q;
+    /* the twist k (the main diagonal upper where k >= 0), or for the triangle +-1 (main in
+     * two cones): k * 1 + 0 compares as k does; NaN sum: a void corner (cellz) */
+    vd2 k = (z0 - z1 - z2 + z3) * d->kmul + d->kadd, sum = z0 + z1 + z2 + z3;
+    vl2 main = (vl2)(k >= zero), take;
+    if (side < 0)
+        q = (z0 + (z3 - z0) * s - d->ez) / (d->u1 + s);
+    else
+        q = (z1 + (z2 - z1) * (one - a + a * s) - d->ez) / (d->u1 + s);
+    take = (side < 0 ? main : ~main) & (vl2)(sum == sum) & (vl2)(q > h0);
+    q = (vd2)(((vl2)q & take) | ((vl2)h0 & ~take));
+    fh[V] = q[0];
+    if (n > 1)
+        fh[V + 1] = q[1];
+}
+
+/* Whether any of the VS_DIAG targets from V has its q above fhi by eps (quick_visible's
+ * first test): only those may need their last cell's diagonal. */
+static inline int visible_any(const double *qc, const double *fh, const diag_k *d, int32_t V)
+{
+    const vl2 absm = {INT64_MAX, INT64_MAX};
+    vl2 c = {0, 0};
+    for (int i = 0; i < VS_DIAG; i += 2) {
+        vd2 q = ld2(qc + V + i);
+        c |= (vl2)(q > ld2(fh + V + i) + (d->ea + d->er * (vd2)((vl2)q & absm)));
     }
-    return vis;
+    return (c[0] | c[1]) != 0;
+}
+
+/* last_diags' rows Va .. Vb - 1 on one side of the eye's row, VS_DIAG at a time: those past
+ * Vb in the last ones are read (rows of the buffers) but not stored. */
+static inline __attribute__((always_inline)) void diag_run(const double *zp, const double *zc, const double *mc,
+                                                           const double *qc, double *fh, const diag_k *d,
+                                                           int32_t Va, int32_t Vb, int side)
+{
+    for (int32_t V = Va; V < Vb; V += VS_DIAG) {
+        if (!visible_any(qc, fh, d, V))
+            continue;
+        for (int32_t i = 0; i < VS_DIAG && V + i < Vb; i += 2)
+            diag_pair(zp, zc, mc, fh, d, V + i, Vb - (V + i) > 1 ? 2 : 1, side);
+    }
+}
+
+/* fhi[V] raised to last_cell's value for rows V0 .. V1 of column U (the q where the
+ * segment to (U, V) crosses its last cell's diagonal, when that diagonal is the cell's
+ * upper one and does not end at (U, V); nothing for a cell with a void corner), two rows
+ * to a vector, each lane last_cell's expressions (the same bits), for the rows that may be
+ * visible: quick_visible then tests one bound. Before, quick_visible called last_cell for
+ * three quarters of the visible targets, a branch on the twist's sign (a coin toss) and
+ * two divisions each: trinidad from Blanca Peak 903.0 -> 840.4 M instructions
+ * (docs/viewshed.md "Speed"; the TD_VSWEEP_DEBUG build checks each row against
+ * last_cell). */
+TD_ROW_CLONES static void last_diags(sweep *sw, int32_t U, int32_t V0, int32_t V1)
+{
+    const cone *c = &sw->c;
+    const int32_t o = c->vlo;
+    const double *zp = sw->zcol[0] - o, *zc = sw->zcol[1] - o, *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o;
+    double *fh = sw->fhi - o;
+    const double ez = sw->job->ez, u1 = U - c->eu - 1.0, km = sw->bil ? 1.0 : 0.0;
+    const double ka = sw->bil ? 0.0 : (c->anti ? -1.0 : 1.0);
+    const diag_k d = {{ez, ez}, {u1, u1}, {km, km}, {ka, ka}, {VS_EPS_ABS, VS_EPS_ABS}, {VS_EPS_REL, VS_EPS_REL}};
+    int32_t Vm, Vp;
+    eye_rows(c->ev, V0, V1, &Vm, &Vp);
+    Vm = Vm < c->vhi ? Vm : c->vhi; /* the cells on the grid (last_cell's cellz) */
+    Vp = Vp > o + 1 ? Vp : o + 1;
+#ifdef TD_VSWEEP_DEBUG /* each row that may be visible checked against last_cell */
+    double *was = malloc((size_t)(V1 - V0 + 1) * sizeof *was);
+    for (int32_t V = V0; V <= V1 && was; V++)
+        was[V - V0] = fh[V];
+#endif
+    diag_run(zp, zc, mc, qc, fh, &d, V0, Vm, -1);
+    diag_run(zp, zc, mc, qc, fh, &d, Vp, V1 + 1, 1);
+#ifdef TD_VSWEEP_DEBUG
+    for (int32_t V = V0; V <= V1 && was; V++) {
+        double hi = was[V - V0], lo = -INFINITY, q = qc[V];
+        last_cell(sw, V, U - c->eu, mc[V], INFINITY, &hi, &lo);
+        if ((q > was[V - V0] + VS_EPS_ABS + VS_EPS_REL * fabs(q) && fh[V] != hi) || (fh[V] != was[V - V0] && fh[V] != hi)) {
+            fprintf(stderr, "last_diags: U %d V %d: %.17g, last_cell %.17g\n", U, V, fh[V], hi);
+            abort();
+        }
+    }
+    free(was);
+#endif
 }
 
 /* Decides target (U, V) of column U (not a void) against F, or casts it. */
@@ -1833,21 +1941,20 @@ decide:
  * same bits), in a function of its own: inlined into cone_worker with everything else,
  * the loop kept its pointers and flags on the stack (about 34 instructions a target for
  * the loop, owned()'s and the void test and the hidden test, callgrind). */
-/* targets_plain's rows Va .. Vb, on one side of the eye's row (side: the sign of their m,
- * a constant where it is inlined: diag_bound's tests fold). The number decided here. */
-static inline __attribute__((always_inline)) uint64_t targets_run(sweep *sw, const tgt_cols *lt, tgt_cols *t,
-                                                                  int32_t U, int32_t Va, int32_t Vb, int side)
+static void targets_plain(sweep *sw, tgt_cols *t, int32_t U, int32_t V0, int32_t V1)
 {
-    const double *qc = lt->qc, *fl = sw->flo - lt->vlo;
-    uint8_t *vis = lt->vis;
-    const ptrdiff_t vs = lt->vstride;
+    const tgt_cols lt = *t; /* a copy quick_visible reads: its address is not taken elsewhere,
+                               so the bytes written to vis are known not to change it */
+    const double *qc = lt.qc, *fl = sw->flo - lt.vlo;
+    uint8_t *vis = lt.vis;
+    const ptrdiff_t vs = lt.vstride;
     uint64_t n = 0;
-    for (int32_t V = Va; V <= Vb; V++) {
+    for (int32_t V = V0; V <= V1; V++) {
         double q = qc[V];
         if (q < fl[V] - (VS_EPS_ABS + VS_EPS_REL * fabs(q))) {
             vis[V * vs] = 0;
             n++;
-        } else if (quick_visible(sw, lt, V, side)) {
+        } else if (quick_visible(&lt, V)) {
 #ifdef TD_VSWEEP_DEBUG /* the proof checked against the cast, as target()'s */
             const td_vsweep_job *j = sw->job;
             const cone *c = &sw->c;
@@ -1862,19 +1969,6 @@ static inline __attribute__((always_inline)) uint64_t targets_run(sweep *sw, con
             target(sw, t, U, V);
         }
     }
-    return n;
-}
-
-static void targets_plain(sweep *sw, tgt_cols *t, int32_t U, int32_t V0, int32_t V1)
-{
-    const tgt_cols lt = *t; /* a copy quick_visible reads: its address is not taken elsewhere,
-                               so the bytes written to vis are known not to change it */
-    const double ev = sw->c.ev;
-    /* the rows under the eye's row (m < 0), on it (m = 0: ev a row) and over it */
-    int32_t Vm = (int32_t)dmin(dmax(ceil(ev), (double)V0), (double)V1 + 1.0), Vp = Vm + (Vm <= V1 && Vm == ev);
-    uint64_t n = targets_run(sw, &lt, t, U, V0, Vm - 1, -1);
-    n += targets_run(sw, &lt, t, U, Vm, Vp - 1, 0);
-    n += targets_run(sw, &lt, t, U, Vp, V1, 1);
     sw->swept += n;
 }
 
@@ -1940,6 +2034,8 @@ static void sweep_cone(sweep *sw)
             V0++;
         while (V1 >= V0 && !in_cone(V1 - ev, u, strict))
             V1--;
+        if (quickv && !sw->lin)
+            last_diags(sw, U, V0, V1);
         if (nomax && !holes && quick && quickv) {
             targets_plain(sw, &t, U, V0, V1);
             V1 = V0 - 1; /* done */
@@ -1954,7 +2050,7 @@ static void sweep_cone(sweep *sw)
                 sw->swept++;
                 continue;
             }
-            if (quickv && quick_visible(sw, &t, V, (t.mc[V] > 0.0) - (t.mc[V] < 0.0))) {
+            if (quickv && quick_visible(&t, V)) {
 #ifdef TD_VSWEEP_DEBUG /* the proof checked against the cast, as target()'s */
                 uint32_t st = 0;
                 const td_vsweep_job *j = sw->job;
@@ -1993,7 +2089,7 @@ static void *cone_worker(void *arg)
     cone_task *t = arg;
     const td_grid *g = t->job->v->grid;
     size_t nmax = (size_t)(g->w > g->h ? g->w : g->h);
-    double *zb = malloc(15 * nmax * sizeof *zb);
+    double *zb = malloc((15 * nmax + VS_DIAG) * sizeof *zb); /* last_diags reads rows past fhi's */
     int *kb = malloc(nmax * sizeof *kb);
     uint8_t *ob = malloc(nmax);
     float *panel = malloc((size_t)VS_PANEL * nmax * sizeof *panel);
