@@ -58,7 +58,7 @@
  * raised to the last cell's diagonal, for a column's rows that may be visible in one
  * vector pass, last_diags: 903.0 -> 840.4 M, 2026-11-30 15:30; and where F is column
  * U-1's own edges, its values there from column U-1's arrays, two intervals a vector,
- * not walked, face_pair: -> 826.7 M, 15:50); F is
+ * not walked, face_pair: -> 809.5 M, 15:50); F is
  * kept to the m the columns still to come read (col_merge), facing blocks are tried under
  * the column's polyline alone first (block_poly), and a bilinear target its last cell's
  * upper diagonal leaves undecided is proved hidden by real points of that last strip
@@ -169,17 +169,19 @@ typedef struct sweep {
     uint8_t *colok; /* column U's edge [V, V+1] counts (a cell beside it is not a hole) */
     int pass_ok;
     /* facing pieces: where col_merge put column U's edge [V, V+1] alone into F (above F's
-     * maximum), fcol[V] = u and fidx[V] its index in F; read by the next column's
-     * col_pass (face_pair) while face_ok (no voids, F the one col_merge wrote) */
-    double *fcol;
-    int *fidx;
-    int face_ok, nface;
+     * maximum), the runs [a, b) of such intervals (nruns pairs in `runs`, V increasing)
+     * and each piece's index in F (fidx[V]); read by the next column's col_pass
+     * (face_pair) while face_ok (no voids, F the one col_merge wrote) */
+    int *fidx, *runs;
+    int face_ok, nruns;
     uint64_t swept, rays, steps, blocks, facing, faced;
 } sweep;
 
 /* max and min of values that are never NaN here, inline (fmax, fmin are calls to libm) */
 static inline double dmax(double a, double b) { return a > b ? a : b; }
 static inline double dmin(double a, double b) { return a < b ? a : b; }
+static inline int32_t imax(int32_t a, int32_t b) { return a > b ? a : b; }
+static inline int32_t imin(int32_t a, int32_t b) { return a < b ? a : b; }
 
 /* Two doubles (GCC and clang vector extensions; an SSE2 register): the strip's block tests
  * (block_under, block_poly) two cells at a time, each lane the scalar expression (no FMA
@@ -193,12 +195,6 @@ static inline vd2 vmin2(vd2 a, vd2 b) { return (vd2)_mm_min_pd((__m128d)a, (__m1
 #else
 static inline vd2 vmax2(vd2 a, vd2 b) { vd2 r = {dmax(a[0], b[0]), dmax(a[1], b[1])}; return r; }
 static inline vd2 vmin2(vd2 a, vd2 b) { vd2 r = {dmin(a[0], b[0]), dmin(a[1], b[1])}; return r; }
-#endif
-/* Lane k's sign bit as bit k (movmskpd) */
-#if defined(__SSE2__)
-static inline int signs2(vl2 a) { return _mm_movemask_pd((__m128d)a); }
-#else
-static inline int signs2(vl2 a) { return (a[0] < 0) | (a[1] < 0) << 1; }
 #endif
 static inline vd2 ld2(const double *p)
 {
@@ -718,8 +714,8 @@ static inline __attribute__((always_inline)) int col_walk(const piece *p, const 
  * col_walk's values from column U-1's arrays, each lane col_walk's expressions on the
  * two pieces' fields (m', q', the slope; slack 0), so the same bits. On facing terrain
  * the walk's pieces are the column before's edges, one a row: trinidad from Blanca Peak,
- * 1.14 M of the 2.89 M intervals so, col_walk 186.9 -> 113.0 M instructions, the sweep
- * 840.4 -> 826.7 M (face_pair 25 M, face_scan 22 M and col_merge's marks 9 M of it back;
+ * 1.14 M of the 2.89 M intervals so, col_walk 186.9 -> 113 M instructions, the sweep
+ * 840.4 -> 809.5 M (face_pair 25 M and col_merge's runs about 10 M of it back;
  * docs/viewshed.md "Speed"). */
 static inline void face_pair(const double *mc, const double *mp, const double *qp, const double *cs,
                              const int *fi, int *kc, double *fm, double *fx, double *fl, double *fh, int32_t V,
@@ -735,23 +731,6 @@ static inline void face_pair(const double *mc, const double *mp, const double *q
     memcpy(fm + V, &lo, sizeof lo);
     memcpy(fx + V, &hi, sizeof hi);
     memcpy(kc + V + 1, fi + j + 1, 2 * sizeof *kc);
-}
-
-/* The first interval V in [V, Ve) whose column U-1 pieces j = V + off and j + 1 are
- * facing ones (fcol: column U-1's u, uc), or with `want` 0 the first whose are not: four
- * at a time first (none of j .. j+3 facing, or all of j .. j+4), then one by one. */
-static inline int32_t face_scan(const double *fc, double uc, int32_t V, int32_t Ve, int32_t off, int want)
-{
-    const vd2 u2 = {uc, uc};
-    for (; V + 4 <= Ve; V += 4) {
-        const double *f = fc + V + off;
-        int a = signs2((vl2)(ld2(f) == u2)) | signs2((vl2)(ld2(f + 2) == u2)) << 2; /* j .. j+3 */
-        if (want ? a != 0 : (a | (signs2((vl2)(ld2(f + 3) == u2)) & 2) << 3) != 0x1f)    /* and j+4 */
-            break;
-    }
-    while (V < Ve && ((fc[V + off] == uc && fc[V + off + 1] == uc) != want))
-        V++;
-    return V;
 }
 
 #ifdef TD_VSWEEP_DEBUG /* face_pair's values against col_walk's over the whole column */
@@ -816,26 +795,28 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     if (hu) {
         k = col_walk(p, mc, kc, fm, fx, fl, fh, hu, k, V0, V1);
     } else {
-        /* runs of intervals whose F is two facing pieces of the column before (face_pair),
+        /* the intervals whose F is two facing pieces of the column before (face_pair),
          * on each side of the eye's row two cells inside the cone; the rest walked from
          * the piece at their start. Below the eye's row (ev - V <= u - 2, V + 1 < ev)
          * sample V + 1 of column U-1 projects into interval V of column U (j = V), above it
          * (0 < V - ev <= u - 2) sample V does (j = V - 1), and the pieces of column U-1's
          * intervals j and j + 1 meet inside it: m'_j < m_V < m'_j+1 < m_V+1 < m'_j+2, each gap
          * at least 1 / u^2 of m (as block_facing's intervals; the TD_VSWEEP_DEBUG build
-         * checks the values against col_walk's) */
-        const double ev = sw->c.ev, u = U - sw->c.eu, uc = (U - 1) - sw->c.eu; /* column U-1's u, as add_column's */
+         * checks the values against col_walk's). Both are facing pieces for V in [a, b - 1)
+         * below, [a + 1, b) above, of a run [a, b) of them */
+        const double ev = sw->c.ev, u = U - sw->c.eu;
         const int32_t o = sw->c.vlo;
         const int32_t side[2][3] = {{(int32_t)ceil(ev - u + 2.0), (int32_t)ceil(ev - 1.0), 0},
                                     {(int32_t)floor(ev) + 1, (int32_t)floor(ev + u - 2.0) + 1, -1}};
-        const double *fc = sw->fcol - o, *mp = sw->mcol[0] - o, *qp = sw->qcol[0] - o, *cs = sw->cslope - o;
-        const int *fi = sw->fidx - o;
+        const double *mp = sw->mcol[0] - o, *qp = sw->qcol[0] - o, *cs = sw->cslope - o;
+        const int *fi = sw->fidx - o, *rn = sw->runs;
         int32_t cur = V0;
-        for (int sd = 0; sd < 2 && sw->face_ok; sd++) {
-            int32_t V = side[sd][0] > cur ? side[sd][0] : cur, Ve = side[sd][1] < V1 ? side[sd][1] : V1;
-            const int32_t off = side[sd][2];
-            while (V < Ve) {
-                int32_t W = face_scan(fc, uc, V, Ve, off, 1), X = face_scan(fc, uc, W, Ve, off, 0);
+        for (int r = 0; r < sw->nruns && sw->face_ok; r++)
+            for (int sd = 0; sd < 2; sd++) {
+                const int32_t off = side[sd][2];
+                int32_t W = rn[2 * r] - off, X = rn[2 * r + 1] - 1 - off;
+                W = imax(imax(W, side[sd][0]), cur);
+                X = imin(imin(X, side[sd][1]), V1);
                 X = W + ((X - W) & ~1); /* pairs */
                 if (X > W) {
                     if (cur < W)
@@ -845,9 +826,7 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
                     sw->faced += (uint64_t)(X - W);
                     cur = X;
                 }
-                V = X > W ? X : W + 1;
             }
-        }
         if (cur < V1)
             col_walk(p, mc, kc, fm, fx, fl, fh, NULL, kc[cur], cur, V1);
         k = kc[V1];
@@ -1423,8 +1402,8 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
     const piece *F = sw->F.p;
     const pvec *G = &sw->G;
     const int nf = sw->F.n;
-    double *fc = sw->fcol - o;
-    int *fi = sw->fidx - o, nface = 0;
+    int *fi = sw->fidx - o, *rn = sw->runs, nr = 0;
+    int32_t rend = V0 - 2; /* the end of the run of facing pieces so far (none) */
     double lim = (u + 3.0) / u + 1e-9;
     double mlo = dmax(-lim, dmin(0.0, sw->c.vlo - sw->c.ev) / u - 1e-9);
     double mhi = dmin(lim, dmax(0.0, sw->c.vhi - sw->c.ev) / u + 1e-9);
@@ -1467,9 +1446,13 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
             piece *d = &out.p[out.n];
             if (d[-1].m < m0) {
                 *d = (piece){m0, m0, q0, cs[V], 0.0, u};
-                fc[V] = u; /* a facing piece (face_pair) */
-                fi[V] = out.n++;
-                nface++;
+                fi[V] = out.n++; /* a facing piece (face_pair): a new run, or the run goes on */
+                if (V != rend) {
+                    if (nr > 0)
+                        rn[2 * nr - 1] = rend;
+                    rn[2 * nr++] = V;
+                }
+                rend = V + 1;
                 last = NULL;
                 continue;
             }
@@ -1515,7 +1498,9 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
     out.p[out.n] = empty_piece;
     out.p[out.n].m = VS_MDOM;
     sw->C = out;
-    sw->nface = nface;
+    if (nr > 0)
+        rn[2 * nr - 1] = rend;
+    sw->nruns = nr;
 }
 
 /* Column U's edges and with `strip` the strip's into F, with the column pass: the
@@ -1562,7 +1547,7 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
         t = sw->F;
         sw->F = sw->C;
         sw->C = t;
-        sw->face_ok = !holes && sw->nface > 0; /* F is col_merge's: its facing pieces for the next column (face_pair) */
+        sw->face_ok = !holes && sw->nruns > 0; /* F is col_merge's: its facing pieces for the next column (face_pair) */
     }
     sw->hint_q = sw->hint_s = 0;
 }
@@ -2221,8 +2206,8 @@ static void *cone_worker(void *arg)
     cone_task *t = arg;
     const td_grid *g = t->job->v->grid;
     size_t nmax = (size_t)(g->w > g->h ? g->w : g->h);
-    double *zb = malloc((16 * nmax + VS_DIAG) * sizeof *zb); /* last_diags reads rows past fhi's */
-    int *kb = malloc(2 * nmax * sizeof *kb); /* kcol, fidx */
+    double *zb = malloc((15 * nmax + VS_DIAG) * sizeof *zb); /* last_diags reads rows past fhi's */
+    int *kb = malloc((3 * nmax + 2) * sizeof *kb); /* kcol, fidx, runs (at most nmax / 2 + 1 pairs) */
     uint8_t *ob = malloc(nmax);
     float *panel = malloc((size_t)VS_PANEL * nmax * sizeof *panel);
     sweep *prev = NULL;
@@ -2244,7 +2229,7 @@ static void *cone_worker(void *arg)
         sw->panel = sw->c.vi == 0 ? panel : NULL;
         if (zb && kb && ob && panel && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) &&
             pv_reserve(sw, &sw->T, 16) && pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
-            for (size_t q = 0; q < 16 * nv; q++) /* fcol too: no facing piece of a cone before */
+            for (size_t q = 0; q < 15 * nv; q++)
                 zb[q] = NAN;
             memset(ob, 0, nv);
             for (int b = 0; b < 3; b++) {
@@ -2259,8 +2244,8 @@ static void *cone_worker(void *arg)
             sw->flo = zb + 13 * nv;
             sw->fhi = zb + 14 * nv;
             sw->kcol = kb;
-            sw->fcol = zb + 15 * nv;
             sw->fidx = kb + nv;
+            sw->runs = kb + 2 * nv;
             sw->colok = ob;
             sweep_cone(sw);
         } else {

@@ -281,10 +281,11 @@ static void test_facing(void **state)
  * (one side of the eye's row), from the south edge (the north cone, whose rows are the
  * grid's columns) and from the east edge, over a ridge that hides the columns behind it
  * and ends the runs there. The sweep equals the cast on every surface, and such intervals
- * were taken on each. Broken on purpose, a piece's index one off or the far side's
- * pieces taken one row off fail this test (test_rough); the values (F at the break left
- * out, F lowered by 1e-3, the interval across the eye's row taken) fail the
- * TD_VSWEEP_DEBUG build, which checks every such interval against col_walk. */
+ * were taken on each. Broken on purpose (a piece's index one off, the far side's pieces
+ * taken one row off, a run taken from one interval early) this test or test_rough fail;
+ * the values (F at the break left out, F lowered by 1e-3, the interval across the eye's
+ * row taken) fail the TD_VSWEEP_DEBUG build, which checks every such interval against
+ * col_walk. */
 static void test_faced(void **state)
 {
     static const td_vs_point p[] = {{0.0, 190.0}, {0.0, 187.3}, {0.0, 0.0}, {231.7, 0.0}, {460.0, 200.0}};
