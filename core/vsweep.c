@@ -58,7 +58,7 @@
  * raised to the last cell's diagonal, for a column's rows that may be visible in one
  * vector pass, last_diags: 903.0 -> 840.4 M, 2026-11-30 15:30; and where F is column
  * U-1's own edges, its values there from column U-1's arrays, two intervals a vector,
- * not walked, face_pair: -> 809.5 M, 15:50); F is
+ * not walked, face_pair: -> 807.7 M, 15:55); F is
  * kept to the m the columns still to come read (col_merge), facing blocks are tried under
  * the column's polyline alone first (block_poly), and a bilinear target its last cell's
  * upper diagonal leaves undecided is proved hidden by real points of that last strip
@@ -169,10 +169,10 @@ typedef struct sweep {
     uint8_t *colok; /* column U's edge [V, V+1] counts (a cell beside it is not a hole) */
     int pass_ok;
     /* facing pieces: where col_merge put column U's edge [V, V+1] alone into F (above F's
-     * maximum), the runs [a, b) of such intervals (nruns pairs in `runs`, V increasing)
-     * and each piece's index in F (fidx[V]); read by the next column's col_pass
-     * (face_pair) while face_ok (no voids, F the one col_merge wrote) */
-    int *fidx, *runs;
+     * maximum), the runs [a, b) of such intervals, V increasing, with the index in F of a's
+     * piece (the others follow it): nruns triples a, b, index in `runs`; read by the next
+     * column's col_pass (face_pair) while face_ok (no voids, F the one col_merge wrote) */
+    int *runs;
     int face_ok, nruns;
     uint64_t swept, rays, steps, blocks, facing, faced;
 } sweep;
@@ -715,10 +715,10 @@ static inline __attribute__((always_inline)) int col_walk(const piece *p, const 
  * two pieces' fields (m', q', the slope; slack 0), so the same bits. On facing terrain
  * the walk's pieces are the column before's edges, one a row: trinidad from Blanca Peak,
  * 1.14 M of the 2.89 M intervals so, col_walk 186.9 -> 113 M instructions, the sweep
- * 840.4 -> 809.5 M (face_pair 25 M and col_merge's runs about 10 M of it back;
+ * 840.4 -> 807.7 M (face_pair 25 M and col_merge's runs about 9 M of it back;
  * docs/viewshed.md "Speed"). */
 static inline void face_pair(const double *mc, const double *mp, const double *qp, const double *cs,
-                             const int *fi, int *kc, double *fm, double *fx, double *fl, double *fh, int32_t V,
+                             int k, int *kc, double *fm, double *fx, double *fl, double *fh, int32_t V,
                              int32_t off)
 {
     const int32_t j = V + off;
@@ -730,7 +730,8 @@ static inline void face_pair(const double *mc, const double *mp, const double *q
     memcpy(fh + V, &at, sizeof at);
     memcpy(fm + V, &lo, sizeof lo);
     memcpy(fx + V, &hi, sizeof hi);
-    memcpy(kc + V + 1, fi + j + 1, 2 * sizeof *kc);
+    kc[V + 1] = k; /* the piece of j + 1, then of j + 2 */
+    kc[V + 2] = k + 1;
 }
 
 #ifdef TD_VSWEEP_DEBUG /* face_pair's values against col_walk's over the whole column */
@@ -809,20 +810,20 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
         const int32_t side[2][3] = {{(int32_t)ceil(ev - u + 2.0), (int32_t)ceil(ev - 1.0), 0},
                                     {(int32_t)floor(ev) + 1, (int32_t)floor(ev + u - 2.0) + 1, -1}};
         const double *mp = sw->mcol[0] - o, *qp = sw->qcol[0] - o, *cs = sw->cslope - o;
-        const int *fi = sw->fidx - o, *rn = sw->runs;
+        const int *rn = sw->runs;
         int32_t cur = V0;
         for (int r = 0; r < sw->nruns && sw->face_ok; r++)
             for (int sd = 0; sd < 2; sd++) {
                 const int32_t off = side[sd][2];
-                int32_t W = rn[2 * r] - off, X = rn[2 * r + 1] - 1 - off;
+                int32_t W = rn[3 * r] - off, X = rn[3 * r + 1] - 1 - off;
                 W = imax(imax(W, side[sd][0]), cur);
                 X = imin(imin(X, side[sd][1]), V1);
                 X = W + ((X - W) & ~1); /* pairs */
                 if (X > W) {
                     if (cur < W)
                         col_walk(p, mc, kc, fm, fx, fl, fh, NULL, kc[cur], cur, W);
-                    for (int32_t Z = W; Z < X; Z += 2)
-                        face_pair(mc, mp, qp, cs, fi, kc, fm, fx, fl, fh, Z, off);
+                    for (int32_t Z = W; Z < X; Z += 2) /* the piece of j + 1 = Z + off + 1 */
+                        face_pair(mc, mp, qp, cs, rn[3 * r + 2] + Z + off + 1 - rn[3 * r], kc, fm, fx, fl, fh, Z, off);
                     sw->faced += (uint64_t)(X - W);
                     cur = X;
                 }
@@ -1402,7 +1403,7 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
     const piece *F = sw->F.p;
     const pvec *G = &sw->G;
     const int nf = sw->F.n;
-    int *fi = sw->fidx - o, *rn = sw->runs, nr = 0;
+    int *rn = sw->runs, nr = 0;
     int32_t rend = V0 - 2; /* the end of the run of facing pieces so far (none) */
     double lim = (u + 3.0) / u + 1e-9;
     double mlo = dmax(-lim, dmin(0.0, sw->c.vlo - sw->c.ev) / u - 1e-9);
@@ -1446,12 +1447,14 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
             piece *d = &out.p[out.n];
             if (d[-1].m < m0) {
                 *d = (piece){m0, m0, q0, cs[V], 0.0, u};
-                fi[V] = out.n++; /* a facing piece (face_pair): a new run, or the run goes on */
-                if (V != rend) {
+                if (V != rend) { /* a facing piece (face_pair): a new run, or the run goes on */
                     if (nr > 0)
-                        rn[2 * nr - 1] = rend;
-                    rn[2 * nr++] = V;
+                        rn[3 * nr - 2] = rend;
+                    rn[3 * nr] = V;
+                    rn[3 * nr + 2] = out.n;
+                    nr++;
                 }
+                out.n++;
                 rend = V + 1;
                 last = NULL;
                 continue;
@@ -1499,7 +1502,7 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
     out.p[out.n].m = VS_MDOM;
     sw->C = out;
     if (nr > 0)
-        rn[2 * nr - 1] = rend;
+        rn[3 * nr - 2] = rend;
     sw->nruns = nr;
 }
 
@@ -2207,7 +2210,7 @@ static void *cone_worker(void *arg)
     const td_grid *g = t->job->v->grid;
     size_t nmax = (size_t)(g->w > g->h ? g->w : g->h);
     double *zb = malloc((15 * nmax + VS_DIAG) * sizeof *zb); /* last_diags reads rows past fhi's */
-    int *kb = malloc((3 * nmax + 2) * sizeof *kb); /* kcol, fidx, runs (at most nmax / 2 + 1 pairs) */
+    int *kb = malloc((3 * nmax + 6) * sizeof *kb); /* kcol, runs (at most nmax / 2 + 1 triples) */
     uint8_t *ob = malloc(nmax);
     float *panel = malloc((size_t)VS_PANEL * nmax * sizeof *panel);
     sweep *prev = NULL;
@@ -2244,8 +2247,7 @@ static void *cone_worker(void *arg)
             sw->flo = zb + 13 * nv;
             sw->fhi = zb + 14 * nv;
             sw->kcol = kb;
-            sw->fidx = kb + nv;
-            sw->runs = kb + 2 * nv;
+            sw->runs = kb + nv;
             sw->colok = ob;
             sweep_cone(sw);
         } else {
