@@ -33,7 +33,8 @@
  * z <= ground + G u, so q <= G - height / u (the linear surface, whose height under the
  * eye depends on the ray, gets no such bound). Targets in columns up to U0 + 1 are cast.
  *
- * The column pass (from u = VS_PASS_U on). One walk along F per column (col_pass) gives
+ * The column pass (from u = VS_PASS_U on). One walk along F per column (col_pass; where F
+ * is two of the column before's own edges, from that column's arrays, face_pair) gives
  * each target its piece of F and F's minimum and maximum over each interval [m_V, m_V+1]
  * between the column's samples; a column edge under that minimum is left out, the others
  * become pieces straight from the column's arrays (they meet end to end in m order).
@@ -714,7 +715,7 @@ static inline __attribute__((always_inline)) int col_walk(const piece *p, const 
  * col_walk's values from column U-1's arrays, each lane col_walk's expressions on the
  * two pieces' fields (m', q', the slope; slack 0), so the same bits. On facing terrain
  * the walk's pieces are the column before's edges, one a row: trinidad from Blanca Peak,
- * 1.14 M of the 2.89 M intervals so, col_walk 186.9 -> 113 M instructions, the sweep
+ * 1.19 M of the 2.89 M intervals so, col_walk 186.9 -> 113 M instructions, the sweep
  * 840.4 -> 807.7 M (face_pair 25 M and col_merge's runs about 9 M of it back;
  * docs/viewshed.md "Speed"). */
 static inline void face_pair(const double *mc, const double *mp, const double *qp, const double *cs,
