@@ -554,7 +554,6 @@ static td_status vs_sweep_run(vs_ctx *c, int nthreads, uint8_t *vis, td_viewshed
         st->steps += vst.steps;
         st->blocks += vst.blocks;
         st->facing += vst.facing;
-        st->faced += vst.faced;
         if (rc == TD_OK && !direct)
             vs_sweep_add(c, e, vis);
     }

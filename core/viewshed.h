@@ -122,7 +122,6 @@ typedef struct td_viewshed_stats {
     uint64_t steps;    /* tracer steps over all rays */
     uint64_t blocks;   /* the sweep's strip blocks left out whole (td_vsweep_stats) */
     uint64_t facing;   /* of them, those under the column's polyline (block_facing) */
-    uint64_t faced;    /* the column pass's intervals from the column before's facing pieces (td_vsweep_stats) */
     double visible_area_m2; /* visible samples * sx * sy */
     double setup_ms, trace_ms; /* curvature grids and maxmips; tracing (wall time) */
     int threads;

@@ -33,8 +33,7 @@
  * z <= ground + G u, so q <= G - height / u (the linear surface, whose height under the
  * eye depends on the ray, gets no such bound). Targets in columns up to U0 + 1 are cast.
  *
- * The column pass (from u = VS_PASS_U on). One walk along F per column (col_pass; where F
- * is two of the column before's own edges, from that column's arrays, face_pair) gives
+ * The column pass (from u = VS_PASS_U on). One walk along F per column (col_pass) gives
  * each target its piece of F and F's minimum and maximum over each interval [m_V, m_V+1]
  * between the column's samples; a column edge under that minimum is left out, the others
  * become pieces straight from the column's arrays (they meet end to end in m order).
@@ -57,9 +56,7 @@
  * without calling target() (trinidad 1.64 G -> 1.40 G, docs/viewshed.md "Speed"), and
  * F's value there (fhi), so that it decides the visible ones too (quick_visible; fhi
  * raised to the last cell's diagonal, for a column's rows that may be visible in one
- * vector pass, last_diags: 903.0 -> 840.4 M, 2026-11-30 15:30; and where F is column
- * U-1's own edges, its values there from column U-1's arrays, two intervals a vector,
- * not walked, face_pair: -> 807.7 M, 15:55); F is
+ * vector pass, last_diags: 903.0 -> 840.4 M, 2026-11-30 15:30); F is
  * kept to the m the columns still to come read (col_merge), facing blocks are tried under
  * the column's polyline alone first (block_poly), and a bilinear target its last cell's
  * upper diagonal leaves undecided is proved hidden by real points of that last strip
@@ -169,20 +166,12 @@ typedef struct sweep {
     int32_t panel_u, panel_n, panel_v0, panel_v1;
     uint8_t *colok; /* column U's edge [V, V+1] counts (a cell beside it is not a hole) */
     int pass_ok;
-    /* facing pieces: where col_merge put column U's edge [V, V+1] alone into F (above F's
-     * maximum), the runs [a, b) of such intervals, V increasing, with the index in F of a's
-     * piece (the others follow it): nruns triples a, b, index in `runs`; read by the next
-     * column's col_pass (face_pair) while face_ok (no voids, F the one col_merge wrote) */
-    int *runs;
-    int face_ok, nruns;
-    uint64_t swept, rays, steps, blocks, facing, faced;
+    uint64_t swept, rays, steps, blocks, facing;
 } sweep;
 
 /* max and min of values that are never NaN here, inline (fmax, fmin are calls to libm) */
 static inline double dmax(double a, double b) { return a > b ? a : b; }
 static inline double dmin(double a, double b) { return a < b ? a : b; }
-static inline int32_t imax(int32_t a, int32_t b) { return a > b ? a : b; }
-static inline int32_t imin(int32_t a, int32_t b) { return a < b ? a : b; }
 
 /* Two doubles (GCC and clang vector extensions; an SSE2 register): the strip's block tests
  * (block_under, block_poly) two cells at a time, each lane the scalar expression (no FMA
@@ -710,58 +699,6 @@ static inline __attribute__((always_inline)) int col_walk(const piece *p, const 
     return k;
 }
 
-/* col_pass's intervals V, V+1 of column U, whose F is two pieces column U-1's col_merge
- * put in alone, its intervals j and j + 1 (j = V + off), meeting inside the interval:
- * col_walk's values from column U-1's arrays, each lane col_walk's expressions on the
- * two pieces' fields (m', q', the slope; slack 0), so the same bits. On facing terrain
- * the walk's pieces are the column before's edges, one a row: trinidad from Blanca Peak,
- * 1.19 M of the 2.89 M intervals so, col_walk 186.9 -> 113 M instructions, the sweep
- * 840.4 -> 807.7 M (face_pair 25 M and col_merge's runs about 9 M of it back;
- * docs/viewshed.md "Speed"). */
-static inline void face_pair(const double *mc, const double *mp, const double *qp, const double *cs,
-                             int k, int *kc, double *fm, double *fx, double *fl, double *fh, int32_t V,
-                             int32_t off)
-{
-    const int32_t j = V + off;
-    vd2 m0 = ld2(mc + V), m1 = ld2(mc + V + 1), a0 = ld2(mp + j), a1 = ld2(mp + j + 1);
-    vd2 q0 = ld2(qp + j), q1 = ld2(qp + j + 1), s0 = ld2(cs + j), s1 = ld2(cs + j + 1);
-    vd2 at = q0 + s0 * (m0 - a0), y0 = q0 + s0 * (a1 - a0), y1 = q1 + s1 * (a1 - a1), e = q1 + s1 * (m1 - a1);
-    vd2 lo = vmin2(vmin2(at, vmin2(y0, y1)), e), hi = vmax2(vmax2(at, vmax2(y0, y1)), e);
-    memcpy(fl + V, &at, sizeof at); /* less the slack, 0 */
-    memcpy(fh + V, &at, sizeof at);
-    memcpy(fm + V, &lo, sizeof lo);
-    memcpy(fx + V, &hi, sizeof hi);
-    kc[V + 1] = k; /* the piece of j + 1, then of j + 2 */
-    kc[V + 2] = k + 1;
-}
-
-#ifdef TD_VSWEEP_DEBUG /* face_pair's values against col_walk's over the whole column */
-static void check_pass(const sweep *sw, int32_t V0, int32_t V1)
-{
-    const int32_t o = sw->c.vlo, n = V1 - V0 + 1;
-    const double *mc = sw->mcol[1] - o;
-    double *b = malloc(4 * (size_t)n * sizeof *b);
-    int *kb = malloc((size_t)n * sizeof *kb);
-    if (b && kb) {
-        double *fm = b - V0, *fx = b + n - V0, *fl = b + 2 * n - V0, *fh = b + 3 * n - V0;
-        int *kc = kb - V0;
-        kc[V0] = sw->kcol[V0 - o];
-        col_walk(sw->F.p, mc, kc, fm, fx, fl, fh, NULL, kc[V0], V0, V1);
-        for (int32_t V = V0; V < V1; V++)
-            if (kc[V + 1] != sw->kcol[V + 1 - o] || memcmp(&fm[V], &sw->fmin[V - o], sizeof *fm) ||
-                memcmp(&fx[V], &sw->fmax[V - o], sizeof *fx) || memcmp(&fl[V], &sw->flo[V - o], sizeof *fl) ||
-                memcmp(&fh[V], &sw->fhi[V - o], sizeof *fh)) {
-                fprintf(stderr, "face_pair: interval %d: k %d/%d min %.17g/%.17g max %.17g/%.17g lo %.17g/%.17g hi %.17g/%.17g\n",
-                        V, sw->kcol[V + 1 - o], kc[V + 1], sw->fmin[V - o], fm[V], sw->fmax[V - o], fx[V],
-                        sw->flo[V - o], fl[V], sw->fhi[V - o], fh[V]);
-                abort();
-            }
-    }
-    free(b);
-    free(kb);
-}
-#endif
-
 /* The column pass over column U's rows V0..V1 (m increasing with V): kcol[V] the piece of
  * F holding m_V (as find), fmin[V] F's minimum over [m_V, m_V+1] (at its ends and the
  * breaks between: F is linear in between), one walk along F instead of a search per
@@ -794,48 +731,7 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     while (p[k + 1].m <= mc[V0])
         k++;
     kc[V0] = k;
-    if (hu) {
-        k = col_walk(p, mc, kc, fm, fx, fl, fh, hu, k, V0, V1);
-    } else {
-        /* the intervals whose F is two facing pieces of the column before (face_pair),
-         * on each side of the eye's row two cells inside the cone; the rest walked from
-         * the piece at their start. Below the eye's row (ev - V <= u - 2, V + 1 < ev)
-         * sample V + 1 of column U-1 projects into interval V of column U (j = V), above it
-         * (0 < V - ev <= u - 2) sample V does (j = V - 1), and the pieces of column U-1's
-         * intervals j and j + 1 meet inside it: m'_j < m_V < m'_j+1 < m_V+1 < m'_j+2, each gap
-         * at least 1 / u^2 of m (as block_facing's intervals; the TD_VSWEEP_DEBUG build
-         * checks the values against col_walk's). Both are facing pieces for V in [a, b - 1)
-         * below, [a + 1, b) above, of a run [a, b) of them */
-        const double ev = sw->c.ev, u = U - sw->c.eu;
-        const int32_t o = sw->c.vlo;
-        const int32_t side[2][3] = {{(int32_t)ceil(ev - u + 2.0), (int32_t)ceil(ev - 1.0), 0},
-                                    {(int32_t)floor(ev) + 1, (int32_t)floor(ev + u - 2.0) + 1, -1}};
-        const double *mp = sw->mcol[0] - o, *qp = sw->qcol[0] - o, *cs = sw->cslope - o;
-        const int *rn = sw->runs;
-        int32_t cur = V0;
-        for (int r = 0; r < sw->nruns && sw->face_ok; r++)
-            for (int sd = 0; sd < 2; sd++) {
-                const int32_t off = side[sd][2];
-                int32_t W = rn[3 * r] - off, X = rn[3 * r + 1] - 1 - off;
-                W = imax(imax(W, side[sd][0]), cur);
-                X = imin(imin(X, side[sd][1]), V1);
-                X = W + ((X - W) & ~1); /* pairs */
-                if (X > W) {
-                    if (cur < W)
-                        col_walk(p, mc, kc, fm, fx, fl, fh, NULL, kc[cur], cur, W);
-                    for (int32_t Z = W; Z < X; Z += 2) /* the piece of j + 1 = Z + off + 1 */
-                        face_pair(mc, mp, qp, cs, rn[3 * r + 2] + Z + off + 1 - rn[3 * r], kc, fm, fx, fl, fh, Z, off);
-                    sw->faced += (uint64_t)(X - W);
-                    cur = X;
-                }
-            }
-        if (cur < V1)
-            col_walk(p, mc, kc, fm, fx, fl, fh, NULL, kc[cur], cur, V1);
-        k = kc[V1];
-#ifdef TD_VSWEEP_DEBUG
-        check_pass(sw, V0, V1);
-#endif
-    }
+    k = hu ? col_walk(p, mc, kc, fm, fx, fl, fh, hu, k, V0, V1) : col_walk(p, mc, kc, fm, fx, fl, fh, NULL, k, V0, V1);
     fl[V1] = pval(&p[k], mc[V1]) - p[k].slack;
     fh[V1] = pval(&p[k], mc[V1]);
     if (k > 0 && p[k].m == mc[V1])
@@ -1277,7 +1173,6 @@ static void add_column_near(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
     double z[4], zl[4];
     int hint = sw->hint_s, k0 = find(&sw->F, mc[V0], &hint), k1;
     int under0 = qc[V0] <= pval(&sw->F.p[k0], mc[V0]), under1;
-    sw->face_ok = 0;
     pv_clear(&sw->G);
     for (int32_t V = V0; V < V1 && !sw->oom; V++, k0 = k1, under0 = under1) {
         k1 = find(&sw->F, mc[V + 1], &hint);
@@ -1404,8 +1299,6 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
     const piece *F = sw->F.p;
     const pvec *G = &sw->G;
     const int nf = sw->F.n;
-    int *rn = sw->runs, nr = 0;
-    int32_t rend = V0 - 2; /* the end of the run of facing pieces so far (none) */
     double lim = (u + 3.0) / u + 1e-9;
     double mlo = dmax(-lim, dmin(0.0, sw->c.vlo - sw->c.ev) / u - 1e-9);
     double mhi = dmin(lim, dmax(0.0, sw->c.vhi - sw->c.ev) / u + 1e-9);
@@ -1448,15 +1341,7 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
             piece *d = &out.p[out.n];
             if (d[-1].m < m0) {
                 *d = (piece){m0, m0, q0, cs[V], 0.0, u};
-                if (V != rend) { /* a facing piece (face_pair): a new run, or the run goes on */
-                    if (nr > 0)
-                        rn[3 * nr - 2] = rend;
-                    rn[3 * nr] = V;
-                    rn[3 * nr + 2] = out.n;
-                    nr++;
-                }
                 out.n++;
-                rend = V + 1;
                 last = NULL;
                 continue;
             }
@@ -1502,9 +1387,6 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
     out.p[out.n] = empty_piece;
     out.p[out.n].m = VS_MDOM;
     sw->C = out;
-    if (nr > 0)
-        rn[3 * nr - 2] = rend;
-    sw->nruns = nr;
 }
 
 /* Column U's edges and with `strip` the strip's into F, with the column pass: the
@@ -1545,13 +1427,11 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
      * F stays as it is, uncopied (and untrimmed this column) */
     if (above || sw->G.n > 1 || sw->G.p[0].qr != -INFINITY)
         col_merge(sw, V0, V1, u);
-    sw->face_ok = 0;
     if (!sw->oom && (above || sw->G.n > 1 || sw->G.p[0].qr != -INFINITY)) {
         pvec t;
         t = sw->F;
         sw->F = sw->C;
         sw->C = t;
-        sw->face_ok = !holes && sw->nruns > 0; /* F is col_merge's: its facing pieces for the next column (face_pair) */
     }
     sw->hint_q = sw->hint_s = 0;
 }
@@ -2128,7 +2008,6 @@ static void sweep_cone(sweep *sw)
     tgt_cols t;
     int32_t U0 = (int32_t)floor(c->eu) + 1; /* the first column east of the eye */
     pv_clear(&sw->F);
-    sw->face_ok = 0;
     for (int b = 0; b < VS_BINS; b++)
         sw->hole_u[b] = INFINITY;
     if (U0 <= c->uhi) {
@@ -2211,7 +2090,7 @@ static void *cone_worker(void *arg)
     const td_grid *g = t->job->v->grid;
     size_t nmax = (size_t)(g->w > g->h ? g->w : g->h);
     double *zb = malloc((15 * nmax + VS_DIAG) * sizeof *zb); /* last_diags reads rows past fhi's */
-    int *kb = malloc((3 * nmax + 6) * sizeof *kb); /* kcol, runs (at most nmax / 2 + 1 triples) */
+    int *kb = malloc(nmax * sizeof *kb);
     uint8_t *ob = malloc(nmax);
     float *panel = malloc((size_t)VS_PANEL * nmax * sizeof *panel);
     sweep *prev = NULL;
@@ -2248,7 +2127,6 @@ static void *cone_worker(void *arg)
             sw->flo = zb + 13 * nv;
             sw->fhi = zb + 14 * nv;
             sw->kcol = kb;
-            sw->runs = kb + nv;
             sw->colok = ob;
             sweep_cone(sw);
         } else {
@@ -2310,7 +2188,6 @@ td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st,
         st->swept += sw->swept;
         st->blocks += sw->blocks;
         st->facing += sw->facing;
-        st->faced += sw->faced;
         st->rays += sw->rays;
         st->steps += sw->steps;
         oom |= sw->oom;

@@ -50,7 +50,6 @@ typedef struct td_vsweep_stats {
     uint64_t steps;  /* tracer steps of the casts */
     uint64_t blocks; /* strip blocks whose edges were left out whole (vsweep.c block_under) */
     uint64_t facing; /* of them, those under the column's polyline (vsweep.c block_facing) */
-    uint64_t faced;  /* column intervals whose horizon the column before's facing pieces gave (vsweep.c face_pair) */
     int cancelled;
 } td_vsweep_stats;
 

@@ -32,7 +32,7 @@ static double noise(int32_t i, int32_t j, uint32_t seed)
     return (double)(x & 0xffffff) / 16777216.0;
 }
 
-enum { T_ROUGH, T_INTEGER, T_CLIFF, T_VOIDS, T_WALL, T_SLOPE };
+enum { T_ROUGH, T_INTEGER, T_CLIFF, T_VOIDS, T_WALL };
 
 static double terrain(int kind, int32_t i, int32_t j)
 {
@@ -46,8 +46,6 @@ static double terrain(int kind, int32_t i, int32_t j)
         z = NAN;
     if (kind == T_WALL && i >= 8 && i <= 9 && j < 22) /* a wall over half the east cone */
         z = 600.0 + 10.0 * noise(i, j, 5);
-    if (kind == T_SLOPE) /* rising east, 5 m a cell and 0.3 m of noise, a ridge across its middle */
-        z = 100.0 + 5.0 * i + 0.3 * noise(i, j, 9) + (i >= 30 && i <= 31 && j >= 10 && j <= 26 ? 60.0 : 0.0);
     if (kind == T_WALL && ((i >= 25 && i <= 27 && j >= 5 && j <= 8) || (i == 40 && j == 30) || (i == 33 && j == 12)))
         z = NAN; /* holes behind it and beside it */
     return z;
@@ -272,38 +270,6 @@ static void test_facing(void **state)
     unmake(&fx);
 }
 
-/* The column pass's intervals from the facing pieces of the column before (vsweep.c
- * face_pair: where column U-1's edges went into the horizon alone, column U's intervals
- * between them are read from column U-1's arrays, not walked): a smooth slope rising east
- * (the eye 0 or 1 m up on it sees its targets barely above the column before), seen from
- * the west edge on a sample's row (the eye's row an integer: the intervals at m = 0
- * walked) and between rows (the interval across the eye's row walked), from a corner
- * (one side of the eye's row), from the south edge (the north cone, whose rows are the
- * grid's columns) and from the east edge, over a ridge that hides the columns behind it
- * and ends the runs there. The sweep equals the cast on every surface, and such intervals
- * were taken on each. Broken on purpose (a piece's index one off, the far side's pieces
- * taken one row off, a run taken from one interval early) this test or test_rough fail;
- * the values (F at the break left out, F lowered by 1e-3, the interval across the eye's
- * row taken) fail the TD_VSWEEP_DEBUG build, which checks every such interval against
- * col_walk. */
-static void test_faced(void **state)
-{
-    static const td_vs_point p[] = {{0.0, 190.0}, {0.0, 187.3}, {0.0, 0.0}, {231.7, 0.0}, {460.0, 200.0}};
-    fixture fx;
-    uint64_t faced[TD_SURFACE_COUNT] = {0};
-    (void)state;
-    make(&fx, T_SLOPE, 10.0, 10.0);
-    for (size_t k = 0; k < sizeof p / sizeof *p; k++) {
-        all_surfaces(&fx, p[k]);
-        for (int s = 0; s < TD_SURFACE_COUNT; s++) {
-            td_viewshed_stats st = stats_of(&fx, &p[k], (td_surface)s);
-            faced[s] += st.faced;
-        }
-    }
-    assert_true(faced[TD_SURFACE_BILINEAR] > 0 && faced[TD_SURFACE_TRIANGLE] > 0 && faced[TD_SURFACE_LINEAR] > 0);
-    unmake(&fx);
-}
-
 /* Random observers on every terrain, half of them on samples; those on the plane
  * surface's holes skipped. */
 static void test_random(void **state)
@@ -361,7 +327,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_rough),   cmocka_unit_test(test_integer_touches), cmocka_unit_test(test_cliff),
         cmocka_unit_test(test_voids),   cmocka_unit_test(test_random),          cmocka_unit_test(test_options),
-        cmocka_unit_test(test_blocks),  cmocka_unit_test(test_facing),          cmocka_unit_test(test_faced),
+        cmocka_unit_test(test_blocks),  cmocka_unit_test(test_facing),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
