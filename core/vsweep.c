@@ -56,7 +56,7 @@
  * without calling target() (trinidad 1.64 G -> 1.40 G, docs/viewshed.md "Speed"), and
  * F's value there (fhi), so that it decides the visible ones too (quick_visible; fhi
  * raised to the last cell's diagonal, for a column's rows that may be visible in one
- * vector pass, last_diags: 903.0 -> 840.4 M, 2026-11-30 15:30); F is
+ * vector pass, last_diags: 903.0 -> 820.4 M, 2026-11-30 16:10); F is
  * kept to the m the columns still to come read (col_merge), facing blocks are tried under
  * the column's polyline alone first (block_poly), and a bilinear target its last cell's
  * upper diagonal leaves undecided is proved hidden by real points of that last strip
@@ -1772,48 +1772,56 @@ static inline int quick_visible(const tgt_cols *t, int32_t V)
     return q > t->fh[V] + eps && q > t->nmax + 2.0 * eps;
 }
 
+/* Four doubles for last_diags (the AVX2 clone's registers; two SSE2 ones in the other) */
+typedef double vd4 __attribute__((vector_size(32)));
+typedef long long vl4 __attribute__((vector_size(32)));
+#define LD4(p) (*(const vd4u *)(p)) /* an unaligned load (no vd4 returned: the SSE2 clone's ABI) */
+typedef double vd4u __attribute__((vector_size(32), aligned(8), may_alias));
+
 /* The constants of last_diags' lanes */
 typedef struct diag_k {
-    vd2 ez, u1, kmul, kadd, ea, er;
+    vd4 ez, u1, kmul, kadd, ea, er;
 } diag_k;
 
-/* last_diags for rows V and V+1 (only V when n is 1), on one side of the eye's row (side
- * a constant where it is inlined): m < 0, cell V's main diagonal (U-1, V)-(U, V+1);
- * m > 0, cell V-1's other one (U, V-1)-(U-1, V). last_cell's expressions lane by lane. */
-static inline void diag_pair(const double *zp, const double *zc, const double *mc, double *fh, const diag_k *d,
+/* last_diags for rows V .. V+3 (the first n), on one side of the eye's row (side a
+ * constant where it is inlined): m < 0, cell V's main diagonal (U-1, V)-(U, V+1); m > 0,
+ * cell V-1's other one (U, V-1)-(U-1, V). last_cell's expressions lane by lane. */
+static inline __attribute__((always_inline)) void diag_quad(const double *zp, const double *zc, const double *mc, double *fh, const diag_k *d,
                              int32_t V, int n, int side)
 {
-    const vd2 one = {1.0, 1.0}, zero = {0.0, 0.0};
-    const vl2 absm = {INT64_MAX, INT64_MAX};
+    const vd4 one = {1.0, 1.0, 1.0, 1.0}, zero = {0.0, 0.0, 0.0, 0.0};
+    const vl4 absm = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
     int32_t W = side < 0 ? V : V - 1; /* the cell's lower row */
-    vd2 z0 = ld2(zp + W), z1 = ld2(zc + W), z2 = ld2(zp + W + 1), z3 = ld2(zc + W + 1), h0 = ld2(fh + V);
-    vd2 a = (vd2)((vl2)ld2(mc + V) & absm), s = a / (one + a), q;
+    vd4 z0 = LD4(zp + W), z1 = LD4(zc + W), z2 = LD4(zp + W + 1), z3 = LD4(zc + W + 1), h0 = LD4(fh + V);
+    vd4 a = (vd4)((vl4)LD4(mc + V) & absm), s = a / (one + a), q;
     /* the twist k (the main diagonal upper where k >= 0), or for the triangle +-1 (main in
      * two cones): k * 1 + 0 compares as k does; NaN sum: a void corner (cellz) */
-    vd2 k = (z0 - z1 - z2 + z3) * d->kmul + d->kadd, sum = z0 + z1 + z2 + z3;
-    vl2 main = (vl2)(k >= zero), take;
+    vd4 k = (z0 - z1 - z2 + z3) * d->kmul + d->kadd, sum = z0 + z1 + z2 + z3;
+    vl4 main = (vl4)(k >= zero), take;
     if (side < 0)
         q = (z0 + (z3 - z0) * s - d->ez) / (d->u1 + s);
     else
         q = (z1 + (z2 - z1) * (one - a + a * s) - d->ez) / (d->u1 + s);
-    take = (side < 0 ? main : ~main) & (vl2)(sum == sum) & (vl2)(q > h0);
-    q = (vd2)(((vl2)q & take) | ((vl2)h0 & ~take));
-    fh[V] = q[0];
-    if (n > 1)
-        fh[V + 1] = q[1];
+    take = (side < 0 ? main : ~main) & (vl4)(sum == sum) & (vl4)(q > h0);
+    q = (vd4)(((vl4)q & take) | ((vl4)h0 & ~take));
+    if (n > 3)
+        memcpy(fh + V, &q, sizeof q);
+    else
+        for (int i = 0; i < n; i++)
+            fh[V + i] = q[i];
 }
 
 /* Whether any of the VS_DIAG targets from V has its q above fhi by eps (quick_visible's
  * first test): only those may need their last cell's diagonal. */
-static inline int visible_any(const double *qc, const double *fh, const diag_k *d, int32_t V)
+static inline __attribute__((always_inline)) int visible_any(const double *qc, const double *fh, const diag_k *d, int32_t V)
 {
-    const vl2 absm = {INT64_MAX, INT64_MAX};
-    vl2 c = {0, 0};
-    for (int i = 0; i < VS_DIAG; i += 2) {
-        vd2 q = ld2(qc + V + i);
-        c |= (vl2)(q > ld2(fh + V + i) + (d->ea + d->er * (vd2)((vl2)q & absm)));
+    const vl4 absm = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+    vl4 c = {0, 0, 0, 0};
+    for (int i = 0; i < VS_DIAG; i += 4) {
+        vd4 q = LD4(qc + V + i);
+        c |= (vl4)(q > LD4(fh + V + i) + (d->ea + d->er * (vd4)((vl4)q & absm)));
     }
-    return (c[0] | c[1]) != 0;
+    return (c[0] | c[1] | c[2] | c[3]) != 0;
 }
 
 /* last_diags' rows Va .. Vb - 1 on one side of the eye's row, VS_DIAG at a time: those past
@@ -1825,20 +1833,20 @@ static inline __attribute__((always_inline)) void diag_run(const double *zp, con
     for (int32_t V = Va; V < Vb; V += VS_DIAG) {
         if (!visible_any(qc, fh, d, V))
             continue;
-        for (int32_t i = 0; i < VS_DIAG && V + i < Vb; i += 2)
-            diag_pair(zp, zc, mc, fh, d, V + i, Vb - (V + i) > 1 ? 2 : 1, side);
+        for (int32_t i = 0; i < VS_DIAG && V + i < Vb; i += 4)
+            diag_quad(zp, zc, mc, fh, d, V + i, Vb - (V + i) < 4 ? Vb - (V + i) : 4, side);
     }
 }
 
 /* fhi[V] raised to last_cell's value for rows V0 .. V1 of column U (the q where the
  * segment to (U, V) crosses its last cell's diagonal, when that diagonal is the cell's
- * upper one and does not end at (U, V); nothing for a cell with a void corner), two rows
+ * upper one and does not end at (U, V); nothing for a cell with a void corner), four rows
  * to a vector, each lane last_cell's expressions (the same bits), for the rows that may be
  * visible: quick_visible then tests one bound. Before, quick_visible called last_cell for
  * three quarters of the visible targets, a branch on the twist's sign (a coin toss) and
- * two divisions each: trinidad from Blanca Peak 903.0 -> 840.4 M instructions
- * (docs/viewshed.md "Speed"; the TD_VSWEEP_DEBUG build checks each row against
- * last_cell). */
+ * two divisions each: trinidad from Blanca Peak 903.0 -> 820.4 M instructions (840.4
+ * with two rows a vector; docs/viewshed.md "Speed"; the TD_VSWEEP_DEBUG build checks
+ * each row against last_cell). */
 TD_ROW_CLONES static void last_diags(sweep *sw, int32_t U, int32_t V0, int32_t V1)
 {
     const cone *c = &sw->c;
@@ -1847,7 +1855,8 @@ TD_ROW_CLONES static void last_diags(sweep *sw, int32_t U, int32_t V0, int32_t V
     double *fh = sw->fhi - o;
     const double ez = sw->job->ez, u1 = U - c->eu - 1.0, km = sw->bil ? 1.0 : 0.0;
     const double ka = sw->bil ? 0.0 : (c->anti ? -1.0 : 1.0);
-    const diag_k d = {{ez, ez}, {u1, u1}, {km, km}, {ka, ka}, {VS_EPS_ABS, VS_EPS_ABS}, {VS_EPS_REL, VS_EPS_REL}};
+    const diag_k d = {{ez, ez, ez, ez}, {u1, u1, u1, u1}, {km, km, km, km}, {ka, ka, ka, ka},
+                      {VS_EPS_ABS, VS_EPS_ABS, VS_EPS_ABS, VS_EPS_ABS}, {VS_EPS_REL, VS_EPS_REL, VS_EPS_REL, VS_EPS_REL}};
     int32_t Vm, Vp;
     eye_rows(c->ev, V0, V1, &Vm, &Vp);
     Vm = Vm < c->vhi ? Vm : c->vhi; /* the cells on the grid (last_cell's cellz) */
