@@ -1389,6 +1389,19 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
     sw->C = out;
 }
 
+/* add_column_pass's bounds of intervals V0 .. V1-1 without voids (lcol, cslope), in a loop
+ * the compiler runs two intervals to a register, four in the AVX2 clone (the same
+ * operations, so the same bits): trinidad from Blanca Peak 820.4 -> 806.0 M instructions,
+ * the valley 385.3 -> 370.9 M (the division four to a register). */
+TD_ROW_CLONES static void col_bounds(const double *mc, const double *qc, const double *fm, double *lc, double *cs,
+                                     int32_t V0, int32_t V1)
+{
+    for (int32_t V = V0; V < V1; V++) {
+        lc[V] = dmax(fm[V], dmin(qc[V], qc[V + 1]));
+        cs[V] = (qc[V + 1] - qc[V]) / (mc[V + 1] - mc[V]);
+    }
+}
+
 /* Column U's edges and with `strip` the strip's into F, with the column pass: the
  * column's bounds per interval (colok, lcol, cslope) first, so the strip's edges are
  * tested against F with the column in before it is; then one merge of F with the
@@ -1403,14 +1416,10 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
     const int holes = sw->holes;
     int above = 0; /* column edges above F's minimum: those col_merge puts in */
     /* without voids every cell beside the column is there (the rows V0 .. V1 of columns
-     * U-1 .. U+1 are loaded and on the grid): the loop without a branch, which the
-     * compiler runs two intervals to a register (the same operations, so the same bits) */
+     * U-1 .. U+1 are loaded and on the grid): the loop without a branch (col_bounds) */
     if (!holes) {
         memset(ok + V0, 1, (size_t)(V1 > V0 ? V1 - V0 : 0));
-        for (int32_t V = V0; V < V1; V++) {
-            lc[V] = dmax(fm[V], dmin(qc[V], qc[V + 1]));
-            cs[V] = (qc[V + 1] - qc[V]) / (mc[V + 1] - mc[V]);
-        }
+        col_bounds(mc, qc, fm, lc, cs, V0, V1);
         for (int32_t V = V0; V < V1 && !above; V++)
             above = dmax(qc[V], qc[V + 1]) > fm[V];
     }
