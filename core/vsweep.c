@@ -411,9 +411,8 @@ static void cone_init(cone *c, const td_grid *g, int k, double eu, double ev)
     c->vhi = nv - 1;
 }
 
-/* Loads column U+1 into the buffers (U-1, U, U+1 then), rows |V - ev| <= u + 4: what
- * the targets and edges of column U need. */
-/* The rows column U needs (load_next): |V - ev| <= u + 3, on the grid. */
+/* The rows column U needs (load_next: the buffers hold columns U-1, U, U+1 for column
+ * U's targets and edges): |V - ev| <= u + 3, on the grid. */
 static void col_rows(const cone *c, int32_t U, int32_t *V0, int32_t *V1)
 {
     double u = U - c->eu;
@@ -459,7 +458,10 @@ static inline const float *col_src(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     return src;
 }
 
-static void load_next(sweep *sw, int32_t U)
+/* Column U+1 into the buffers (see col_rows): heights, m and q a row, in a loop built for
+ * AVX2 as well (four rows to a register, the same operations: trinidad from Blanca Peak
+ * 806.0 -> 797.3 M instructions, the valley 370.9 -> 362.2 M). */
+TD_ROW_CLONES static void load_next(sweep *sw, int32_t U)
 {
     const cone *c = &sw->c;
     double un = U + 1 - c->eu, iu = 1.0 / un, ez = sw->job->ez;
