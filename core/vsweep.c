@@ -49,7 +49,9 @@
  * two pieces a row, is written once a column; trinidad's 2.23 G -> 1.78 G
  * with the skips, band_lo, and the loops' contexts (tgt_cols, strip_cols: locals the
  * compiler keeps, where sw's fields were reloaded after every byte written to vis). The
- * east and west cones read their columns, strided in the grid, 16 at a time (panel).
+ * east and west cones read their columns, strided in the grid, 16 at a time (panel);
+ * load_next and the column's bounds (col_bounds) are built for AVX2 as well (820.4 ->
+ * 797.3 M, 2026-11-30 16:10).
  * The strip's edges are left out 8 cells at a time where they are under F (block_under)
  * or, where the terrain faces the eye, under the column's polyline (block_facing); col_pass
  * also keeps each row's starting lo (flo), so that sweep_cone decides a target under it
