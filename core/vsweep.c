@@ -1799,8 +1799,8 @@ typedef struct diag_k {
 /* last_diags for rows V .. V+3 (the first n), on one side of the eye's row (side a
  * constant where it is inlined): m < 0, cell V's main diagonal (U-1, V)-(U, V+1); m > 0,
  * cell V-1's other one (U, V-1)-(U-1, V). last_cell's expressions lane by lane. */
-static inline __attribute__((always_inline)) void diag_quad(const double *zp, const double *zc, const double *mc, double *fh, const diag_k *d,
-                             int32_t V, int n, int side)
+static inline __attribute__((always_inline)) void diag_quad(const double *zp, const double *zc, const double *mc,
+                                                            double *fh, const diag_k *d, int32_t V, int n, int side)
 {
     const vd4 one = {1.0, 1.0, 1.0, 1.0}, zero = {0.0, 0.0, 0.0, 0.0};
     const vl4 absm = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
@@ -1826,7 +1826,8 @@ static inline __attribute__((always_inline)) void diag_quad(const double *zp, co
 
 /* Whether any of the VS_DIAG targets from V has its q above fhi by eps (quick_visible's
  * first test): only those may need their last cell's diagonal. */
-static inline __attribute__((always_inline)) int visible_any(const double *qc, const double *fh, const diag_k *d, int32_t V)
+static inline __attribute__((always_inline)) int visible_any(const double *qc, const double *fh, const diag_k *d,
+                                                             int32_t V)
 {
     const vl4 absm = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
     vl4 c = {0, 0, 0, 0};
@@ -1868,8 +1869,12 @@ TD_ROW_CLONES static void last_diags(sweep *sw, int32_t U, int32_t V0, int32_t V
     double *fh = sw->fhi - o;
     const double ez = sw->job->ez, u1 = U - c->eu - 1.0, km = sw->bil ? 1.0 : 0.0;
     const double ka = sw->bil ? 0.0 : (c->anti ? -1.0 : 1.0);
-    const diag_k d = {{ez, ez, ez, ez}, {u1, u1, u1, u1}, {km, km, km, km}, {ka, ka, ka, ka},
-                      {VS_EPS_ABS, VS_EPS_ABS, VS_EPS_ABS, VS_EPS_ABS}, {VS_EPS_REL, VS_EPS_REL, VS_EPS_REL, VS_EPS_REL}};
+    const diag_k d = {{ez, ez, ez, ez},
+                      {u1, u1, u1, u1},
+                      {km, km, km, km},
+                      {ka, ka, ka, ka},
+                      {VS_EPS_ABS, VS_EPS_ABS, VS_EPS_ABS, VS_EPS_ABS},
+                      {VS_EPS_REL, VS_EPS_REL, VS_EPS_REL, VS_EPS_REL}};
     int32_t Vm, Vp;
     eye_rows(c->ev, V0, V1, &Vm, &Vp);
     Vm = Vm < c->vhi ? Vm : c->vhi; /* the cells on the grid (last_cell's cellz) */
@@ -1885,7 +1890,8 @@ TD_ROW_CLONES static void last_diags(sweep *sw, int32_t U, int32_t V0, int32_t V
     for (int32_t V = V0; V <= V1 && was; V++) {
         double hi = was[V - V0], lo = -INFINITY, q = qc[V];
         last_cell(sw, V, U - c->eu, mc[V], INFINITY, &hi, &lo);
-        if ((q > was[V - V0] + VS_EPS_ABS + VS_EPS_REL * fabs(q) && fh[V] != hi) || (fh[V] != was[V - V0] && fh[V] != hi)) {
+        if ((q > was[V - V0] + VS_EPS_ABS + VS_EPS_REL * fabs(q) && fh[V] != hi) ||
+            (fh[V] != was[V - V0] && fh[V] != hi)) {
             fprintf(stderr, "last_diags: U %d V %d: %.17g, last_cell %.17g\n", U, V, fh[V], hi);
             abort();
         }
