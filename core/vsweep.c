@@ -49,12 +49,16 @@
  * two pieces a row, is written once a column; trinidad's 2.23 G -> 1.78 G
  * with the skips, band_lo, and the loops' contexts (tgt_cols, strip_cols: locals the
  * compiler keeps, where sw's fields were reloaded after every byte written to vis). The
- * east and west cones read their columns, strided in the grid, 16 at a time (panel).
+ * east and west cones read their columns, strided in the grid, 16 at a time (panel);
+ * load_next and the column's bounds (col_bounds) are built for AVX2 as well (820.4 ->
+ * 797.3 M, 2026-11-30 16:10).
  * The strip's edges are left out 8 cells at a time where they are under F (block_under)
  * or, where the terrain faces the eye, under the column's polyline (block_facing); col_pass
  * also keeps each row's starting lo (flo), so that sweep_cone decides a target under it
  * without calling target() (trinidad 1.64 G -> 1.40 G, docs/viewshed.md "Speed"), and
- * F's value there (fhi), so that it decides the visible ones too (quick_visible); F is
+ * F's value there (fhi), so that it decides the visible ones too (quick_visible; fhi
+ * raised to the last cell's diagonal, for a column's rows that may be visible in one
+ * vector pass, last_diags: 903.0 -> 820.4 M, 2026-11-30 16:10); F is
  * kept to the m the columns still to come read (col_merge), facing blocks are tried under
  * the column's polyline alone first (block_poly), and a bilinear target its last cell's
  * upper diagonal leaves undecided is proved hidden by real points of that last strip
@@ -104,6 +108,8 @@
 #define VS_SUB_U 64.0
 #define VS_SUB 2
 #define VS_SUB_K 0.04
+/* Rows whose last cells' diagonals last_diags computes, or skips when none may be visible */
+#define VS_DIAG 8
 /* last_real's points stop this far (in cells) short of the target */
 #define VS_LAST_GAP 1e-3
 
@@ -407,9 +413,8 @@ static void cone_init(cone *c, const td_grid *g, int k, double eu, double ev)
     c->vhi = nv - 1;
 }
 
-/* Loads column U+1 into the buffers (U-1, U, U+1 then), rows |V - ev| <= u + 4: what
- * the targets and edges of column U need. */
-/* The rows column U needs (load_next): |V - ev| <= u + 3, on the grid. */
+/* The rows column U needs (load_next: the buffers hold columns U-1, U, U+1 for column
+ * U's targets and edges): |V - ev| <= u + 3, on the grid. */
 static void col_rows(const cone *c, int32_t U, int32_t *V0, int32_t *V1)
 {
     double u = U - c->eu;
@@ -455,7 +460,10 @@ static inline const float *col_src(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     return src;
 }
 
-static void load_next(sweep *sw, int32_t U)
+/* Column U+1 into the buffers (see col_rows): heights, m and q a row, in a loop built for
+ * AVX2 as well (four rows to a register, the same operations: trinidad from Blanca Peak
+ * 806.0 -> 797.3 M instructions, the valley 370.9 -> 362.2 M). */
+TD_ROW_CLONES static void load_next(sweep *sw, int32_t U)
 {
     const cone *c = &sw->c;
     double un = U + 1 - c->eu, iu = 1.0 / un, ez = sw->job->ez;
@@ -1385,6 +1393,19 @@ static void col_merge(sweep *sw, int32_t V0, int32_t V1, double u)
     sw->C = out;
 }
 
+/* add_column_pass's bounds of intervals V0 .. V1-1 without voids (lcol, cslope), in a loop
+ * the compiler runs two intervals to a register, four in the AVX2 clone (the same
+ * operations, so the same bits): trinidad from Blanca Peak 820.4 -> 806.0 M instructions,
+ * the valley 385.3 -> 370.9 M (the division four to a register). */
+TD_ROW_CLONES static void col_bounds(const double *mc, const double *qc, const double *fm, double *lc, double *cs,
+                                     int32_t V0, int32_t V1)
+{
+    for (int32_t V = V0; V < V1; V++) {
+        lc[V] = dmax(fm[V], dmin(qc[V], qc[V + 1]));
+        cs[V] = (qc[V + 1] - qc[V]) / (mc[V + 1] - mc[V]);
+    }
+}
+
 /* Column U's edges and with `strip` the strip's into F, with the column pass: the
  * column's bounds per interval (colok, lcol, cslope) first, so the strip's edges are
  * tested against F with the column in before it is; then one merge of F with the
@@ -1399,14 +1420,10 @@ static void add_column_pass(sweep *sw, int32_t U, int strip, int32_t V0, int32_t
     const int holes = sw->holes;
     int above = 0; /* column edges above F's minimum: those col_merge puts in */
     /* without voids every cell beside the column is there (the rows V0 .. V1 of columns
-     * U-1 .. U+1 are loaded and on the grid): the loop without a branch, which the
-     * compiler runs two intervals to a register (the same operations, so the same bits) */
+     * U-1 .. U+1 are loaded and on the grid): the loop without a branch (col_bounds) */
     if (!holes) {
         memset(ok + V0, 1, (size_t)(V1 > V0 ? V1 - V0 : 0));
-        for (int32_t V = V0; V < V1; V++) {
-            lc[V] = dmax(fm[V], dmin(qc[V], qc[V + 1]));
-            cs[V] = (qc[V + 1] - qc[V]) / (mc[V + 1] - mc[V]);
-        }
+        col_bounds(mc, qc, fm, lc, cs, V0, V1);
         for (int32_t V = V0; V < V1 && !above; V++)
             above = dmax(qc[V], qc[V + 1]) > fm[V];
     }
@@ -1607,6 +1624,14 @@ static inline void last_cell(const sweep *sw, int32_t V, double u, double m, dou
     }
 }
 
+/* Rows V0 .. V1 split at the eye's row: m < 0 below *Vm, m = 0 from *Vm to *Vp - 1 (ev a
+ * row), m > 0 from *Vp. */
+static inline void eye_rows(double ev, int32_t V0, int32_t V1, int32_t *Vm, int32_t *Vp)
+{
+    *Vm = (int32_t)dmin(dmax(ceil(ev), (double)V0), (double)V1 + 1.0);
+    *Vp = *Vm + (*Vm <= V1 && *Vm == ev);
+}
+
 /* Whether the segment to (U, V) starts clearly above the surface where the tracer starts
  * it (by 2^-44 of the eye's height, 16 times what starts_under tolerates): then a real
  * surface point above it later proves it hidden, as for an eye above the ground (the
@@ -1750,18 +1775,129 @@ static inline double diag_bound(const tgt_cols *t, int32_t V, int side)
 }
 
 /* target()'s visible decision when it needs neither N nor the bilinear band: q above F
- * at m_V (fhi), above N's maximum (so N is not looked at) and above the last cell's
- * diagonal (its ends' bound, else last_cell's exact crossing), each by eps as target()
- * decides. 0: target() decides. Columns with the column pass, no target height. */
-static inline int quick_visible(const sweep *sw, const tgt_cols *t, int32_t V, int side)
+ * at m_V and the last cell's diagonal (fhi raised by last_diags), and above N's maximum
+ * (so N is not looked at), each by eps as target() decides. 0: target() decides (so
+ * also where q clears only the diagonal's ends, diag_bound, which target() then finds).
+ * Columns with the column pass, no target height. */
+static inline int quick_visible(const tgt_cols *t, int32_t V)
 {
-    double q = t->qc[V], m = t->mc[V], eps = VS_EPS_ABS + VS_EPS_REL * fabs(q), hi = t->fh[V], lo;
-    int vis = q > hi + eps && q > t->nmax + 2.0 * eps;
-    if (vis && !(q > diag_bound(t, V, side) + eps)) {
-        last_cell(sw, V, t->u, m, INFINITY, &hi, &lo);
-        vis = q > hi + eps;
+    double q = t->qc[V], eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
+    return q > t->fh[V] + eps && q > t->nmax + 2.0 * eps;
+}
+
+/* Four doubles for last_diags (the AVX2 clone's registers; two SSE2 ones in the other) */
+typedef double vd4 __attribute__((vector_size(32)));
+typedef long long vl4 __attribute__((vector_size(32)));
+#define LD4(p) (*(const vd4u *)(p)) /* an unaligned load (no vd4 returned: the SSE2 clone's ABI) */
+typedef double vd4u __attribute__((vector_size(32), aligned(8), may_alias));
+
+/* The constants of last_diags' lanes */
+typedef struct diag_k {
+    vd4 ez, u1, kmul, kadd, ea, er;
+} diag_k;
+
+/* last_diags for rows V .. V+3 (the first n), on one side of the eye's row (side a
+ * constant where it is inlined): m < 0, cell V's main diagonal (U-1, V)-(U, V+1); m > 0,
+ * cell V-1's other one (U, V-1)-(U-1, V). last_cell's expressions lane by lane. */
+static inline __attribute__((always_inline)) void diag_quad(const double *zp, const double *zc, const double *mc,
+                                                            double *fh, const diag_k *d, int32_t V, int n, int side)
+{
+    const vd4 one = {1.0, 1.0, 1.0, 1.0}, zero = {0.0, 0.0, 0.0, 0.0};
+    const vl4 absm = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+    int32_t W = side < 0 ? V : V - 1; /* the cell's lower row */
+    vd4 z0 = LD4(zp + W), z1 = LD4(zc + W), z2 = LD4(zp + W + 1), z3 = LD4(zc + W + 1), h0 = LD4(fh + V);
+    vd4 a = (vd4)((vl4)LD4(mc + V) & absm), s = a / (one + a), q;
+    /* the twist k (the main diagonal upper where k >= 0), or for the triangle +-1 (main in
+     * two cones): k * 1 + 0 compares as k does; NaN sum: a void corner (cellz) */
+    vd4 k = (z0 - z1 - z2 + z3) * d->kmul + d->kadd, sum = z0 + z1 + z2 + z3;
+    vl4 main = (vl4)(k >= zero), take;
+    if (side < 0)
+        q = (z0 + (z3 - z0) * s - d->ez) / (d->u1 + s);
+    else
+        q = (z1 + (z2 - z1) * (one - a + a * s) - d->ez) / (d->u1 + s);
+    take = (side < 0 ? main : ~main) & (vl4)(sum == sum) & (vl4)(q > h0);
+    q = (vd4)(((vl4)q & take) | ((vl4)h0 & ~take));
+    if (n > 3)
+        memcpy(fh + V, &q, sizeof q);
+    else
+        for (int i = 0; i < n; i++)
+            fh[V + i] = q[i];
+}
+
+/* Whether any of the VS_DIAG targets from V has its q above fhi by eps (quick_visible's
+ * first test): only those may need their last cell's diagonal. */
+static inline __attribute__((always_inline)) int visible_any(const double *qc, const double *fh, const diag_k *d,
+                                                             int32_t V)
+{
+    const vl4 absm = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+    vl4 c = {0, 0, 0, 0};
+    for (int i = 0; i < VS_DIAG; i += 4) {
+        vd4 q = LD4(qc + V + i);
+        c |= (vl4)(q > LD4(fh + V + i) + (d->ea + d->er * (vd4)((vl4)q & absm)));
     }
-    return vis;
+    return (c[0] | c[1] | c[2] | c[3]) != 0;
+}
+
+/* last_diags' rows Va .. Vb - 1 on one side of the eye's row, VS_DIAG at a time: those past
+ * Vb in the last ones are read (rows of the buffers) but not stored. */
+static inline __attribute__((always_inline)) void diag_run(const double *zp, const double *zc, const double *mc,
+                                                           const double *qc, double *fh, const diag_k *d,
+                                                           int32_t Va, int32_t Vb, int side)
+{
+    for (int32_t V = Va; V < Vb; V += VS_DIAG) {
+        if (!visible_any(qc, fh, d, V))
+            continue;
+        for (int32_t i = 0; i < VS_DIAG && V + i < Vb; i += 4)
+            diag_quad(zp, zc, mc, fh, d, V + i, Vb - (V + i) < 4 ? Vb - (V + i) : 4, side);
+    }
+}
+
+/* fhi[V] raised to last_cell's value for rows V0 .. V1 of column U (the q where the
+ * segment to (U, V) crosses its last cell's diagonal, when that diagonal is the cell's
+ * upper one and does not end at (U, V); nothing for a cell with a void corner), four rows
+ * to a vector, each lane last_cell's expressions (the same bits), for the rows that may be
+ * visible: quick_visible then tests one bound. Before, quick_visible called last_cell for
+ * three quarters of the visible targets, a branch on the twist's sign (a coin toss) and
+ * two divisions each: trinidad from Blanca Peak 903.0 -> 820.4 M instructions (840.4
+ * with two rows a vector; docs/viewshed.md "Speed"; the TD_VSWEEP_DEBUG build checks
+ * each row against last_cell). */
+TD_ROW_CLONES static void last_diags(sweep *sw, int32_t U, int32_t V0, int32_t V1)
+{
+    const cone *c = &sw->c;
+    const int32_t o = c->vlo;
+    const double *zp = sw->zcol[0] - o, *zc = sw->zcol[1] - o, *mc = sw->mcol[1] - o, *qc = sw->qcol[1] - o;
+    double *fh = sw->fhi - o;
+    const double ez = sw->job->ez, u1 = U - c->eu - 1.0, km = sw->bil ? 1.0 : 0.0;
+    const double ka = sw->bil ? 0.0 : (c->anti ? -1.0 : 1.0);
+    const diag_k d = {{ez, ez, ez, ez},
+                      {u1, u1, u1, u1},
+                      {km, km, km, km},
+                      {ka, ka, ka, ka},
+                      {VS_EPS_ABS, VS_EPS_ABS, VS_EPS_ABS, VS_EPS_ABS},
+                      {VS_EPS_REL, VS_EPS_REL, VS_EPS_REL, VS_EPS_REL}};
+    int32_t Vm, Vp;
+    eye_rows(c->ev, V0, V1, &Vm, &Vp);
+    Vm = Vm < c->vhi ? Vm : c->vhi; /* the cells on the grid (last_cell's cellz) */
+    Vp = Vp > o + 1 ? Vp : o + 1;
+#ifdef TD_VSWEEP_DEBUG /* each row that may be visible checked against last_cell */
+    double *was = malloc((size_t)(V1 - V0 + 1) * sizeof *was);
+    for (int32_t V = V0; V <= V1 && was; V++)
+        was[V - V0] = fh[V];
+#endif
+    diag_run(zp, zc, mc, qc, fh, &d, V0, Vm, -1);
+    diag_run(zp, zc, mc, qc, fh, &d, Vp, V1 + 1, 1);
+#ifdef TD_VSWEEP_DEBUG
+    for (int32_t V = V0; V <= V1 && was; V++) {
+        double hi = was[V - V0], lo = -INFINITY, q = qc[V];
+        last_cell(sw, V, U - c->eu, mc[V], INFINITY, &hi, &lo);
+        if ((q > was[V - V0] + VS_EPS_ABS + VS_EPS_REL * fabs(q) && fh[V] != hi) ||
+            (fh[V] != was[V - V0] && fh[V] != hi)) {
+            fprintf(stderr, "last_diags: U %d V %d: %.17g, last_cell %.17g\n", U, V, fh[V], hi);
+            abort();
+        }
+    }
+    free(was);
+#endif
 }
 
 /* Decides target (U, V) of column U (not a void) against F, or casts it. */
@@ -1833,21 +1969,20 @@ decide:
  * same bits), in a function of its own: inlined into cone_worker with everything else,
  * the loop kept its pointers and flags on the stack (about 34 instructions a target for
  * the loop, owned()'s and the void test and the hidden test, callgrind). */
-/* targets_plain's rows Va .. Vb, on one side of the eye's row (side: the sign of their m,
- * a constant where it is inlined: diag_bound's tests fold). The number decided here. */
-static inline __attribute__((always_inline)) uint64_t targets_run(sweep *sw, const tgt_cols *lt, tgt_cols *t,
-                                                                  int32_t U, int32_t Va, int32_t Vb, int side)
+static void targets_plain(sweep *sw, tgt_cols *t, int32_t U, int32_t V0, int32_t V1)
 {
-    const double *qc = lt->qc, *fl = sw->flo - lt->vlo;
-    uint8_t *vis = lt->vis;
-    const ptrdiff_t vs = lt->vstride;
+    const tgt_cols lt = *t; /* a copy quick_visible reads: its address is not taken elsewhere,
+                               so the bytes written to vis are known not to change it */
+    const double *qc = lt.qc, *fl = sw->flo - lt.vlo;
+    uint8_t *vis = lt.vis;
+    const ptrdiff_t vs = lt.vstride;
     uint64_t n = 0;
-    for (int32_t V = Va; V <= Vb; V++) {
+    for (int32_t V = V0; V <= V1; V++) {
         double q = qc[V];
         if (q < fl[V] - (VS_EPS_ABS + VS_EPS_REL * fabs(q))) {
             vis[V * vs] = 0;
             n++;
-        } else if (quick_visible(sw, lt, V, side)) {
+        } else if (quick_visible(&lt, V)) {
 #ifdef TD_VSWEEP_DEBUG /* the proof checked against the cast, as target()'s */
             const td_vsweep_job *j = sw->job;
             const cone *c = &sw->c;
@@ -1862,19 +1997,6 @@ static inline __attribute__((always_inline)) uint64_t targets_run(sweep *sw, con
             target(sw, t, U, V);
         }
     }
-    return n;
-}
-
-static void targets_plain(sweep *sw, tgt_cols *t, int32_t U, int32_t V0, int32_t V1)
-{
-    const tgt_cols lt = *t; /* a copy quick_visible reads: its address is not taken elsewhere,
-                               so the bytes written to vis are known not to change it */
-    const double ev = sw->c.ev;
-    /* the rows under the eye's row (m < 0), on it (m = 0: ev a row) and over it */
-    int32_t Vm = (int32_t)dmin(dmax(ceil(ev), (double)V0), (double)V1 + 1.0), Vp = Vm + (Vm <= V1 && Vm == ev);
-    uint64_t n = targets_run(sw, &lt, t, U, V0, Vm - 1, -1);
-    n += targets_run(sw, &lt, t, U, Vm, Vp - 1, 0);
-    n += targets_run(sw, &lt, t, U, Vp, V1, 1);
     sw->swept += n;
 }
 
@@ -1940,6 +2062,8 @@ static void sweep_cone(sweep *sw)
             V0++;
         while (V1 >= V0 && !in_cone(V1 - ev, u, strict))
             V1--;
+        if (quickv && !sw->lin)
+            last_diags(sw, U, V0, V1);
         if (nomax && !holes && quick && quickv) {
             targets_plain(sw, &t, U, V0, V1);
             V1 = V0 - 1; /* done */
@@ -1954,7 +2078,7 @@ static void sweep_cone(sweep *sw)
                 sw->swept++;
                 continue;
             }
-            if (quickv && quick_visible(sw, &t, V, (t.mc[V] > 0.0) - (t.mc[V] < 0.0))) {
+            if (quickv && quick_visible(&t, V)) {
 #ifdef TD_VSWEEP_DEBUG /* the proof checked against the cast, as target()'s */
                 uint32_t st = 0;
                 const td_vsweep_job *j = sw->job;
@@ -1993,7 +2117,7 @@ static void *cone_worker(void *arg)
     cone_task *t = arg;
     const td_grid *g = t->job->v->grid;
     size_t nmax = (size_t)(g->w > g->h ? g->w : g->h);
-    double *zb = malloc(15 * nmax * sizeof *zb);
+    double *zb = malloc((15 * nmax + VS_DIAG) * sizeof *zb); /* last_diags reads rows past fhi's */
     int *kb = malloc(nmax * sizeof *kb);
     uint8_t *ob = malloc(nmax);
     float *panel = malloc((size_t)VS_PANEL * nmax * sizeof *panel);
