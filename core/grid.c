@@ -106,10 +106,7 @@ out:
     return rc;
 }
 
-/* Floats as int32 keys in the same order (-0 just below +0: bits ^ (sign ? 0x7fffffff :
- * 0), in run_keys), so that min and max over a run are integer reductions, which vectorise
- * where float ones (NaN rules) do not; key_float is the way back. */
-static inline float key_float(int32_t k)
+float td_grid_key_float(int32_t k)
 {
     float f;
     k ^= (k >> 31) & 0x7fffffff;
@@ -134,18 +131,17 @@ TD_ROW_CLONES static int run_voids(const float *restrict z, int32_t n, int64_t *
     return inf;
 }
 
-/* The keys of the lowest and highest valid samples of a run into *lo, *hi (voids skipped). */
-TD_ROW_CLONES static void run_keys(const float *restrict z, int32_t n, int32_t *lo, int32_t *hi)
+/* Each key bits ^ (sign ? 0x7fffffff : 0); a value left out counts as INT32_MAX for the
+ * lowest, INT32_MIN for the highest (no branch). */
+TD_ROW_CLONES void td_grid_keys(const float *restrict z, size_t n, uint32_t most, int32_t *lo, int32_t *hi)
 {
     int32_t l = *lo, h = *hi;
-    for (int32_t i = 0; i < n; i++) {
-        union {
-            float f;
-            int32_t b;
-        } u = {.f = z[i]};
-        int32_t k = u.b ^ ((u.b >> 31) & 0x7fffffff);
-        int32_t nan = -(int32_t)((u.b & 0x7fffffff) > 0x7f800000); /* a void: all ones */
-        int32_t kl = (k & ~nan) | (INT32_MAX & nan), kh = (k & ~nan) | (INT32_MIN & nan);
+    for (size_t i = 0; i < n; i++) {
+        int32_t b;
+        memcpy(&b, &z[i], sizeof b);
+        int32_t k = b ^ ((b >> 31) & 0x7fffffff);
+        int32_t out = -(int32_t)((uint32_t)(b & 0x7fffffff) > most); /* left out: all ones */
+        int32_t kl = (k & ~out) | (INT32_MAX & out), kh = (k & ~out) | (INT32_MIN & out);
         l = kl < l ? kl : l;
         h = kh > h ? kh : h;
     }
@@ -173,8 +169,8 @@ static float first_zero(const td_grid *g, int32_t i0, int32_t i1, int32_t j0, in
  * (-inf, +inf reversed for a tile of voids: hi < lo, as the tracers expect). */
 static void tile_range(const td_grid *g, td_tile *t, int32_t lo, int32_t hi)
 {
-    t->zmin = lo == INT32_MAX ? INFINITY : key_float(lo);
-    t->zmax = hi == INT32_MIN ? -INFINITY : key_float(hi);
+    t->zmin = lo == INT32_MAX ? INFINITY : td_grid_key_float(lo);
+    t->zmax = hi == INT32_MIN ? -INFINITY : td_grid_key_float(hi);
     if (t->zmin == 0.0f)
         t->zmin = first_zero(g, t->i0, t->i0 + t->nx, t->j0, t->j0 + t->ny);
     if (t->zmax == 0.0f)
@@ -217,7 +213,7 @@ td_status td_grid_finish(td_grid *g, td_err *err)
             jv += j == jv;
             for (int32_t tx = 0; tx < g->tiles_x && ty < g->tiles_y; tx++) {
                 const int32_t i0 = tx * T, nx = (g->w - 1 - i0) < T ? (g->w - 1 - i0) : T;
-                run_keys(row + i0, nx + 1, &lo[tx], &hi[tx]);
+                td_grid_keys(row + i0, (size_t)nx + 1, TD_KEYS_VALID, &lo[tx], &hi[tx]);
             }
         }
         /* the tiles cover every sample: their ranges give the grid's (a zero: see

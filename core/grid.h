@@ -104,6 +104,16 @@ uint64_t td_grid_bytes(int32_t w, int32_t h, int tile_log2);
 td_status td_grid_create(int32_t w, int32_t h, double sx, double sy, int tile_log2,
                          const td_grid_limits *lim, td_grid **out, td_err *err);
 
+/* Floats as int32 keys in the same order (-0 just below +0), so that the lowest and highest
+ * of a run are integer reductions, which vectorise where float ones (NaN rules) do not:
+ * td_grid_keys takes the keys of z[0 .. n) whose magnitude's bits are at most `most` into
+ * *lo and *hi (start them at INT32_MAX and INT32_MIN: those stay for none), and
+ * td_grid_key_float turns a key back into its float. */
+#define TD_KEYS_VALID 0x7f800000u  /* every value but NaN (a void) */
+#define TD_KEYS_FINITE 0x7f7fffffu /* the finite values */
+void td_grid_keys(const float *z, size_t n, uint32_t most, int32_t *lo, int32_t *hi);
+float td_grid_key_float(int32_t k);
+
 /* Computes zmin/zmax, void count and the tile records. Refuses +-inf heights. */
 td_status td_grid_finish(td_grid *g, td_err *err);
 

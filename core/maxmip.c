@@ -30,41 +30,15 @@
 /* base and step of a tile's codes from its finite maxima in v[0 .. n): base one step
  * below the lowest, so a block of holes (code 0) decodes below every real maximum. The
  * step is at least 2^-40 of the heights' magnitude, so a decode's rounding is far below
- * a step even at huge coordinates. */
-/* The keys of the lowest and highest finite values of v[0 .. n) into *lo, *hi (INT32_MAX,
- * INT32_MIN: none): floats as int32 keys in the same order (-0 just below +0, which gives
- * code_scale the same base and step), so that the reductions are integer ones, which
- * vectorise (grid.c's run_keys). */
-TD_ROW_CLONES static void finite_keys(const float *restrict v, size_t n, int32_t *lo, int32_t *hi)
-{
-    int32_t l = INT32_MAX, h = INT32_MIN;
-    for (size_t i = 0; i < n; i++) {
-        int32_t b;
-        memcpy(&b, &v[i], sizeof b);
-        int32_t k = b ^ ((b >> 31) & 0x7fffffff);
-        int32_t inf = -(int32_t)((b & 0x7fffffff) >= 0x7f800000); /* +-inf or NaN: all ones */
-        int32_t kl = (k & ~inf) | (INT32_MAX & inf), kh = (k & ~inf) | (INT32_MIN & inf);
-        l = kl < l ? kl : l;
-        h = kh > h ? kh : h;
-    }
-    *lo = l;
-    *hi = h;
-}
-
-/* A key back to its float */
-static inline double key_value(int32_t k)
-{
-    float f;
-    k ^= (k >> 31) & 0x7fffffff;
-    memcpy(&f, &k, sizeof f);
-    return (double)f;
-}
-
+ * a step even at huge coordinates. The range from integer keys (td_grid_keys: a loop built
+ * for AVX2 as well, where one converting each to double ran scalar; -0 just below +0 gives
+ * the same base and step): trinidad's max-mipmaps 41.9 -> 32.3 M instructions. */
 static void code_scale(const float *v, size_t n, double *base, double *step)
 {
-    int32_t klo, khi;
-    finite_keys(v, n, &klo, &khi);
-    double lo = klo == INT32_MAX ? INFINITY : key_value(klo), hi = khi == INT32_MIN ? -INFINITY : key_value(khi);
+    int32_t klo = INT32_MAX, khi = INT32_MIN;
+    td_grid_keys(v, n, TD_KEYS_FINITE, &klo, &khi);
+    double lo = klo == INT32_MAX ? INFINITY : (double)td_grid_key_float(klo);
+    double hi = khi == INT32_MIN ? -INFINITY : (double)td_grid_key_float(khi);
     if (!(lo <= hi))
         lo = hi = 0.0; /* a tile of holes: every code is 0 */
     double mag = fabs(lo) > fabs(hi) ? fabs(lo) : fabs(hi);
