@@ -2117,7 +2117,9 @@ static void *cone_worker(void *arg)
     cone_task *t = arg;
     const td_grid *g = t->job->v->grid;
     size_t nmax = (size_t)(g->w > g->h ? g->w : g->h);
-    double *zb = malloc((15 * nmax + VS_DIAG) * sizeof *zb); /* last_diags reads rows past fhi's */
+    /* zeroed: last_diags' candidate test reads up to VS_DIAG - 1 rows past a column's last
+       (never stored), which would otherwise be bytes never written */
+    double *zb = calloc(15 * nmax + VS_DIAG, sizeof *zb);
     int *kb = malloc(nmax * sizeof *kb);
     uint8_t *ob = malloc(nmax);
     float *panel = malloc((size_t)VS_PANEL * nmax * sizeof *panel);
