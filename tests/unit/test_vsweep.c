@@ -32,7 +32,7 @@ static double noise(int32_t i, int32_t j, uint32_t seed)
     return (double)(x & 0xffffff) / 16777216.0;
 }
 
-enum { T_ROUGH, T_INTEGER, T_CLIFF, T_VOIDS, T_WALL, T_TWIST };
+enum { T_ROUGH, T_INTEGER, T_CLIFF, T_VOIDS, T_WALL, T_TWIST, T_SADDLE };
 
 static double terrain(int kind, int32_t i, int32_t j)
 {
@@ -48,6 +48,8 @@ static double terrain(int kind, int32_t i, int32_t j)
         z = 600.0 + 10.0 * noise(i, j, 5);
     if (kind == T_TWIST) /* rising east, a checkerboard on it: the cells' twists alternate in sign */
         z = 100.0 + 4.0 * i + 3.0 * ((i + j) & 1) + 0.5 * noise(i, j, 4);
+    if (kind == T_SADDLE) /* bilinear in each quadrant about sample (23, 19), its twist the sign of (i-23)(j-19) */
+        z = 100.0 + 1.5 * i + 0.4 * fabs(i - 23.0) * fabs(j - 19.0);
     if (kind == T_WALL && ((i >= 25 && i <= 27 && j >= 5 && j <= 8) || (i == 40 && j == 30) || (i == 33 && j == 12)))
         z = NAN; /* holes behind it and beside it */
     return z;
@@ -294,6 +296,31 @@ static void test_last_cells(void **state)
     unmake(&fx);
 }
 
+/* Along a ray the bilinear patch's height is quadratic with the coefficient
+ * twist * dx * dy: where that is >= 0, q peaks on the cell's boundary, which its edges
+ * bound exactly, and the sweep leaves the cell's upper diagonal out (vsweep.c
+ * diag_counts; the triangle's diagonal only where it is a ridge). Here every cell's twist
+ * has the sign of (i - 23)(j - 19), so seen from sample (23, 19) no bilinear cell needs
+ * it; from elsewhere half do. The terrain is planar along each grid line away from the
+ * eye's, so a target can lie in the plane of the eye's own triangle: from an eye on the
+ * ground at (101.3, 57.9) the segment to sample (10, 1) leaves the eye along the
+ * surface, 1.5e-5 m above it at the target from the heights' rounding to float, and the
+ * tracer's start (2^-30 of the segment) decides it by rounding: a touch, blocked. The
+ * sweep called it visible (3.2e-6 above the eye's slope, over its eps) until visible
+ * proofs with the eye on the ground were given ground_eps. The sweep equals the cast on
+ * every surface and height from the three observers. Broken on purpose (the rule's sign
+ * flipped, on either surface) this and every test above fail. */
+static void test_saddle(void **state)
+{
+    static const td_vs_point p[] = {{230.0, 190.0}, {101.3, 57.9}, {460.0, 0.0}};
+    fixture fx;
+    (void)state;
+    make(&fx, T_SADDLE, 10.0, 10.0);
+    for (size_t k = 0; k < sizeof p / sizeof *p; k++)
+        all_surfaces(&fx, p[k]);
+    unmake(&fx);
+}
+
 /* Random observers on every terrain, half of them on samples; those on the plane
  * surface's holes skipped. */
 static void test_random(void **state)
@@ -352,6 +379,7 @@ int main(void)
         cmocka_unit_test(test_rough),   cmocka_unit_test(test_integer_touches), cmocka_unit_test(test_cliff),
         cmocka_unit_test(test_voids),   cmocka_unit_test(test_random),          cmocka_unit_test(test_options),
         cmocka_unit_test(test_blocks),  cmocka_unit_test(test_facing),          cmocka_unit_test(test_last_cells),
+        cmocka_unit_test(test_saddle),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
