@@ -1554,6 +1554,7 @@ static void near_strip(sweep *sw, int32_t U0)
     const td_vsweep_job *j = sw->job;
     int32_t Uc = U0 - 1;
     double u0 = U0 - c->eu, uc = Uc - c->eu, z[4] = {0.0, 0.0, 0.0, 0.0}, twist = 0.0, h = j->ez - j->ground;
+    double slope = 0.0; /* a bound of |dz/du| + |dz/dv| in the cells that hold the eye */
     pv_clear(&sw->G);
     pv_clear(&sw->N);
     sw->umax = u0;
@@ -1571,6 +1572,7 @@ static void near_strip(sweep *sw, int32_t U0)
         if (c->eu <= Uc + 1 && c->eu >= Uc && c->ev >= V && c->ev <= V + 1) { /* holds the eye */
             double k = z[0] - z[1] - z[2] + z[3], ae = c->eu - Uc, be = c->ev - V;
             twist = dmax(twist, fabs(k));
+            slope = dmax(slope, dmax(fabs(z[1] - z[0]), fabs(z[3] - z[2])) + dmax(fabs(z[2] - z[0]), fabs(z[3] - z[1])));
             if (sw->bil && k != 0.0) {
                 double ga = (z[1] - z[0]) + k * be, gb = (z[2] - z[0]) + k * ae;
                 /* rays that enter the cell from the eye, and k m < 0 */
@@ -1598,7 +1600,15 @@ static void near_strip(sweep *sw, int32_t U0)
                 swap_gn(sw);
         }
     }
-    sw->hidden_ok = h > 1e-9 * (1.0 + fabs(j->ez)) + (sw->lin ? twist / 4.0 : 0.0);
+    /* Every segment starts over the surface, where the tracer starts it (t = 2^-30), when
+     * the eye is over it by more than the segment may fall below the ground there: at
+     * horizontal distance w = 2^-30 u_T (u_T the target's) the ground has risen at most
+     * slope w (|m| <= 1) and the segment fallen at most (ez - zmin) / u_T w (a target is no
+     * lower than zmin), so by 2^-30 (slope u_T + ez - zmin); with 1e-9 of the eye's height
+     * to spare for rounding. Before, the eye only had to clear the 1e-9: one 1e-7 m over a
+     * steep slope had segments under the surface from their start (test_low_eye). */
+    double fall = 0x1p-30 * (slope * (c->uhi - c->eu) + dmax(j->ez - j->v->grid->zmin, 0.0));
+    sw->hidden_ok = h > 1e-9 * (1.0 + fabs(j->ez)) + fall + (sw->lin ? twist / 4.0 : 0.0);
     /* the linear surface's chord under the eye may be above it: then nothing is proved */
     sw->visible_ok = !sw->lin || sw->hidden_ok;
     merge_g(sw);
