@@ -328,11 +328,13 @@ static void test_saddle(void **state)
  * faster than the ground under the eye, so it is under the surface from 1e-15 of its
  * length before the tracer starts it (2^-30), by 2.3e-13 m there: within the rounding
  * the under-the-surface rule allows, and then under the surface all the way, with no
- * crossing: the cast's answer is visible. The sweep took such an eye for one above the
+ * crossing: the cast's answer was visible. The sweep took such an eye for one above the
  * ground, whose segments all start above it, and proved the target hidden from a point
  * above the segment (hidden_ok now also asks the eye to clear what a segment may fall
  * over its first 2^-30: near_strip). Found by a fuzzer of exact planar and bilinear
- * terrains. */
+ * terrains. The segment is under the ground: td_viewshed_starts_under now calls it so
+ * (within rounding at the start, clearly under 2^-20 of the segment on), and both
+ * algorithms answer hidden. */
 static void test_low_eye(void **state)
 {
     td_vs_point p = {247.5, 165.32669781904147};
@@ -346,6 +348,13 @@ static void test_low_eye(void **state)
     o.height = 1e-7;
     for (int s = 0; s < TD_SURFACE_COUNT; s++)
         same(&fx, o, (td_surface)s);
+    /* and hidden: under the ground (td_viewshed_starts_under looks 2^-20 of it on too) */
+    uint8_t vis[W * H];
+    td_viewshed_stats st;
+    td_err e;
+    o.surface = TD_SURFACE_BILINEAR;
+    assert_int_equal(td_viewshed(&fx.v, &o, vis, &st, &e), TD_OK);
+    assert_int_equal(vis[(H - 1 - 3) * W + 12], 0);
     unmake(&fx);
 }
 
