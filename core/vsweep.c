@@ -1743,7 +1743,7 @@ static double last_real(const sweep *sw, int32_t U, double u, double m, double h
  * reloads sw's fields after every byte written to vis: a char may alias them). Arrays
  * offset by the rows' origin. */
 typedef struct tgt_cols {
-    const double *mc, *zc, *qc, *qp;
+    const double *mc, *zc, *qc, *qp, *zp;
     const double *fh;    /* fhi (col_pass), valid with pass */
     const int *kc;       /* valid with pass */
     const piece *Fp, *Np;
@@ -1756,6 +1756,8 @@ typedef struct tgt_cols {
     int nn, hint_n;       /* N's pieces, the search's hint */
     double nmax;          /* N's maximum */
     double ea;            /* the visible proofs' absolute eps (ground_eps) */
+    double em;            /* 2^-13 / u: end_clear's margin over 1 + |z| */
+    int tri, anti;
 } tgt_cols;
 
 /* The absolute eps a visible proof needs in column u: VS_EPS_ABS, and with the eye on the
@@ -1781,6 +1783,7 @@ static void tgt_cols_init(sweep *sw, int32_t U, tgt_cols *t)
     t->zc = sw->zcol[1] - c->vlo;
     t->qc = sw->qcol[1] - c->vlo;
     t->qp = sw->qcol[0] - c->vlo;
+    t->zp = sw->zcol[0] - c->vlo;
     t->kc = sw->kcol - c->vlo;
     t->fh = sw->fhi - c->vlo;
     t->Fp = sw->F.p;
@@ -1802,6 +1805,40 @@ static void tgt_cols_init(sweep *sw, int32_t U, tgt_cols *t)
     t->bil = sw->bil;
     t->lin = sw->lin;
     t->ea = ground_eps(sw, t->u);
+    t->em = 0x1p-13 / t->u;
+    t->tri = sw->tri;
+    t->anti = c->anti;
+}
+
+/* Whether the segment to ground target (U, V) (no target height) arrives over the
+ * surface by more than the tracer's rounding where the tracer ends it, 2^-30 of the
+ * segment short of the target. Both meet at the target, so there the segment is over the
+ * surface by (z' - q) d at a distance d before it (d = 2^-30 u in cells), z' the slope
+ * of the surface into the target along the ray (per cell of u, from the last cell: the
+ * bilinear patch's or the plane's at that corner, the linear surface's chord through the
+ * cell), q the segment's. A proof that the segment clears everything nearer by eps
+ * bounds its distance from the surface at the last cell's diagonal, not at its end: where
+ * the surface rises into the target along the line of sight (z' = q), the tracer's end
+ * decides by rounding. So a visible proof also needs z' - q >= 2^-13 (1 + |z|) / u, 2^-43
+ * (1 + |z|) at the tracer's end: twice starts_clear's measure. Found by a fuzzer with
+ * curvature on exact terrain (test_exact_terrains). A void corner: no surface there, 1. */
+static inline int end_clear(const tgt_cols *t, int32_t V, double m, double q)
+{
+    const double *zp = t->zp, *zc = t->zc;
+    double zt = zc[V], zs;
+    if (t->th > 0.0)
+        zs = INFINITY; /* over the ground at its end by th */
+    else if (m > 0.0) /* the last cell V-1: (U-1, V-1) z0, (U, V-1) z1, (U-1, V) z2, (U, V) z3 */
+        zs = V - 1 < t->vlo ? INFINITY
+             : t->lin      ? zt - (zp[V] + (zp[V - 1] - zp[V]) * m)
+                           : (zt - zp[V]) + m * (t->tri && !t->anti ? zp[V] - zp[V - 1] : zt - zc[V - 1]);
+    else if (m < 0.0) /* the last cell V: (U-1, V) z0, (U, V) z1, (U-1, V+1) z2, (U, V+1) z3 */
+        zs = V + 1 > t->vhi ? INFINITY
+             : t->lin      ? zt - (zp[V] + (zp[V + 1] - zp[V]) * -m)
+                           : (zt - zp[V]) + m * (t->tri && t->anti ? zp[V + 1] - zp[V] : zc[V + 1] - zt);
+    else /* along the row's edge */
+        zs = zt - zp[V];
+    return !(zs - q < t->em * (1.0 + fabs(zt)));
 }
 
 /* An upper bound of what last_cell may add to hi for target (U, V): its diagonal's point
@@ -1840,18 +1877,22 @@ typedef double vd4u __attribute__((vector_size(32), aligned(8), may_alias));
 /* The constants of last_diags' lanes */
 typedef struct diag_k {
     vd4 ez, u1, kmul, kadd, ea, er;
+    vd4 em, inf;      /* end_clear's 2^-13 / u; +inf */
+    int alt_p, alt_m; /* the triangle's end slope across its other plane (end_clear), m > 0, m < 0 */
 } diag_k;
 
 /* last_diags for rows V .. V+3 (the first n), on one side of the eye's row (side a
  * constant where it is inlined): m < 0, cell V's main diagonal (U-1, V)-(U, V+1); m > 0,
  * cell V-1's other one (U, V-1)-(U-1, V). last_cell's expressions lane by lane. */
 static inline __attribute__((always_inline)) void diag_quad(const double *zp, const double *zc, const double *mc,
-                                                            double *fh, const diag_k *d, int32_t V, int n, int side)
+                                                            const double *qc, double *fh, const diag_k *d, int32_t V,
+                                                            int n, int side)
 {
     const vd4 one = {1.0, 1.0, 1.0, 1.0}, zero = {0.0, 0.0, 0.0, 0.0};
     const vl4 absm = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
     int32_t W = side < 0 ? V : V - 1; /* the cell's lower row */
     vd4 z0 = LD4(zp + W), z1 = LD4(zc + W), z2 = LD4(zp + W + 1), z3 = LD4(zc + W + 1), h0 = LD4(fh + V);
+    /* z0 (U-1, W), z1 (U, W), z2 (U-1, W+1), z3 (U, W+1): the target is z1 (m < 0) or z3 */
     vd4 a = (vd4)((vl4)LD4(mc + V) & absm), s = a / (one + a), q;
     /* the twist k (the main diagonal upper where k >= 0), or for the triangle +-1 (main in
      * two cones): k * 1 + 0 compares as k does; NaN sum: a void corner (cellz) */
@@ -1863,6 +1904,15 @@ static inline __attribute__((always_inline)) void diag_quad(const double *zp, co
         q = (z1 + (z2 - z1) * (one - a + a * s) - d->ez) / (d->u1 + s);
     take = (side < 0 ? main : ~main) & (vl4)(sum == sum) & (vl4)(q > h0);
     q = (vd4)(((vl4)q & take) | ((vl4)h0 & ~take));
+    /* end_clear's expressions lane by lane (m = a or -a): +inf where the segment's end is
+     * not clear of the surface (quick_visible then fails, and target() decides) */
+    vd4 zs, zt = side < 0 ? z1 : z3, qt = LD4(qc + V);
+    if (side < 0)
+        zs = (z1 - z0) + -a * (d->alt_m ? z2 - z0 : z3 - z1);
+    else
+        zs = (z3 - z2) + a * (d->alt_p ? z2 - z0 : z3 - z1);
+    vl4 bad = (vl4)(zs - qt < d->em * (one + (vd4)((vl4)zt & absm)));
+    q = (vd4)(((vl4)d->inf & bad) | ((vl4)q & ~bad));
     if (n > 3)
         memcpy(fh + V, &q, sizeof q);
     else
@@ -1894,7 +1944,7 @@ static inline __attribute__((always_inline)) void diag_run(const double *zp, con
         if (!visible_any(qc, fh, d, V))
             continue;
         for (int32_t i = 0; i < VS_DIAG && V + i < Vb; i += 4)
-            diag_quad(zp, zc, mc, fh, d, V + i, Vb - (V + i) < 4 ? Vb - (V + i) : 4, side);
+            diag_quad(zp, zc, mc, qc, fh, d, V + i, Vb - (V + i) < 4 ? Vb - (V + i) : 4, side);
     }
 }
 
@@ -1907,7 +1957,7 @@ static inline __attribute__((always_inline)) void diag_run(const double *zp, con
  * two divisions each: trinidad from Blanca Peak 903.0 -> 820.4 M instructions (840.4
  * with two rows a vector; docs/viewshed.md "Speed"; the TD_VSWEEP_DEBUG build checks
  * each row against last_cell). */
-TD_ROW_CLONES static void last_diags(sweep *sw, int32_t U, int32_t V0, int32_t V1)
+TD_ROW_CLONES static void last_diags(sweep *sw, const tgt_cols *t, int32_t U, int32_t V0, int32_t V1)
 {
     const cone *c = &sw->c;
     const int32_t o = c->vlo;
@@ -1920,7 +1970,11 @@ TD_ROW_CLONES static void last_diags(sweep *sw, int32_t U, int32_t V0, int32_t V
                       {km, km, km, km},
                       {ka, ka, ka, ka},
                       {VS_EPS_ABS, VS_EPS_ABS, VS_EPS_ABS, VS_EPS_ABS},
-                      {VS_EPS_REL, VS_EPS_REL, VS_EPS_REL, VS_EPS_REL}};
+                      {VS_EPS_REL, VS_EPS_REL, VS_EPS_REL, VS_EPS_REL},
+                      {t->em, t->em, t->em, t->em},
+                      {INFINITY, INFINITY, INFINITY, INFINITY},
+                      sw->tri && !c->anti,
+                      sw->tri && c->anti};
     int32_t Vm, Vp;
     eye_rows(c->ev, V0, V1, &Vm, &Vp);
     Vm = Vm < c->vhi ? Vm : c->vhi; /* the cells on the grid (last_cell's cellz) */
@@ -1932,10 +1986,15 @@ TD_ROW_CLONES static void last_diags(sweep *sw, int32_t U, int32_t V0, int32_t V
 #endif
     diag_run(zp, zc, mc, qc, fh, &d, V0, Vm, -1);
     diag_run(zp, zc, mc, qc, fh, &d, Vp, V1 + 1, 1);
+    for (int32_t V = Vm > V0 ? Vm : V0; V < Vp && V <= V1; V++) /* the eye's row (m = 0) */
+        if (!end_clear(t, V, mc[V], qc[V]))
+            fh[V] = INFINITY;
 #ifdef TD_VSWEEP_DEBUG
     for (int32_t V = V0; V <= V1 && was; V++) {
         double hi = was[V - V0], lo = -INFINITY, q = qc[V];
         last_cell(sw, V, U - c->eu, mc[V], INFINITY, &hi, &lo);
+        if (!end_clear(t, V, mc[V], q))
+            hi = INFINITY;
         if ((q > was[V - V0] + VS_EPS_ABS + VS_EPS_REL * fabs(q) && fh[V] != hi) ||
             (fh[V] != was[V - V0] && fh[V] != hi)) {
             fprintf(stderr, "last_diags: U %d V %d: %.17g, last_cell %.17g\n", U, V, fh[V], hi);
@@ -1987,7 +2046,8 @@ static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
         lo = dmax(lo, last_real(sw, U, u, m, hu));
 decide:;
     /* visible: clear of everything nearer, and with the eye on the ground of its start (ground_eps) */
-    int vis = t->visible_ok && q > hi + eps && (q > hi + t->ea + VS_EPS_REL * fabs(q) || starts_clear(sw, U, V));
+    int vis = t->visible_ok && q > hi + eps && (q > hi + t->ea + VS_EPS_REL * fabs(q) || starts_clear(sw, U, V)) &&
+              end_clear(t, V, m, q);
 #ifdef TD_VSWEEP_DEBUG /* every proof checked against the cast */
     if (vis || (q < lo - eps && (t->hidden_ok || starts_clear(sw, U, V)))) {
         const td_vsweep_job *j = sw->job;
@@ -2111,7 +2171,11 @@ static void sweep_cone(sweep *sw)
         while (V1 >= V0 && !in_cone(V1 - ev, u, strict))
             V1--;
         if (quickv && !sw->lin)
-            last_diags(sw, U, V0, V1);
+            last_diags(sw, &t, U, V0, V1);
+        else if (quickv) /* the linear surface: no diagonals, the targets' ends (end_clear) */
+            for (int32_t V = V0; V <= V1; V++)
+                if (!end_clear(&t, V, t.mc[V], t.qc[V]))
+                    sw->fhi[V - c->vlo] = INFINITY;
         if (nomax && !holes && quick && quickv) {
             targets_plain(sw, &t, U, V0, V1);
             V1 = V0 - 1; /* done */
