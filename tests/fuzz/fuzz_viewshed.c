@@ -1,0 +1,136 @@
+/* fuzz_viewshed.c: the viewshed's sweep (core/vsweep.c) against the plain cast, one
+ * segment a sample, byte for byte (docs/viewshed.md: every answer the sweep proves must be
+ * the cast's). The input picks a small grid (2..48 samples a side) of exact planes and
+ * bilinear patches or of heights from its own bytes, the spacing, an observer (on a sample,
+ * on a grid line, between, or at two doubles the input gives), the eye's and the target's
+ * heights (0, 1e-7, 1e-3, 1.5, 30 m; 0, 0.01, 1 m), the surface, curvature and
+ * max_distance; both algorithms run and must agree, errors included. A fuzzer of these
+ * terrains found the three cases of tests/unit/test_vsweep.c test_saddle, test_low_eye and
+ * test_end_tangent; the seeds in corpus/viewshed are those (and a few plain ones). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "accel.h"
+#include "fuzz.h"
+#include "viewshed.h"
+
+typedef struct reader {
+    const uint8_t *p;
+    size_t n, at;
+} reader;
+
+/* The next byte, 0 past the end */
+static unsigned byte(reader *r) { return r->at < r->n ? r->p[r->at++] : 0u; }
+
+/* The next 8 bytes as a double (0 past the end) */
+static double dbl(reader *r)
+{
+    uint8_t b[8];
+    double d;
+    for (int k = 0; k < 8; k++)
+        b[k] = (uint8_t)byte(r);
+    memcpy(&d, b, sizeof d);
+    return d;
+}
+
+/* Heights: kind 0 planes, 1 a saddle of |i - i0| |j - j0|, 2 one bilinear patch, 3 a
+ * checkerboard on a ridge, 4 a plateau with straight edges, 5 terraces, 6 the input's
+ * bytes (a byte a sample, 0.25 m steps). */
+static void fill(td_grid *g, reader *r)
+{
+    unsigned kind = byte(r) % 7;
+    double a = (double)(byte(r) % 7) - 3.0, b = (double)(byte(r) % 7) - 3.0;
+    double c = ((double)(byte(r) % 9) - 4.0) * 0.25, d = (double)(byte(r) % 3);
+    int i0 = (int)(byte(r) % (unsigned)g->w), j0 = (int)(byte(r) % (unsigned)g->h);
+    for (int32_t j = 0; j < g->h; j++)
+        for (int32_t i = 0; i < g->w; i++) {
+            double z = 200.0 + a * i + b * j;
+            if (kind == 1)
+                z += c * abs(i - i0) * abs(j - j0);
+            else if (kind == 2)
+                z += c * (i - i0) * (j - j0);
+            else if (kind == 3)
+                z += d * ((i + j) & 1) + c * abs(i - i0);
+            else if (kind == 4)
+                z += abs(i - i0) + abs(j - j0) < 6 ? 5.0 * d : 0.0;
+            else if (kind == 5)
+                z = floor(z / 4.0) * 4.0 + c * ((i * 7 + j * 3) % 5);
+            else if (kind == 6)
+                z = 200.0 + 0.25 * ((double)byte(r) - 128.0);
+            g->z[(size_t)j * (size_t)g->w + (size_t)i] = (float)z;
+        }
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    static const double sxs[] = {10.0, 7.5, 1.0, 1000.0}, aspect[] = {1.0, 4.0 / 3.0, 5.0 / 3.0, 0.75};
+    static const double eyes[] = {0.0, 1e-7, 1e-3, 1.5, 30.0}, tgts[] = {0.0, 0.01, 1.0};
+    reader r = {data, size, 0};
+    td_grid *g = NULL;
+    td_accel *acc = NULL;
+    td_accel_opts ao;
+    td_view v;
+    int32_t w = 2 + (int32_t)(byte(&r) % 47), h = 2 + (int32_t)(byte(&r) % 47);
+    unsigned sp = byte(&r);
+    double sx = sxs[sp % 4], sy = sx * aspect[(sp >> 2) % 4];
+    if (td_grid_create(w, h, sx, sy, 3 + (int)((sp >> 4) % 3), NULL, &g, NULL))
+        abort();
+    fill(g, &r);
+    td_accel_opts_default(&ao);
+    ao.maxmip = 1;
+    ao.planes = 1;
+    ao.threads = 1;
+    if (td_grid_finish(g, NULL) || td_accel_build(g, &ao, &acc, NULL, NULL))
+        abort();
+    v.grid = g;
+    v.accel = acc->tiles;
+
+    /* the observer: on a sample, a column's line, a row's line, between, or two doubles */
+    unsigned mode = byte(&r) % 5, bx = byte(&r) << 8, by;
+    bx |= byte(&r);
+    by = byte(&r) << 8;
+    by |= byte(&r);
+    double fx = (double)bx / 65535.0 * (w - 1), fy = (double)by / 65535.0 * (h - 1);
+    td_vs_point p = {(mode == 0 || mode == 1 ? floor(fx) : fx) * sx, (mode == 0 || mode == 2 ? floor(fy) : fy) * sy};
+    if (mode == 4) {
+        p.x = dbl(&r);
+        p.y = dbl(&r);
+    }
+    td_viewshed_opts o;
+    td_viewshed_opts_default(&o);
+    o.obs = &p;
+    o.nobs = 1;
+    unsigned opt = byte(&r);
+    o.height = eyes[opt % 5];
+    o.target_height = tgts[(opt / 5) % 3];
+    o.surface = (td_surface)((opt / 15) % TD_SURFACE_COUNT);
+    unsigned more = byte(&r);
+    if (more & 1) {
+        o.curvature = 1;
+        o.k = 0.13;
+    }
+    if (more & 2)
+        o.max_distance = (double)(more >> 2) / 63.0 * (w + h) * sx;
+
+    size_t n = (size_t)w * (size_t)h;
+    uint8_t *a = malloc(n), *b = malloc(n);
+    td_viewshed_stats sa, sb;
+    td_err ea = {0}, eb = {0};
+    if (!a || !b)
+        abort();
+    o.algo = TD_VS_ALGO_CAST;
+    o.threads = 1;
+    td_status ra = td_viewshed(&v, &o, a, &sa, &ea);
+    o.algo = TD_VS_ALGO_SWEEP;
+    o.threads = 1 + (int)(more % 3);
+    td_status rb = td_viewshed(&v, &o, b, &sb, &eb);
+    fuzz_report("viewshed", ra, ea.msg);
+    if (ra != rb || (ra == TD_OK && memcmp(a, b, n) != 0))
+        abort(); /* the sweep's answer is not the cast's */
+    free(a);
+    free(b);
+    td_accel_free(acc);
+    td_grid_free(g);
+    return 0;
+}
