@@ -160,10 +160,11 @@ int td_viewshed_cast(const td_view *v, td_surface s, td_method m, double ex, dou
  * r->tmin, where the tracer starts, the segment is below the surface there (the linear
  * surface: the chord along the ray's line through that cell) by more than 2^-48 of the
  * eye's height (rounding), or within that there and by more than 16 times it at 2^-20
- * of the segment (it leaves the eye into the ground). The tracer counts crossings, so such a segment that stays
- * under the surface all the way to its target (an eye on the ground looking through
- * the hill it stands on) has none; td_viewshed_cast and td_los call it blocked. Never
- * for the plane surface (a solid column: the tracer hits at tmin) nor over a hole. */
+ * of the segment (it leaves the eye into the ground). The tracer counts crossings, so
+ * such a segment that stays under the surface all the way to its target (an eye on the
+ * ground looking through the hill it stands on) has none; td_viewshed_cast and td_los
+ * call it blocked. Never for the plane surface (a solid column: the tracer hits at tmin)
+ * nor over a hole. */
 int td_viewshed_starts_under(const td_grid *g, td_surface s, const td_ray *r);
 /* The segment's height over surface s where the tracer starts it (r->tmin), as
  * td_viewshed_starts_under measures it; NaN for the plane surface or over a hole. The

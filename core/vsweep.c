@@ -1766,10 +1766,10 @@ typedef struct tgt_cols {
  * eye's cell is (q - s) w at horizontal distance w, s the cell's slope along the ray,
  * which hi bounds (the eye's strip is in F and N), so q > hi + 2^-13 (1 + |ez|) / u puts
  * it 2^-43 (1 + |ez|) over the surface at w = 2^-30 u: starts_clear's measure, twice
- * (the computed gap is off by a few of ez's ulps, 2^-52 |ez| each). A target in between is proved visible only when starts_clear says so: its
- * segment may leave the eye along the surface (a target in the plane of the eye's
- * triangle: the tracer's start then decides by rounding, and calls it a touch). Found
- * by test_saddle. */
+ * (the computed gap is off by a few of ez's ulps, 2^-52 |ez| each). A target in between
+ * is proved visible only when starts_clear says so: its segment may leave the eye along
+ * the surface (a target in the plane of the eye's triangle: the tracer's start then
+ * decides by rounding, and calls it a touch). Found by test_saddle. */
 static inline double ground_eps(const sweep *sw, double u)
 {
     return VS_EPS_ABS + (sw->hidden_ok ? 0.0 : 0x1p-13 * (1.0 + fabs(sw->job->ez)) / u);
