@@ -147,6 +147,9 @@ typedef struct sweep {
     double nmax; /* N's maximum over the domain (n_max) */
     int hint_q, hint_s;
     double umax;              /* of the edges being added */
+    /* the nearest u of the edges being added, and the u under which an edge proves
+     * nothing hidden (its pieces' slack infinite): add_seg, near_strip */
+    double umin, near_u;
     double hole_u[VS_BINS];   /* per bin of m, the nearest u of a hole cell a ray there may cross */
     int oom;
     uint8_t *vis;
@@ -479,9 +482,12 @@ TD_ROW_CLONES static void load_next(sweep *sw, int32_t U)
     sw->zcol[2] = t[0];
     sw->mcol[2] = t[1];
     sw->qcol[2] = t[2];
-    if (U + 1 <= c->uhi)
+    /* a column off the grid is not loaded (NaN: the buffers' start, or a stale column
+     * past the far edge, which nothing reads); before the near edge when the eye's cell
+     * coordinate rounds past the grid's last row or column (y = 21 sy over sy: 21 + 1 ulp) */
+    if (U + 1 >= c->ulo && U + 1 <= c->uhi)
         src = col_src(sw, U + 1, V0, V1);
-    for (int32_t V = V0; V <= V1 && U + 1 <= c->uhi; V++) {
+    for (int32_t V = V0; V <= V1 && src; V++) {
         double z = src[V];
         t[0][V - c->vlo] = z;
         t[1][V - c->vlo] = (V - c->ev) * iu;
@@ -567,6 +573,8 @@ static void add_seg(sweep *sw, double ma, double qa, double mb, double qb, doubl
 {
     double m0, m1;
     piece p;
+    if (sw->umin < sw->near_u) /* may hold points the tracer does not look at (near_strip) */
+        slack = INFINITY;
     if (ma > mb) {
         double t = ma;
         ma = mb;
@@ -1475,6 +1483,7 @@ static void add_column(sweep *sw, int32_t U, int strip)
     int32_t V0 = (int32_t)dmax(floor(c->ev - u) - 1.0, (double)c->vlo);
     int32_t V1 = (int32_t)dmin(ceil(c->ev + u) + 1.0, (double)c->vhi);
     sw->umax = u;
+    sw->umin = strip ? u - 1.0 : u;
     if (sw->pass_ok)
         add_column_pass(sw, U, strip, V0, V1);
     else
@@ -1501,6 +1510,7 @@ static void add_clipped(sweep *sw, double ua, double va, double za, double ub, d
     }
     u0 = ua + t0 * du;
     u1 = ua + t1 * du;
+    sw->umin = dmin(u0, u1);
     if (t1 > t0 && u0 > 0.0 && u1 > 0.0) /* else outside the cone, or through the eye */
         add_edge_uv(sw, u0, va + t0 * dv, za + t0 * (zb - za), u1, va + t1 * dv, za + t1 * (zb - za), slack);
 }
@@ -1558,6 +1568,14 @@ static void near_strip(sweep *sw, int32_t U0)
     pv_clear(&sw->G);
     pv_clear(&sw->N);
     sw->umax = u0;
+    /* The tracer starts a segment 2^-30 of it from the eye, 2^-30 u_T in u: a surface point
+     * nearer than that is not looked at, so it proves no target hidden (the segment may
+     * cross the surface before the tracer starts it and run above it after). Only edges
+     * that pass that near the eye have such points: the eye's strip's rows when the eye is
+     * that near a row's line, the first column and strip when it is that near a column's
+     * (an eye on the grid's last row at y = 21 sy, whose y / sy is 21 + 1 ulp: its first
+     * column 4e-15 away; fuzz_viewshed). They keep bounding (slack infinite). */
+    sw->near_u = 0x1p-28 * (1.0 + c->uhi - c->eu);
     for (int32_t V = (int32_t)floor(c->ev - u0) - 1; V <= (int32_t)ceil(c->ev + u0) + 1; V++) {
         int here = cell(c, Uc, V, z);
         double zb[4];

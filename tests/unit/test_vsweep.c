@@ -67,10 +67,13 @@ static void make(fixture *fx, int kind, double sx, double sy)
 }
 
 /* The sweep's and the cast's viewsheds of opts o (surface s) are the same bytes; returns
- * the share of the in-range samples the sweep decided without a cast. */
+ * the share of the in-range samples the sweep decided without a cast. Grids of W x H
+ * samples or fewer. */
 static double same(const fixture *fx, td_viewshed_opts o, td_surface s)
 {
     uint8_t a[W * H], b[W * H];
+    const int gw = fx->g->w, gh = fx->g->h;
+    assert_true(gw * gh <= W * H);
     td_viewshed_stats sa, sb;
     td_err e;
     o.surface = s;
@@ -81,11 +84,11 @@ static double same(const fixture *fx, td_viewshed_opts o, td_surface s)
     o.algo = TD_VS_ALGO_SWEEP;
     o.threads = 3; /* the cones over threads */
     assert_int_equal(td_viewshed(&fx->v, &o, b, &sb, &e), TD_OK);
-    for (int k = 0; k < W * H; k++)
+    for (int k = 0; k < gw * gh; k++)
         if (a[k] != b[k])
             fail_msg("surface %s, observer (%g, %g) +%g m, target +%g m: sample (%d, %d): cast %d, sweep %d",
-                     td_surface_name(s), o.obs[0].x, o.obs[0].y, o.height, o.target_height, k % W,
-                     H - 1 - k / W, a[k], b[k]);
+                     td_surface_name(s), o.obs[0].x, o.obs[0].y, o.height, o.target_height, k % gw,
+                     gh - 1 - k / gw, a[k], b[k]);
     assert_int_equal(sa.visible, sb.visible);
     assert_int_equal(sb.swept + sb.rays, sa.rays); /* every traced sample, decided or cast */
     return sa.inside ? (double)sb.swept / (double)sa.inside : 0.0;
@@ -396,6 +399,37 @@ static void test_end_tangent(void **state)
     }
 }
 
+/* An eye on the ground at the grid's north-east corner sample, y = 21 sy with sy = 40 / 3:
+ * y / sy is 21 + 1 ulp, so the eye is 4e-15 of a cell north of the last row, and the south
+ * cone's first column (that row) 4e-15 from it. Its edges held points nearer the eye than
+ * where the tracer starts a segment (2^-30 of it): one 7e-15 m over the segment to (12,
+ * 12), which the sweep took to prove it hidden; the cast, from 2^-30 on, found it clear.
+ * Such near edges now bound without proving (near_strip's near_u). And load_next read the
+ * column before the first (off the grid) there: fuzz_viewshed's libFuzzer run found both
+ * (its seed corner-ulp). Every surface, the eye 0 and 1.5 m up. */
+static void test_corner_ulp(void **state)
+{
+    td_vs_point p = {130.0, 21.0 * (10.0 * (4.0 / 3.0))};
+    td_viewshed_opts o;
+    fixture fx;
+    (void)state;
+    assert_int_equal(td_grid_create(14, 22, 10.0, 10.0 * (4.0 / 3.0), 3, NULL, &fx.g, NULL), TD_OK);
+    for (int32_t j = 0; j < 22; j++)
+        for (int32_t i = 0; i < 14; i++)
+            fx.g->z[(size_t)j * 14 + i] =
+                (float)(floor((200.0 + 3.0 * i + 2.0 * j) / 4.0) * 4.0 - 0.25 * ((i * 7 + j * 3) % 5));
+    fixture_finish(&fx);
+    td_viewshed_opts_default(&o);
+    o.obs = &p;
+    o.nobs = 1;
+    for (int s = 0; s < TD_SURFACE_COUNT; s++)
+        for (int e = 0; e < 2; e++) {
+            o.height = e ? 1.5 : 0.0;
+            same(&fx, o, (td_surface)s);
+        }
+    unmake(&fx);
+}
+
 /* Under the address sanitizer (about 20x slower) a third of test_exact_terrains' terrains. */
 #if defined(__SANITIZE_ADDRESS__)
 #define EXACT_TERRAINS 5
@@ -525,6 +559,7 @@ int main(void)
         cmocka_unit_test(test_blocks),  cmocka_unit_test(test_facing),          cmocka_unit_test(test_last_cells),
         cmocka_unit_test(test_saddle),   cmocka_unit_test(test_low_eye),
         cmocka_unit_test(test_exact_terrains), cmocka_unit_test(test_end_tangent),
+        cmocka_unit_test(test_corner_ulp),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
