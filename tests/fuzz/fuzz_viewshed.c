@@ -14,6 +14,7 @@
 #include "accel.h"
 #include "fuzz.h"
 #include "viewshed.h"
+#include "../unit/vs_terrains.h"
 
 typedef struct reader {
     const uint8_t *p;
@@ -34,32 +35,19 @@ static double dbl(reader *r)
     return d;
 }
 
-/* Heights: kind 0 planes, 1 a saddle of |i - i0| |j - j0|, 2 one bilinear patch, 3 a
- * checkerboard on a ridge, 4 a plateau with straight edges, 5 terraces, 6 the input's
- * bytes (a byte a sample, 0.25 m steps). */
+/* Heights: one of vs_terrains.h's exact terrains, or (the kind after them) the input's
+ * bytes, a byte a sample in 0.25 m steps. */
 static void fill(td_grid *g, reader *r)
 {
-    unsigned kind = byte(r) % 7;
+    int kind = (int)(byte(r) % (VS_T_COUNT + 1));
     double a = (double)(byte(r) % 7) - 3.0, b = (double)(byte(r) % 7) - 3.0;
     double c = ((double)(byte(r) % 9) - 4.0) * 0.25, d = (double)(byte(r) % 3);
     int i0 = (int)(byte(r) % (unsigned)g->w), j0 = (int)(byte(r) % (unsigned)g->h);
     for (int32_t j = 0; j < g->h; j++)
-        for (int32_t i = 0; i < g->w; i++) {
-            double z = 200.0 + a * i + b * j;
-            if (kind == 1)
-                z += c * abs(i - i0) * abs(j - j0);
-            else if (kind == 2)
-                z += c * (i - i0) * (j - j0);
-            else if (kind == 3)
-                z += d * ((i + j) & 1) + c * abs(i - i0);
-            else if (kind == 4)
-                z += abs(i - i0) + abs(j - j0) < 6 ? 5.0 * d : 0.0;
-            else if (kind == 5)
-                z = floor(z / 4.0) * 4.0 + c * ((i * 7 + j * 3) % 5);
-            else if (kind == 6)
-                z = 200.0 + 0.25 * ((double)byte(r) - 128.0);
-            g->z[(size_t)j * (size_t)g->w + (size_t)i] = (float)z;
-        }
+        for (int32_t i = 0; i < g->w; i++)
+            g->z[(size_t)j * (size_t)g->w + (size_t)i] =
+                (float)(kind == VS_T_COUNT ? 200.0 + 0.25 * ((double)byte(r) - 128.0)
+                                           : vs_exact_z(kind, a, b, c, d, i0, j0, i, j));
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)

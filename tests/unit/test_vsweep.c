@@ -18,6 +18,7 @@
 #include "accel.h"
 #include "viewshed.h"
 #include "vs_fixture.h"
+#include "vs_terrains.h"
 
 #define W 47
 #define H 39
@@ -460,23 +461,11 @@ static void test_exact_terrains(void **state)
         double sx = it % 3 == 0 ? 10.0 : 7.5, sy = it % 3 == 2 ? 12.5 : 10.0;
         double a = (double)(int)(noise(it, 1, 21) * 7.0) - 3.0, b = (double)(int)(noise(it, 2, 21) * 7.0) - 3.0;
         double c = ((double)(int)(noise(it, 3, 21) * 9.0) - 4.0) * 0.25, d = (double)(int)(noise(it, 4, 21) * 3.0);
-        int kind = it % 5, i0 = (int)(noise(it, 5, 21) * W), j0 = (int)(noise(it, 6, 21) * H);
+        int kind = VS_T_SADDLE + it % 5, i0 = (int)(noise(it, 5, 21) * W), j0 = (int)(noise(it, 6, 21) * H);
         assert_int_equal(td_grid_create(W, H, sx, sy, 3, NULL, &fx.g, NULL), TD_OK);
         for (int32_t j = 0; j < H; j++)
-            for (int32_t i = 0; i < W; i++) {
-                double z = 200.0 + a * i + b * j;
-                if (kind == 0)
-                    z += c * abs(i - i0) * abs(j - j0);
-                else if (kind == 1)
-                    z += c * (i - i0) * (j - j0);
-                else if (kind == 2)
-                    z += d * ((i + j) & 1) + c * abs(i - i0);
-                else if (kind == 3)
-                    z += abs(i - i0) + abs(j - j0) < 6 ? 5.0 * d : 0.0;
-                else
-                    z = floor(z / 4.0) * 4.0 + c * ((i * 7 + j * 3) % 5);
-                fx.g->z[(size_t)j * W + i] = (float)z;
-            }
+            for (int32_t i = 0; i < W; i++)
+                fx.g->z[(size_t)j * W + i] = (float)vs_exact_z(kind, a, b, c, d, i0, j0, i, j);
         fixture_finish(&fx);
         for (int k = 0; k < 4; k++) {
             /* on a sample, on a column's line, on a row's line, between */
