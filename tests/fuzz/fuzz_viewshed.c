@@ -1,12 +1,13 @@
 /* fuzz_viewshed.c: the viewshed's sweep (core/vsweep.c) against the plain cast, one
  * segment a sample, byte for byte (docs/viewshed.md: every answer the sweep proves must be
  * the cast's). The input picks a small grid (2..48 samples a side) of exact planes and
- * bilinear patches or of heights from its own bytes, the spacing, an observer (on a sample,
- * on a grid line, between, or at two doubles the input gives), the eye's and the target's
- * heights (0, 1e-7, 1e-3, 1.5, 30 m; 0, 0.01, 1 m), the surface, curvature and
- * max_distance; both algorithms run and must agree, errors included. A fuzzer of these
- * terrains found the three cases of tests/unit/test_vsweep.c test_saddle, test_low_eye and
- * test_end_tangent; the seeds in corpus/viewshed are those (and a few plain ones). */
+ * bilinear patches (tests/unit/vs_terrains.h) or of heights from its own bytes, the
+ * spacing, an observer (on a sample, on a grid line, between, or at two doubles the input
+ * gives), the eye's and the target's heights (0, 1e-7, 1e-3, 1.5, 30 m; 0, 0.01, 1 m),
+ * the surface, curvature, max_distance and voids; both algorithms run and must agree,
+ * errors included. Its seeds (corpus/viewshed) are the cases of tests/unit/test_vsweep.c
+ * that a fuzzer of these terrains found (test_low_eye, test_end_tangent, test_corner_ulp),
+ * each failing on the code before its fix, and a few plain ones. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -50,6 +51,27 @@ static void fill(td_grid *g, reader *r)
                                            : vs_exact_z(kind, a, b, c, d, i0, j0, i, j));
 }
 
+/* Voids, from byte v (the input's last field, so that inputs without it have none):
+ * v % 4 = 0 none, 1 a rectangle (from the four bytes after it), 2 the samples with
+ * (5 i + 3 j + v / 4) % 7 == 0, 3 a row and a column through the grid's middle. */
+static void holes(td_grid *g, unsigned v, const uint8_t *rect)
+{
+    int32_t w = g->w, h = g->h;
+    for (int32_t j = 0; j < h; j++)
+        for (int32_t i = 0; i < w; i++) {
+            int hole = 0;
+            if (v % 4 == 1)
+                hole = i >= rect[0] % w && i <= rect[0] % w + rect[1] % 6 && j >= rect[2] % h &&
+                       j <= rect[2] % h + rect[3] % 6;
+            else if (v % 4 == 2)
+                hole = (5 * i + 3 * j + (int)(v / 4)) % 7 == 0;
+            else if (v % 4 == 3)
+                hole = i == w / 2 || j == h / 2;
+            if (hole)
+                g->z[(size_t)j * (size_t)w + (size_t)i] = NAN;
+        }
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     static const double sxs[] = {10.0, 7.5, 1.0, 1000.0}, aspect[] = {1.0, 4.0 / 3.0, 5.0 / 3.0, 0.75};
@@ -65,14 +87,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (td_grid_create(w, h, sx, sy, 3 + (int)((sp >> 4) % 3), NULL, &g, NULL))
         abort();
     fill(g, &r);
-    td_accel_opts_default(&ao);
-    ao.maxmip = 1;
-    ao.planes = 1;
-    ao.threads = 1;
-    if (td_grid_finish(g, NULL) || td_accel_build(g, &ao, &acc, NULL, NULL))
-        abort();
-    v.grid = g;
-    v.accel = acc->tiles;
 
     /* the observer: on a sample, a column's line, a row's line, between, or two doubles */
     unsigned mode = byte(&r) % 5, bx = byte(&r) << 8, by;
@@ -100,6 +114,18 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     if (more & 2)
         o.max_distance = (double)(more >> 2) / 63.0 * (w + h) * sx;
+    uint8_t vb[5]; /* voids last: inputs that end before them have none */
+    for (int k = 0; k < 5; k++)
+        vb[k] = (uint8_t)byte(&r);
+    holes(g, vb[0], vb + 1);
+    td_accel_opts_default(&ao);
+    ao.maxmip = 1;
+    ao.planes = 1;
+    ao.threads = 1;
+    if (td_grid_finish(g, NULL) || td_accel_build(g, &ao, &acc, NULL, NULL))
+        abort();
+    v.grid = g;
+    v.accel = acc->tiles;
 
     size_t n = (size_t)w * (size_t)h;
     uint8_t *a = malloc(n), *b = malloc(n);
