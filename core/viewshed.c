@@ -354,6 +354,17 @@ static void free_eyes(eye *eyes, int n)
     free(eyes);
 }
 
+/* x (metres, in [0, (n - 1) s]) moved down by the ulps that put x / s past n - 1: the
+ * last row's y = 21 sy with sy = 40 / 3 has y / sy = 21 + 1 ulp, an eye just off the grid
+ * to the tracer (which divides) and to the sweep, whose answers then part along the grid's
+ * edge (fuzz_viewshed). At most a few ulps; a point inside stays as it is. */
+static double into_grid(double x, double s, int32_t n)
+{
+    while (x > 0.0 && x / s > (double)(n - 1))
+        x = nextafter(x, 0.0);
+    return x;
+}
+
 /* Each observer's eye: its ground (on its own view: the lowered grid is not lowered under
  * the observer, s = 0 there) plus height. */
 static td_status setup_eyes(const td_view *v, const td_vs_point *p, int n, double height,
@@ -370,8 +381,8 @@ static td_status setup_eyes(const td_view *v, const td_vs_point *p, int n, doubl
     for (int i = 0; i < n && !rc; i++) {
         eye *e = &eyes[i];
         e->view = *v;
-        e->x = p[i].x;
-        e->y = p[i].y;
+        e->x = into_grid(p[i].x, v->grid->sx, v->grid->w);
+        e->y = into_grid(p[i].y, v->grid->sy, v->grid->h);
         if (c != 0.0)
             rc = lowered_view(v, m, c, e->x, e->y, threads, e, err);
         e->ground = td_viewshed_ground(e->view.grid, s, e->x, e->y);

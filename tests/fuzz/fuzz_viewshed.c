@@ -4,10 +4,11 @@
  * bilinear patches (tests/unit/vs_terrains.h) or of heights from its own bytes, the
  * spacing, an observer (on a sample, on a grid line, between, or at two doubles the input
  * gives), the eye's and the target's heights (0, 1e-7, 1e-3, 1.5, 30 m; 0, 0.01, 1 m),
- * the surface, curvature, max_distance and voids; both algorithms run and must agree,
- * errors included. Its seeds (corpus/viewshed) are the cases of tests/unit/test_vsweep.c
- * that a fuzzer of these terrains found (test_low_eye, test_end_tangent, test_corner_ulp),
- * each failing on the code before its fix, and a few plain ones. */
+ * the surface, curvature, max_distance, voids and a second observer; both algorithms run
+ * and must agree, errors included. Its seeds (corpus/viewshed) are the cases of
+ * tests/unit/test_vsweep.c that a fuzzer of these terrains found (test_low_eye,
+ * test_end_tangent, test_ulp_eyes), each failing on the code before its fix, and a few
+ * plain ones. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -99,9 +100,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         p.x = dbl(&r);
         p.y = dbl(&r);
     }
+    td_vs_point obs[2] = {p, p};
     td_viewshed_opts o;
     td_viewshed_opts_default(&o);
-    o.obs = &p;
+    o.obs = obs;
     o.nobs = 1;
     unsigned opt = byte(&r);
     o.height = eyes[opt % 5];
@@ -118,6 +120,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     for (int k = 0; k < 5; k++)
         vb[k] = (uint8_t)byte(&r);
     holes(g, vb[0], vb + 1);
+    if (byte(&r) & 1) { /* a second observer (a cumulative viewshed), on a sample */
+        unsigned ox = byte(&r), oy = byte(&r);
+        obs[1] = (td_vs_point){(double)(ox % (unsigned)w) * sx, (double)(oy % (unsigned)h) * sy};
+        o.nobs = 2;
+    }
     td_accel_opts_default(&ao);
     ao.maxmip = 1;
     ao.planes = 1;

@@ -400,34 +400,41 @@ static void test_end_tangent(void **state)
     }
 }
 
-/* An eye on the ground at the grid's north-east corner sample, y = 21 sy with sy = 40 / 3:
- * y / sy is 21 + 1 ulp, so the eye is 4e-15 of a cell north of the last row, and the south
- * cone's first column (that row) 4e-15 from it. Its edges held points nearer the eye than
- * where the tracer starts a segment (2^-30 of it): one 7e-15 m over the segment to (12,
- * 12), which the sweep took to prove it hidden; the cast, from 2^-30 on, found it clear.
- * Such near edges now bound without proving (near_strip's near_u). And load_next read the
- * column before the first (off the grid) there: fuzz_viewshed's libFuzzer run found both
- * (its seed corner-ulp). Every surface, the eye 0 and 1.5 m up. */
-static void test_corner_ulp(void **state)
+/* Eyes on the ground one ulp off a grid line, on terraces of 14 x 22 samples with
+ * sy = 40 / 3. At the north-east corner sample, y = 21 sy: y / sy is 21 + 1 ulp, an eye
+ * 4e-15 of a cell off the grid: load_next read the column before the first (off the
+ * grid), the sweep and the tracer parted along the grid's edge, and the south cone's first
+ * column, 4e-15 from the eye, held points nearer it than where the tracer starts a segment
+ * (2^-30 of it), one 7e-15 m over the segment to (12, 12), which proved it hidden where
+ * the cast found it clear (fuzz_viewshed's libFuzzer runs, seeds corner-ulp and
+ * corner-ulp-west). Now the eye is moved into the grid by those ulps (viewshed.c
+ * into_grid), and edges nearer the eye than the tracer looks bound without proving
+ * (vsweep.c near_u): without near_u, an eye at (30, the largest y under 10 sy) differs
+ * from the cast on 363 samples over the surfaces. Every surface, the eye 0 and 1e-7 m up. */
+static void test_ulp_eyes(void **state)
 {
-    td_vs_point p = {130.0, 21.0 * (10.0 * (4.0 / 3.0))};
+    const double sy = 10.0 * (4.0 / 3.0);
+    double y10 = 10.0 * sy;
+    while (y10 / sy >= 10.0)
+        y10 = nextafter(y10, 0.0);
+    const td_vs_point p[] = {{130.0, 21.0 * sy}, {0.0, 21.0 * sy}, {30.0, y10}, {70.0, y10}};
     td_viewshed_opts o;
     fixture fx;
     (void)state;
-    assert_int_equal(td_grid_create(14, 22, 10.0, 10.0 * (4.0 / 3.0), 3, NULL, &fx.g, NULL), TD_OK);
+    assert_int_equal(td_grid_create(14, 22, 10.0, sy, 3, NULL, &fx.g, NULL), TD_OK);
     for (int32_t j = 0; j < 22; j++)
         for (int32_t i = 0; i < 14; i++)
-            fx.g->z[(size_t)j * 14 + i] =
-                (float)(floor((200.0 + 3.0 * i + 2.0 * j) / 4.0) * 4.0 - 0.25 * ((i * 7 + j * 3) % 5));
+            fx.g->z[(size_t)j * 14 + i] = (float)vs_exact_z(VS_T_TERRACES, 3.0, 2.0, -0.25, 0.0, 0, 0, i, j);
     fixture_finish(&fx);
     td_viewshed_opts_default(&o);
-    o.obs = &p;
     o.nobs = 1;
-    for (int s = 0; s < TD_SURFACE_COUNT; s++)
-        for (int e = 0; e < 2; e++) {
-            o.height = e ? 1.5 : 0.0;
-            same(&fx, o, (td_surface)s);
-        }
+    for (size_t k = 0; k < sizeof p / sizeof *p; k++)
+        for (int s = 0; s < TD_SURFACE_COUNT; s++)
+            for (int e = 0; e < 2; e++) {
+                o.obs = &p[k];
+                o.height = e ? 1e-7 : 0.0;
+                same(&fx, o, (td_surface)s);
+            }
     unmake(&fx);
 }
 
@@ -548,7 +555,7 @@ int main(void)
         cmocka_unit_test(test_blocks),  cmocka_unit_test(test_facing),          cmocka_unit_test(test_last_cells),
         cmocka_unit_test(test_saddle),   cmocka_unit_test(test_low_eye),
         cmocka_unit_test(test_exact_terrains), cmocka_unit_test(test_end_tangent),
-        cmocka_unit_test(test_corner_ulp),
+        cmocka_unit_test(test_ulp_eyes),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
