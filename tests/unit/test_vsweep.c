@@ -3,9 +3,12 @@
  * hard cases: an observer on the peak, in the pit, at each corner, on a grid line,
  * between samples, beside a void and on its edge, on a cliff's edge and at its foot
  * (targets on the edge), at height 0, with a target height, with curvature, with
- * max_distance, several observers, integer heights (exact touches), every surface. The
- * sweep must also decide most samples itself where it can (else this test would pass by
- * casting everything). Real DEMs: tests/oracle/viewshed_oracle.c. */
+ * max_distance, several observers, integer heights (exact touches), every surface; and
+ * terrains of exact planes and bilinear patches (vs_terrains.h), where segments lie in the
+ * surface, leave the eye along it or arrive along it, with eyes on the ground, 1e-7 m over
+ * it and 1 ulp off a grid line (the cases tests/fuzz/fuzz_viewshed.c found). The sweep must
+ * also decide most samples itself where it can (else this test would pass by casting
+ * everything). Real DEMs: tests/oracle/viewshed_oracle.c. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
