@@ -112,10 +112,25 @@ static double sample_ground(const td_grid *g, td_surface s, int32_t i, int32_t j
                              i * g->sx, j * g->sy);
 }
 
+/* x (metres, in [0, (n - 1) s]) moved down by the ulps that put x / s past n - 1: the
+ * last row's y = 21 sy with sy = 40 / 3 has y / sy = 21 + 1 ulp, just off the grid to the
+ * tracer (which divides) and to the sweep. For an eye there (setup_eyes) the two parted
+ * along the grid's edge; for a target on the last row (td_viewshed_ray), a segment along
+ * that row from an eye on it left the grid half way to the tracer's clip, which then
+ * missed the terrain that blocks it (fuzz_viewshed, seeds corner-ulp-west and edge-row).
+ * At most a few ulps; a point inside stays as it is. */
+static double into_grid(double x, double s, int32_t n)
+{
+    while (x > 0.0 && x / s > (double)(n - 1))
+        x = nextafter(x, 0.0);
+    return x;
+}
+
 int td_viewshed_ray(const td_grid *g, td_surface s, double ex, double ey, double ez, int32_t i,
                     int32_t j, double target_height, td_ray *r)
 {
-    double x = i * g->sx, y = j * g->sy, z = sample_ground(g, s, i, j);
+    double x = into_grid(i * g->sx, g->sx, g->w), y = into_grid(j * g->sy, g->sy, g->h);
+    double z = sample_ground(g, s, i, j);
     int rc = 0;
     if (isnan(z)) {
         rc = -1;
@@ -352,17 +367,6 @@ static void free_eyes(eye *eyes, int n)
         td_grid_free(eyes[k].lowered);
     }
     free(eyes);
-}
-
-/* x (metres, in [0, (n - 1) s]) moved down by the ulps that put x / s past n - 1: the
- * last row's y = 21 sy with sy = 40 / 3 has y / sy = 21 + 1 ulp, an eye just off the grid
- * to the tracer (which divides) and to the sweep, whose answers then part along the grid's
- * edge (fuzz_viewshed). At most a few ulps; a point inside stays as it is. */
-static double into_grid(double x, double s, int32_t n)
-{
-    while (x > 0.0 && x / s > (double)(n - 1))
-        x = nextafter(x, 0.0);
-    return x;
 }
 
 /* Each observer's eye: its ground (on its own view: the lowered grid is not lowered under
