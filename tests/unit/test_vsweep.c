@@ -98,12 +98,11 @@ static double same(const fixture *fx, td_viewshed_opts o, td_surface s)
     return sa.inside ? (double)sb.swept / (double)sa.inside : 0.0;
 }
 
-/* Every surface and a few heights from observer p. Returns the share swept on the
- * bilinear surface with the eye 12 m up (the linear surface proves less: near an eye
- * lower than a quarter of its cell's twist nothing, see vsweep.c's near_strip). */
-static double all_surfaces(const fixture *fx, td_vs_point p)
+/* Every surface, the three eye heights eye[] and the two target heights tgt[] from
+ * observer p. Returns the share swept on the bilinear surface with the last eye height
+ * and the first target height. */
+static double heights(const fixture *fx, td_vs_point p, const double eye[3], const double tgt[2])
 {
-    static const double eye[] = {0.0, 1.0, 12.0}, tgt[] = {0.0, 2.5};
     double share = 0.0;
     td_viewshed_opts o;
     td_viewshed_opts_default(&o);
@@ -120,6 +119,15 @@ static double all_surfaces(const fixture *fx, td_vs_point p)
                     share = sh;
             }
     return share;
+}
+
+/* Every surface and a few heights from observer p. Returns the share swept on the
+ * bilinear surface with the eye 12 m up (the linear surface proves less: near an eye
+ * lower than a quarter of its cell's twist nothing, see vsweep.c's near_strip). */
+static double all_surfaces(const fixture *fx, td_vs_point p)
+{
+    static const double eye[] = {0.0, 1.0, 12.0}, tgt[] = {0.0, 2.5};
+    return heights(fx, p, eye, tgt);
 }
 
 /* The highest and lowest samples, as observer points. */
@@ -482,17 +490,7 @@ static void test_exact_terrains(void **state)
             r = r * 6364136223846793005ull + 1442695040888963407ull;
             double x = (double)(r >> 11) / 9007199254740992.0 * (W - 1), y = noise(it, k, 22) * (H - 1);
             td_vs_point p = {(k == 0 || k == 1 ? floor(x) : x) * sx, (k == 0 || k == 2 ? floor(y) : y) * sy};
-            td_viewshed_opts o;
-            td_viewshed_opts_default(&o);
-            o.obs = &p;
-            o.nobs = 1;
-            for (int s = 0; s < TD_SURFACE_COUNT; s++)
-                for (int e = 0; e < 3; e++)
-                    for (int t = 0; t < 2; t++) {
-                        o.height = eyes[e];
-                        o.target_height = tgts[t];
-                        same(&fx, o, (td_surface)s);
-                    }
+            heights(&fx, p, eyes, tgts);
         }
         unmake(&fx);
     }
