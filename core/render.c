@@ -1129,7 +1129,10 @@ static void stage_primary(worker *w, const blk *b)
         td_camera_ray(&c->cam, 0.5 * (b->x0 + b->x1 - 1), 0.5 * (b->y0 + b->y1 - 1), &mid);
         const uint64_t steps0 = w->st.kind_steps[TD_RAY_PRIMARY], rays0 = w->st.rays[TD_RAY_PRIMARY];
         const int steep = -mid.d[2] >= hypot(mid.d[0], mid.d[1]);
-        if (lean > TD_BAND_LEAN && b->ns <= TD_BAND_SAMPLES && !steep) {
+        /* bands need a block of more than one sample: one sample (a 1 x 1 pixel block at
+         * the image's corner, one ray a pixel) spans no width across the verticals, which
+         * band_order divides by (the rolled 65 x 17 image wrote out of its counts) */
+        if (lean > TD_BAND_LEAN && b->ns > 1 && b->ns <= TD_BAND_SAMPLES && !steep) {
             trace_band(w, fp, b, vert, w->band_far ? TD_BANDS_FAR : TD_BANDS);
         } else {
             const int ns = w->band_far && !steep ? TD_SLICES_FAR : TD_SLICES;

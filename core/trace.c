@@ -966,6 +966,16 @@ static inline int on_grid(const walk *w, const walk_state *st)
     return st->ci >= 0 && st->cj >= 0 && st->ci <= w->cmax_i && st->cj <= w->cmax_j;
 }
 
+/* The cell before c along an axis (s the walk's step there, hi the last cell) when the
+ * walk enters c only after tc (entry te > tc), which rounding of the ray's position at tc
+ * gives a ray that runs within an ulp of a grid line: a nearly vertical camera ray on a
+ * row's line was started past the line, 2.5 cells of descent after the column it was
+ * in, whose top it met (fuzz_render, seed straight-down-on-line). Else c. */
+static inline int32_t back_cell(double te, double tc, int32_t c, int s, int32_t hi)
+{
+    return te > tc && c - s >= 0 && c - s <= hi ? c - s : c;
+}
+
 /* Moves the walk's start (walk_clip's) to the entry boundary of the cell the ray is in at
  * internal time tc, which the caller knows no hit precedes, or else puts it in the cell it
  * starts in. From a cell's entry boundary the walk is the walk from the ray's start, bit
@@ -979,6 +989,11 @@ TD_HOT int skip_to(const walk *w, walk_state *st, double tc)
     } else if (tc > st->t) {
         int32_t ci = cell_along(ray_u(w, tc), w->su, 0, w->cmax_i);
         int32_t cj = cell_along(ray_v(w, tc), w->sv, 0, w->cmax_j);
+        /* the position at tc is rounded: a ray within an ulp of a grid line may land in
+         * the cell past it before the time the walk crosses it (its entry after tc); it
+         * is still in the cell before (back_cell) */
+        ci = back_cell(entry_u(w, ci), tc, ci, w->su, w->cmax_i);
+        cj = back_cell(entry_v(w, cj), tc, cj, w->sv, w->cmax_j);
         double teu = entry_u(w, ci), tev = entry_v(w, cj), te = dmax(teu, tev);
         if (te > st->t) { /* else the ray starts in that cell */
             enter_cell(st, ci, cj, te, crossing(tev, teu), NAN);
@@ -1500,6 +1515,15 @@ TD_HOT void vstart_at(const walk *w, vwalk *p, vd iz, vd tc, vstate *st, vm *go,
     vd cj = vcell_along(vray_v(p, tc), p->nv, 0.0, (double)w->cmax_j);
     vd teu = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
     vd tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
+    /* skip_to's back_cell, lane by lane */
+    vm bu = (vm)(teu > tc) & (vm)(ci - p->su >= 0.0) & (vm)(ci - p->su <= (double)w->cmax_i);
+    vm bv = (vm)(tev > tc) & (vm)(cj - p->sv >= 0.0) & (vm)(cj - p->sv <= (double)w->cmax_j);
+    if (vany(bu | bv)) {
+        ci = vsel(bu, ci - p->su, ci);
+        cj = vsel(bv, cj - p->sv, cj);
+        teu = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
+        tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
+    }
     vd te = vmax(teu, tev);
     vm moved = later & (vm)(te > t0);
     st->ci = ci, st->cj = cj;

@@ -1148,6 +1148,57 @@ static void test_rolled_bands(void **state)
     td_grid_free(g);
 }
 
+/* Rolled cameras whose image leaves a block of one pixel at its corner (17 x 17 and 65 x
+ * 33 pixels: blocks of 16) or is one pixel: a one-sample block spans no width across the
+ * verticals, and the band sort (band_order) divided by it and wrote out of its counts
+ * (fuzz_render: a segmentation fault of `terrad render` on a rolled 65 x 17 image, and of
+ * the service on such a request). Such blocks take the column slices: the depths of the
+ * plain walk, bit for bit, on every surface, one ray a pixel and 2 x 2. */
+static void test_rolled_corner_block(void **state)
+{
+    char dem_path[256];
+    td_grid *g = NULL;
+    td_accel *a = NULL;
+    td_accel_opts ao;
+    td_err err = {0};
+    (void)state;
+    snprintf(dem_path, sizeof dem_path, "%s/picos-dtm.asc", TERRAD_TEST_DATA);
+    assert_int_equal(td_dem_load(dem_path, NULL, &g, &err), TD_OK);
+    td_accel_opts_for(TD_METHOD_AUTO, &ao);
+    assert_int_equal(td_accel_build(g, &ao, &a, NULL, &err), TD_OK);
+    td_view v = {g, a->tiles};
+    static const int32_t sizes[][2] = {{17, 17}, {65, 33}, {1, 1}};
+    int hits = 0;
+    for (int si = 0; si < 3; si++)
+        for (int surf = 0; surf < TD_SURFACE_COUNT; surf++)
+            for (int n = 1; n <= 2; n++) {
+                td_render_result r[2];
+                td_scene sc;
+                td_scene_defaults(&sc);
+                snprintf(sc.dataset, sizeof sc.dataset, "picos");
+                sc.camera.x = 560.0, sc.camera.y = 2781.0, sc.camera.z = 2557.0;
+                sc.camera.heading = 140.0, sc.camera.pitch = -10.0, sc.camera.roll = 35.0, sc.camera.fov = 70.0;
+                sc.image.width = sizes[si][0], sc.image.height = sizes[si][1];
+                sc.image.format = TD_FORMAT_DEPTH32F;
+                sc.quality.surface = (td_surface)surf;
+                sc.quality.samples = n;
+                for (int k = 0; k < 2; k++) {
+                    td_render_opts o;
+                    td_render_opts_default(&o);
+                    o.threads = 1;
+                    o.off = k ? TD_RENDER_OFF_CAMERA : 0;
+                    assert_int_equal(td_render(&v, &sc, &o, &r[k], &err), TD_OK);
+                }
+                assert_memory_equal(r[0].depth, r[1].depth, sizeof(float) * (size_t)(sizes[si][0] * sizes[si][1]));
+                hits += r[0].stats.hits > 0;
+                td_render_result_free(&r[0]);
+                td_render_result_free(&r[1]);
+            }
+    assert_true(hits >= 2 * 2 * TD_SURFACE_COUNT); /* the larger images see terrain */
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
 static void test_pick_traces_the_render_rays(void **state)
 {
     td_view v = {grid, NULL};
@@ -1248,7 +1299,7 @@ int main(void)
         cmocka_unit_test(test_golden_images),
         cmocka_unit_test(test_stats_add),
         cmocka_unit_test(test_pick_traces_the_render_rays),
-        cmocka_unit_test(test_rolled_bands),
+        cmocka_unit_test(test_rolled_bands), cmocka_unit_test(test_rolled_corner_block),
         cmocka_unit_test(test_limits_in_core),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

@@ -691,6 +691,67 @@ static void test_fan_cells(void **state)
     td_grid_free(g);
 }
 
+/* The same hit as td_trace, from any t_clear before it: t, point, normal and cell. */
+static void assert_same_hit(const td_hit *a, const td_hit *b)
+{
+    assert_memory_equal(&a->t, &b->t, sizeof a->t);
+    assert_memory_equal(a->p, b->p, sizeof a->p);
+    assert_memory_equal(a->n, b->n, sizeof a->n);
+    assert_int_equal(a->ci, b->ci);
+    assert_int_equal(a->cj, b->cj);
+}
+
+/* Rays within an ulp of a grid line, started from a bound (td_trace_from, and a fan's
+ * packet): the position at t_clear rounds onto the line's other side long before the ray
+ * crosses it, and the walk used to start in the cell past the line, skipping the hit in
+ * the cell the ray was still in (fuzz_render found a straight-down camera ray on a row's
+ * line of a sloping plane, sy = 4/3: 24.54 m instead of 22, the column past the line met
+ * from the side). Nearly vertical rays from points on the row and column lines of a plane
+ * that rises north and falls east, every surface and method, t_clear from 0 to the hit:
+ * td_trace's hit, and the fan's the same. */
+static void test_from_near_line(void **state)
+{
+    (void)state;
+    td_grid *g = make_grid(8, 10, 1.0, 4.0 / 3.0, 3);
+    for (int32_t j = 0; j < g->h; j++)
+        for (int32_t i = 0; i < g->w; i++)
+            g->z[(size_t)j * (size_t)g->w + (size_t)i] = (float)(200 - 3 * i + 3 * j);
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel *a = build_all(g, 8);
+    td_view v = {g, a->tiles};
+    /* tiny horizontal parts, the first the fuzzer's camera ray's */
+    static const double dir[4][2] = {{3.7681813499433066e-17, 4.8264690903895654e-17},
+                                     {-1e-16, 4.8e-17},
+                                     {4.8e-17, -1e-15},
+                                     {-3.7e-17, -1e-16}};
+    int moved = 0;
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++)
+        for (int m = 0; m < TD_METHOD_COUNT; m++)
+            for (int at = 0; at < 3 * 6 * 8 * 4 && m != TD_METHOD_SILHOUETTE; at++) {
+                /* on row j's line (y = j sy as rounded) between samples or at one, or on
+                   column i's line between rows */
+                int kind = at % 3, i = 1 + at / 3 % 6, j = 1 + at / 18 % 8, d = at / 144;
+                const double o[3] = {kind == 0 ? i + 0.5 : (double)i, kind == 2 ? (j + 0.5) * g->sy : j * g->sy, 228.0};
+                td_ray r = {{o[0], o[1], o[2]}, {dir[d][0], dir[d][1], -1.0}, 0.0, INFINITY};
+                td_hit h0, h1;
+                td_trace(&v, (td_method)m, (td_surface)sf, &r, &h0);
+                assert_true(h0.t > 0.0 && h0.t < 60.0);
+                for (double tc = 0.75; tc < h0.t; tc += 1.5) {
+                    td_trace_from(&v, (td_method)m, (td_surface)sf, &r, tc, &h1);
+                    assert_same_hit(&h0, &h1);
+                    td_fan f = {.dx = {r.d[0]}, .dy = {r.d[1]}, .dz = {-1.0}, .t_clear = {tc}};
+                    td_fan_hits fh;
+                    td_trace_fan(&v, (td_method)m, (td_surface)sf, o, 1, &f, &fh);
+                    td_fan_hit(&fh, 0, &h1);
+                    assert_same_hit(&h0, &h1);
+                    moved += h1.steps < h0.steps;
+                }
+            }
+    assert_true(moved > 1000); /* the starts did skip cells */
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -700,7 +761,7 @@ int main(void)
         cmocka_unit_test(test_plane_walls),         cmocka_unit_test(test_validate),
         cmocka_unit_test(test_steps_fewer),         cmocka_unit_test(test_batches_same),
         cmocka_unit_test(test_occluded_packets),
-        cmocka_unit_test(test_fan_cells),
+        cmocka_unit_test(test_fan_cells),           cmocka_unit_test(test_from_near_line),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
