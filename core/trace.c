@@ -254,6 +254,22 @@ static inline int32_t cell_along(double pos, int s, int32_t lo, int32_t hi)
     return c;
 }
 
+/* cell_along's cell c at time t, moved back to the cell before it (along the walk's step
+ * s, within [lo, hi]) when the walk enters c only after t (its entry time te > t). The
+ * position is rounded: a ray within an ulp of a grid line lands past the line long before
+ * the walk crosses it (a nearly vertical ray: the line's ulp is crossed after metres of
+ * descent), and a walk put there skips what is left of the cell it is still in. Every
+ * place that finds a cell from a position inside the walk (skip_to, the packets' start,
+ * cone_run's jump, leave_box_at's other axis) takes it through here; fuzz_render found
+ * them (seeds straight-down-on-line, straight-down-jump: a straight-down camera ray on a
+ * row's line started, or jumped, into the column past the line, 2.5 m under the top of
+ * the one it was in). */
+static inline int32_t back_cell(double te, double t, int32_t c, int s, int32_t lo, int32_t hi)
+{
+    return te > t && c - s >= lo && c - s <= hi ? c - s : c;
+}
+
+
 /* ------------------------------------------------------------------------------------ */
 /* Cell boundaries: the heights every surface shares there.                             */
 
@@ -634,6 +650,10 @@ TD_HOT int leave_box_at(const walk *restrict w, walk_state *restrict st, const b
                                      : cell_along(ray_u(w, tx), w->su, b->ulo, b->uhi - 1);
         int32_t cj = kind != ENTRY_U ? (w->sv > 0 ? b->vhi : b->vlo - 1)
                                      : cell_along(ray_v(w, tx), w->sv, b->vlo, b->vhi - 1);
+        if (kind == ENTRY_V)
+            ci = back_cell(entry_u(w, ci), tx, ci, w->su, b->ulo, b->uhi - 1);
+        if (kind == ENTRY_U)
+            cj = back_cell(entry_v(w, cj), tx, cj, w->sv, b->vlo, b->vhi - 1);
         rc = enter_cell(st, ci, cj, dmax(tx, st->t), kind, NAN);
     }
     return rc;
@@ -744,6 +764,8 @@ static int cone_run(const walk *restrict w, const td_tile *tile, const td_tile_a
             } else {
                 int32_t ci = cell_along(ray_u(w, tl), w->su, tb.ulo, tb.uhi - 1);
                 int32_t cj = cell_along(ray_v(w, tl), w->sv, tb.vlo, tb.vhi - 1);
+                ci = back_cell(entry_u(w, ci), tl, ci, w->su, tb.ulo, tb.uhi - 1);
+                cj = back_cell(entry_v(w, cj), tl, cj, w->sv, tb.vlo, tb.vhi - 1);
                 double teu = entry_u(w, ci), tev = entry_v(w, cj);
                 double te = dmax(teu, tev);
                 if ((ci != st->ci || cj != st->cj) && te > st->t) {
@@ -966,16 +988,6 @@ static inline int on_grid(const walk *w, const walk_state *st)
     return st->ci >= 0 && st->cj >= 0 && st->ci <= w->cmax_i && st->cj <= w->cmax_j;
 }
 
-/* The cell before c along an axis (s the walk's step there, hi the last cell) when the
- * walk enters c only after tc (entry te > tc), which rounding of the ray's position at tc
- * gives a ray that runs within an ulp of a grid line: a nearly vertical camera ray on a
- * row's line was started past the line, 2.5 cells of descent after the column it was
- * in, whose top it met (fuzz_render, seed straight-down-on-line). Else c. */
-static inline int32_t back_cell(double te, double tc, int32_t c, int s, int32_t hi)
-{
-    return te > tc && c - s >= 0 && c - s <= hi ? c - s : c;
-}
-
 /* Moves the walk's start (walk_clip's) to the entry boundary of the cell the ray is in at
  * internal time tc, which the caller knows no hit precedes, or else puts it in the cell it
  * starts in. From a cell's entry boundary the walk is the walk from the ray's start, bit
@@ -989,11 +1001,8 @@ TD_HOT int skip_to(const walk *w, walk_state *st, double tc)
     } else if (tc > st->t) {
         int32_t ci = cell_along(ray_u(w, tc), w->su, 0, w->cmax_i);
         int32_t cj = cell_along(ray_v(w, tc), w->sv, 0, w->cmax_j);
-        /* the position at tc is rounded: a ray within an ulp of a grid line may land in
-         * the cell past it before the time the walk crosses it (its entry after tc); it
-         * is still in the cell before (back_cell) */
-        ci = back_cell(entry_u(w, ci), tc, ci, w->su, w->cmax_i);
-        cj = back_cell(entry_v(w, cj), tc, cj, w->sv, w->cmax_j);
+        ci = back_cell(entry_u(w, ci), tc, ci, w->su, 0, w->cmax_i);
+        cj = back_cell(entry_v(w, cj), tc, cj, w->sv, 0, w->cmax_j);
         double teu = entry_u(w, ci), tev = entry_v(w, cj), te = dmax(teu, tev);
         if (te > st->t) { /* else the ray starts in that cell */
             enter_cell(st, ci, cj, te, crossing(tev, teu), NAN);
@@ -1515,7 +1524,7 @@ TD_HOT void vstart_at(const walk *w, vwalk *p, vd iz, vd tc, vstate *st, vm *go,
     vd cj = vcell_along(vray_v(p, tc), p->nv, 0.0, (double)w->cmax_j);
     vd teu = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
     vd tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
-    /* skip_to's back_cell, lane by lane */
+    /* back_cell, lane by lane */
     vm bu = (vm)(teu > tc) & (vm)(ci - p->su >= 0.0) & (vm)(ci - p->su <= (double)w->cmax_i);
     vm bv = (vm)(tev > tc) & (vm)(cj - p->sv >= 0.0) & (vm)(cj - p->sv <= (double)w->cmax_j);
     if (vany(bu | bv)) {
@@ -1910,7 +1919,9 @@ static inline __attribute__((always_inline)) int occ_packets_of(const td_view *v
         vi strip = {0, 0, 0, 0};
         vm has = {0, 0, 0, 0};
         if (nl == TD_LANES) { /* four origins, x y z each: three loads and their transpose */
-            vd a0 = vload(o[k0]), a1 = vload(o[k0] + 4), a2 = vload(o[k0] + 8);
+            const double *q = &o[0][0] + 3 * k0; /* the rows as one array of doubles (o[k0] + 4
+                                                    indexed past its row of three: UBSan) */
+            vd a0 = vload(q), a1 = vload(q + 4), a2 = vload(q + 8);
             vd x01 = __builtin_shufflevector(a0, a1, 0, 3, 6, 0);
             vd y01 = __builtin_shufflevector(a0, a1, 1, 4, 7, 0);
             vd z01 = __builtin_shufflevector(a0, a1, 2, 5, 0, 0);

@@ -701,53 +701,115 @@ static void assert_same_hit(const td_hit *a, const td_hit *b)
     assert_int_equal(a->cj, b->cj);
 }
 
-/* Rays within an ulp of a grid line, started from a bound (td_trace_from, and a fan's
- * packet): the position at t_clear rounds onto the line's other side long before the ray
- * crosses it, and the walk used to start in the cell past the line, skipping the hit in
- * the cell the ray was still in (fuzz_render found a straight-down camera ray on a row's
- * line of a sloping plane, sy = 4/3: 24.54 m instead of 22, the column past the line met
- * from the side). Nearly vertical rays from points on the row and column lines of a plane
- * that rises north and falls east, every surface and method, t_clear from 0 to the hit:
- * td_trace's hit, and the fan's the same. */
+/* Rays within an ulp of a grid line: their position, rounded, lands on the line's other
+ * side long before the walk crosses it, and a walk that finds its cell from a position
+ * skipped what was left of the cell the ray was still in (fuzz_render: a straight-down
+ * camera ray on a row's line, sy = 4/3, met a column's side 2.5 m under the top of the
+ * one it was in, from a start with the beam on and from a parametric jump). Nearly
+ * vertical rays from points on the row and column lines of a plane that rises north and
+ * falls east, and of one that falls north with a 5 m plateau on it (the jump's case),
+ * every surface and method: each method td_trace's hit as the incremental walk's, and
+ * from every t_clear before it (td_trace_from, a fan's packet) the same. */
 static void test_from_near_line(void **state)
 {
     (void)state;
-    td_grid *g = make_grid(8, 10, 1.0, 4.0 / 3.0, 3);
-    for (int32_t j = 0; j < g->h; j++)
-        for (int32_t i = 0; i < g->w; i++)
-            g->z[(size_t)j * (size_t)g->w + (size_t)i] = (float)(200 - 3 * i + 3 * j);
-    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
-    td_accel *a = build_all(g, 8);
-    td_view v = {g, a->tiles};
     /* tiny horizontal parts, the first the fuzzer's camera ray's */
     static const double dir[4][2] = {{3.7681813499433066e-17, 4.8264690903895654e-17},
                                      {-1e-16, 4.8e-17},
                                      {4.8e-17, -1e-15},
                                      {-3.7e-17, -1e-16}};
     int moved = 0;
-    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++)
-        for (int m = 0; m < TD_METHOD_COUNT; m++)
-            for (int at = 0; at < 3 * 6 * 8 * 4 && m != TD_METHOD_SILHOUETTE; at++) {
+    for (int step = 0; step < 2; step++) {
+        td_grid *g = make_grid(8, 10, 1.0, 4.0 / 3.0, 3 + step);
+        for (int32_t j = 0; j < g->h; j++)
+            for (int32_t i = 0; i < g->w; i++)
+                g->z[(size_t)j * (size_t)g->w + (size_t)i] =
+                    (float)(step ? 200 + 3 * i - 3 * j + (abs(i - 7) + abs(j - 5) < 6 ? 5 : 0) : 200 - 3 * i + 3 * j);
+        assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+        td_accel *a = build_all(g, TD_PLANES_K_DEFAULT); /* the fuzzer's cones */
+        td_view v = {g, a->tiles};
+        for (int sf = 0; sf < TD_SURFACE_COUNT; sf++)
+            for (int at = 0; at < 3 * 6 * 8 * 4 * 2; at++) {
                 /* on row j's line (y = j sy as rounded) between samples or at one, or on
-                   column i's line between rows */
-                int kind = at % 3, i = 1 + at / 3 % 6, j = 1 + at / 18 % 8, d = at / 144;
-                const double o[3] = {kind == 0 ? i + 0.5 : (double)i, kind == 2 ? (j + 0.5) * g->sy : j * g->sy, 228.0};
+                   column i's line between rows; 227 or 228 m up (over the plateau's 226 m,
+                   the plane's 227 m) */
+                int kind = at % 3, i = 1 + at / 3 % 6, j = 1 + at / 18 % 8, d = at / 144 % 4;
+                const double o[3] = {kind == 0 ? i + 0.5 : (double)i, kind == 2 ? (j + 0.5) * g->sy : j * g->sy,
+                                     227.0 + at / 576 + (step == 0)};
                 td_ray r = {{o[0], o[1], o[2]}, {dir[d][0], dir[d][1], -1.0}, 0.0, INFINITY};
-                td_hit h0, h1;
-                td_trace(&v, (td_method)m, (td_surface)sf, &r, &h0);
-                assert_true(h0.t > 0.0 && h0.t < 60.0);
-                for (double tc = 0.75; tc < h0.t; tc += 1.5) {
-                    td_trace_from(&v, (td_method)m, (td_surface)sf, &r, tc, &h1);
-                    assert_same_hit(&h0, &h1);
-                    td_fan f = {.dx = {r.d[0]}, .dy = {r.d[1]}, .dz = {-1.0}, .t_clear = {tc}};
-                    td_fan_hits fh;
-                    td_trace_fan(&v, (td_method)m, (td_surface)sf, o, 1, &f, &fh);
-                    td_fan_hit(&fh, 0, &h1);
-                    assert_same_hit(&h0, &h1);
-                    moved += h1.steps < h0.steps;
+                td_hit href;
+                td_trace(&v, TD_METHOD_INCREMENTAL, (td_surface)sf, &r, &href);
+                assert_true(href.t > 0.0 && href.t < 60.0);
+                for (int m = 0; m < TD_METHOD_COUNT; m++) {
+                    td_hit h0, h1;
+                    if (m == TD_METHOD_SILHOUETTE)
+                        continue;
+                    td_trace(&v, (td_method)m, (td_surface)sf, &r, &h0);
+                    assert_same_hit(&href, &h0);
+                    for (double tc = 0.75; tc < h0.t; tc += 1.5) {
+                        td_trace_from(&v, (td_method)m, (td_surface)sf, &r, tc, &h1);
+                        assert_same_hit(&h0, &h1);
+                        td_fan f = {.dx = {r.d[0]}, .dy = {r.d[1]}, .dz = {-1.0}, .t_clear = {tc}};
+                        td_fan_hits fh;
+                        td_trace_fan(&v, (td_method)m, (td_surface)sf, o, 1, &f, &fh);
+                        td_fan_hit(&fh, 0, &h1);
+                        assert_same_hit(&h0, &h1);
+                        moved += h1.steps < h0.steps;
+                    }
                 }
             }
+        td_accel_free(a);
+        td_grid_free(g);
+    }
     assert_true(moved > 1000); /* the starts did skip cells */
+}
+
+/* test_from_near_line's rounding for shallow rays along a row's or a column's line: a
+ * block of cells left through its side finds the cell along the other axis from the
+ * position (leave_box_at), which rounds onto the line before the ray crosses it. A grid
+ * of 48 x 48 samples of a plane with plateaus, rays from 2 m over its highest sample
+ * descending 1 in 20 to 1 in 3 along row and column lines (sy = 4/3: the lines' values
+ * rounded) with a sideways part of 1e-17 to 1e-15, both ways: every method and surface
+ * gives the incremental walk's hit, from its start and from t_clear before it. */
+static void test_along_line(void **state)
+{
+    (void)state;
+    td_grid *g = make_grid(48, 48, 1.0, 4.0 / 3.0, 4);
+    for (int32_t j = 0; j < g->h; j++)
+        for (int32_t i = 0; i < g->w; i++)
+            g->z[(size_t)j * (size_t)g->w + (size_t)i] =
+                (float)(200 + (i % 16 < 9 && j % 12 < 7 ? 5 : 0) + (i + j) / 4);
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel *a = build_all(g, TD_PLANES_K_DEFAULT);
+    td_view v = {g, a->tiles};
+    static const double side[] = {1e-17, -5e-17, 1e-16, -1e-15}, fall[] = {0.05, 0.12, 0.33};
+    int hits = 0;
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++)
+        for (int at = 0; at < 2 * 2 * 8 * 4 * 3; at++) {
+            /* along a row (axis 0) or a column, east/north or back, line k */
+            int axis = at % 2, back = at / 2 % 2, k = 5 + 5 * (at / 4 % 8), e = at / 32 % 4, f = at / 128;
+            double along = back ? -1.0 : 1.0, line = axis ? k * g->sx : k * g->sy;
+            double start = back ? 46.5 : 0.5;
+            td_ray r = {{axis ? line : start * g->sx, axis ? start * g->sy : line, (double)g->zmax + 2.0},
+                        {axis ? side[e] : along, axis ? along : side[e], -fall[f]},
+                        0.0,
+                        INFINITY};
+            td_hit href;
+            td_trace(&v, TD_METHOD_INCREMENTAL, (td_surface)sf, &r, &href);
+            hits += href.t < INFINITY;
+            for (int m = 0; m < TD_METHOD_COUNT; m++) {
+                td_hit h0, h1;
+                if (m == TD_METHOD_SILHOUETTE)
+                    continue;
+                td_trace(&v, (td_method)m, (td_surface)sf, &r, &h0);
+                assert_same_hit(&href, &h0);
+                for (double tc = 1.0; tc < h0.t && tc < 60.0; tc += 3.0) {
+                    td_trace_from(&v, (td_method)m, (td_surface)sf, &r, tc, &h1);
+                    assert_same_hit(&h0, &h1);
+                }
+            }
+        }
+    assert_true(hits > 300);
     td_accel_free(a);
     td_grid_free(g);
 }
@@ -762,6 +824,7 @@ int main(void)
         cmocka_unit_test(test_steps_fewer),         cmocka_unit_test(test_batches_same),
         cmocka_unit_test(test_occluded_packets),
         cmocka_unit_test(test_fan_cells),           cmocka_unit_test(test_from_near_line),
+        cmocka_unit_test(test_along_line),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
