@@ -955,6 +955,34 @@ static void test_admin_disabled(void **state)
     th_forget(&s);
 }
 
+/* A rolled camera whose image leaves a block of one pixel at its corner (65 x 17: blocks
+ * of 16), on a server that preloads its datasets (the camera devices run on their
+ * resident max-mipmaps): before 2026-11-30 the band sort divided by the block's zero
+ * width and wrote 8 GB below its counts (fuzz_render; test_render's
+ * test_rolled_corner_block). A daemon started by hand died of it; this one's write
+ * happened to land in mapped memory (the address sanitizer's build of this test sees
+ * it). Answered, and the next request too. */
+static void test_render_rolled_corner(void **state)
+{
+    th_server s;
+    th_resp r;
+    const char *args[] = {"--demo-dir", TERRAD_DATA_DIR, "--render-workers", "2", NULL};
+    (void)state;
+    assert_int_equal(th_start(&s, TERRAD_BIN, args, NULL), 0);
+    for (int k = 0, w = 0, h = 0; k < 2; k++) {
+        req(&s, "POST", "/v1/render", JSON_CT,
+            "{\"dataset\":\"levi\",\"camera\":{\"position\":{\"x\":4000,\"y\":-2000,\"z\":1500},\"pitch\":-15,"
+            "\"roll\":35},\"image\":{\"width\":65,\"height\":17}}", &r);
+        assert_int_equal(r.status, 200);
+        assert_true(th_png_size(&r, &w, &h));
+        assert_int_equal(w, 65);
+        assert_int_equal(h, 17);
+        th_resp_free(&r);
+    }
+    assert_int_equal(th_stop(&s), 0);
+    th_forget(&s);
+}
+
 static void test_budget_refusal(void **state)
 {
     /* Heights and levels of detail: levi 0.98 MB, trinidad 1.90 MB, volcano 0.04 MB. In
@@ -1321,6 +1349,7 @@ int main(void)
     };
     const struct CMUnitTest others[] = {
         cmocka_unit_test(test_admin_disabled),
+        cmocka_unit_test(test_render_rolled_corner),
         cmocka_unit_test(test_budget_refusal),
         cmocka_unit_test(test_queue_full),
         cmocka_unit_test(test_sigterm_finishes_inflight),
