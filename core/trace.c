@@ -254,19 +254,20 @@ static inline int32_t cell_along(double pos, int s, int32_t lo, int32_t hi)
     return c;
 }
 
-/* cell_along's cell c at time t, moved back to the cell before it (along the walk's step
- * s, within [lo, hi]) when the walk enters c only after t (its entry time te > t). The
+/* cell_along's cell c at time t, put where the walk is at t: back a cell (along the walk's
+ * step s, within [lo, hi]) when the walk enters c only after t (entry te > t), on to the
+ * next when it has left c by t (exit tx <= t; at a tie the walk has stepped on). The
  * position is rounded: a ray within an ulp of a grid line lands past the line long before
  * the walk crosses it (a nearly vertical ray: the line's ulp is crossed after metres of
- * descent), and a walk put there skips what is left of the cell it is still in. Every
- * place that finds a cell from a position inside the walk (skip_to, the packets' start,
- * cone_run's jump, leave_box_at's other axis) takes it through here; fuzz_render found
- * them (seeds straight-down-on-line, straight-down-jump: a straight-down camera ray on a
- * row's line started, or jumped, into the column past the line, 2.5 m under the top of
- * the one it was in). */
-static inline int32_t back_cell(double te, double t, int32_t c, int s, int32_t lo, int32_t hi)
+ * descent), or short of it after, and a walk put there skips what is left of the cell it
+ * is in, or walks a cell off its path (a ray through a sample point met the column beside
+ * it, which it touches at that point only). Every place that finds a cell from a
+ * position inside the walk (skip_to, the packets' start, cone_run's jump, leave_box_at's
+ * other axis) takes it through here; fuzz_render found them (seeds straight-down-on-line,
+ * straight-down-jump, diagonal-vertex). */
+static inline int32_t time_cell(double te, double tx, double t, int32_t c, int s, int32_t lo, int32_t hi)
 {
-    return te > t && c - s >= lo && c - s <= hi ? c - s : c;
+    return te > t && c - s >= lo && c - s <= hi ? c - s : (tx <= t && c + s >= lo && c + s <= hi ? c + s : c);
 }
 
 
@@ -650,10 +651,16 @@ TD_HOT int leave_box_at(const walk *restrict w, walk_state *restrict st, const b
                                      : cell_along(ray_u(w, tx), w->su, b->ulo, b->uhi - 1);
         int32_t cj = kind != ENTRY_U ? (w->sv > 0 ? b->vhi : b->vlo - 1)
                                      : cell_along(ray_v(w, tx), w->sv, b->vlo, b->vhi - 1);
-        if (kind == ENTRY_V)
-            ci = back_cell(entry_u(w, ci), tx, ci, w->su, b->ulo, b->uhi - 1);
-        if (kind == ENTRY_U)
-            cj = back_cell(entry_v(w, cj), tx, cj, w->sv, b->vlo, b->vhi - 1);
+        /* the other axis's cell where the walk is at tx; entered across both lines when
+         * the walk crosses that axis's line at tx too, from a cell of the grid (the walk
+         * steps diagonally at a tie; a line it starts on is not crossed) */
+        if (kind == ENTRY_V) {
+            ci = time_cell(entry_u(w, ci), exit_u(w, ci), tx, ci, w->su, b->ulo, b->uhi - 1);
+            kind = entry_u(w, ci) == tx && ci - w->su >= 0 && ci - w->su <= w->cmax_i ? ENTRY_UV : kind;
+        } else if (kind == ENTRY_U) {
+            cj = time_cell(entry_v(w, cj), exit_v(w, cj), tx, cj, w->sv, b->vlo, b->vhi - 1);
+            kind = entry_v(w, cj) == tx && cj - w->sv >= 0 && cj - w->sv <= w->cmax_j ? ENTRY_UV : kind;
+        }
         rc = enter_cell(st, ci, cj, dmax(tx, st->t), kind, NAN);
     }
     return rc;
@@ -764,8 +771,8 @@ static int cone_run(const walk *restrict w, const td_tile *tile, const td_tile_a
             } else {
                 int32_t ci = cell_along(ray_u(w, tl), w->su, tb.ulo, tb.uhi - 1);
                 int32_t cj = cell_along(ray_v(w, tl), w->sv, tb.vlo, tb.vhi - 1);
-                ci = back_cell(entry_u(w, ci), tl, ci, w->su, tb.ulo, tb.uhi - 1);
-                cj = back_cell(entry_v(w, cj), tl, cj, w->sv, tb.vlo, tb.vhi - 1);
+                ci = time_cell(entry_u(w, ci), exit_u(w, ci), tl, ci, w->su, tb.ulo, tb.uhi - 1);
+                cj = time_cell(entry_v(w, cj), exit_v(w, cj), tl, cj, w->sv, tb.vlo, tb.vhi - 1);
                 double teu = entry_u(w, ci), tev = entry_v(w, cj);
                 double te = dmax(teu, tev);
                 if ((ci != st->ci || cj != st->cj) && te > st->t) {
@@ -1001,8 +1008,8 @@ TD_HOT int skip_to(const walk *w, walk_state *st, double tc)
     } else if (tc > st->t) {
         int32_t ci = cell_along(ray_u(w, tc), w->su, 0, w->cmax_i);
         int32_t cj = cell_along(ray_v(w, tc), w->sv, 0, w->cmax_j);
-        ci = back_cell(entry_u(w, ci), tc, ci, w->su, 0, w->cmax_i);
-        cj = back_cell(entry_v(w, cj), tc, cj, w->sv, 0, w->cmax_j);
+        ci = time_cell(entry_u(w, ci), exit_u(w, ci), tc, ci, w->su, 0, w->cmax_i);
+        cj = time_cell(entry_v(w, cj), exit_v(w, cj), tc, cj, w->sv, 0, w->cmax_j);
         double teu = entry_u(w, ci), tev = entry_v(w, cj), te = dmax(teu, tev);
         if (te > st->t) { /* else the ray starts in that cell */
             enter_cell(st, ci, cj, te, crossing(tev, teu), NAN);
@@ -1524,12 +1531,16 @@ TD_HOT void vstart_at(const walk *w, vwalk *p, vd iz, vd tc, vstate *st, vm *go,
     vd cj = vcell_along(vray_v(p, tc), p->nv, 0.0, (double)w->cmax_j);
     vd teu = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
     vd tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
-    /* back_cell, lane by lane */
-    vm bu = (vm)(teu > tc) & (vm)(ci - p->su >= 0.0) & (vm)(ci - p->su <= (double)w->cmax_i);
-    vm bv = (vm)(tev > tc) & (vm)(cj - p->sv >= 0.0) & (vm)(cj - p->sv <= (double)w->cmax_j);
-    if (vany(bu | bv)) {
-        ci = vsel(bu, ci - p->su, ci);
-        cj = vsel(bv, cj - p->sv, cj);
+    /* time_cell, lane by lane (the lanes whose cell the times disagree with: rare): back
+     * where the entry is after tc, on where the exit is not */
+    vd txu = vtime_u(p, ci + vone(p->pu)), txv = vtime_v(p, cj + vone(p->pv));
+    if (vany((vm)(teu > tc) | (vm)(txu <= tc) | (vm)(tev > tc) | (vm)(txv <= tc))) {
+        vd mu = vsel((vm)(teu > tc), -p->su, vsel((vm)(txu <= tc), p->su, vb(0.0)));
+        vd mv = vsel((vm)(tev > tc), -p->sv, vsel((vm)(txv <= tc), p->sv, vb(0.0)));
+        mu = vsel((vm)(ci + mu >= 0.0) & (vm)(ci + mu <= (double)w->cmax_i), mu, vb(0.0));
+        mv = vsel((vm)(cj + mv >= 0.0) & (vm)(cj + mv <= (double)w->cmax_j), mv, vb(0.0));
+        ci += mu;
+        cj += mv;
         teu = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
         tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
     }

@@ -814,6 +814,55 @@ static void test_along_line(void **state)
     td_grid_free(g);
 }
 
+/* Rays through sample points, diagonally (|dx| = |dy|), over a saddle of plane-surface
+ * columns: at a sample point the walk steps diagonally, touching the two columns beside it
+ * at that point only; the max-mipmap's walk, leaving a block across one line, found its
+ * cell along the other from the rounded position, a cell short, and met the column beside
+ * the point (fuzz_render: 10.32 m against the walk's 11.47, a camera looking straight down
+ * from off the grid, seed diagonal-vertex). Every surface and method gives the incremental
+ * walk's hit, from its start and from t_clear before it. */
+static void test_through_vertices(void **state)
+{
+    (void)state;
+    td_grid *g = make_grid(16, 14, 1.0, 1.0, 3);
+    for (int32_t j = 0; j < g->h; j++)
+        for (int32_t i = 0; i < g->w; i++)
+            g->z[(size_t)j * (size_t)g->w + (size_t)i] = (float)(200.0 + 0.5 * abs(i - 5) * abs(j - 7));
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel *a = build_all(g, TD_PLANES_K_DEFAULT);
+    td_view v = {g, a->tiles};
+    static const double z0[] = {212.35294117647058, 210.0, 214.7, 205.25};
+    static const double fall[] = {0.72836196215411597 / 0.48450430962325092, 0.5, 2.0, 0.25};
+    int hits = 0;
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++)
+        for (int at = 0; at < 2 * 16 * 4 * 4; at++) {
+            /* from off the west edge up to the north-east, or down to the south-east */
+            int anti = at % 2, k = at / 2 % 16, zi = at / 32 % 4, fi = at / 128;
+            td_ray r = {{-4.0, anti ? 13.0 + k : (double)k - 3.0, z0[zi]},
+                        {0.48450430962325092, anti ? -0.48450430962325092 : 0.48450430962325092,
+                         -0.48450430962325092 * fall[fi]},
+                        0.0,
+                        INFINITY};
+            td_hit href;
+            td_trace(&v, TD_METHOD_INCREMENTAL, (td_surface)sf, &r, &href);
+            hits += href.t < INFINITY;
+            for (int m = 0; m < TD_METHOD_COUNT; m++) {
+                td_hit h0, h1;
+                if (m == TD_METHOD_SILHOUETTE)
+                    continue;
+                td_trace(&v, (td_method)m, (td_surface)sf, &r, &h0);
+                assert_same_hit(&href, &h0);
+                for (double tc = 0.5; tc < h0.t && tc < 40.0; tc += 1.0) {
+                    td_trace_from(&v, (td_method)m, (td_surface)sf, &r, tc, &h1);
+                    assert_same_hit(&h0, &h1);
+                }
+            }
+        }
+    assert_true(hits > 500);
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -824,7 +873,7 @@ int main(void)
         cmocka_unit_test(test_steps_fewer),         cmocka_unit_test(test_batches_same),
         cmocka_unit_test(test_occluded_packets),
         cmocka_unit_test(test_fan_cells),           cmocka_unit_test(test_from_near_line),
-        cmocka_unit_test(test_along_line),
+        cmocka_unit_test(test_along_line),          cmocka_unit_test(test_through_vertices),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
