@@ -17,8 +17,8 @@
  * off the grid; above the terrain, among its crests or on the ground; headings along the
  * grid's lines and diagonals or any; pitch level, straight down, grazing or any; roll;
  * fov 1 to 179, or a panorama, or the orthographic top-down view), an image of 1..24 x
- * 1..24 pixels, the sun (grazing to near the zenith), the surface, curvature, and voids
- * last. Any render may refuse the camera, but all the same way. */
+ * 1..24 pixels, the sun (grazing to near the zenith), the surface, curvature, voids, and
+ * last (so that older seeds keep their meaning) optionally an image of up to 72 x 72. Any render may refuse the camera, but all the same way. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -32,7 +32,7 @@
 #include "sunlit.h"
 #include "trace.h"
 
-enum { MAX_SIDE = 24 };
+enum { MAX_SIDE = 24, MAX_SIDE_BIG = 72 };
 
 /* A finding: says which contract broke (the compiler merges plain abort() calls). */
 static void fail(const char *why)
@@ -264,10 +264,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     sc.quality.surface = (td_surface)(opt % TD_SURFACE_COUNT);
     int curved = (opt >> 2) & 1;
     sc.effects.curvature = curved;
-    uint8_t vb[5]; /* voids last: inputs that end before them have none */
+    uint8_t vb[5]; /* voids: inputs that end before them have none */
     for (int k = 0; k < 5; k++)
         vb[k] = (uint8_t)fuzz_byte(&r);
     fuzz_holes(g, vb[0], vb + 1);
+    if (fuzz_byte(&r) & 1) { /* a larger image (several blocks, tall ones upright), last */
+        sc.image.width = 1 + (int32_t)(fuzz_byte(&r) % MAX_SIDE_BIG);
+        sc.image.height = 1 + (int32_t)(fuzz_byte(&r) % MAX_SIDE_BIG);
+    }
 
     td_accel_opts_default(&ao);
     ao.maxmip = 1;
