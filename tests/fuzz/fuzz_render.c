@@ -4,9 +4,10 @@
  * checks hold on five real views (tests/oracle/oracle.c --cameras), held here for the
  * cameras and terrains a fuzzer finds:
  *  - a depth32f render gives the same floats, bit for bit, with the camera devices on
- *    (horizon, silhouette, beam) and off (TD_RENDER_OFF_CAMERA), for every method, and
- *    every method the same floats as auto;
- *  - each pixel's depth is (float) td_trace's t on td_camera_ray's ray (straight rays);
+ *    (horizon, silhouette, beam; on 1 to 3 threads) and off (TD_RENDER_OFF_CAMERA, one
+ *    thread), for every method, and every method the same floats as auto;
+ *  - each pixel's depth is (float) td_trace's t on td_camera_ray's ray (straight rays, one
+ *    sample a pixel);
  *  - a colour render with shadows gives the same bytes with the shadow devices on and off
  *    (TD_RENDER_OFF_OCCLUSION | TD_RENDER_OFF_SUNLIT: each shadow ray's nearest hit);
  *  - each of its shadow rays is occluded for td_occluded (with the sun bound, and
@@ -18,7 +19,9 @@
  * grid's lines and diagonals or any; pitch level, straight down, grazing or any; roll;
  * fov 1 to 179, or a panorama, or the orthographic top-down view), an image of 1..24 x
  * 1..24 pixels, the sun (grazing to near the zenith), the surface, curvature, voids, and
- * last (so that older seeds keep their meaning) optionally an image of up to 72 x 72. Any render may refuse the camera, but all the same way. */
+ * last (so that older seeds keep their meaning) optionally an image of up to 72 x 72, and
+ * 1 to 3 samples a pixel side and 1 to 3 threads for the renders with the devices on.
+ * Any render may refuse the camera, but all the same way. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -99,10 +102,10 @@ static void check_par(const td_view *v, td_surface sf, const td_ray *sh, int n, 
 }
 
 /* The colour render with shadows, devices on and off; then its shadow rays one by one. */
-static void check_shadows(const td_view *v, td_scene *sc, int curved)
+static void check_shadows(const td_view *v, td_scene *sc, int curved, int threads)
 {
-    int32_t n = sc->image.width * sc->image.height;
-    td_ray *sh = calloc((size_t)n, sizeof *sh);
+    int32_t n = sc->image.width * sc->image.height, ns = n * sc->quality.samples * sc->quality.samples;
+    td_ray *sh = calloc((size_t)ns, sizeof *sh);
     td_render_opts o;
     td_render_result on, off;
     td_err e1 = {0}, e2 = {0};
@@ -115,12 +118,13 @@ static void check_shadows(const td_view *v, td_scene *sc, int curved)
     sc->image.format = TD_FORMAT_PNG;
     sc->effects.shadows = 1;
     td_render_opts_default(&o);
-    o.threads = 1;
+    o.threads = threads;
     o.shadow_rays = sh;
     memset(&on, 0, sizeof on);
     memset(&off, 0, sizeof off);
     r1 = td_render(v, sc, &o, &on, &e1);
     o.shadow_rays = NULL;
+    o.threads = 1;
     o.off = TD_RENDER_OFF_OCCLUSION | TD_RENDER_OFF_SUNLIT;
     r2 = td_render(v, sc, &o, &off, &e2);
     fuzz_report("render with shadows", r1, e1.msg);
@@ -128,7 +132,7 @@ static void check_shadows(const td_view *v, td_scene *sc, int curved)
         fail("shadows differ with the occlusion query and the sun bound");
     if (r1 == TD_OK && td_sunlit_build(v, sun, &lit, &e1))
         fail("harness");
-    for (int32_t k = 0; r1 == TD_OK && !curved && k < n; k++) {
+    for (int32_t k = 0; r1 == TD_OK && !curved && k < ns; k++) {
         td_hit h;
         uint32_t steps = 0;
         if (!(sh[k].tmax >= 0.0))
@@ -139,7 +143,7 @@ static void check_shadows(const td_view *v, td_scene *sc, int curved)
             fail("a shadow ray's occlusion query is not the walk's answer");
     }
     if (r1 == TD_OK && !curved)
-        check_par(v, sc->quality.surface, sh, n, lit);
+        check_par(v, sc->quality.surface, sh, ns, lit);
     td_sunlit_free(lit);
     td_render_result_free(&on);
     td_render_result_free(&off);
@@ -148,7 +152,7 @@ static void check_shadows(const td_view *v, td_scene *sc, int curved)
 
 /* Depth renders with every method, devices on and off: all the same floats; and each
  * pixel td_trace's on its camera ray (straight rays). */
-static void check_depths(const td_view *v, td_scene *sc, int curved)
+static void check_depths(const td_view *v, td_scene *sc, int curved, int threads)
 {
     int32_t n = sc->image.width * sc->image.height;
     float *first = NULL;
@@ -162,7 +166,7 @@ static void check_depths(const td_view *v, td_scene *sc, int curved)
         for (int k = 0; k < 2; k++) {
             td_render_opts o;
             td_render_opts_default(&o);
-            o.threads = 1;
+            o.threads = k ? 1 : threads;
             o.off = k ? TD_RENDER_OFF_CAMERA : 0;
             sc->quality.method = (td_method)m;
             memset(&res[k], 0, sizeof res[k]);
@@ -191,7 +195,8 @@ static void check_depths(const td_view *v, td_scene *sc, int curved)
         td_render_result_free(&res[0]);
         td_render_result_free(&res[1]);
     }
-    if (first && !curved && td_camera_setup(&sc->camera, sc->image.width, sc->image.height, v->grid, &cam, NULL) == TD_OK)
+    if (first && !curved && sc->quality.samples == 1 &&
+        td_camera_setup(&sc->camera, sc->image.width, sc->image.height, v->grid, &cam, NULL) == TD_OK)
         for (int32_t k = 0; k < n; k++) {
             td_ray r;
             td_hit h;
@@ -268,10 +273,13 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     for (int k = 0; k < 5; k++)
         vb[k] = (uint8_t)fuzz_byte(&r);
     fuzz_holes(g, vb[0], vb + 1);
-    if (fuzz_byte(&r) & 1) { /* a larger image (several blocks, tall ones upright), last */
+    if (fuzz_byte(&r) & 1) { /* a larger image (several blocks, tall ones upright) */
         sc.image.width = 1 + (int32_t)(fuzz_byte(&r) % MAX_SIDE_BIG);
         sc.image.height = 1 + (int32_t)(fuzz_byte(&r) % MAX_SIDE_BIG);
     }
+    unsigned last = fuzz_byte(&r); /* samples a side, threads of the devices' renders */
+    sc.quality.samples = 1 + (int)(last % 3);
+    int threads = 1 + (int)(last / 3 % 3);
 
     td_accel_opts_default(&ao);
     ao.maxmip = 1;
@@ -280,8 +288,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (td_grid_finish(g, NULL) || td_accel_build(g, &ao, &acc, NULL, NULL))
         fail("harness");
     td_view v = {g, acc->tiles};
-    check_depths(&v, &sc, curved);
-    check_shadows(&v, &sc, curved);
+    check_depths(&v, &sc, curved, threads);
+    check_shadows(&v, &sc, curved, threads);
     td_accel_free(acc);
     td_grid_free(g);
     return 0;
