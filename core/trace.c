@@ -1865,8 +1865,8 @@ TD_HOT vm vsurely_shadowed(const walk *w, td_surface sf, const vwalk *p, vi k, v
     vm sure = {0, 0, 0, 0};
     if (vany(in)) {
         vd u = vsel(in, p->ou, vb(0.0)), v = vsel(in, p->ov, vb(0.0)), L;
-        vd ci = vmin(__builtin_convertvector(__builtin_convertvector(u, vi), vd), vb((double)w->cmax_i));
-        vd cj = vmin(__builtin_convertvector(__builtin_convertvector(v, vi), vd), vb((double)w->cmax_j));
+        vd ci = vcell_along(u, p->nu, 0.0, (double)w->cmax_i); /* surely_shadowed's cells */
+        vd cj = vcell_along(v, p->nv, 0.0, (double)w->cmax_j);
         vi ia = __builtin_convertvector(lit->a_is_x ? ci : cj, vi) >> lit->shift;
         for (int l = 0; l < TD_LANES; l++)
             L[l] = (double)lit->lo[(size_t)ia[l] * (size_t)lit->nst + (size_t)(in[l] ? k[l] : 0)];
@@ -2064,7 +2064,11 @@ static int occluded_one(const td_view *v, td_method m, walk *w, const double o[3
  * with its shadow side) is surely shadowed (sunlit.h): o on the grid, above the surface
  * under it (the surface's `under` at t = 0, as the walk's first cell takes it: the linear
  * surface's depends on the ray) and below its strip's L, by zeps each. A solid surface
- * (the plane's cells): below L is enough. */
+ * (the plane's cells): below L is enough. The cell is the walk's first: before
+ * 2026-11-30 it was the one east (north) of a line the origin lies on, and a shadow ray
+ * from a plane column's wall facing the sun, beside a void, was called shadowed from the
+ * column behind the wall, where the walk, leaving the wall into the void, found it lit
+ * (fuzz_render, seed wall-beside-void). */
 static int surely_shadowed(walk *w, const td_sunlit *lit, const double o[3])
 {
     const td_grid *g = w->g;
@@ -2072,8 +2076,9 @@ static int surely_shadowed(walk *w, const td_sunlit *lit, const double o[3])
     int yes = 0;
     if (lit && lit->lo && u >= 0.0 && v >= 0.0 && u <= (double)(g->w - 1) && v <= (double)(g->h - 1)) {
         ptrdiff_t k = td_sunlit_strip(lit, u, v);
-        cell_seg sg = {.ci = (int32_t)u < w->cmax_i ? (int32_t)u : w->cmax_i,
-                       .cj = (int32_t)v < w->cmax_j ? (int32_t)v : w->cmax_j};
+        /* the cell the walk starts in (start_cell's, ties toward the sun): an origin on a
+         * column's line, on the wall of the column behind it, is in the cell before */
+        cell_seg sg = {.ci = cell_along(u, w->su, 0, w->cmax_i), .cj = cell_along(v, w->sv, 0, w->cmax_j)};
         if (k >= 0 && o[2] < td_sunlit_lo(lit, k, sg.ci, sg.cj) - w->zeps) {
             corners(g, sg.ci, sg.cj, sg.c);
             walk_origin(w, o);

@@ -863,6 +863,61 @@ static void test_through_vertices(void **state)
     td_grid_free(g);
 }
 
+/* Shadow rays from the walls of plane columns that face the sun, beside a void: the
+ * origin lies on the column's line and the walk, leaving the wall toward the sun, starts
+ * in the cell before it (a hole here) and finds the ray lit; the sun bound's shadow side
+ * took the column behind the wall, whose lowest sample is above the origin, and called it
+ * shadowed (fuzz_render, seed wall-beside-void: half the pixels of a view looking down at
+ * the walls). A grid rising north, a void column and row, the sun low in the west: rays
+ * from points low on the walls east of the void, under the lowest sample of their
+ * blocks (and, for the other surfaces, from the same
+ * points) answer as td_trace with the bound and without, one by one and in a batch. */
+static void test_shadow_from_wall(void **state)
+{
+    (void)state;
+    td_grid *g = make_grid(14, 19, 1000.0, 750.0, 3);
+    for (int32_t j = 0; j < g->h; j++)
+        for (int32_t i = 0; i < g->w; i++)
+            g->z[(size_t)j * (size_t)g->w + (size_t)i] = i == 7 || j == 9 ? NAN : (float)(200 + 3 * j);
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel *a = build_all(g, TD_PLANES_K_DEFAULT);
+    td_view v = {g, a->tiles};
+    const double az = 258.0 * M_PI / 180.0, el = 10.0 * M_PI / 180.0;
+    const double sun[3] = {sin(az) * cos(el), cos(az) * cos(el), sin(el)};
+    td_sunlit *lit = NULL;
+    assert_int_equal(td_sunlit_build(&v, sun, &lit, NULL), TD_OK);
+    assert_non_null(lit);
+    assert_non_null(lit->lo); /* the shadow side, which made the claim */
+    int lit_rays = 0;
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
+        double o[16][3];
+        uint8_t occ[16];
+        uint32_t steps = 0;
+        int n = 0;
+        for (int32_t j = 10; j < 18; j++)
+            for (int q = 0; q < 2; q++, n++) {
+                td_ray r = {{8000.0, j * 750.0 + 375.0 * q, 192.0 + 3.0 * j}, {sun[0], sun[1], sun[2]}, 0.0, INFINITY};
+                td_hit h;
+                memcpy(o[n], r.o, sizeof o[n]);
+                td_trace(&v, TD_METHOD_AUTO, (td_surface)sf, &r, &h);
+                assert_int_equal(td_occluded(&v, TD_METHOD_AUTO, (td_surface)sf, &r, lit, &steps), h.t < INFINITY);
+                assert_int_equal(td_occluded(&v, TD_METHOD_AUTO, (td_surface)sf, &r, NULL, &steps), h.t < INFINITY);
+                lit_rays += h.t == INFINITY;
+            }
+        td_occluded_par(&v, TD_METHOD_AUTO, (td_surface)sf, sun, n, (const double(*)[3])o, lit, occ, &steps);
+        for (int k = 0; k < n; k++) {
+            td_ray r = {{o[k][0], o[k][1], o[k][2]}, {sun[0], sun[1], sun[2]}, 0.0, INFINITY};
+            td_hit h;
+            td_trace(&v, TD_METHOD_AUTO, (td_surface)sf, &r, &h);
+            assert_int_equal(occ[k], h.t < INFINITY);
+        }
+    }
+    assert_true(lit_rays >= 16); /* the plane's walls, at least, see the sun */
+    td_sunlit_free(lit);
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -874,6 +929,7 @@ int main(void)
         cmocka_unit_test(test_occluded_packets),
         cmocka_unit_test(test_fan_cells),           cmocka_unit_test(test_from_near_line),
         cmocka_unit_test(test_along_line),          cmocka_unit_test(test_through_vertices),
+        cmocka_unit_test(test_shadow_from_wall),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
