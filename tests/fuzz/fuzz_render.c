@@ -19,8 +19,11 @@
  * grid's lines and diagonals or any; pitch level, straight down, grazing or any; roll;
  * fov 1 to 179, or a panorama, or the orthographic top-down view), an image of 1..24 x
  * 1..24 pixels, the sun (grazing to near the zenith), the surface, curvature, voids, and
- * last (so that older seeds keep their meaning) optionally an image of up to 72 x 72, and
- * 1 to 3 samples a pixel side and 1 to 3 threads for the renders with the devices on.
+ * last (so that older seeds keep their meaning) optionally an image of up to 72 x 72,
+ * 1 to 3 samples a pixel side and 1 to 3 threads for the renders with the devices on, and
+ * levels of detail (square or isometric coarse levels, 1 to 8 pixels a coarse cell: the
+ * depths then are the levels' rule's, held on and off and across methods as above, as
+ * oracle_lod holds them, but not to td_trace on the full grid).
  * Any render may refuse the camera, but all the same way. */
 #include <math.h>
 #include <stdio.h>
@@ -31,11 +34,19 @@
 #include "camera.h"
 #include "fuzz.h"
 #include "fuzz_terrain.h"
+#include "lod.h"
 #include "render.h"
 #include "sunlit.h"
 #include "trace.h"
 
 enum { MAX_SIDE = 24, MAX_SIDE_BIG = 72 };
+
+/* How the renders run: threads for those with the devices on, and the coarse levels when
+ * the scene asks for levels of detail (NULL otherwise). */
+typedef struct run {
+    int threads;
+    const td_lod *lod;
+} run;
 
 /* A finding: says which contract broke (the compiler merges plain abort() calls). */
 static void fail(const char *why)
@@ -102,7 +113,7 @@ static void check_par(const td_view *v, td_surface sf, const td_ray *sh, int n, 
 }
 
 /* The colour render with shadows, devices on and off; then its shadow rays one by one. */
-static void check_shadows(const td_view *v, td_scene *sc, int curved, int threads)
+static void check_shadows(const td_view *v, td_scene *sc, int curved, const run *ru)
 {
     int32_t n = sc->image.width * sc->image.height, ns = n * sc->quality.samples * sc->quality.samples;
     td_ray *sh = calloc((size_t)ns, sizeof *sh);
@@ -118,7 +129,8 @@ static void check_shadows(const td_view *v, td_scene *sc, int curved, int thread
     sc->image.format = TD_FORMAT_PNG;
     sc->effects.shadows = 1;
     td_render_opts_default(&o);
-    o.threads = threads;
+    o.threads = ru->threads;
+    o.lod = ru->lod;
     o.shadow_rays = sh;
     memset(&on, 0, sizeof on);
     memset(&off, 0, sizeof off);
@@ -152,7 +164,7 @@ static void check_shadows(const td_view *v, td_scene *sc, int curved, int thread
 
 /* Depth renders with every method, devices on and off: all the same floats; and each
  * pixel td_trace's on its camera ray (straight rays). */
-static void check_depths(const td_view *v, td_scene *sc, int curved, int threads)
+static void check_depths(const td_view *v, td_scene *sc, int curved, const run *ru)
 {
     int32_t n = sc->image.width * sc->image.height;
     float *first = NULL;
@@ -166,7 +178,8 @@ static void check_depths(const td_view *v, td_scene *sc, int curved, int threads
         for (int k = 0; k < 2; k++) {
             td_render_opts o;
             td_render_opts_default(&o);
-            o.threads = k ? 1 : threads;
+            o.threads = k ? 1 : ru->threads;
+            o.lod = ru->lod;
             o.off = k ? TD_RENDER_OFF_CAMERA : 0;
             sc->quality.method = (td_method)m;
             memset(&res[k], 0, sizeof res[k]);
@@ -195,7 +208,7 @@ static void check_depths(const td_view *v, td_scene *sc, int curved, int threads
         td_render_result_free(&res[0]);
         td_render_result_free(&res[1]);
     }
-    if (first && !curved && sc->quality.samples == 1 &&
+    if (first && !curved && sc->quality.samples == 1 && !sc->quality.lod &&
         td_camera_setup(&sc->camera, sc->image.width, sc->image.height, v->grid, &cam, NULL) == TD_OK)
         for (int32_t k = 0; k < n; k++) {
             td_ray r;
@@ -279,7 +292,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     unsigned last = fuzz_byte(&r); /* samples a side, threads of the devices' renders */
     sc.quality.samples = 1 + (int)(last % 3);
-    int threads = 1 + (int)(last / 3 % 3);
+    run ru = {1 + (int)(last / 3 % 3), NULL};
+    unsigned lodb = fuzz_byte(&r); /* levels of detail: square or isometric, 1 .. 8 pixels a cell */
+    sc.quality.lod = (int)(lodb & 1);
+    sc.quality.lod_grid = (lodb >> 1) & 1 ? TD_LOD_GRID_ISOMETRIC : TD_LOD_GRID_SQUARE;
+    sc.quality.lod_pixels = 1.0 + (double)((lodb >> 2) % 8);
 
     td_accel_opts_default(&ao);
     ao.maxmip = 1;
@@ -288,8 +305,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (td_grid_finish(g, NULL) || td_accel_build(g, &ao, &acc, NULL, NULL))
         fail("harness");
     td_view v = {g, acc->tiles};
-    check_depths(&v, &sc, curved, threads);
-    check_shadows(&v, &sc, curved, threads);
+    td_lod *lod = NULL;
+    if (sc.quality.lod && (td_lod_build(g, TD_LOD_MAX, &ao, &lod, NULL) ||
+                           (sc.quality.lod_grid == TD_LOD_GRID_ISOMETRIC && td_lod_add_iso(lod, g, NULL))))
+        fail("harness");
+    ru.lod = lod;
+    check_depths(&v, &sc, curved, &ru);
+    check_shadows(&v, &sc, curved, &ru);
+    td_lod_free(lod);
     td_accel_free(acc);
     td_grid_free(g);
     return 0;
