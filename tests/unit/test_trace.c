@@ -918,6 +918,62 @@ static void test_shadow_from_wall(void **state)
     td_grid_free(g);
 }
 
+/* Shadow rays that leave the grid through its last cells: with 15 rows of cells and the
+ * sun bound's blocks 2 cells tall, the last block reaches a cell past the grid, and its
+ * lowest sample (of the cells that are there) made the shadow side claim rays that leave
+ * the grid through the missing cell, with nothing under them: a view of terrain rising
+ * toward a low sun had pixels on the grid's last half row called shadowed (fuzz_render,
+ * seed edge-block). Points a hair over every surface in that half row: as
+ * td_trace with the bound and without, one by one and in a batch. */
+static void test_shadow_at_edge(void **state)
+{
+    (void)state;
+    td_grid *g = make_grid(24, 16, 1.0, 0.75, 3);
+    for (int32_t j = 0; j < g->h; j++)
+        for (int32_t i = 0; i < g->w; i++)
+            g->z[(size_t)j * (size_t)g->w + (size_t)i] = (float)(200.0 + 4.5 * i + 0.5 * j);
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel *a = build_all(g, TD_PLANES_K_DEFAULT);
+    td_view v = {g, a->tiles};
+    const double az = 81.6901 * M_PI / 180.0, el = 10.0 * M_PI / 180.0;
+    const double sun[3] = {sin(az) * cos(el), cos(az) * cos(el), sin(el)};
+    td_sunlit *lit = NULL;
+    assert_int_equal(td_sunlit_build(&v, sun, &lit, NULL), TD_OK);
+    assert_non_null(lit);
+    assert_non_null(lit->lo);
+    int lit_rays = 0;
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
+        double o[40][3];
+        uint8_t occ[40];
+        uint32_t steps = 0;
+        int n = 0;
+        for (int32_t i = 2; i < 22; i += 2)
+            for (int q = 0; q < 4; q++, n++) {
+                /* over the cell's highest corner, so over every surface (row 14, v 14.945) */
+                double x = i + 0.14 + 0.15 * q, y = 11.209239130434783;
+                double z = 200.0 + 4.5 * (i + 1) + 0.5 * 15 + 0.015;
+                td_ray r = {{x, y, z}, {sun[0], sun[1], sun[2]}, 0.0, INFINITY};
+                td_hit h;
+                memcpy(o[n], r.o, sizeof o[n]);
+                td_trace(&v, TD_METHOD_AUTO, (td_surface)sf, &r, &h);
+                assert_int_equal(td_occluded(&v, TD_METHOD_AUTO, (td_surface)sf, &r, lit, &steps), h.t < INFINITY);
+                assert_int_equal(td_occluded(&v, TD_METHOD_AUTO, (td_surface)sf, &r, NULL, &steps), h.t < INFINITY);
+                lit_rays += h.t == INFINITY;
+            }
+        td_occluded_par(&v, TD_METHOD_AUTO, (td_surface)sf, sun, n, (const double(*)[3])o, lit, occ, &steps);
+        for (int k = 0; k < n; k++) {
+            td_ray r = {{o[k][0], o[k][1], o[k][2]}, {sun[0], sun[1], sun[2]}, 0.0, INFINITY};
+            td_hit h;
+            td_trace(&v, TD_METHOD_AUTO, (td_surface)sf, &r, &h);
+            assert_int_equal(occ[k], h.t < INFINITY);
+        }
+    }
+    assert_true(lit_rays >= 40); /* rays that leave the grid before the terrain rises to them */
+    td_sunlit_free(lit);
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -929,7 +985,7 @@ int main(void)
         cmocka_unit_test(test_occluded_packets),
         cmocka_unit_test(test_fan_cells),           cmocka_unit_test(test_from_near_line),
         cmocka_unit_test(test_along_line),          cmocka_unit_test(test_through_vertices),
-        cmocka_unit_test(test_shadow_from_wall),
+        cmocka_unit_test(test_shadow_from_wall),    cmocka_unit_test(test_shadow_at_edge),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
