@@ -224,7 +224,6 @@ static void check_depths(const td_view *v, td_scene *sc, int curved, const run *
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    static const double sxs[] = {10.0, 7.5, 1.0, 1000.0}, aspect[] = {1.0, 4.0 / 3.0, 5.0 / 3.0, 0.75};
     static const double headings[] = {0, 90, 180, 270, 45, 135, 225, 315, 30};
     static const double pitches[] = {0, -90, -89.999, -45, -3, -0.5, 10, -60};
     static const double rolls[] = {0, 90, -90, 35, 180, -50};
@@ -233,16 +232,14 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     static const double azs[] = {0, 90, 45, 180, 258, 300};
     static const double els[] = {3, 0.5, 30, 89, 60, 10};
     fuzz_reader r = {data, size, 0};
-    td_grid *g = NULL;
     td_accel *acc = NULL;
     td_accel_opts ao;
     td_scene sc;
-    int32_t w = 2 + (int32_t)(fuzz_byte(&r) % 32), h = 2 + (int32_t)(fuzz_byte(&r) % 32);
-    unsigned sp = fuzz_byte(&r);
-    double sx = sxs[sp % 4], sy = sx * aspect[(sp >> 2) % 4];
-    if (td_grid_create(w, h, sx, sy, 3 + (int)((sp >> 4) % 3), NULL, &g, NULL))
+    td_grid *g = fuzz_grid(&r, 33);
+    if (!g)
         fail("harness");
-    fuzz_fill(g, &r);
+    const int32_t w = g->w, h = g->h;
+    const double sx = g->sx, sy = g->sy;
 
     td_scene_defaults(&sc);
     /* where: x and y as fractions of the grid (-0.25 .. 1.25), on a sample's lines or not */

@@ -46,6 +46,23 @@ static inline void fuzz_fill(td_grid *g, fuzz_reader *r)
                                            : vs_exact_z(kind, a, b, c, d, i0, j0, i, j));
 }
 
+/* A grid of 2 .. max_side samples a side from the next three bytes (width, height, then
+ * spacing 10, 7.5, 1 or 1000 m with rows 1, 4/3, 5/3 or 3/4 of it: lines that are not
+ * representable; tiles of 8, 16 or 32 cells), filled by fuzz_fill; NULL if it cannot be
+ * made (a harness failure). */
+static inline td_grid *fuzz_grid(fuzz_reader *r, int32_t max_side)
+{
+    static const double sxs[] = {10.0, 7.5, 1.0, 1000.0}, aspect[] = {1.0, 4.0 / 3.0, 5.0 / 3.0, 0.75};
+    td_grid *g = NULL;
+    int32_t w = 2 + (int32_t)(fuzz_byte(r) % (unsigned)(max_side - 1));
+    int32_t h = 2 + (int32_t)(fuzz_byte(r) % (unsigned)(max_side - 1));
+    unsigned sp = fuzz_byte(r);
+    double sx = sxs[sp % 4], sy = sx * aspect[(sp >> 2) % 4];
+    if (td_grid_create(w, h, sx, sy, 3 + (int)((sp >> 4) % 3), NULL, &g, NULL) == TD_OK)
+        fuzz_fill(g, r);
+    return g;
+}
+
 /* Voids, from byte v: v % 4 = 0 none, 1 a rectangle (from the four bytes of rect), 2 the
  * samples with (5 i + 3 j + v / 4) % 7 == 0, 3 a row and a column through the grid's
  * middle. */

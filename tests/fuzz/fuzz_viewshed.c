@@ -20,19 +20,16 @@
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
-    static const double sxs[] = {10.0, 7.5, 1.0, 1000.0}, aspect[] = {1.0, 4.0 / 3.0, 5.0 / 3.0, 0.75};
     static const double eyes[] = {0.0, 1e-7, 1e-3, 1.5, 30.0}, tgts[] = {0.0, 0.01, 1.0};
     fuzz_reader r = {data, size, 0};
-    td_grid *g = NULL;
     td_accel *acc = NULL;
     td_accel_opts ao;
     td_view v;
-    int32_t w = 2 + (int32_t)(fuzz_byte(&r) % 47), h = 2 + (int32_t)(fuzz_byte(&r) % 47);
-    unsigned sp = fuzz_byte(&r);
-    double sx = sxs[sp % 4], sy = sx * aspect[(sp >> 2) % 4];
-    if (td_grid_create(w, h, sx, sy, 3 + (int)((sp >> 4) % 3), NULL, &g, NULL))
+    td_grid *g = fuzz_grid(&r, 48);
+    if (!g)
         abort();
-    fuzz_fill(g, &r);
+    const int32_t w = g->w, h = g->h;
+    const double sx = g->sx, sy = g->sy;
 
     /* the observer: on a sample, a column's line, a row's line, between, or two doubles */
     unsigned mode = fuzz_byte(&r) % 5, bx = fuzz_byte(&r) << 8, by;

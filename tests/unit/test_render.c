@@ -1098,6 +1098,33 @@ static void pick_all_matches_render(const td_view *v, int32_t w, int32_t h, int 
     td_render_result_free(&r);
 }
 
+/* picos (tests/data) with the max-mipmaps `auto` reads: *g and *a, freed by the caller. */
+static td_view picos_view(td_grid **g, td_accel **a)
+{
+    char dem_path[256];
+    td_accel_opts ao;
+    td_err err = {0};
+    snprintf(dem_path, sizeof dem_path, "%s/picos-dtm.asc", TERRAD_TEST_DATA);
+    assert_int_equal(td_dem_load(dem_path, NULL, g, &err), TD_OK);
+    td_accel_opts_for(TD_METHOD_AUTO, &ao);
+    assert_int_equal(td_accel_build(*g, &ao, a, NULL, &err), TD_OK);
+    return (td_view){*g, (*a)->tiles};
+}
+
+/* The rolled bench view of picos (heading 140, pitch -10, fov 70) with roll `roll`, a
+ * w x h depth32f image of surface sf. */
+static void picos_rolled(td_scene *sc, double roll, int32_t w, int32_t h, td_surface sf)
+{
+    td_scene_defaults(sc);
+    snprintf(sc->dataset, sizeof sc->dataset, "picos");
+    sc->camera.x = 560.0, sc->camera.y = 2781.0, sc->camera.z = 2557.0;
+    sc->camera.heading = 140.0, sc->camera.pitch = -10.0, sc->camera.roll = roll, sc->camera.fov = 70.0;
+    sc->image.width = w, sc->image.height = h;
+    sc->image.format = TD_FORMAT_DEPTH32F;
+    sc->quality.method = TD_METHOD_AUTO;
+    sc->quality.surface = sf;
+}
+
 /* Rolled cameras over picos (rough: rays that graze ridges walk far), whose blocks
  * render.c cuts into bands along the verticals (two, or four after a block whose rays took
  * many steps), and an upright one (two column slices, or four): the depths of the rays
@@ -1105,30 +1132,17 @@ static void pick_all_matches_render(const td_view *v, int32_t w, int32_t h, int 
  * workers' band orders and slice counts differ). */
 static void test_rolled_bands(void **state)
 {
-    char dem_path[256];
     td_grid *g = NULL;
     td_accel *a = NULL;
-    td_accel_opts ao;
     td_err err = {0};
     (void)state;
-    snprintf(dem_path, sizeof dem_path, "%s/picos-dtm.asc", TERRAD_TEST_DATA);
-    assert_int_equal(td_dem_load(dem_path, NULL, &g, &err), TD_OK);
-    td_accel_opts_for(TD_METHOD_AUTO, &ao);
-    assert_int_equal(td_accel_build(g, &ao, &a, NULL, &err), TD_OK);
-    td_view v = {g, a->tiles};
+    td_view v = picos_view(&g, &a);
     static const double rolls[] = {35.0, -50.0, 0.0}; /* upright: 2 or 4 column slices */
     for (size_t ri = 0; ri < sizeof rolls / sizeof rolls[0]; ri++)
         for (int surf = 0; surf < TD_SURFACE_COUNT; surf++) {
             td_render_result r[3];
             td_scene sc;
-            td_scene_defaults(&sc);
-            snprintf(sc.dataset, sizeof sc.dataset, "picos");
-            sc.camera.x = 560.0, sc.camera.y = 2781.0, sc.camera.z = 2557.0;
-            sc.camera.heading = 140.0, sc.camera.pitch = -10.0, sc.camera.roll = rolls[ri], sc.camera.fov = 70.0;
-            sc.image.width = 256, sc.image.height = 192;
-            sc.image.format = TD_FORMAT_DEPTH32F;
-            sc.quality.method = TD_METHOD_AUTO;
-            sc.quality.surface = (td_surface)surf;
+            picos_rolled(&sc, rolls[ri], 256, 192, (td_surface)surf);
             for (int k = 0; k < 3; k++) {
                 td_render_opts o;
                 td_render_opts_default(&o);
@@ -1156,17 +1170,11 @@ static void test_rolled_bands(void **state)
  * plain walk, bit for bit, on every surface, one ray a pixel and 2 x 2. */
 static void test_rolled_corner_block(void **state)
 {
-    char dem_path[256];
     td_grid *g = NULL;
     td_accel *a = NULL;
-    td_accel_opts ao;
     td_err err = {0};
     (void)state;
-    snprintf(dem_path, sizeof dem_path, "%s/picos-dtm.asc", TERRAD_TEST_DATA);
-    assert_int_equal(td_dem_load(dem_path, NULL, &g, &err), TD_OK);
-    td_accel_opts_for(TD_METHOD_AUTO, &ao);
-    assert_int_equal(td_accel_build(g, &ao, &a, NULL, &err), TD_OK);
-    td_view v = {g, a->tiles};
+    td_view v = picos_view(&g, &a);
     static const int32_t sizes[][2] = {{17, 17}, {65, 33}, {1, 1}};
     int hits = 0;
     for (int si = 0; si < 3; si++)
@@ -1174,13 +1182,7 @@ static void test_rolled_corner_block(void **state)
             for (int n = 1; n <= 2; n++) {
                 td_render_result r[2];
                 td_scene sc;
-                td_scene_defaults(&sc);
-                snprintf(sc.dataset, sizeof sc.dataset, "picos");
-                sc.camera.x = 560.0, sc.camera.y = 2781.0, sc.camera.z = 2557.0;
-                sc.camera.heading = 140.0, sc.camera.pitch = -10.0, sc.camera.roll = 35.0, sc.camera.fov = 70.0;
-                sc.image.width = sizes[si][0], sc.image.height = sizes[si][1];
-                sc.image.format = TD_FORMAT_DEPTH32F;
-                sc.quality.surface = (td_surface)surf;
+                picos_rolled(&sc, 35.0, sizes[si][0], sizes[si][1], (td_surface)surf);
                 sc.quality.samples = n;
                 for (int k = 0; k < 2; k++) {
                     td_render_opts o;

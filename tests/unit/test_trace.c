@@ -701,6 +701,80 @@ static void assert_same_hit(const td_hit *a, const td_hit *b)
     assert_int_equal(a->cj, b->cj);
 }
 
+/* Ray r on surface sf: every method's td_trace gives the incremental walk's hit, and so
+ * does td_trace_from (and, with fans, a fan of one ray) from every t_clear = tc0, tc0 +
+ * dt, .. before the hit and tc_max. Returns the incremental walk's t; *moved counts the
+ * starts that took fewer steps. */
+static double assert_walks_agree(const td_view *v, td_surface sf, const td_ray *r, double tc0, double dt,
+                                 double tc_max, int fans, int *moved)
+{
+    td_hit href;
+    td_trace(v, TD_METHOD_INCREMENTAL, sf, r, &href);
+    for (int m = 0; m < TD_METHOD_COUNT; m++) {
+        td_hit h0, h1;
+        if (m == TD_METHOD_SILHOUETTE)
+            continue;
+        td_trace(v, (td_method)m, sf, r, &h0);
+        assert_same_hit(&href, &h0);
+        for (double tc = tc0; tc < h0.t && tc < tc_max; tc += dt) {
+            td_trace_from(v, (td_method)m, sf, r, tc, &h1);
+            assert_same_hit(&h0, &h1);
+            if (fans) {
+                td_fan f = {.dx = {r->d[0]}, .dy = {r->d[1]}, .dz = {r->d[2]}, .t_clear = {tc}};
+                td_fan_hits fh;
+                td_trace_fan(v, (td_method)m, sf, r->o, 1, &f, &fh);
+                td_fan_hit(&fh, 0, &h1);
+                assert_same_hit(&h0, &h1);
+                *moved += h1.steps < h0.steps;
+            }
+        }
+    }
+    return href.t;
+}
+
+/* Shadow rays from o[0 .. n) along the sun: td_occluded with the bound lit and without it,
+ * and td_occluded_par in one batch, answer as td_trace. Returns how many are lit. */
+static int assert_shadows_agree(const td_view *v, td_surface sf, const td_sunlit *lit, const double sun[3],
+                                const double (*o)[3], int n)
+{
+    uint8_t occ[64];
+    uint32_t steps = 0;
+    int lit_rays = 0;
+    assert_true(n <= 64);
+    td_occluded_par(v, TD_METHOD_AUTO, sf, sun, n, o, lit, occ, &steps);
+    for (int k = 0; k < n; k++) {
+        td_ray r = {{o[k][0], o[k][1], o[k][2]}, {sun[0], sun[1], sun[2]}, 0.0, INFINITY};
+        td_hit h;
+        td_trace(v, TD_METHOD_AUTO, sf, &r, &h);
+        assert_int_equal(td_occluded(v, TD_METHOD_AUTO, sf, &r, lit, &steps), h.t < INFINITY);
+        assert_int_equal(td_occluded(v, TD_METHOD_AUTO, sf, &r, NULL, &steps), h.t < INFINITY);
+        assert_int_equal(occ[k], h.t < INFINITY);
+        lit_rays += h.t == INFINITY;
+    }
+    return lit_rays;
+}
+
+/* assert_shadows_agree on every surface of the finished grid g, with the sun at azimuth
+ * az and elevation el (degrees) and its bound, which must have a shadow side (the claims
+ * these cases hold). Returns the lit rays over the surfaces. */
+static int shadow_rays_agree(const td_grid *g, double az, double el, const double (*o)[3], int n)
+{
+    td_accel *a = build_all(g, TD_PLANES_K_DEFAULT);
+    td_view v = {g, a->tiles};
+    const double sun[3] = {sin(az * M_PI / 180.0) * cos(el * M_PI / 180.0),
+                           cos(az * M_PI / 180.0) * cos(el * M_PI / 180.0), sin(el * M_PI / 180.0)};
+    td_sunlit *lit = NULL;
+    int lit_rays = 0;
+    assert_int_equal(td_sunlit_build(&v, sun, &lit, NULL), TD_OK);
+    assert_non_null(lit);
+    assert_non_null(lit->lo);
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++)
+        lit_rays += assert_shadows_agree(&v, (td_surface)sf, lit, sun, o, n);
+    td_sunlit_free(lit);
+    td_accel_free(a);
+    return lit_rays;
+}
+
 /* Rays within an ulp of a grid line: their position, rounded, lands on the line's other
  * side long before the walk crosses it, and a walk that finds its cell from a position
  * skipped what was left of the cell the ray was still in (fuzz_render: a straight-down
@@ -737,26 +811,8 @@ static void test_from_near_line(void **state)
                 const double o[3] = {kind == 0 ? i + 0.5 : (double)i, kind == 2 ? (j + 0.5) * g->sy : j * g->sy,
                                      227.0 + at / 576 + (step == 0)};
                 td_ray r = {{o[0], o[1], o[2]}, {dir[d][0], dir[d][1], -1.0}, 0.0, INFINITY};
-                td_hit href;
-                td_trace(&v, TD_METHOD_INCREMENTAL, (td_surface)sf, &r, &href);
-                assert_true(href.t > 0.0 && href.t < 60.0);
-                for (int m = 0; m < TD_METHOD_COUNT; m++) {
-                    td_hit h0, h1;
-                    if (m == TD_METHOD_SILHOUETTE)
-                        continue;
-                    td_trace(&v, (td_method)m, (td_surface)sf, &r, &h0);
-                    assert_same_hit(&href, &h0);
-                    for (double tc = 0.75; tc < h0.t; tc += 1.5) {
-                        td_trace_from(&v, (td_method)m, (td_surface)sf, &r, tc, &h1);
-                        assert_same_hit(&h0, &h1);
-                        td_fan f = {.dx = {r.d[0]}, .dy = {r.d[1]}, .dz = {-1.0}, .t_clear = {tc}};
-                        td_fan_hits fh;
-                        td_trace_fan(&v, (td_method)m, (td_surface)sf, o, 1, &f, &fh);
-                        td_fan_hit(&fh, 0, &h1);
-                        assert_same_hit(&h0, &h1);
-                        moved += h1.steps < h0.steps;
-                    }
-                }
+                double t = assert_walks_agree(&v, (td_surface)sf, &r, 0.75, 1.5, INFINITY, 1, &moved);
+                assert_true(t > 0.0 && t < 60.0);
             }
         td_accel_free(a);
         td_grid_free(g);
@@ -794,20 +850,7 @@ static void test_along_line(void **state)
                         {axis ? side[e] : along, axis ? along : side[e], -fall[f]},
                         0.0,
                         INFINITY};
-            td_hit href;
-            td_trace(&v, TD_METHOD_INCREMENTAL, (td_surface)sf, &r, &href);
-            hits += href.t < INFINITY;
-            for (int m = 0; m < TD_METHOD_COUNT; m++) {
-                td_hit h0, h1;
-                if (m == TD_METHOD_SILHOUETTE)
-                    continue;
-                td_trace(&v, (td_method)m, (td_surface)sf, &r, &h0);
-                assert_same_hit(&href, &h0);
-                for (double tc = 1.0; tc < h0.t && tc < 60.0; tc += 3.0) {
-                    td_trace_from(&v, (td_method)m, (td_surface)sf, &r, tc, &h1);
-                    assert_same_hit(&h0, &h1);
-                }
-            }
+            hits += assert_walks_agree(&v, (td_surface)sf, &r, 1.0, 3.0, 60.0, 0, NULL) < INFINITY;
         }
     assert_true(hits > 300);
     td_accel_free(a);
@@ -843,20 +886,7 @@ static void test_through_vertices(void **state)
                          -0.48450430962325092 * fall[fi]},
                         0.0,
                         INFINITY};
-            td_hit href;
-            td_trace(&v, TD_METHOD_INCREMENTAL, (td_surface)sf, &r, &href);
-            hits += href.t < INFINITY;
-            for (int m = 0; m < TD_METHOD_COUNT; m++) {
-                td_hit h0, h1;
-                if (m == TD_METHOD_SILHOUETTE)
-                    continue;
-                td_trace(&v, (td_method)m, (td_surface)sf, &r, &h0);
-                assert_same_hit(&href, &h0);
-                for (double tc = 0.5; tc < h0.t && tc < 40.0; tc += 1.0) {
-                    td_trace_from(&v, (td_method)m, (td_surface)sf, &r, tc, &h1);
-                    assert_same_hit(&h0, &h1);
-                }
-            }
+            hits += assert_walks_agree(&v, (td_surface)sf, &r, 0.5, 1.0, 40.0, 0, NULL) < INFINITY;
         }
     assert_true(hits > 500);
     td_accel_free(a);
@@ -876,45 +906,16 @@ static void test_shadow_from_wall(void **state)
 {
     (void)state;
     td_grid *g = make_grid(14, 19, 1000.0, 750.0, 3);
+    double o[16][3];
     for (int32_t j = 0; j < g->h; j++)
         for (int32_t i = 0; i < g->w; i++)
             g->z[(size_t)j * (size_t)g->w + (size_t)i] = i == 7 || j == 9 ? NAN : (float)(200 + 3 * j);
     assert_int_equal(td_grid_finish(g, NULL), TD_OK);
-    td_accel *a = build_all(g, TD_PLANES_K_DEFAULT);
-    td_view v = {g, a->tiles};
-    const double az = 258.0 * M_PI / 180.0, el = 10.0 * M_PI / 180.0;
-    const double sun[3] = {sin(az) * cos(el), cos(az) * cos(el), sin(el)};
-    td_sunlit *lit = NULL;
-    assert_int_equal(td_sunlit_build(&v, sun, &lit, NULL), TD_OK);
-    assert_non_null(lit);
-    assert_non_null(lit->lo); /* the shadow side, which made the claim */
-    int lit_rays = 0;
-    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
-        double o[16][3];
-        uint8_t occ[16];
-        uint32_t steps = 0;
-        int n = 0;
-        for (int32_t j = 10; j < 18; j++)
-            for (int q = 0; q < 2; q++, n++) {
-                td_ray r = {{8000.0, j * 750.0 + 375.0 * q, 192.0 + 3.0 * j}, {sun[0], sun[1], sun[2]}, 0.0, INFINITY};
-                td_hit h;
-                memcpy(o[n], r.o, sizeof o[n]);
-                td_trace(&v, TD_METHOD_AUTO, (td_surface)sf, &r, &h);
-                assert_int_equal(td_occluded(&v, TD_METHOD_AUTO, (td_surface)sf, &r, lit, &steps), h.t < INFINITY);
-                assert_int_equal(td_occluded(&v, TD_METHOD_AUTO, (td_surface)sf, &r, NULL, &steps), h.t < INFINITY);
-                lit_rays += h.t == INFINITY;
-            }
-        td_occluded_par(&v, TD_METHOD_AUTO, (td_surface)sf, sun, n, (const double(*)[3])o, lit, occ, &steps);
-        for (int k = 0; k < n; k++) {
-            td_ray r = {{o[k][0], o[k][1], o[k][2]}, {sun[0], sun[1], sun[2]}, 0.0, INFINITY};
-            td_hit h;
-            td_trace(&v, TD_METHOD_AUTO, (td_surface)sf, &r, &h);
-            assert_int_equal(occ[k], h.t < INFINITY);
-        }
+    for (int k = 0; k < 16; k++) { /* rows 10 .. 17, on and between sample rows */
+        o[k][0] = 8000.0, o[k][1] = (10 + k / 2) * 750.0 + 375.0 * (k % 2), o[k][2] = 192.0 + 3.0 * (10 + k / 2);
     }
-    assert_true(lit_rays >= 16); /* the plane's walls, at least, see the sun */
-    td_sunlit_free(lit);
-    td_accel_free(a);
+    /* the plane's walls, at least, see the sun */
+    assert_true(shadow_rays_agree(g, 258.0, 10.0, (const double(*)[3])o, 16) >= 16);
     td_grid_free(g);
 }
 
@@ -929,48 +930,18 @@ static void test_shadow_at_edge(void **state)
 {
     (void)state;
     td_grid *g = make_grid(24, 16, 1.0, 0.75, 3);
+    double o[40][3];
     for (int32_t j = 0; j < g->h; j++)
         for (int32_t i = 0; i < g->w; i++)
             g->z[(size_t)j * (size_t)g->w + (size_t)i] = (float)(200.0 + 4.5 * i + 0.5 * j);
     assert_int_equal(td_grid_finish(g, NULL), TD_OK);
-    td_accel *a = build_all(g, TD_PLANES_K_DEFAULT);
-    td_view v = {g, a->tiles};
-    const double az = 81.6901 * M_PI / 180.0, el = 10.0 * M_PI / 180.0;
-    const double sun[3] = {sin(az) * cos(el), cos(az) * cos(el), sin(el)};
-    td_sunlit *lit = NULL;
-    assert_int_equal(td_sunlit_build(&v, sun, &lit, NULL), TD_OK);
-    assert_non_null(lit);
-    assert_non_null(lit->lo);
-    int lit_rays = 0;
-    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
-        double o[40][3];
-        uint8_t occ[40];
-        uint32_t steps = 0;
-        int n = 0;
-        for (int32_t i = 2; i < 22; i += 2)
-            for (int q = 0; q < 4; q++, n++) {
-                /* over the cell's highest corner, so over every surface (row 14, v 14.945) */
-                double x = i + 0.14 + 0.15 * q, y = 11.209239130434783;
-                double z = 200.0 + 4.5 * (i + 1) + 0.5 * 15 + 0.015;
-                td_ray r = {{x, y, z}, {sun[0], sun[1], sun[2]}, 0.0, INFINITY};
-                td_hit h;
-                memcpy(o[n], r.o, sizeof o[n]);
-                td_trace(&v, TD_METHOD_AUTO, (td_surface)sf, &r, &h);
-                assert_int_equal(td_occluded(&v, TD_METHOD_AUTO, (td_surface)sf, &r, lit, &steps), h.t < INFINITY);
-                assert_int_equal(td_occluded(&v, TD_METHOD_AUTO, (td_surface)sf, &r, NULL, &steps), h.t < INFINITY);
-                lit_rays += h.t == INFINITY;
-            }
-        td_occluded_par(&v, TD_METHOD_AUTO, (td_surface)sf, sun, n, (const double(*)[3])o, lit, occ, &steps);
-        for (int k = 0; k < n; k++) {
-            td_ray r = {{o[k][0], o[k][1], o[k][2]}, {sun[0], sun[1], sun[2]}, 0.0, INFINITY};
-            td_hit h;
-            td_trace(&v, TD_METHOD_AUTO, (td_surface)sf, &r, &h);
-            assert_int_equal(occ[k], h.t < INFINITY);
-        }
+    for (int k = 0; k < 40; k++) { /* row 14, v 14.945; over the cell's highest corner */
+        int i = 2 + 2 * (k / 4);
+        o[k][0] = i + 0.14 + 0.15 * (k % 4), o[k][1] = 11.209239130434783;
+        o[k][2] = 200.0 + 4.5 * (i + 1) + 0.5 * 15 + 0.015;
     }
-    assert_true(lit_rays >= 40); /* rays that leave the grid before the terrain rises to them */
-    td_sunlit_free(lit);
-    td_accel_free(a);
+    /* rays that leave the grid before the terrain rises to them */
+    assert_true(shadow_rays_agree(g, 81.6901, 10.0, (const double(*)[3])o, 40) >= 40);
     td_grid_free(g);
 }
 
