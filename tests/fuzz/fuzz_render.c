@@ -39,7 +39,7 @@
 #include "sunlit.h"
 #include "trace.h"
 
-enum { MAX_SIDE = 24, MAX_SIDE_BIG = 72 };
+enum { MAX_SIDE = 24, MAX_SIDE_BIG = 72, MAX_SAMPLES = 6144 };
 
 /* How the renders run: threads for those with the devices on, and the coarse levels when
  * the scene asks for levels of detail (NULL otherwise). */
@@ -289,6 +289,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     unsigned last = fuzz_byte(&r); /* samples a side, threads of the devices' renders */
     sc.quality.samples = 1 + (int)(last % 3);
+    while (sc.quality.samples > 1 && (int64_t)sc.image.width * sc.image.height * sc.quality.samples *
+                                             sc.quality.samples > MAX_SAMPLES)
+        sc.quality.samples--; /* an input's renders bounded (libFuzzer's 20 s under ASan) */
     run ru = {1 + (int)(last / 3 % 3), NULL};
     unsigned lodb = fuzz_byte(&r); /* levels of detail: square or isometric, 1 .. 8 pixels a cell */
     sc.quality.lod = (int)(lodb & 1);
