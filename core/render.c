@@ -1001,7 +1001,9 @@ static void trace_slice(worker *w, fan *f, const blk *b, int32_t xa, int32_t xb,
 /* The order of trace_band for a block of bw x bh pixels, n x n samples each, whose
  * verticals run along vert: bs->order and bs->end. A sample's band and its bucket along
  * the verticals (1 / n pixel a bucket) from its position; a counting sort, band by band,
- * bucket by bucket, each bucket in index order. */
+ * bucket by bucket, each bucket in index order. The block has more than one sample
+ * (stage_primary sends a one-sample block to the column slices): its width across the
+ * verticals, sext, is the divisor of the band index. */
 static void band_order(band_sort *bs, int32_t bw, int32_t bh, int n, const double vert[2], int nbands)
 {
     const int nn = n * n, nx = bw * n, ny = bh * n;

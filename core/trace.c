@@ -261,15 +261,28 @@ static inline int32_t cell_along(double pos, int s, int32_t lo, int32_t hi)
  * the walk crosses it (a nearly vertical ray: the line's ulp is crossed after metres of
  * descent), or short of it after, and a walk put there skips what is left of the cell it
  * is in, or walks a cell off its path (a ray through a sample point met the column beside
- * it, which it touches at that point only). Every place that finds a cell from a
- * position inside the walk (skip_to, the packets' start, cone_run's jump, leave_box_at's
- * other axis) takes it through here; fuzz_render found them (seeds straight-down-on-line,
- * straight-down-jump, diagonal-vertex). */
+ * it, which it touches at that point only). fuzz_render found these (seeds
+ * straight-down-on-line, straight-down-jump, diagonal-vertex). */
 static inline int32_t time_cell(double te, double tx, double t, int32_t c, int s, int32_t lo, int32_t hi)
 {
     return te > t && c - s >= lo && c - s <= hi ? c - s : (tx <= t && c + s >= lo && c + s <= hi ? c + s : c);
 }
 
+/* The column (row) the walk is in at time t, within [lo, hi]: from the ray's position,
+ * then time_cell. Every place that finds a cell inside the walk takes it from here
+ * (skip_to, cone_run's jump, leave_box_at's other axis; vstart_at lane by lane);
+ * start_cell, at the walk's start, has no crossing before it to agree with. */
+static inline int32_t walk_col(const walk *w, double t, int32_t lo, int32_t hi)
+{
+    int32_t c = cell_along(ray_u(w, t), w->su, lo, hi);
+    return time_cell(entry_u(w, c), exit_u(w, c), t, c, w->su, lo, hi);
+}
+
+static inline int32_t walk_row(const walk *w, double t, int32_t lo, int32_t hi)
+{
+    int32_t c = cell_along(ray_v(w, t), w->sv, lo, hi);
+    return time_cell(entry_v(w, c), exit_v(w, c), t, c, w->sv, lo, hi);
+}
 
 /* ------------------------------------------------------------------------------------ */
 /* Cell boundaries: the heights every surface shares there.                             */
@@ -647,20 +660,16 @@ TD_HOT int leave_box_at(const walk *restrict w, walk_state *restrict st, const b
     double tx = dmin(tu, tv);
     if (tx < w->t_end) {
         int kind = crossing(tu, tv);
-        int32_t ci = kind != ENTRY_V ? (w->su > 0 ? b->uhi : b->ulo - 1)
-                                     : cell_along(ray_u(w, tx), w->su, b->ulo, b->uhi - 1);
-        int32_t cj = kind != ENTRY_U ? (w->sv > 0 ? b->vhi : b->vlo - 1)
-                                     : cell_along(ray_v(w, tx), w->sv, b->vlo, b->vhi - 1);
-        /* the other axis's cell where the walk is at tx; entered across both lines when
-         * the walk crosses that axis's line at tx too, from a cell of the grid (the walk
-         * steps diagonally at a tie; a line it starts on is not crossed) */
-        if (kind == ENTRY_V) {
-            ci = time_cell(entry_u(w, ci), exit_u(w, ci), tx, ci, w->su, b->ulo, b->uhi - 1);
+        /* the other axis's cell where the walk is at tx (walk_col, walk_row); entered
+         * across both lines when the walk crosses that axis's line at tx too, from a cell
+         * of the grid (the walk steps diagonally at a tie; a line it starts on is not
+         * crossed) */
+        int32_t ci = kind != ENTRY_V ? (w->su > 0 ? b->uhi : b->ulo - 1) : walk_col(w, tx, b->ulo, b->uhi - 1);
+        int32_t cj = kind != ENTRY_U ? (w->sv > 0 ? b->vhi : b->vlo - 1) : walk_row(w, tx, b->vlo, b->vhi - 1);
+        if (kind == ENTRY_V)
             kind = entry_u(w, ci) == tx && ci - w->su >= 0 && ci - w->su <= w->cmax_i ? ENTRY_UV : kind;
-        } else if (kind == ENTRY_U) {
-            cj = time_cell(entry_v(w, cj), exit_v(w, cj), tx, cj, w->sv, b->vlo, b->vhi - 1);
+        else if (kind == ENTRY_U)
             kind = entry_v(w, cj) == tx && cj - w->sv >= 0 && cj - w->sv <= w->cmax_j ? ENTRY_UV : kind;
-        }
         rc = enter_cell(st, ci, cj, dmax(tx, st->t), kind, NAN);
     }
     return rc;
@@ -769,10 +778,7 @@ static int cone_run(const walk *restrict w, const td_tile *tile, const td_tile_a
                 if (rc == STEP_CONTINUE && lit_end(w, st))
                     rc = STEP_END;
             } else {
-                int32_t ci = cell_along(ray_u(w, tl), w->su, tb.ulo, tb.uhi - 1);
-                int32_t cj = cell_along(ray_v(w, tl), w->sv, tb.vlo, tb.vhi - 1);
-                ci = time_cell(entry_u(w, ci), exit_u(w, ci), tl, ci, w->su, tb.ulo, tb.uhi - 1);
-                cj = time_cell(entry_v(w, cj), exit_v(w, cj), tl, cj, w->sv, tb.vlo, tb.vhi - 1);
+                int32_t ci = walk_col(w, tl, tb.ulo, tb.uhi - 1), cj = walk_row(w, tl, tb.vlo, tb.vhi - 1);
                 double teu = entry_u(w, ci), tev = entry_v(w, cj);
                 double te = dmax(teu, tev);
                 if ((ci != st->ci || cj != st->cj) && te > st->t) {
@@ -1006,10 +1012,7 @@ TD_HOT int skip_to(const walk *w, walk_state *st, double tc)
     if (tc > w->t_end) {
         go = 0;
     } else if (tc > st->t) {
-        int32_t ci = cell_along(ray_u(w, tc), w->su, 0, w->cmax_i);
-        int32_t cj = cell_along(ray_v(w, tc), w->sv, 0, w->cmax_j);
-        ci = time_cell(entry_u(w, ci), exit_u(w, ci), tc, ci, w->su, 0, w->cmax_i);
-        cj = time_cell(entry_v(w, cj), exit_v(w, cj), tc, cj, w->sv, 0, w->cmax_j);
+        int32_t ci = walk_col(w, tc, 0, w->cmax_i), cj = walk_row(w, tc, 0, w->cmax_j);
         double teu = entry_u(w, ci), tev = entry_v(w, cj), te = dmax(teu, tev);
         if (te > st->t) { /* else the ray starts in that cell */
             enter_cell(st, ci, cj, te, crossing(tev, teu), NAN);
@@ -1531,8 +1534,8 @@ TD_HOT void vstart_at(const walk *w, vwalk *p, vd iz, vd tc, vstate *st, vm *go,
     vd cj = vcell_along(vray_v(p, tc), p->nv, 0.0, (double)w->cmax_j);
     vd teu = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
     vd tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
-    /* time_cell, lane by lane (the lanes whose cell the times disagree with: rare): back
-     * where the entry is after tc, on where the exit is not */
+    /* walk_col and walk_row, lane by lane (the lanes whose cell the times disagree with:
+     * rare): back where the entry is after tc, on where the exit is not */
     vd txu = vtime_u(p, ci + vone(p->pu)), txv = vtime_v(p, cj + vone(p->pv));
     if (vany((vm)(teu > tc) | (vm)(txu <= tc) | (vm)(tev > tc) | (vm)(txv <= tc))) {
         vd mu = vsel((vm)(teu > tc), -p->su, vsel((vm)(txu <= tc), p->su, vb(0.0)));
