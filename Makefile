@@ -75,10 +75,12 @@ tsan: deps
 		ctest --output-on-failure -R '^(server_tilestore|server_edit)$$'
 
 # `terrad bench` runs build/terrad-bench (tests/bench), built beside terrad by `build`;
-# then what map tiles cost (build/maps-bench, issue 17), which the report's summary links.
+# then what map tiles cost (build/maps-bench, issue 17) and viewsheds against
+# gdal_viewshed (scripts/viewshed-bench, issue 18), which the report's summary links.
 bench: build
 	./$(BUILD)/terrad bench --out docs
 	./$(BUILD)/maps-bench . docs/maps-bench.md --runs 5
+	./scripts/viewshed-bench --build $(BUILD) --out docs
 
 clean:
 	rm -rf $(BUILD) $(ASAN_BUILD) $(FUZZ_BUILD) $(TSAN_BUILD)

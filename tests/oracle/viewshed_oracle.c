@@ -18,7 +18,7 @@
  *   viewshed_oracle DEM --gdal RAW X Y H [--surface S]
  *       RAW: gdal_viewshed's output as raw bytes in file order (255 seen, 0 not, else
  *       outside). Prints the agreement with terrad in per cent of the samples both answer
- *       and, per disagreement, what the reference says (scripts/viewshed-vs-gdal.sh). */
+ *       and, per disagreement, what the reference says (scripts/viewshed-bench, `make bench`). */
 #include <float.h>
 #include <inttypes.h>
 #include <math.h>
