@@ -13,9 +13,9 @@ td_status td_gdal_open(td_err *err)
 
 #else
 
-#include <dlfcn.h>
 #include <pthread.h>
-#include <stdio.h>
+
+#include "dynlib.h"
 
 #ifndef TERRAD_GDAL_SONAME
 #define TERRAD_GDAL_SONAME "libgdal.so"
@@ -26,24 +26,17 @@ td_gdal_api td_gdal;
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
 static char load_error[512]; /* empty once loaded */
 
-/* dlopen and dlsym every entry; GDALAllRegister once they are all there. */
+/* Every entry from the library (dynlib.h); GDALAllRegister once they are all there. */
 static void load(void)
 {
-    void *h = dlopen(TERRAD_GDAL_SONAME, RTLD_NOW | RTLD_LOCAL);
-    const char *missing = NULL, *e = h ? NULL : dlerror();
-    /* dlsym returns a void *, which POSIX requires to convert to a function pointer; ISO C
-     * leaves the cast undefined, so the entry is written through a void ** (the form of
-     * dlsym's manual page) */
-#define TD_GDAL_SYM(f)                                                                             \
-    if (h && !missing && !(*(void **)&td_gdal.f = dlsym(h, #f)))                                   \
-        missing = #f;
-    TD_GDAL_FNS(TD_GDAL_SYM)
-#undef TD_GDAL_SYM
-    if (!h)
-        snprintf(load_error, sizeof load_error, "%s", e ? e : "dlopen failed");
-    else if (missing)
-        snprintf(load_error, sizeof load_error, "%s has no %s", TERRAD_GDAL_SONAME, missing);
-    else
+#define TD_GDAL_NAME(f) #f,
+#define TD_GDAL_SLOT(f) (void **)&td_gdal.f,
+    static const char *const names[] = {TD_GDAL_FNS(TD_GDAL_NAME)};
+    void **const slots[] = {TD_GDAL_FNS(TD_GDAL_SLOT)};
+#undef TD_GDAL_SLOT
+#undef TD_GDAL_NAME
+    if (td_dynlib_load(TERRAD_GDAL_SONAME, names, slots, sizeof names / sizeof *names, load_error,
+                       sizeof load_error))
         td_gdal.GDALAllRegister();
 }
 

@@ -38,10 +38,10 @@
  * set-up, HTTP, resuming the connection, taking the snapshot). */
 #include "http.h"
 #include "clock.h"
+#include "mhdapi.h"
 
 #include <arpa/inet.h>
 #include <math.h>
-#include <microhttpd.h>
 #include <netdb.h>
 #include <pthread.h>
 #include <stdarg.h>
@@ -558,6 +558,9 @@ td_status td_http_start(const td_http_opts *o, td_http **out, td_err *err)
     int gai;
 
     *out = NULL;
+    rc = td_mhd_open(err); /* libmicrohttpd, loaded on first use (mhdapi.h) */
+    if (rc)
+        goto out;
     h = calloc(1, sizeof *h);
     if (!h) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for the HTTP server");
