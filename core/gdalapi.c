@@ -13,8 +13,6 @@ td_status td_gdal_open(td_err *err)
 
 #else
 
-#include <pthread.h>
-
 #include "dynlib.h"
 
 #ifndef TERRAD_GDAL_SONAME
@@ -23,31 +21,18 @@ td_status td_gdal_open(td_err *err)
 
 td_gdal_api td_gdal;
 
-static pthread_once_t load_once = PTHREAD_ONCE_INIT;
-static char load_error[512]; /* empty once loaded */
+static void register_drivers(void) { td_gdal.GDALAllRegister(); }
 
-/* Every entry from the library (dynlib.h); GDALAllRegister once they are all there. */
-static void load(void)
-{
 #define TD_GDAL_NAME(f) #f,
 #define TD_GDAL_SLOT(f) (void **)&td_gdal.f,
-    static const char *const names[] = {TD_GDAL_FNS(TD_GDAL_NAME)};
-    void **const slots[] = {TD_GDAL_FNS(TD_GDAL_SLOT)};
+static const char *const names[] = {TD_GDAL_FNS(TD_GDAL_NAME)};
+static void **const slots[] = {TD_GDAL_FNS(TD_GDAL_SLOT)};
 #undef TD_GDAL_SLOT
 #undef TD_GDAL_NAME
-    if (td_dynlib_load(TERRAD_GDAL_SONAME, names, slots, sizeof names / sizeof *names, load_error,
-                       sizeof load_error))
-        td_gdal.GDALAllRegister();
-}
 
-td_status td_gdal_open(td_err *err)
-{
-    td_status rc = TD_OK;
-    pthread_once(&load_once, load);
-    if (load_error[0])
-        rc = td_err_set(err, TD_EUNSUPPORTED, "GDAL could not be loaded (%s): %s", TERRAD_GDAL_SONAME,
-                        load_error);
-    return rc;
-}
+static td_dynlib lib = {TERRAD_GDAL_SONAME, "GDAL", names, slots, sizeof names / sizeof *names, register_drivers,
+                        PTHREAD_MUTEX_INITIALIZER, 0, ""};
+
+td_status td_gdal_open(td_err *err) { return td_dynlib_open(&lib, err); }
 
 #endif

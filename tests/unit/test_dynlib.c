@@ -1,7 +1,8 @@
 /* test_dynlib.c: the run-time loader of core/dynlib.c (GDAL's and libmicrohttpd's tables
  * are filled by it): every name resolved into its slot and callable; a missing function
  * or library refused with its name or dlerror's reason, never a partly filled table taken
- * for whole; a message buffer too short is cut, not overrun; and libmicrohttpd's table
+ * for whole; a message buffer too short is cut, not overrun; td_dynlib_open loads once
+ * and answers every call alike; and libmicrohttpd's table
  * (server/mhdapi.h), loaded as `terrad serve` loads it, holds every function http.c calls. */
 #include <math.h>
 #include <setjmp.h>
@@ -59,6 +60,33 @@ static void test_missing_library(void **state)
     assert_int_equal(strlen(tiny), sizeof tiny - 1);
 }
 
+static int loaded_calls;
+static void count_loaded(void) { loaded_calls++; }
+
+/* td_dynlib_open: loads once (the callback once), the same answer on every call, a
+ * failure named by the library's name, its soname and the reason */
+static void test_open_once(void **state)
+{
+    static fn_d c;
+    static const char *const names[] = {"cos"};
+    static void **const slots[] = {(void **)&c};
+    static td_dynlib ok = {"libm.so.6", "libm", names, slots, 1, count_loaded, PTHREAD_MUTEX_INITIALIZER, 0, ""};
+    static td_dynlib bad = {"libtd_no_such_library.so.1", "nothing", names, slots, 1, count_loaded,
+                            PTHREAD_MUTEX_INITIALIZER, 0, ""};
+    td_err err = {0};
+    (void)state;
+    loaded_calls = 0;
+    for (int i = 0; i < 3; i++)
+        assert_int_equal(td_dynlib_open(&ok, &err), TD_OK);
+    assert_int_equal(loaded_calls, 1);
+    assert_true(c(0.0) == 1.0);
+    for (int i = 0; i < 2; i++) {
+        assert_int_equal(td_dynlib_open(&bad, &err), TD_EUNSUPPORTED);
+        assert_non_null(strstr(err.msg, "nothing could not be loaded (libtd_no_such_library.so.1): "));
+    }
+    assert_int_equal(loaded_calls, 1);
+}
+
 static void test_mhd_table(void **state)
 {
     td_err err = {0};
@@ -76,6 +104,7 @@ int main(void)
         cmocka_unit_test(test_resolves),
         cmocka_unit_test(test_missing_function),
         cmocka_unit_test(test_missing_library),
+        cmocka_unit_test(test_open_once),
         cmocka_unit_test(test_mhd_table),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
