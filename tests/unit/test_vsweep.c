@@ -449,6 +449,45 @@ static void test_ulp_eyes(void **state)
     unmake(&fx);
 }
 
+/* An eye on a row's line whose y / sy rounds 1 ulp over it (y = 31 sy with sy = 50/3:
+ * 31.000000000000004 cells), found by fuzz_viewshed (seed ulp-over-line): in the south
+ * cone the first column is then 4e-15 from the eye, and the strip after it holds a ridge
+ * diagonal from that column (m about -3e14) into the domain. Its line was kept from that
+ * far end, so its value at the target's m was the difference of numbers 7e14 apart: 0.08
+ * too low, and target (2, 28), hidden 8 mm under that diagonal, was proved visible
+ * (vsweep.c add_seg). The fuzzer's terrain, every surface, eyes 0, 1e-7 and 1.5 m up, on
+ * that line and on the column line under it (x = 4 sx). */
+static void test_ulp_eye_over_line(void **state)
+{
+    static const float rows[5][6] = {{200, 202, 208, 205, 211, 208},
+                                     {203, 200, 206, 208, 209, 211},
+                                     {201, 203, 204, 206, 212, 209},
+                                     {204, 201, 207, 204, 210, 212},
+                                     {202, 204, 205, 207, 208, 210}};
+    const double sy = 10.0 * 5.0 / 3.0;
+    const td_vs_point p[] = {{40.214389257648584, 31.0 * sy}, {40.0, 31.0 * sy}, {40.0, 20.5 * sy}};
+    static const double eyes[] = {0.0, 1e-7, 1.5};
+    td_viewshed_opts o;
+    fixture fx;
+    (void)state;
+    assert_true(31.0 * sy / sy > 31.0); /* the case: 1 ulp over the line */
+    assert_int_equal(td_grid_create(6, 33, 10.0, sy, 3, NULL, &fx.g, NULL), TD_OK);
+    for (int32_t j = 0; j < 33; j++)
+        for (int32_t i = 0; i < 6; i++)
+            fx.g->z[(size_t)j * 6 + i] = rows[j % 5][i];
+    fixture_finish(&fx);
+    td_viewshed_opts_default(&o);
+    o.nobs = 1;
+    for (size_t k = 0; k < sizeof p / sizeof *p; k++)
+        for (int s = 0; s < TD_SURFACE_COUNT; s++)
+            for (size_t e = 0; e < sizeof eyes / sizeof *eyes; e++) {
+                o.obs = &p[k];
+                o.height = eyes[e];
+                same(&fx, o, (td_surface)s);
+            }
+    unmake(&fx);
+}
+
 /* Under the address sanitizer (about 20x slower) a third of test_exact_terrains' terrains. */
 #if defined(__SANITIZE_ADDRESS__)
 #define EXACT_TERRAINS 5
@@ -556,7 +595,7 @@ int main(void)
         cmocka_unit_test(test_blocks),  cmocka_unit_test(test_facing),          cmocka_unit_test(test_last_cells),
         cmocka_unit_test(test_saddle),   cmocka_unit_test(test_low_eye),
         cmocka_unit_test(test_exact_terrains), cmocka_unit_test(test_end_tangent),
-        cmocka_unit_test(test_ulp_eyes),
+        cmocka_unit_test(test_ulp_eyes), cmocka_unit_test(test_ulp_eye_over_line),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
