@@ -119,13 +119,19 @@ static void fan_strips(td_silh_fan *f, const td_grid *g, const double eye[3])
     }
 }
 
-/* Along-distances (metres, >= 0) of strip s's near and far lines from the eye. */
+/* Along-distances (metres, >= 0) of strip s's near and far lines from the eye, each
+ * widened by far more than the rounding of a ray's position (1e-9 of the eye's coordinate
+ * and a cell): the walk places a ray at o + t d in doubles, so one that in reals leaves a
+ * strip at once may stay on its line. Found by fuzz_render (seed silhouette-edge-down): a
+ * ray 6e-17 off the vertical from an eye over the grid's last row line, whose y never
+ * moves off it, hit at 11.5 m in the walk; its strip, behind the eye with its far line
+ * the eye's (q_f 0), bounded it by -inf, and the partition called it a miss. */
 static void strip_q(const td_silh_fan *f, int32_t s, double *qn, double *qf)
 {
     int32_t c = f->first + f->sign * s;
-    double a = (double)c * f->sa, b = (double)(c + 1) * f->sa;
-    *qn = f->sign > 0 ? a - f->ea : f->ea - b;
-    *qf = f->sign > 0 ? b - f->ea : f->ea - a;
+    double a = (double)c * f->sa, b = (double)(c + 1) * f->sa, slack = 1e-9 * (fabs(f->ea) + f->sa);
+    *qn = (f->sign > 0 ? a - f->ea : f->ea - b) - slack;
+    *qf = (f->sign > 0 ? b - f->ea : f->ea - a) + slack;
     *qn = *qn > 0.0 ? *qn : 0.0;
 }
 

@@ -72,10 +72,10 @@ static void scene_of(const td_grid *g, const cam_def *c, int w, int h, td_scene 
     s->image.height = h;
 }
 
-/* Every pixel (and a sub-pixel offset) of one camera: the bound is safe and exact. */
-static void check_rays(const td_grid *g, const cam_def *c)
+/* Every pixel (and a sub-pixel offset) of one camera's W x H image: the bound is safe
+ * and exact. */
+static void check_rays(const td_grid *g, const cam_def *c, int W, int H)
 {
-    enum { W = 48, H = 36 };
     td_scene s;
     td_camera cam;
     td_silhouette *silh = NULL;
@@ -125,7 +125,36 @@ static void test_silhouette_bounds(void **state)
     for (size_t d = 0; d < sizeof dems / sizeof dems[0]; d++) {
         td_grid *g = load(dems[d]);
         for (size_t c = 0; c < sizeof cams / sizeof cams[0]; c++)
-            check_rays(g, &cams[c]);
+            check_rays(g, &cams[c], 48, 36);
+        td_grid_free(g);
+    }
+}
+
+/* An eye right over the grid's edge lines and corners, looking straight down (heading 0
+ * and 45: the centre ray's horizontal part a rounding's 6e-17, both axes alike): the
+ * strip behind such an eye has its far line at the eye, where the walk's ray stays (its
+ * position does not move off the line in doubles). Found by fuzz_render (seed
+ * silhouette-edge-down): the partition bounded that strip by -inf and called the centre
+ * ray a miss where the walk hit at 11.5 m (silhouette.c strip_q). */
+static void test_silhouette_eye_on_edge(void **state)
+{
+    static const double at[][2] = {{0.5, 1.0}, {0.5, 0.0}, {0.0, 0.5}, {1.0, 0.5}, {0.0, 0.0}, {1.0, 1.0}};
+    (void)state;
+    /* thirds of a metre in the spacings: on some sizes the last line's y / sy rounds under
+       its index (8 rows of 4000/3 m: 6.999999999999999), so the walk's ray is inside */
+    for (int32_t n = 6; n <= 10; n++) {
+        td_grid *g = NULL;
+        const int32_t w = n + 5, h = n;
+        assert_int_equal(td_grid_create(w, h, 2000.0 / 3.0, 4000.0 / 3.0, 3, NULL, &g, NULL), TD_OK);
+        for (int32_t j = 0; j < h; j++)
+            for (int32_t i = 0; i < w; i++)
+                g->z[(size_t)j * (size_t)w + (size_t)i] = (float)(190.0 + ((i * 7 + j * 3) % 5) + 0.5 * (j % 2));
+        assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+        for (size_t k = 0; k < sizeof at / sizeof at[0]; k++)
+            for (int hd = 0; hd < 2; hd++) {
+                cam_def c = {"eye over the edge", at[k][0], at[k][1], 10, hd ? 45 : 0, -90, 0, 70, 0};
+                check_rays(g, &c, 11, 9); /* odd: a pixel's centre is the image's */
+            }
         td_grid_free(g);
     }
 }
@@ -269,6 +298,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_silhouette_bounds),
+        cmocka_unit_test(test_silhouette_eye_on_edge),
         cmocka_unit_test(test_silhouette_orthographic),
         cmocka_unit_test(test_silhouette_render),
         cmocka_unit_test(test_silhouette_auto),
