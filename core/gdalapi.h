@@ -3,8 +3,9 @@
  * Linking libgdal made every terrad command pay for the dynamic loader bringing in libgdal
  * and the 116 libraries it needs, and their constructors: about 40 ms of CPU on every
  * start (a `main` linked with jansson, libpng and libmicrohttpd started in 2-3 ms, with
- * libgdal as well in 40-55 ms, shared machine; libmicrohttpd is now loaded the same way), although most commands (an .f32, .asc,
- * .hgt or .png DEM, a render, a viewshed) never call it. The GDAL users (demgdal.c,
+ * libgdal as well in 40-55 ms, shared machine; libmicrohttpd is now loaded the same way),
+ * although most commands (an .f32, .asc, .hgt or .png DEM, a render, a viewshed) never
+ * call it. The GDAL users (demgdal.c,
  * mercator.c) include this header instead of GDAL's: it includes GDAL's headers for the
  * types and constants and turns each function they call into the table's entry, so their
  * code reads as GDAL's own. Each entry point calls td_gdal_open first, which loads the

@@ -568,13 +568,13 @@ static void g_insert(sweep *sw, const piece *p, double m0, double m1)
 }
 
 /* The projected edge from (ma, qa) to (mb, qb) into G; with `prune`, unless F already
- * covers it. Its line is kept from an end in the domain [-VS_MDOM, VS_MDOM] where it has
- * one: an end far outside it (an edge of the first strip when the first column is ulps
- * from the eye, u ~ 4e-15: m ~ 3e14, q ~ 7e14) would leave each value in the domain the
- * difference of two numbers 1e14 apart, off by the slope times 1e-2. Found by
- * fuzz_viewshed: an eye on row line 31 (y = 31 sy, 31.000000000000004 cells) whose first
- * strip's ridge diagonal stood 0.08 too low in F, so a target it hides by 8 mm was proved
- * visible (test_ulp_eyes' eye over a line). The other end is then the anchor. */
+ * covers it. Its line is kept from its end nearer the domain [-VS_MDOM, VS_MDOM] (the one
+ * in it, where it has one): an end far outside it (an edge of the first strip when the
+ * first column is ulps from the eye, u ~ 4e-15: m ~ 3e14, q ~ 7e14) would leave each value
+ * in the domain the difference of two numbers 1e14 apart, off by the slope times 1e-2.
+ * Found by fuzz_viewshed: an eye on row line 31 (y = 31 sy, 31.000000000000004 cells)
+ * whose first strip's ridge diagonal stood 0.08 too low in F, so a target it hides by 8 mm
+ * was proved visible (test_ulp_eye_over_line). */
 static void add_seg(sweep *sw, double ma, double qa, double mb, double qb, double slack, int prune)
 {
     double m0, m1;
@@ -601,7 +601,7 @@ static void add_seg(sweep *sw, double ma, double qa, double mb, double qb, doubl
             p.qr = qa;
             p.s = (qb - qa) / (mb - ma);
             p.slack = slack;
-            if (ma < -VS_MDOM && mb <= VS_MDOM) { /* anchored at its end in the domain */
+            if (ma < -VS_MDOM && fabs(mb) < -ma) { /* anchored at its end nearer the domain */
                 p.mr = mb;
                 p.qr = qb;
             }
