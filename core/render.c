@@ -140,6 +140,7 @@
 
 #include "effects.h"
 #include "beam.h"
+#include "colwalk.h"
 #include "horizon.h"
 #include "silhouette.h"
 #include "sunlit.h"
@@ -221,6 +222,7 @@ void td_render_stats_add(td_render_stats *sum, const td_render_stats *part)
     sum->coherent_rays += part->coherent_rays;
     sum->horizon_bins += part->horizon_bins;
     sum->silhouette_rays += part->silhouette_rays;
+    sum->column_rays += part->column_rays;
     sum->silhouette_entries += part->silhouette_entries;
     sum->hits += part->hits;
     sum->curved_rays += part->curved_rays;
@@ -301,6 +303,8 @@ struct ctx {
     int depth_only;
     int horizon;     /* camera rays start from their wedge's horizon (see horizon.h) */
     int beam;        /* or, where it gives none, from their slice's beam (see beam.h) */
+    int columns;     /* an upright, level camera: its sample columns walked as one (colwalk.h) */
+    td_colwalk cw;   /* their eye's set-up */
     int plain_secondary; /* shadow and AO rays traced for their nearest hit (OFF_OCCLUSION) */
     td_ray *shadow_rays; /* the caller's copy of the shadow rays, or NULL */
     td_sunlit *sunlit;   /* heights surely in the sun (shadow rays end there), or NULL */
@@ -1106,6 +1110,86 @@ static void trace_silhouette(worker *w, const blk *b)
     w->st.kind_steps[TD_RAY_PRIMARY] += probes;
 }
 
+/* Camera rays of an upright, level camera, a sample column at a time (colwalk.h): the
+ * column's rays share their horizontal direction (td_camera_dirs: the up vector's x and y
+ * are 0, so x and y do not depend on the row), taken from the bottom up in rising slope.
+ * Each hit is finished as a fan's: t along the ray's own unit direction, the point, the
+ * surface's normal there, the height error against the bilinear surface. */
+static void trace_columns(worker *w, const blk *b)
+{
+    const ctx *c = w->c;
+    const int n = c->n, nn = n * n;
+    const int32_t ncol = b->bw * n, nrow = (b->y1 - b->y0) * n;
+    td_render_stats *st = &w->st;
+    double e[TD_BLOCK_TALL * TD_SAMPLES_MAX], hk[TD_BLOCK_TALL * TD_SAMPLES_MAX];
+    int row[TD_BLOCK_TALL * TD_SAMPLES_MAX]; /* the k-th sample up a column: its offset */
+    td_colhit h[TD_BLOCK_TALL * TD_SAMPLES_MAX];
+    uint64_t steps = 0, nhit = 0, untraced = 0;
+    uint32_t bins = 0;
+    /* the block's wedge: where each column's lowest ray may first meet the terrain */
+    const double X0 = b->x0 + 0.5 / n - 0.5, Y0 = b->y0 + 0.5 / n - 0.5, X1 = b->x1 - 0.5 / n - 0.5,
+                 Y1 = b->y1 - 0.5 / n - 0.5;
+    const double corner[4][2] = {{X0, Y0}, {X1, Y0}, {X1, Y1}, {X0, Y1}};
+    double az0, az1;
+    const int hz = c->horizon && td_camera_azimuths_poly(&c->cam, corner, 4, &az0, &az1) &&
+                   td_horizon_begin(&w->hz, c->v, c->cam.o, az0, az1);
+    for (int32_t k = 0; k < nrow; k++) { /* from the bottom sample row up */
+        const int32_t r = nrow - 1 - k;
+        row[k] = r / n * b->bw * nn + r % n * n;
+    }
+    for (int32_t xs = 0; xs < ncol; xs++) {
+        smp *const col = &w->s[xs / n * nn + xs % n];
+        int rising = 1;
+        for (int32_t k = 0; k < nrow; k++) {
+            const smp *sm = &col[row[k]];
+            hk[k] = sqrt(sm->d[0] * sm->d[0] + sm->d[1] * sm->d[1]);
+            e[k] = sm->d[2] / hk[k];
+            rising &= k == 0 || e[k] >= e[k - 1];
+        }
+        if (!rising) { /* not expected (the rows' slopes rise by a pixel's angle): the plain walk */
+            for (int32_t k = 0; k < nrow; k++)
+                camera_trace(w, &col[row[k]], 0.0);
+            untraced += (uint64_t)nrow;
+            continue;
+        }
+        const double s0 = hz ? td_horizon_clear(&w->hz, e[0], &bins) * (1.0 - 1e-12) : 0.0;
+        steps += td_colwalk_trace(&c->cw, col[row[0]].d[0] / hk[0], col[row[0]].d[1] / hk[0], s0, nrow, e, h);
+        for (int32_t k = 0; k < nrow; k++) {
+            smp *sm = &col[row[k]];
+            if (h[k].s == INFINITY)
+                continue;
+            if (h[k].s != h[k].s) { /* not known (colwalk.h): the plain walk */
+                camera_trace(w, sm, 0.0);
+                untraced++;
+                continue;
+            }
+            const double t = h[k].s / hk[k];
+            nhit++;
+            sm->level = 0;
+            sm->flags |= F_HIT;
+            sm->t = t;
+            sm->p[0] = sm->o[0] + t * sm->d[0];
+            sm->p[1] = sm->o[1] + t * sm->d[1];
+            sm->p[2] = sm->o[2] + t * sm->d[2];
+            memcpy(sm->n, h[k].n, sizeof sm->n);
+            sm->ci = h[k].ci;
+            sm->cj = h[k].cj;
+            if (!isnan(h[k].zb))
+                count_error(st, fabs(sm->p[2] - h[k].zb));
+        }
+    }
+    st->horizon_bins += bins;
+    st->steps += steps + bins;
+    st->kind_steps[TD_RAY_PRIMARY] += steps + bins;
+    const uint64_t mine = (uint64_t)(ncol * nrow) - untraced; /* camera_trace counted the others */
+    st->rays[TD_RAY_PRIMARY] += mine;
+    st->lod_rays[0] += mine;
+    st->method_rays[TD_METHOD_HIERARCHICAL] += mine;
+    st->column_rays += mine;
+    st->coherent_rays += mine; /* started from the horizon or the ray below */
+    st->hits += nhit;
+}
+
 /* Camera rays. With the silhouette partition, each ray starts from it. Else, with the
  * horizon or beam device on (perspective, full grid), the block is cut into TD_SLICES
  * slices across the image direction of the verticals, each traced from its wedge's
@@ -1117,6 +1201,8 @@ static void stage_primary(worker *w, const blk *b)
     camera_samples(c, w, b);
     if (c->silh) {
         trace_silhouette(w, b);
+    } else if (c->columns) {
+        trace_columns(w, b);
     } else if (c->horizon || c->beam) {
         double vert[2];
         td_camera_rising(&c->cam, 0.5 * (b->x0 + b->x1 - 1), 0.5 * (b->y0 + b->y1 - 1), vert);
@@ -1863,6 +1949,20 @@ static td_status setup_silhouette(ctx *c, const td_render_opts *o, int nthreads,
 
 /* Runs the workers (the caller's thread is the first; a thread that cannot be started
  * leaves its share to the others) and adds their stats into st in thread order. */
+/* The column walk (colwalk.h) for an upright, level perspective camera (its up vector
+ * the world's z: td_camera_dirs' x and y the same on every row) on the full grid, its
+ * rays straight, with the method `auto` (the walk is its choice there, as the partition
+ * is a cold dataset's), and the eye above every surface around it (td_colwalk_init). */
+static void setup_columns(ctx *c, const td_render_opts *o)
+{
+    const td_camera *cam = &c->cam;
+    c->columns = !(o->off & TD_RENDER_OFF_COLUMNS) && cam->projection == TD_PROJ_PERSPECTIVE &&
+                 cam->up[0] == 0.0 && cam->up[1] == 0.0 && cam->up[2] > 0.0 && cam->fwd[2] == 0.0 &&
+                 cam->right[2] == 0.0 && c->nlod == 0 && !c->curv && !c->silh &&
+                 c->s->quality.method == TD_METHOD_AUTO &&
+                 td_colwalk_init(&c->cw, c->v, c->s->quality.surface, cam->o);
+}
+
 static td_status run_workers(worker *ws, int nthreads, td_render_stats *st, td_err *err)
 {
     td_status rc = TD_OK;
@@ -1928,6 +2028,7 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
         rc = setup_silhouette(c, o, nthreads, err);
     if (rc)
         goto out;
+    setup_columns(c, o);
     rc = run_workers(ws, nthreads, &res->stats, err);
     res->stats.stage_ms[TD_STAGE_SHADOWS] += c->sunlit_ms;
     res->stats.stage_ms[TD_STAGE_PRIMARY] += c->silh_ms;

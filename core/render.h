@@ -80,9 +80,11 @@ typedef struct td_render_stats {
     uint64_t steps;            /* tracer steps over all rays */
     uint64_t kind_steps[TD_RAY_KIND_COUNT]; /* the same by kind of ray (primary: with the
                                                horizon bins built for them) */
-    uint64_t coherent_rays;    /* camera rays started from a horizon bound (horizon.h) */
+    uint64_t coherent_rays;    /* camera rays started from a horizon bound (horizon.h), or
+                                  from the ray below in their image column (colwalk.h) */
     uint64_t horizon_bins;     /* horizon bins built for them */
     uint64_t silhouette_rays;  /* camera rays started from the silhouette partition */
+    uint64_t column_rays;      /* camera rays traced by their image column's walk (colwalk.h) */
     uint64_t silhouette_entries; /* its bounds built (wedges x strips, silhouette.h); also
                                     in steps, as the primary kind's */
     uint64_t hits;             /* camera samples that hit the terrain */
@@ -123,8 +125,10 @@ typedef struct td_render_opts {
 #define TD_RENDER_OFF_OCCLUSION 2u /* shadow and AO rays traced for their nearest hit */
 #define TD_RENDER_OFF_SUNLIT 4u    /* shadow rays without the sun bound (sunlit.h) */
 #define TD_RENDER_OFF_BEAM 8u      /* camera rays the horizon cannot bound: no beam (beam.h) */
+#define TD_RENDER_OFF_COLUMNS 16u  /* an upright, level camera's columns not walked as one
+                                      (colwalk.h): its rays take the horizon and the fans */
 /* camera rays each traced from their start, as a pick traces them */
-#define TD_RENDER_OFF_CAMERA (TD_RENDER_OFF_HORIZON | TD_RENDER_OFF_BEAM)
+#define TD_RENDER_OFF_CAMERA (TD_RENDER_OFF_HORIZON | TD_RENDER_OFF_BEAM | TD_RENDER_OFF_COLUMNS)
 
 typedef struct td_render_result {
     int32_t width, height;

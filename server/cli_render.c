@@ -13,7 +13,7 @@
  * the JSON answer of POST /v1/pick (answer.c: the dataset as the scene names it, and the
  * terrain point of each pixel). --stats writes JSON: rays {primary, shadow, reflection,
  * ao}, steps {total, primary, shadow, reflection, ao}, coherent_rays, horizon_bins,
- * silhouette_rays, silhouette_entries, hits, curved_rays, curved_secondary,
+ * silhouette_rays, silhouette_entries, column_rays, hits, curved_rays, curved_secondary,
  * curve_segments, height_error_m {mean, max, hits},
  * stages_ms (one entry per stage that ran), load_ms, accel_ms, render_ms, total_ms,
  * threads, bytes. --rays and --shadow-rays write the render's rays for another tracer
@@ -191,6 +191,7 @@ static json_t *stats_json(const td_render_stats *st)
     json_object_set_new(o, "horizon_bins", json_integer((json_int_t)st->horizon_bins));
     json_object_set_new(o, "silhouette_rays", json_integer((json_int_t)st->silhouette_rays));
     json_object_set_new(o, "silhouette_entries", json_integer((json_int_t)st->silhouette_entries));
+    json_object_set_new(o, "column_rays", json_integer((json_int_t)st->column_rays));
     json_object_set_new(o, "hits", json_integer((json_int_t)st->hits));
     json_object_set_new(o, "curved_rays", json_integer((json_int_t)st->curved_rays));
     json_object_set_new(o, "curved_secondary", json_integer((json_int_t)st->curved_secondary));

@@ -243,7 +243,8 @@ static void test_silhouette_render(void **state)
 
 /* `auto` starts its camera rays from the partition on a view whose tiles mostly lack a
  * max-mipmap (a cold dataset: the same pixels as the walk, labelled silhouette), and
- * from the horizon device once they are built. */
+ * from the horizon device once they are built (this level camera's by its image columns,
+ * colwalk.h, which start from the horizon too). */
 static void test_silhouette_auto(void **state)
 {
     td_grid *g = load("trinidad-crop.f32");

@@ -1,0 +1,406 @@
+/* colwalk.c: the column walk of colwalk.h (a vertical plane's rays along one walk of its
+ * cells, each tested from where the ray below it hit).
+ *
+ * The line is E + s h in the horizontal distance s, in cells u = U + s du, v = V + s dv.
+ * Cells are entered as trace.c's walk enters them: a point on a grid line belongs to the
+ * cell the line goes on into (cell_at), leaving across a sample point moves both indices.
+ * A cell's profile is its surface's height at the line's entry (s_in) and exit (s_out) and,
+ * on the triangle surface, where the line crosses the diagonal a + b = 1 (trace.c's
+ * triangle_cross splits the segment there); each ray's f = z - height is tested over it by
+ * trace.c's rules (seg_hit: the first zero or change of sign; plane_cross's top and walls;
+ * bilinear_cross's quadratic), so the two agree to the rounding of the parameter. The
+ * linear surface's height in the eye's own cell is the line from where the line enters that
+ * cell behind the eye to where it leaves (trace.c's linear_under). */
+#include "colwalk.h"
+
+#include <math.h>
+
+#include "grid.h"
+#include "maxmip.h"
+#include "simd.h"
+
+#define CW_BOX_LOG2 3 /* boxes of 8 x 8 cells: the max-mipmap's level 3 */
+
+enum { CW_START, CW_U, CW_V, CW_UV }; /* how a cell was entered (trace.c's ENTRY_*) */
+
+static inline double dmin(double a, double b) { return a < b ? a : b; }
+static inline double dmax(double a, double b) { return a > b ? a : b; }
+static inline double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
+
+/* The cell of position pos along an axis walked in direction s (trace.c's cell_along). */
+static inline int32_t cell_at(double pos, int s, int32_t hi)
+{
+    int32_t c;
+    if (!(pos >= 0.0)) {
+        c = 0;
+    } else if (pos >= (double)hi + 1.0) {
+        c = hi;
+    } else {
+        c = (int32_t)pos;
+        if (s < 0 && (double)c == pos && c > 0)
+            c--;
+    }
+    return c;
+}
+
+int td_colwalk_init(td_colwalk *cw, const td_view *v, td_surface sf, const double o[3])
+{
+    const td_grid *g = v->grid;
+    const double U = o[0] / g->sx, V = o[1] / g->sy;
+    int ok = (unsigned)sf < TD_SURFACE_COUNT && g->w >= 2 && g->h >= 2 && U > 0.0 && V > 0.0 &&
+             U < (double)(g->w - 1) && V < (double)(g->h - 1) && isfinite(o[2]) && g->zmax == g->zmax;
+    if (ok) {
+        *cw = (td_colwalk){.v = v, .sf = sf, .o = {o[0], o[1], o[2]}, .U = U, .V = V,
+                           .zmax = g->zmax,
+                           .zeps = 1e-6 * (1.0 + dmax(fabs((double)g->zmin), fabs((double)g->zmax)))};
+        /* every corner of the cells the eye may be in (two a side on a line), no void */
+        const int32_t i0 = (int32_t)U, j0 = (int32_t)V;
+        for (int32_t j = j0 - 1; ok && j <= j0 + 2; j++)
+            for (int32_t i = i0 - 1; ok && i <= i0 + 2; i++)
+                if (i >= 0 && j >= 0 && i < g->w && j < g->h) {
+                    double z = td_grid_sample(g, i, j);
+                    ok = z == z && o[2] > z + cw->zeps;
+                }
+    }
+    return ok;
+}
+
+/* A box of cells [i0, i1) x [j0, j1) around cell (ci, cj) and the bound of every surface
+ * over it: the max-mipmap's 8 x 8 block, or the tile without one. The walk keeps the last
+ * box (valid): a new ray over the same box asks nothing new. */
+typedef struct cw_box {
+    int32_t i0, i1, j0, j1;
+    double top;
+    int valid;
+} cw_box;
+
+static cw_box box_of(const td_view *v, int32_t ci, int32_t cj)
+{
+    const td_grid *g = v->grid;
+    const td_tile *t = td_grid_tile_of_cell(g, ci, cj);
+    const td_maxmip *mm = v->accel ? v->accel[t - g->tiles].maxmip : NULL;
+    cw_box b = {t->i0, t->i0 + t->nx, t->j0, t->j0 + t->ny, t->zmax < t->zmin ? -INFINITY : (double)t->zmax, 1};
+    if (mm && mm->levels >= CW_BOX_LOG2) {
+        int32_t bi = (ci - t->i0) >> CW_BOX_LOG2, bj = (cj - t->j0) >> CW_BOX_LOG2;
+        b.i0 = t->i0 + (bi << CW_BOX_LOG2);
+        b.j0 = t->j0 + (bj << CW_BOX_LOG2);
+        b.i1 = b.i0 + (1 << CW_BOX_LOG2) < b.i1 ? b.i0 + (1 << CW_BOX_LOG2) : b.i1;
+        b.j1 = b.j0 + (1 << CW_BOX_LOG2) < b.j1 ? b.j0 + (1 << CW_BOX_LOG2) : b.j1;
+        b.top = td_maxmip_bound(mm, CW_BOX_LOG2, bi, bj);
+    }
+    return b;
+}
+
+static inline int in_box(const cw_box *b, int32_t ci, int32_t cj)
+{
+    return b->valid && ci >= b->i0 && ci < b->i1 && cj >= b->j0 && cj < b->j1;
+}
+
+/* The line's walk (see the top of the file). */
+typedef struct cw_line {
+    double U, V, du, dv, iu, iv;
+    int su, sv;
+    int32_t cmax_i, cmax_j;
+} cw_line;
+
+/* The time the line crosses column line i (row line j): +inf when it runs along them. */
+static inline double time_u(const cw_line *l, double i) { return l->su ? (i - l->U) * l->iu : INFINITY; }
+static inline double time_v(const cw_line *l, double j) { return l->sv ? (j - l->V) * l->iv : INFINITY; }
+
+static inline double bilinear(const double c[4], double a, double b)
+{
+    return c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b + (c[0] - c[1] - c[2] + c[3]) * a * b;
+}
+
+static inline double triangle(const double c[4], double a, double b)
+{
+    return a + b <= 1.0 ? c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b
+                        : c[3] + (c[2] - c[3]) * (1.0 - a) + (c[1] - c[3]) * (1.0 - b);
+}
+
+/* The surface sf's height at local (a, b) of a cell (the linear surface's on its boundary,
+ * where it is the edge's line, as the bilinear patch's is). */
+static inline __attribute__((always_inline)) double height(const td_surface sf, const double c[4], double a,
+                                                           double b)
+{
+    return sf == TD_SURFACE_TRIANGLE ? triangle(c, a, b) : bilinear(c, a, b);
+}
+
+/* trace.c's seg_hit: the first s in [sa, sb] where the linear f goes from fa to fb
+ * through zero. */
+static inline int seg_hit(double sa, double fa, double sb, double fb, double *s)
+{
+    int hit = 0;
+    if (fa == 0.0) {
+        *s = sa;
+        hit = 1;
+    } else if ((fa > 0.0) != (fb > 0.0) || fb == 0.0) {
+        *s = sa + (sb - sa) * (fa / (fa - fb));
+        hit = 1;
+    }
+    return hit;
+}
+
+/* trace.c's bilinear_cross over [sa, sa + L] with A = -k du dv. */
+static int bilinear_hit(double sa, double fa, double L, double fb, double A, double *s)
+{
+    int hit = 0;
+    if (fa == 0.0) {
+        *s = sa;
+        hit = 1;
+    } else if (!(L > 0.0)) {
+        hit = 0;
+    } else if (A == 0.0 || fabs(A) * L * L <= 1e-12 * (fabs(fa) + fabs(fb))) {
+        hit = seg_hit(sa, fa, sa + L, fb, s);
+    } else {
+        double B = (fb - fa - A * L * L) / L;
+        int change = (fa > 0.0) != (fb > 0.0) || fb == 0.0;
+        double smin = -B / (2.0 * A);
+        double fext = fa + 0.5 * B * smin;
+        if (change || (smin > 0.0 && smin < L && (fext == 0.0 || (fext > 0.0) != (fa > 0.0)))) {
+            double disc = B * B - 4.0 * A * fa;
+            double sq = sqrt(disc > 0.0 ? disc : 0.0);
+            double q = -0.5 * (B + copysign(sq, B));
+            double r1 = q / A, r2 = q != 0.0 ? fa / q : r1;
+            double lo = dmin(r1, r2), hi = dmax(r1, r2);
+            double hiend = change ? L : smin;
+            double r = lo >= 0.0 ? lo : hi;
+            if (!(r >= 0.0 && r <= hiend))
+                r = change ? L * (fa / (fa - fb)) : smin;
+            *s = sa + r;
+            hit = 1;
+        }
+    }
+    return hit;
+}
+
+/* A hit's record (td_colhit): its bilinear height and its unit normal, from the cell's
+ * corners c at local (a, b) = the hit's position, clamped (trace.c's surface_normal and
+ * unit_normal, the surfaces' gradients). */
+static inline __attribute__((always_inline)) void finish(const td_surface sf, const cw_line *l,
+                                                         const double c[4], double s, int wall, int32_t ci,
+                                                         int32_t cj, double sx, double sy, td_colhit *h)
+{
+    const double a = clamp01(l->U + s * l->du - ci), b = clamp01(l->V + s * l->dv - cj);
+    const double k = c[0] - c[1] - c[2] + c[3];
+    double nv[3] = {0.0, 0.0, 1.0};
+    if (sf == TD_SURFACE_PLANE) {
+        nv[0] = wall == CW_U ? -(double)l->su : 0.0;
+        nv[1] = wall == CW_V ? -(double)l->sv : 0.0;
+        nv[2] = wall ? 0.0 : 1.0;
+    } else if (sf == TD_SURFACE_TRIANGLE) {
+        const int lower = a + b <= 1.0;
+        nv[0] = -(lower ? c[1] - c[0] : c[3] - c[2]) / sx;
+        nv[1] = -(lower ? c[2] - c[0] : c[3] - c[1]) / sy;
+    } else { /* bilinear, and the linear surface's normal, which is the bilinear one's */
+        nv[0] = -((c[1] - c[0]) + k * b) / sx;
+        nv[1] = -((c[2] - c[0]) + k * a) / sy;
+    }
+    const double len = sqrt(nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]);
+    h->s = s;
+    h->zb = c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b + k * a * b;
+    h->n[0] = (float)(nv[0] / len);
+    h->n[1] = (float)(nv[1] / len);
+    h->n[2] = (float)(nv[2] / len);
+    h->ci = ci;
+    h->cj = cj;
+}
+
+/* The walk of one line for surface sf (see the top of the file); the cell's profile in
+ * locals: entry s_in (height ha), exit s_out (hb), the diagonal's crossing sd (hd) where
+ * the line crosses it inside the cell (split), the plane's top. */
+static inline __attribute__((always_inline)) uint32_t walk(const td_colwalk *cw, const td_surface sf,
+                                                           double hx, double hy, double s0, int n,
+                                                           const double *e, td_colhit *hit)
+{
+    const td_view *v = cw->v;
+    const td_grid *g = v->grid;
+    const size_t W = g->cz.stride;
+    const double oz = cw->o[2], zeps = cw->zeps, zsky = cw->zmax + cw->zeps;
+    cw_line l = {.U = cw->U, .V = cw->V, .du = hx / g->sx, .dv = hy / g->sy,
+                 .cmax_i = g->w - 2, .cmax_j = g->h - 2};
+    l.su = l.du > 0.0 ? 1 : (l.du < 0.0 ? -1 : 0);
+    l.sv = l.dv > 0.0 ? 1 : (l.dv < 0.0 ? -1 : 0);
+    l.iu = l.su ? 1.0 / l.du : 0.0;
+    l.iv = l.sv ? 1.0 / l.dv : 0.0;
+    const double U = l.U, V = l.V, du = l.du, dv = l.dv;
+    /* the bilinear patch's quadratic coefficient along the line, per unit of twist */
+    const double Aq = -du * dv;
+    /* where the line leaves the grid */
+    const double s1 = dmin(l.su ? time_u(&l, l.su > 0 ? g->w - 1 : 0) : INFINITY,
+                           l.sv ? time_v(&l, l.sv > 0 ? g->h - 1 : 0) : INFINITY);
+    uint32_t steps = 0;
+    int k = 0, entry = CW_START, fresh = 1;
+    int under = 0;   /* the lowest unfinished ray has been under the surface (through a hole) */
+    int stopped = 0; /* the walk stopped after such a ray's hit */
+    double s_in = s0 > 0.0 ? s0 : 0.0, hb = 0.0;
+    int32_t ci = cell_at(U + s_in * du, l.su, l.cmax_i), cj = cell_at(V + s_in * dv, l.sv, l.cmax_j);
+    int done = !(s1 > s_in) || (l.su == 0 && l.sv == 0);
+    cw_box b = {.valid = 0};
+    while (!done) {
+        /* the box around the cell: crossed at once when ray k passes over it */
+        if (!in_box(&b, ci, cj))
+            b = box_of(v, ci, cj);
+        const double tx = l.su ? time_u(&l, l.su > 0 ? b.i1 : b.i0) : INFINITY;
+        const double ty = l.sv ? time_v(&l, l.sv > 0 ? b.j1 : b.j0) : INFINITY;
+        const double sx = dmin(dmin(tx, ty), s1);
+        const double ek = e[k];
+        steps++;
+        if (oz + ek * (ek >= 0.0 ? s_in : sx) > b.top + zeps) {
+            if (sx >= s1) {
+                done = 1;
+            } else {
+                const int kind = tx < ty ? CW_U : (ty < tx ? CW_V : CW_UV);
+                s_in = sx;
+                entry = kind;
+                fresh = 1;
+                ci = kind != CW_V ? (l.su > 0 ? b.i1 : b.i0 - 1) : cell_at(U + sx * du, l.su, l.cmax_i);
+                cj = kind != CW_U ? (l.sv > 0 ? b.j1 : b.j0 - 1) : cell_at(V + sx * dv, l.sv, l.cmax_j);
+                done = ci < 0 || cj < 0 || ci > l.cmax_i || cj > l.cmax_j;
+            }
+            continue;
+        }
+        /* the box's cells, until it is left or ray k is done */
+        const int k0 = k;
+        for (;;) {
+            const double nu = time_u(&l, l.su > 0 ? ci + 1 : ci), nv = time_v(&l, l.sv > 0 ? cj + 1 : cj);
+            const int kind = nu < nv ? CW_U : (nv < nu ? CW_V : CW_UV);
+            double s_out = dmin(dmin(nu, nv), s1);
+            s_out = s_out < s_in ? s_in : s_out; /* rounding at a corner: an empty segment */
+            steps++;
+            const float *p = td_grid_corner(&g->cz, ci, cj);
+            const double c[4] = {p[0], p[1], p[W], p[W + 1]};
+            if (c[0] == c[0] && c[1] == c[1] && c[2] == c[2] && c[3] == c[3]) { /* else a hole */
+                const double ua = U + s_in * du - ci, va = V + s_in * dv - cj;
+                const double ub = U + s_out * du - ci, vb = V + s_out * dv - cj;
+                double ha = 0.0, hd = 0.0, sd = s_out, top = 0.0;
+                int split = 0;
+                if (sf == TD_SURFACE_PLANE) {
+                    top = dmax(dmax(c[0], c[1]), dmax(c[2], c[3]));
+                } else {
+                    /* the entry's height is the cell before's exit height (the same point
+                       of their shared edge, where every surface is the edge's line) */
+                    const double hprev = hb;
+                    hb = height(sf, c, clamp01(ub), clamp01(vb));
+                    if (sf == TD_SURFACE_LINEAR && entry == CW_START) {
+                        /* the start's cell: the line from where it enters the cell behind */
+                        double tb = dmax(l.su ? time_u(&l, l.su > 0 ? ci : ci + 1) : -INFINITY,
+                                         l.sv ? time_v(&l, l.sv > 0 ? cj : cj + 1) : -INFINITY);
+                        double hback = bilinear(c, clamp01(U + tb * du - ci), clamp01(V + tb * dv - cj));
+                        ha = s_out > tb ? hback + (hb - hback) * clamp01((s_in - tb) / (s_out - tb))
+                                        : bilinear(c, clamp01(ua), clamp01(va));
+                    } else {
+                        ha = fresh ? height(sf, c, clamp01(ua), clamp01(va)) : hprev;
+                    }
+                    if (sf == TD_SURFACE_TRIANGLE) {
+                        const double da = ua + va - 1.0, db = ub + vb - 1.0;
+                        if ((da < 0.0 && db > 0.0) || (da > 0.0 && db < 0.0)) {
+                            split = 1;
+                            sd = s_in + (s_out - s_in) * (da / (da - db));
+                            hd = c[1] + (c[2] - c[1]) * clamp01(V + sd * dv - cj);
+                        }
+                    }
+                }
+                fresh = 0;
+                /* the rays from k on, each tested over the profile (trace.c's rules) */
+                for (; k < n; k++) {
+                    const double ek2 = e[k];
+                    double s = INFINITY;
+                    int wall = 0, hit_now = 0;
+                    if (sf == TD_SURFACE_PLANE) {
+                        const double za = oz + ek2 * s_in, zb = oz + ek2 * s_out;
+                        if (za <= top) {
+                            s = s_in;
+                            wall = za < top && (entry == CW_U || entry == CW_V) ? entry : 0;
+                            hit_now = 1;
+                        } else if (zb <= top) {
+                            const double sh = s_in + (za - top) / -ek2;
+                            s = sh < s_in ? s_in : (sh > s_out ? s_out : sh);
+                            hit_now = 1;
+                        }
+                    } else {
+                        const double fa = oz + ek2 * s_in - ha, fb = oz + ek2 * s_out - hb;
+                        under |= fa < 0.0;
+                        if (sf == TD_SURFACE_BILINEAR) {
+                            hit_now = bilinear_hit(s_in, fa, s_out - s_in, fb, (c[0] - c[1] - c[2] + c[3]) * Aq, &s);
+                        } else if (split) {
+                            const double fd = oz + ek2 * sd - hd;
+                            hit_now = seg_hit(s_in, fa, sd, fd, &s) || seg_hit(sd, fd, s_out, fb, &s);
+                        } else {
+                            hit_now = seg_hit(s_in, fa, s_out, fb, &s);
+                        }
+                    }
+                    if (!hit_now)
+                        break;
+                    finish(sf, &l, c, s, wall, ci, cj, g->sx, g->sy, &hit[k]);
+                    if (under) { /* the rays above it may meet the terrain where it was under */
+                        k++;
+                        done = stopped = 1;
+                        break;
+                    }
+                }
+                if (done)
+                    break;
+            } else {
+                fresh = 1;
+            }
+            if (k == n || s_out >= s1) {
+                done = 1;
+                break;
+            }
+            s_in = s_out;
+            entry = kind;
+            ci += kind != CW_V ? l.su : 0;
+            cj += kind != CW_U ? l.sv : 0;
+            if (ci < 0 || cj < 0 || ci > l.cmax_i || cj > l.cmax_j) {
+                done = 1;
+                break;
+            }
+            if (e[k] >= 0.0 && oz + e[k] * s_in > zsky) { /* above every sample from here on */
+                done = 1;
+                break;
+            }
+            if (k != k0 || !in_box(&b, ci, cj))
+                break; /* a new box, or a new ray for this one */
+        }
+    }
+    /* the walk ended with ray k unfinished (a miss: off the grid, or above every sample),
+       unless it stopped after a ray that had been under the surface (stopped) */
+    if (k < n && !stopped)
+        hit[k++] = (td_colhit){.s = INFINITY, .zb = NAN, .ci = -1, .cj = -1};
+    for (; k < n; k++) /* the rays above: misses too, or not known once a ray went under */
+        hit[k] = (td_colhit){.s = under ? NAN : INFINITY, .zb = NAN, .ci = -1, .cj = -1};
+    return steps;
+}
+
+/* walk() compiled for each surface (the surface's tests inline, no switch a cell) */
+TD_PACKET_CLONES static uint32_t walk_plane(const td_colwalk *cw, double hx, double hy, double s0, int n, const double *e,
+                           td_colhit *hit)
+{
+    return walk(cw, TD_SURFACE_PLANE, hx, hy, s0, n, e, hit);
+}
+TD_PACKET_CLONES static uint32_t walk_linear(const td_colwalk *cw, double hx, double hy, double s0, int n, const double *e,
+                            td_colhit *hit)
+{
+    return walk(cw, TD_SURFACE_LINEAR, hx, hy, s0, n, e, hit);
+}
+TD_PACKET_CLONES static uint32_t walk_triangle(const td_colwalk *cw, double hx, double hy, double s0, int n, const double *e,
+                              td_colhit *hit)
+{
+    return walk(cw, TD_SURFACE_TRIANGLE, hx, hy, s0, n, e, hit);
+}
+TD_PACKET_CLONES static uint32_t walk_bilinear(const td_colwalk *cw, double hx, double hy, double s0, int n, const double *e,
+                              td_colhit *hit)
+{
+    return walk(cw, TD_SURFACE_BILINEAR, hx, hy, s0, n, e, hit);
+}
+
+uint32_t td_colwalk_trace(const td_colwalk *cw, double hx, double hy, double s0, int n,
+                          const double *e, td_colhit *hit)
+{
+    uint32_t (*const fn[TD_SURFACE_COUNT])(const td_colwalk *, double, double, double, int, const double *,
+                                           td_colhit *) = {
+        [TD_SURFACE_PLANE] = walk_plane, [TD_SURFACE_LINEAR] = walk_linear,
+        [TD_SURFACE_TRIANGLE] = walk_triangle, [TD_SURFACE_BILINEAR] = walk_bilinear};
+    return fn[cw->sf](cw, hx, hy, s0, n, e, hit);
+}

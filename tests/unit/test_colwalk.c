@@ -1,0 +1,339 @@
+/* test_colwalk.c: the column walk (core/colwalk.c) that renders an upright, level camera's
+ * image columns, against the plain walk (td_trace, which the render's other paths give bit
+ * for bit), on every surface.
+ *
+ * - Random level cameras over procedural terrain (unequal spacing; heights as they come,
+ *   rounded to whole metres with a flat plateau, or with voids; the max-mipmaps resident,
+ *   and not, where the silhouette partition takes the rays instead): eyes anywhere, on grid lines and on samples, headings along the axes and the
+ *   diagonals or anywhere, fields of view from 20 to 170 degrees, images taller than a
+ *   block (so upper blocks start from their wedge's horizon). Every pixel's depth is the
+ *   plain walk's, or the pixel's ray only touches the surface: the plain walk with the ray
+ *   lowered by the walk's margin hits at or before it, and raised by it, at or after (a
+ *   tie, which the oracle tests judge the same way); and those ties are rare.
+ * - Shaded renders (normals, shadows) give the same picture as the plain walk's.
+ * - The device applies only where it is exact (column_rays): a level camera with the
+ *   method auto and the eye above the surface around it; not pitched or rolled cameras,
+ *   other methods, an eye at or below the surface, cylindrical or orthographic views; one
+ *   thread or three give the same bits; supersampled images too. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "accel.h"
+#include "camera.h"
+#include "colwalk.h"
+#include "render.h"
+#include "terrain.h"
+#include "trace.h"
+#include "terrain_fixture.h"
+
+static double rnd(uint64_t *s)
+{
+    *s = *s * 6364136223846793005ull + 1442695040888963407ull;
+    return (double)(*s >> 11) / 9007199254740992.0;
+}
+
+enum { PLAIN, INTEGER, VOIDS, KINDS };
+static int cur_kind, cur_res;
+
+/* 97 x 61 samples, 30 x 45 m: as generated, rounded to whole metres with a flat plateau
+ * (ties: rays along and through equal heights), or with voids. */
+static td_grid *make_grid(uint64_t seed, int kind)
+{
+    td_grid *g = terrain_seeded(97, 61, 30.0, seed, 5);
+    uint64_t s = seed;
+    g->sy = 45.0;
+    for (size_t k = 0; k < (size_t)g->w * (size_t)g->h && kind == INTEGER; k++)
+        g->z[k] = roundf(g->z[k]);
+    if (kind == INTEGER)
+        for (int32_t j = 20; j < 35; j++)
+            for (int32_t i = 30; i < 60; i++)
+                g->z[(size_t)j * g->w + i] = 1200.0f;
+    for (int k = 0; k < 150 && kind == VOIDS; k++)
+        g->z[(size_t)(rnd(&s) * (double)g->w * (double)g->h)] = NAN;
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    return g;
+}
+
+/* The highest (lowest: sign -1) sample of the r x r cells around (x, y), skipping voids. */
+static double local_ext(const td_grid *g, double x, double y, int r, double sign)
+{
+    int32_t i0 = (int32_t)(x / g->sx), j0 = (int32_t)(y / g->sy);
+    double m = -INFINITY;
+    for (int32_t j = j0 - r + 1; j <= j0 + r; j++)
+        for (int32_t i = i0 - r + 1; i <= i0 + r; i++)
+            if (i >= 0 && j >= 0 && i < g->w && j < g->h && !isnan(td_grid_at(g, i, j)))
+                m = fmax(m, sign * td_grid_at(g, i, j));
+    return sign * m;
+}
+
+static double local_max(const td_grid *g, double x, double y) { return local_ext(g, x, y, 3, 1.0); }
+
+static void level_scene(td_scene *s, const td_grid *g, uint64_t *seed, td_surface sf, int32_t w, int32_t h)
+{
+    static const double axes[8] = {0, 45, 90, 135, 180, 225, 270, 315};
+    td_scene_defaults(s);
+    snprintf(s->dataset, sizeof s->dataset, "procedural");
+    double x = (0.02 + 0.96 * rnd(seed)) * (g->w - 1) * g->sx, y = (0.02 + 0.96 * rnd(seed)) * (g->h - 1) * g->sy;
+    double r = rnd(seed);
+    if (r < 0.3) /* on a column line, a row line, or a sample */
+        x = round(x / g->sx) * g->sx;
+    if (r > 0.2 && r < 0.5)
+        y = round(y / g->sy) * g->sy;
+    s->camera.x = x;
+    s->camera.y = y;
+    s->camera.z = local_max(g, x, y) + (rnd(seed) < 0.3 ? 0.05 : 1.0 + 300.0 * rnd(seed));
+    s->camera.heading = rnd(seed) < 0.3 ? axes[(int)(rnd(seed) * 8)] : 360.0 * rnd(seed);
+    s->camera.pitch = 0.0;
+    s->camera.roll = 0.0;
+    s->camera.fov = 20.0 + 150.0 * rnd(seed);
+    s->image.width = w;
+    s->image.height = h;
+    s->image.format = TD_FORMAT_DEPTH32F;
+    s->quality.method = TD_METHOD_AUTO;
+    s->quality.surface = sf;
+}
+
+static void render(const td_view *v, const td_scene *s, unsigned off, int threads, td_render_result *r)
+{
+    td_render_opts o;
+    td_err err = {0};
+    td_render_opts_default(&o);
+    o.threads = threads;
+    o.off = off;
+    td_status st = td_render(v, s, &o, r, &err);
+    if (st)
+        print_error("render: %s\n", err.msg);
+    assert_int_equal(st, TD_OK);
+}
+
+/* The plain walk's distance for ray r with its origin moved up by dz. */
+static double walk_t(const td_view *v, td_surface sf, const td_ray *r, double dz)
+{
+    td_ray q = *r;
+    td_hit h;
+    q.o[2] += dz;
+    td_trace(v, TD_METHOD_AUTO, sf, &q, &h);
+    return h.t;
+}
+
+/* Pixel by pixel: the column walk's depth (on) is the plain walk's (off), or a tie (see
+ * the top of the file). Returns the ties. */
+static int judge(const td_view *v, const td_scene *s, const td_render_result *on, const td_render_result *off)
+{
+    td_camera cam;
+    td_err err = {0};
+    int ties = 0;
+    const td_grid *g = v->grid;
+    const double margin = 1e-6 * (1.0 + fmax(fabs((double)g->zmin), fabs((double)g->zmax)));
+    assert_int_equal(td_camera_setup(&s->camera, s->image.width, s->image.height, g, &cam, &err), TD_OK);
+    for (int32_t y = 0; y < s->image.height; y++)
+        for (int32_t x = 0; x < s->image.width; x++) {
+            const size_t i = (size_t)y * s->image.width + x;
+            const float a = on->depth[i], b = off->depth[i];
+            if (!memcmp(&a, &b, sizeof a))
+                continue;
+            td_ray r;
+            td_camera_ray(&cam, x, y, &r);
+            double lo = walk_t(v, s->quality.surface, &r, -margin), hi = walk_t(v, s->quality.surface, &r, margin);
+            int ok = (double)a >= (float)lo * (1.0 - 1e-6) && (double)a <= (float)hi * (1.0 + 1e-6);
+            if (!ok)
+                print_error("ray %.17g %.17g %.17g  %.17g %.17g %.17g i %zu\n", r.o[0], r.o[1], r.o[2], r.d[0], r.d[1], r.d[2], i);
+            if (!ok)
+                print_error("kind %d res %d surface %d, eye (%.17g, %.17g, %.17g) heading %.17g fov %.17g, pixel (%d, %d): "
+                            "column walk %.9g, plain walk %.9g, lowered %.9g, raised %.9g\n",
+                            cur_kind, cur_res, (int)s->quality.surface, s->camera.x, s->camera.y, s->camera.z, s->camera.heading,
+                            s->camera.fov, (int)x, (int)y, (double)a, (double)b, lo, hi);
+            assert_true(ok);
+            ties++;
+        }
+    return ties;
+}
+
+static void test_columns_match_walk(void **state)
+{
+    uint64_t seed = 2026;
+    long pixels = 0, ties = 0, columns = 0, under = 0;
+    (void)state;
+    for (int kind = 0; kind < KINDS; kind++) {
+        td_grid *g = make_grid(100 + kind, kind);
+        td_accel *a = NULL;
+        td_accel_opts ao;
+        td_accel_opts_for(TD_METHOD_AUTO, &ao);
+        assert_int_equal(td_accel_build(g, &ao, &a, NULL, NULL), TD_OK);
+        for (int resident = 0; resident < 2; resident++) {
+            const td_view v = {g, resident ? a->tiles : NULL};
+            for (int k = 0; k < 12; k++) {
+                for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
+                    static td_scene s;
+                    td_render_result on, off;
+                    uint64_t cam_seed = seed + (uint64_t)k * 7919u;
+                    level_scene(&s, g, &cam_seed, (td_surface)sf, 37, k % 3 ? 41 : 150);
+                    render(&v, &s, 0, 1, &on);
+                    render(&v, &s, TD_RENDER_OFF_COLUMNS, 1, &off);
+                    /* a cold dataset (no max-mipmaps) takes the silhouette partition where it
+                       has one for the view (then every ray is its), else the column walk */
+                    const uint64_t all = (uint64_t)s.image.width * (uint64_t)s.image.height;
+                    td_colwalk cw;
+                    const double eye[3] = {s.camera.x, s.camera.y, s.camera.z};
+                    const int applies = td_colwalk_init(&cw, &v, (td_surface)sf, eye); /* not beside a void */
+                    /* with voids, the rays above one that went under the surface through a
+                       hole are the plain walk's (colwalk.h) */
+                    const uint64_t cols = on.stats.column_rays;
+                    assert_true((applies && (cols == all || (kind == VOIDS && cols > 0 && cols < all))) ||
+                                (!applies && cols == 0) ||
+                                (!resident && cols == 0 && on.stats.silhouette_rays == all));
+                    assert_int_equal(on.stats.rays[TD_RAY_PRIMARY], all);
+                    columns += cols > 0;
+                    under += kind == VOIDS && cols > 0 && cols < all;
+                    assert_int_equal(off.stats.column_rays, 0);
+                    cur_kind = kind, cur_res = resident;
+                    ties += judge(&v, &s, &on, &off);
+                    pixels += (long)s.image.width * s.image.height;
+                    /* hits differ only by ties */
+                    assert_true(llabs((long long)on.stats.hits - (long long)off.stats.hits) <= ties);
+                    td_render_result_free(&on);
+                    td_render_result_free(&off);
+                }
+            }
+            seed += 104729u;
+        }
+        td_accel_free(a);
+        td_grid_free(g);
+    }
+    print_message("%ld pixels, %ld ties with the plain walk; %ld renders of 288 by columns, %ld with rays "
+                  "left to the plain walk\n", pixels, ties, columns, under);
+    assert_true(under > 0); /* the voids' case is exercised */
+    assert_true(columns > 100);
+    assert_true(ties * 1000 < pixels); /* rare: under 0.1% */
+}
+
+/* A shaded render with shadows: the same picture as the plain walk's, every surface. */
+static void test_columns_shaded(void **state)
+{
+    td_grid *g = make_grid(7, PLAIN);
+    td_accel *a = NULL;
+    td_accel_opts ao;
+    uint64_t seed = 99;
+    (void)state;
+    td_accel_opts_for(TD_METHOD_AUTO, &ao);
+    assert_int_equal(td_accel_build(g, &ao, &a, NULL, NULL), TD_OK);
+    const td_view v = {g, a->tiles};
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
+        static td_scene s;
+        td_render_result on, off;
+        level_scene(&s, g, &seed, (td_surface)sf, 48, 80);
+        s.camera.z = local_max(g, s.camera.x, s.camera.y) + 40.0;
+        s.image.format = TD_FORMAT_PNG;
+        s.effects.shadows = 1;
+        s.effects.sun_azimuth = 120.0;
+        s.effects.sun_elevation = 25.0;
+        render(&v, &s, 0, 1, &on);
+        render(&v, &s, TD_RENDER_OFF_COLUMNS, 1, &off);
+        assert_true(on.stats.column_rays > 0);
+        size_t n = (size_t)s.image.width * s.image.height * 4, differ = 0;
+        for (size_t i = 0; i < n; i++)
+            differ += abs((int)on.rgba[i] - (int)off.rgba[i]) > 1;
+        assert_int_equal(differ, 0);
+        assert_int_equal(on.stats.rays[TD_RAY_SHADOW], off.stats.rays[TD_RAY_SHADOW]);
+        td_render_result_free(&on);
+        td_render_result_free(&off);
+    }
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
+/* Where the device applies (column_rays), and that threads and samples keep its bits. */
+static void test_columns_where(void **state)
+{
+    td_grid *g = make_grid(11, PLAIN);
+    td_accel *a = NULL;
+    td_accel_opts ao;
+    uint64_t seed = 5;
+    static td_scene s, t;
+    td_render_result r, r3;
+    (void)state;
+    td_accel_opts_for(TD_METHOD_AUTO, &ao);
+    assert_int_equal(td_accel_build(g, &ao, &a, NULL, NULL), TD_OK);
+    const td_view v = {g, a->tiles};
+    level_scene(&s, g, &seed, TD_SURFACE_BILINEAR, 40, 70);
+    s.camera.z = local_max(g, s.camera.x, s.camera.y) + 20.0;
+    const uint64_t all = 40 * 70;
+    render(&v, &s, 0, 1, &r);
+    assert_int_equal(r.stats.column_rays, all);
+    render(&v, &s, 0, 3, &r3); /* three threads: the same bits */
+    assert_memory_equal(r.depth, r3.depth, sizeof(float) * all);
+    td_render_result_free(&r3);
+    td_render_result_free(&r);
+    t = s;
+    t.quality.samples = 2; /* four rays a pixel, each column of samples a plane */
+    render(&v, &t, 0, 1, &r);
+    render(&v, &t, TD_RENDER_OFF_COLUMNS, 1, &r3);
+    assert_int_equal(r.stats.column_rays, 4 * all);
+    assert_int_equal(r.stats.hits, r3.stats.hits);
+    td_render_result_free(&r3);
+    td_render_result_free(&r);
+    /* not where the columns are not vertical planes, or another method is asked for, or
+       the eye is not above the surface around it, or not a perspective camera */
+    for (int k = 0; k < 7; k++) {
+        t = s;
+        if (k == 0)
+            t.camera.pitch = -0.5;
+        else if (k == 1)
+            t.camera.roll = 3.0;
+        else if (k == 2)
+            t.quality.method = TD_METHOD_HIERARCHICAL;
+        else if (k == 3) /* under the surface */
+            t.camera.z = local_ext(g, s.camera.x, s.camera.y, 1, -1.0) - 1.0;
+        else if (k == 4) /* as high as a corner of its cell */
+            t.camera.z = local_ext(g, s.camera.x, s.camera.y, 1, 1.0);
+        else if (k == 5)
+            t.camera.projection = TD_PROJ_CYLINDRICAL;
+        else
+            t.camera.projection = TD_PROJ_ORTHOGRAPHIC;
+        render(&v, &t, 0, 1, &r);
+        if (r.stats.column_rays)
+            print_error("case %d: the column walk applied\n", k);
+        assert_int_equal(r.stats.column_rays, 0);
+        td_render_result_free(&r);
+    }
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
+/* td_colwalk_init: an eye above the corners of the cells around it (3 x 3 of them) is
+ * taken; one off the grid, on its edge, or as high as its own cell's highest corner is
+ * not. */
+static void test_colwalk_init(void **state)
+{
+    td_grid *g = make_grid(3, PLAIN);
+    td_colwalk cw;
+    const td_view v = {g, NULL};
+    (void)state;
+    const double x = 40.3 * g->sx, y = 30.6 * g->sy, top = local_ext(g, x, y, 1, 1.0);
+    assert_true(td_colwalk_init(&cw, &v, TD_SURFACE_TRIANGLE, (double[3]){x, y, local_ext(g, x, y, 2, 1.0) + 0.01}));
+    assert_false(td_colwalk_init(&cw, &v, TD_SURFACE_TRIANGLE, (double[3]){x, y, top}));
+    assert_false(td_colwalk_init(&cw, &v, TD_SURFACE_TRIANGLE, (double[3]){-1.0, y, top + 1.0}));
+    assert_false(td_colwalk_init(&cw, &v, TD_SURFACE_TRIANGLE, (double[3]){0.0, y, top + 1.0}));
+    assert_false(td_colwalk_init(&cw, &v, TD_SURFACE_TRIANGLE,
+                                 (double[3]){(g->w - 1) * g->sx, y, top + 1.0}));
+    assert_false(td_colwalk_init(&cw, &v, TD_SURFACE_TRIANGLE, (double[3]){x, y, NAN}));
+    td_grid_free(g);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_colwalk_init),
+        cmocka_unit_test(test_columns_match_walk),
+        cmocka_unit_test(test_columns_shaded),
+        cmocka_unit_test(test_columns_where),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
