@@ -7,8 +7,9 @@
  * A cell's profile is its surface's height at the line's entry (s_in) and exit (s_out) and,
  * on the triangle surface, where the line crosses the diagonal a + b = 1 (trace.c's
  * triangle_cross splits the segment there); each ray's f = z - height is tested over it by
- * trace.c's rules (seg_hit: the first zero or change of sign; plane_cross's top and walls;
- * bilinear_cross's quadratic), so the two agree to the rounding of the parameter. The
+ * the cell walk's rules and expressions (surface.h: td_seg_hit, the first zero or change of
+ * sign; td_quad_hit, the bilinear patch's quadratic; plane_cross's top and walls), so the
+ * two agree to the rounding of the parameter. The
  * linear surface's height in the eye's own cell is the line from where the line enters that
  * cell behind the eye to where it leaves (trace.c's linear_under). */
 #include "colwalk.h"
@@ -18,6 +19,7 @@
 #include "grid.h"
 #include "maxmip.h"
 #include "simd.h"
+#include "surface.h"
 
 #define CW_BOX_LOG2 3 /* boxes of 8 x 8 cells: the max-mipmap's level 3 */
 
@@ -25,7 +27,7 @@ enum { CW_START, CW_U, CW_V, CW_UV }; /* how a cell was entered (trace.c's ENTRY
 
 static inline double dmin(double a, double b) { return a < b ? a : b; }
 static inline double dmax(double a, double b) { return a > b ? a : b; }
-static inline double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
+static inline double clamp01(double x) { return td_clamp01(x); }
 
 /* The cell of position pos along an axis walked in direction s (trace.c's cell_along). */
 static inline int32_t cell_at(double pos, int s, int32_t hi)
@@ -107,71 +109,12 @@ typedef struct cw_line {
 static inline double time_u(const cw_line *l, double i) { return l->su ? (i - l->U) * l->iu : INFINITY; }
 static inline double time_v(const cw_line *l, double j) { return l->sv ? (j - l->V) * l->iv : INFINITY; }
 
-static inline double bilinear(const double c[4], double a, double b)
-{
-    return c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b + (c[0] - c[1] - c[2] + c[3]) * a * b;
-}
-
-static inline double triangle(const double c[4], double a, double b)
-{
-    return a + b <= 1.0 ? c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b
-                        : c[3] + (c[2] - c[3]) * (1.0 - a) + (c[1] - c[3]) * (1.0 - b);
-}
-
 /* The surface sf's height at local (a, b) of a cell (the linear surface's on its boundary,
  * where it is the edge's line, as the bilinear patch's is). */
 static inline __attribute__((always_inline)) double height(const td_surface sf, const double c[4], double a,
                                                            double b)
 {
-    return sf == TD_SURFACE_TRIANGLE ? triangle(c, a, b) : bilinear(c, a, b);
-}
-
-/* trace.c's seg_hit: the first s in [sa, sb] where the linear f goes from fa to fb
- * through zero. */
-static inline int seg_hit(double sa, double fa, double sb, double fb, double *s)
-{
-    int hit = 0;
-    if (fa == 0.0) {
-        *s = sa;
-        hit = 1;
-    } else if ((fa > 0.0) != (fb > 0.0) || fb == 0.0) {
-        *s = sa + (sb - sa) * (fa / (fa - fb));
-        hit = 1;
-    }
-    return hit;
-}
-
-/* trace.c's bilinear_cross over [sa, sa + L] with A = -k du dv. */
-static int bilinear_hit(double sa, double fa, double L, double fb, double A, double *s)
-{
-    int hit = 0;
-    if (fa == 0.0) {
-        *s = sa;
-        hit = 1;
-    } else if (!(L > 0.0)) {
-        hit = 0;
-    } else if (A == 0.0 || fabs(A) * L * L <= 1e-12 * (fabs(fa) + fabs(fb))) {
-        hit = seg_hit(sa, fa, sa + L, fb, s);
-    } else {
-        double B = (fb - fa - A * L * L) / L;
-        int change = (fa > 0.0) != (fb > 0.0) || fb == 0.0;
-        double smin = -B / (2.0 * A);
-        double fext = fa + 0.5 * B * smin;
-        if (change || (smin > 0.0 && smin < L && (fext == 0.0 || (fext > 0.0) != (fa > 0.0)))) {
-            double disc = B * B - 4.0 * A * fa;
-            double sq = sqrt(disc > 0.0 ? disc : 0.0);
-            double q = -0.5 * (B + copysign(sq, B));
-            double r1 = q / A, r2 = q != 0.0 ? fa / q : r1;
-            double lo = dmin(r1, r2), hi = dmax(r1, r2);
-            double hiend = change ? L : smin;
-            double r = lo >= 0.0 ? lo : hi;
-            if (!(r >= 0.0 && r <= hiend))
-                r = change ? L * (fa / (fa - fb)) : smin;
-            *s = sa + r;
-            hit = 1;
-        }
-    }
-    return hit;
+    return sf == TD_SURFACE_TRIANGLE ? td_patch_triangle(c, a, b) : td_patch_bilinear(c, a, b);
 }
 
 /* A hit's record (td_colhit): its bilinear height and its unit normal, from the cell's
@@ -182,26 +125,23 @@ static inline __attribute__((always_inline)) void finish(const td_surface sf, co
                                                          int32_t cj, double sx, double sy, td_colhit *h)
 {
     const double a = clamp01(l->U + s * l->du - ci), b = clamp01(l->V + s * l->dv - cj);
-    const double k = c[0] - c[1] - c[2] + c[3];
-    double nv[3] = {0.0, 0.0, 1.0};
-    if (sf == TD_SURFACE_PLANE) {
+    double nv[3] = {0.0, 0.0, 1.0}, gr[2];
+    if (sf == TD_SURFACE_PLANE) { /* the top, or the wall the ray came through */
         nv[0] = wall == CW_U ? -(double)l->su : 0.0;
         nv[1] = wall == CW_V ? -(double)l->sv : 0.0;
         nv[2] = wall ? 0.0 : 1.0;
-    } else if (sf == TD_SURFACE_TRIANGLE) {
-        const int lower = a + b <= 1.0;
-        nv[0] = -(lower ? c[1] - c[0] : c[3] - c[2]) / sx;
-        nv[1] = -(lower ? c[2] - c[0] : c[3] - c[1]) / sy;
-    } else { /* bilinear, and the linear surface's normal, which is the bilinear one's */
-        nv[0] = -((c[1] - c[0]) + k * b) / sx;
-        nv[1] = -((c[2] - c[0]) + k * a) / sy;
+    } else {
+        /* the linear surface's normal is the bilinear one's (trace.c's table) */
+        if (sf == TD_SURFACE_TRIANGLE)
+            td_gradient_triangle(c, a, b, gr);
+        else
+            td_gradient_bilinear(c, a, b, gr);
+        nv[0] = -gr[0] / sx;
+        nv[1] = -gr[1] / sy;
     }
-    const double len = sqrt(nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]);
     h->s = s;
-    h->zb = c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b + k * a * b;
-    h->n[0] = (float)(nv[0] / len);
-    h->n[1] = (float)(nv[1] / len);
-    h->n[2] = (float)(nv[2] / len);
+    h->zb = td_patch_bilinear(c, a, b);
+    td_unit_normal(nv, h->n);
     h->ci = ci;
     h->cj = cj;
 }
@@ -276,7 +216,7 @@ static inline __attribute__((always_inline)) uint32_t walk(const td_colwalk *cw,
                 double ha = 0.0, hd = 0.0, sd = s_out, top = 0.0;
                 int split = 0;
                 if (sf == TD_SURFACE_PLANE) {
-                    top = dmax(dmax(c[0], c[1]), dmax(c[2], c[3]));
+                    top = td_patch_plane(c);
                 } else {
                     /* the entry's height is the cell before's exit height (the same point
                        of their shared edge, where every surface is the edge's line) */
@@ -286,9 +226,9 @@ static inline __attribute__((always_inline)) uint32_t walk(const td_colwalk *cw,
                         /* the start's cell: the line from where it enters the cell behind */
                         double tb = dmax(l.su ? time_u(&l, l.su > 0 ? ci : ci + 1) : -INFINITY,
                                          l.sv ? time_v(&l, l.sv > 0 ? cj : cj + 1) : -INFINITY);
-                        double hback = bilinear(c, clamp01(U + tb * du - ci), clamp01(V + tb * dv - cj));
+                        double hback = td_patch_bilinear(c, clamp01(U + tb * du - ci), clamp01(V + tb * dv - cj));
                         ha = s_out > tb ? hback + (hb - hback) * clamp01((s_in - tb) / (s_out - tb))
-                                        : bilinear(c, clamp01(ua), clamp01(va));
+                                        : td_patch_bilinear(c, clamp01(ua), clamp01(va));
                     } else {
                         ha = fresh ? height(sf, c, clamp01(ua), clamp01(va)) : hprev;
                     }
@@ -322,12 +262,12 @@ static inline __attribute__((always_inline)) uint32_t walk(const td_colwalk *cw,
                         const double fa = oz + ek2 * s_in - ha, fb = oz + ek2 * s_out - hb;
                         under |= fa < 0.0;
                         if (sf == TD_SURFACE_BILINEAR) {
-                            hit_now = bilinear_hit(s_in, fa, s_out - s_in, fb, (c[0] - c[1] - c[2] + c[3]) * Aq, &s);
+                            hit_now = td_quad_hit(s_in, fa, s_out, fb, (c[0] - c[1] - c[2] + c[3]) * Aq, &s);
                         } else if (split) {
                             const double fd = oz + ek2 * sd - hd;
-                            hit_now = seg_hit(s_in, fa, sd, fd, &s) || seg_hit(sd, fd, s_out, fb, &s);
+                            hit_now = td_seg_hit(s_in, fa, sd, fd, &s) || td_seg_hit(sd, fd, s_out, fb, &s);
                         } else {
-                            hit_now = seg_hit(s_in, fa, s_out, fb, &s);
+                            hit_now = td_seg_hit(s_in, fa, s_out, fb, &s);
                         }
                     }
                     if (!hit_now)

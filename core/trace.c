@@ -59,6 +59,7 @@
  * which for grazing rays (1e-3 rad and below) moves hits by metres; the data itself
  * (heights, maxima, cones) stays float. */
 #include "trace.h"
+#include "surface.h"
 
 #include <float.h>
 #include <math.h>
@@ -187,7 +188,7 @@ static inline double ray_u(const walk *w, double t) { return w->ou + w->du * t; 
 static inline double ray_v(const walk *w, double t) { return w->ov + w->dv * t; }
 static inline double ray_z(const walk *w, double t) { return w->oz + w->dz * t; }
 
-static inline double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
+static inline double clamp01(double x) { return td_clamp01(x); }
 
 /* A direction component below 1e-200 is zero (see Precision at the top). */
 static inline double flush_tiny(double x) { return fabs(x) < 1e-200 ? 0.0 : x; }
@@ -318,27 +319,17 @@ static inline double boundary_height(const walk *w, const cell_seg *s, int kind,
 /* The surfaces, one row each in `surfaces` below.                                      */
 
 /* A patch's height at local (a, b) in [0, 1]^2 of a cell with corners c[4]. */
+/* The patches (surface.h), as the surfaces' table takes them */
 static double plane_patch(const double c[4], double a, double b)
 {
     (void)a;
     (void)b;
-    return dmax(dmax(c[0], c[1]), dmax(c[2], c[3]));
+    return td_patch_plane(c);
 }
 
-static double triangle_patch(const double c[4], double a, double b)
-{
-    double h;
-    if (a + b <= 1.0)
-        h = c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b;
-    else
-        h = c[3] + (c[2] - c[3]) * (1.0 - a) + (c[1] - c[3]) * (1.0 - b);
-    return h;
-}
+static double triangle_patch(const double c[4], double a, double b) { return td_patch_triangle(c, a, b); }
 
-static double bilinear_patch(const double c[4], double a, double b)
-{
-    return c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b + (c[0] - c[1] - c[2] + c[3]) * a * b;
-}
+static double bilinear_patch(const double c[4], double a, double b) { return td_patch_bilinear(c, a, b); }
 
 /* Height under the ray at time t inside the cell, for the patch surfaces. */
 static double patch_under(const walk *w, const cell_seg *s, double t);
@@ -381,15 +372,7 @@ TD_HOT void seg_f(const walk *w, cell_seg *s, under_fn under)
 /* First t in [ta, tb] where the linear f goes from fa to fb through zero. */
 static inline int seg_hit(double ta, double fa, double tb, double fb, double *t)
 {
-    int hit = 0;
-    if (fa == 0.0) {
-        *t = ta;
-        hit = 1;
-    } else if ((fa > 0.0) != (fb > 0.0) || fb == 0.0) {
-        *t = ta + (tb - ta) * (fa / (fa - fb));
-        hit = 1;
-    }
-    return hit;
+    return td_seg_hit(ta, fa, tb, fb, t);
 }
 
 /* Plane surface: a solid column under the cell's highest corner. */
@@ -441,66 +424,24 @@ static int triangle_cross(const walk *w, cell_seg *s, hit_rec *h)
     return hit;
 }
 
-/* Bilinear surface: f(s) = fa + B s + A s^2 on s = t - ta in [0, L], with A from the
- * patch's twist and B fixed by the shared end values, so the quadratic agrees with both
- * boundary values exactly. Roots in the cancellation-free form q = -(B + sign(B) sqrt)/2,
- * r1 = q/A, r2 = fa/q. No iteration, no sampling. */
+/* Bilinear surface: the quadratic along the ray (surface.h, td_quad_hit), its
+ * coefficient A from the patch's twist. */
 static int bilinear_cross(const walk *w, cell_seg *sg, hit_rec *h)
 {
-    int hit = 0;
-    double ta, fa, fb, L, k, A;
     seg_f(w, sg, patch_under);
-    ta = sg->ta, fa = sg->fa, fb = sg->fb, L = sg->tb - sg->ta;
-    k = sg->c[0] - sg->c[1] - sg->c[2] + sg->c[3];
-    A = -k * w->du * w->dv;
-    if (fa == 0.0) {
-        h->t = ta;
-        hit = 1;
-    } else if (!(L > 0.0)) {
-        hit = 0;
-    } else if (A == 0.0 || fabs(A) * L * L <= 1e-12 * (fabs(fa) + fabs(fb))) {
-        hit = seg_hit(ta, fa, sg->tb, fb, &h->t);
-    } else {
-        double B = (fb - fa - A * L * L) / L;
-        int change = (fa > 0.0) != (fb > 0.0) || fb == 0.0;
-        double smin = -B / (2.0 * A);
-        double fext = fa + 0.5 * B * smin; /* f at the extremum */
-        if (change || (smin > 0.0 && smin < L && (fext == 0.0 || (fext > 0.0) != (fa > 0.0)))) {
-            double disc = B * B - 4.0 * A * fa;
-            double sq = sqrt(disc > 0.0 ? disc : 0.0);
-            double q = -0.5 * (B + copysign(sq, B));
-            double r1 = q / A, r2 = q != 0.0 ? fa / q : r1;
-            double lo = dmin(r1, r2), hi = dmax(r1, r2);
-            double hiend = change ? L : smin;
-            double s = lo >= 0.0 ? lo : hi;
-            if (!(s >= 0.0 && s <= hiend)) {
-                /* rounding put the root just outside: take the nearest admissible one */
-                s = change ? L * (fa / (fa - fb)) : smin;
-            }
-            h->t = ta + s;
-            hit = 1;
-        }
-    }
-    return hit;
+    const double k = sg->c[0] - sg->c[1] - sg->c[2] + sg->c[3];
+    return td_quad_hit(sg->ta, sg->fa, sg->tb, sg->fb, -k * w->du * w->dv, &h->t);
 }
 
-/* Height gradient (dz/da, dz/db per cell) at local (a, b). */
+/* Height gradients (surface.h), as the surfaces' table takes them */
 static void triangle_gradient(const double c[4], double a, double b, double g[2])
 {
-    if (a + b <= 1.0) {
-        g[0] = c[1] - c[0];
-        g[1] = c[2] - c[0];
-    } else {
-        g[0] = c[3] - c[2];
-        g[1] = c[3] - c[1];
-    }
+    td_gradient_triangle(c, a, b, g);
 }
 
 static void bilinear_gradient(const double c[4], double a, double b, double g[2])
 {
-    double k = c[0] - c[1] - c[2] + c[3];
-    g[0] = (c[1] - c[0]) + k * b;
-    g[1] = (c[2] - c[0]) + k * a;
+    td_gradient_bilinear(c, a, b, g);
 }
 
 /* One surface: its patch (also what td_surface_height reports), the height under a ray
@@ -977,13 +918,7 @@ static void surface_normal(const walk *w, const hit_rec *h, double nv[3])
 /* The unit normal of surface_normal's vector. A fan normalises its hits' after all its
  * walks (a loop of independent square roots and divisions, which overlap; after each
  * walk they stalled it: measured 17% of trace_one's cycles). */
-static inline void unit_normal(const double nv[3], float n[3])
-{
-    double len = sqrt(nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]);
-    n[0] = (float)(nv[0] / len);
-    n[1] = (float)(nv[1] / len);
-    n[2] = (float)(nv[2] / len);
-}
+static inline void unit_normal(const double nv[3], float n[3]) { td_unit_normal(nv, n); }
 
 /* Cells a ray started from a bound walks plainly before its method takes over (a fan's
  * packet walks them four rays at a time). Measured first (callgrind, primary stage,
