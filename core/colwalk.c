@@ -117,6 +117,41 @@ static inline __attribute__((always_inline)) double height(const td_surface sf, 
     return sf == TD_SURFACE_TRIANGLE ? td_patch_triangle(c, a, b) : td_patch_bilinear(c, a, b);
 }
 
+/* The height plane's walls make a hit depend on which side of a sample point a ray's line
+ * passes: a line through one clips the corner of the column beside it, or not, and meets
+ * its wall there, or not. Each ray of a column has its own line, the shared one to within a
+ * rounding of its direction; where the shared line leaves a cell within 1e-9 of its
+ * parameter of a sample point (its crossings of the column and the row line that near),
+ * the rays still unfinished that are low enough there for a wall of the two cells beside
+ * the point (clear_of_walls) are left to the plain walk (the caller traces them; fuzz_render
+ * found an eye on a sample looking along the diagonal, whose line clipped a corner cell at
+ * the grid's edge for td_trace and not for the column walk). The other surfaces are
+ * continuous across a cell's edges and corners: a side's choice moves no hit. */
+static inline int near_vertex(double tu, double tv)
+{
+    return tu < INFINITY && tv < INFINITY && fabs(tu - tv) <= 1e-9 * (1.0 + fabs(tu));
+}
+
+/* Whether a ray at height z at the sample point where the line leaves cell (ci, cj) clears
+ * the tops of the two cells beside that point (the one across the column line and the one
+ * across the row line; off the grid or holes: nothing to meet). */
+static int clear_of_walls(const td_grid *g, const cw_line *l, int32_t ci, int32_t cj, double z)
+{
+    const int32_t cell[2][2] = {{ci + l->su, cj}, {ci, cj + l->sv}};
+    int clear = 1;
+    for (int k = 0; k < 2 && clear; k++) {
+        const int32_t i = cell[k][0], j = cell[k][1];
+        if (i >= 0 && j >= 0 && i <= l->cmax_i && j <= l->cmax_j) {
+            const float *p = td_grid_corner(&g->cz, i, j);
+            const size_t W = g->cz.stride;
+            const double c[4] = {p[0], p[1], p[W], p[W + 1]};
+            const int hole = !(c[0] == c[0] && c[1] == c[1] && c[2] == c[2] && c[3] == c[3]);
+            clear = hole || z > td_patch_plane(c);
+        }
+    }
+    return clear;
+}
+
 /* A hit's record (td_colhit): its bilinear height and its unit normal, from the cell's
  * corners c at local (a, b) = the hit's position, clamped (trace.c's surface_normal and
  * unit_normal, the surfaces' gradients). */
@@ -186,7 +221,9 @@ static inline __attribute__((always_inline)) uint32_t walk(const td_colwalk *cw,
         const double sx = dmin(dmin(tx, ty), s1);
         const double ek = e[k];
         steps++;
-        if (oz + ek * (ek >= 0.0 ? s_in : sx) > b.top + zeps) {
+        /* (on the plane surface not by a box's corner: the line's side of it decides a
+           wall, see near_vertex) */
+        if (oz + ek * (ek >= 0.0 ? s_in : sx) > b.top + zeps && !(sf == TD_SURFACE_PLANE && near_vertex(tx, ty))) {
             if (sx >= s1) {
                 done = 1;
             } else {
@@ -283,6 +320,11 @@ static inline __attribute__((always_inline)) uint32_t walk(const td_colwalk *cw,
                     break;
             } else {
                 fresh = 1;
+            }
+            if (sf == TD_SURFACE_PLANE && k < n && near_vertex(nu, nv) &&
+                !clear_of_walls(g, &l, ci, cj, oz + e[k] * s_out - zeps)) {
+                under = stopped = done = 1; /* the rays from k on: the plain walk's */
+                break;
             }
             if (k == n || s_out >= s1) {
                 done = 1;

@@ -610,7 +610,8 @@ static void cam_write_row(FILE *f, const bench_ds *d, int q, int s)
 static void cam_write_table(FILE *f, const bench_ctx *b)
 {
     fprintf(f, "### Camera views: rays per second against Embree, one thread\n\n"
-               "M rays/s; *on*: every coherence device on (camera rays: the horizon and beam bounds; shadow rays: the "
+               "M rays/s; *on*: every coherence device on (camera rays: the horizon and beam bounds, and a level camera's "
+               "image columns walked as one, colwalk.h; shadow rays: the "
                "occlusion query, the sun bound and the packets of four that walk the rays' first cells and end them "
                "against the bound); *no sun*: the sun bound off (`TD_RENDER_OFF_SUNLIT`, and with it the packets), "
                "the occlusion query kept; *off*: every device off; x Embree = terrad / Embree on the same rays; "

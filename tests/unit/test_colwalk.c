@@ -11,6 +11,8 @@
  *   lowered by the walk's margin hits at or before it, and raised by it, at or after (a
  *   tie, which the oracle tests judge the same way); and those ties are rare.
  * - Shaded renders (normals, shadows) give the same picture as the plain walk's.
+ * - The height plane's walls at a sample point the line runs through (a finding of
+ *   fuzz_render): the rays low enough there to meet them are the plain walk's.
  * - The device applies only where it is exact (column_rays): a level camera with the
  *   method auto and the eye above the surface around it; not pitched or rolled cameras,
  *   other methods, an eye at or below the surface, cylindrical or orthographic views; one
@@ -307,6 +309,55 @@ static void test_columns_where(void **state)
     td_grid_free(g);
 }
 
+/* The height plane's walls at a sample point (found by fuzz_render on level cameras): a
+ * plane z = 200 + 2 i + j, the eye on sample (1, 3) looking along the diagonal (heading
+ * 135), so the centre column's line runs through samples. Its rays' own lines pass the
+ * sample point (4, 0) at the grid's south edge a rounding east of it, clip the corner of
+ * cell (4, 0) and meet its wall; the shared line, a rounding the other way, left the grid.
+ * Rays that low by a sample point are left to the plain walk: every pixel is td_trace's. */
+static void test_columns_plane_vertex(void **state)
+{
+    td_grid *g = terrain_seeded(23, 7, 10.0, 1, 5);
+    td_accel *a = NULL;
+    td_accel_opts ao;
+    static td_scene s;
+    td_render_result r;
+    td_camera cam;
+    (void)state;
+    for (int32_t j = 0; j < g->h; j++)
+        for (int32_t i = 0; i < g->w; i++)
+            g->z[(size_t)j * g->w + i] = (float)(200 + 2 * i + j);
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel_opts_for(TD_METHOD_AUTO, &ao);
+    assert_int_equal(td_accel_build(g, &ao, &a, NULL, NULL), TD_OK);
+    const td_view v = {g, a->tiles};
+    td_scene_defaults(&s);
+    s.camera.x = 10.0, s.camera.y = 30.0, s.camera.z = 250.5;
+    s.camera.heading = 135.0, s.camera.fov = 120.0;
+    s.image.width = 11, s.image.height = 19, s.image.format = TD_FORMAT_DEPTH32F;
+    s.quality.method = TD_METHOD_AUTO;
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
+        s.quality.surface = (td_surface)sf;
+        render(&v, &s, 0, 1, &r);
+        assert_true(r.stats.column_rays > 0);
+        assert_int_equal(td_camera_setup(&s.camera, 11, 19, g, &cam, NULL), TD_OK);
+        for (int32_t k = 0; k < 11 * 19; k++) {
+            td_ray ray;
+            td_hit h;
+            td_camera_ray(&cam, k % 11, k / 11, &ray);
+            td_trace(&v, TD_METHOD_AUTO, (td_surface)sf, &ray, &h);
+            const float d = h.t < INFINITY ? (float)h.t : INFINITY;
+            if (memcmp(&d, &r.depth[k], sizeof d))
+                print_error("surface %d pixel (%d, %d): %.9g, td_trace %.9g\n", sf, (int)(k % 11), (int)(k / 11),
+                            (double)r.depth[k], (double)d);
+            assert_memory_equal(&d, &r.depth[k], sizeof d);
+        }
+        td_render_result_free(&r);
+    }
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
 /* td_colwalk_init: an eye above the corners of the cells around it (3 x 3 of them) is
  * taken; one off the grid, on its edge, or as high as its own cell's highest corner is
  * not. */
@@ -334,6 +385,7 @@ int main(void)
         cmocka_unit_test(test_columns_match_walk),
         cmocka_unit_test(test_columns_shaded),
         cmocka_unit_test(test_columns_where),
+        cmocka_unit_test(test_columns_plane_vertex),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
