@@ -355,34 +355,25 @@ static inline __attribute__((always_inline)) uint32_t walk(const td_colwalk *cw,
     return steps;
 }
 
-/* walk() compiled for each surface (the surface's tests inline, no switch a cell) */
-TD_PACKET_CLONES static uint32_t walk_plane(const td_colwalk *cw, double hx, double hy, double s0, int n, const double *e,
-                           td_colhit *hit)
-{
-    return walk(cw, TD_SURFACE_PLANE, hx, hy, s0, n, e, hit);
-}
-TD_PACKET_CLONES static uint32_t walk_linear(const td_colwalk *cw, double hx, double hy, double s0, int n, const double *e,
-                            td_colhit *hit)
-{
-    return walk(cw, TD_SURFACE_LINEAR, hx, hy, s0, n, e, hit);
-}
-TD_PACKET_CLONES static uint32_t walk_triangle(const td_colwalk *cw, double hx, double hy, double s0, int n, const double *e,
-                              td_colhit *hit)
-{
-    return walk(cw, TD_SURFACE_TRIANGLE, hx, hy, s0, n, e, hit);
-}
-TD_PACKET_CLONES static uint32_t walk_bilinear(const td_colwalk *cw, double hx, double hy, double s0, int n, const double *e,
-                              td_colhit *hit)
-{
-    return walk(cw, TD_SURFACE_BILINEAR, hx, hy, s0, n, e, hit);
-}
+/* walk() compiled for each surface of TD_SURFACE_LIST (its tests inline, no switch a
+ * cell), walk_TD_SURFACE_PLANE .. */
+#define CW_WALK_FN(sf, name)                                                                              \
+    TD_PACKET_CLONES static uint32_t walk_##sf(const td_colwalk *cw, double hx, double hy, double s0, int n, \
+                                               const double *e, td_colhit *hit)                          \
+    {                                                                                                     \
+        return walk(cw, sf, hx, hy, s0, n, e, hit);                                                       \
+    }
+TD_SURFACE_LIST(CW_WALK_FN)
+#undef CW_WALK_FN
 
 uint32_t td_colwalk_trace(const td_colwalk *cw, double hx, double hy, double s0, int n,
                           const double *e, td_colhit *hit)
 {
     uint32_t (*const fn[TD_SURFACE_COUNT])(const td_colwalk *, double, double, double, int, const double *,
                                            td_colhit *) = {
-        [TD_SURFACE_PLANE] = walk_plane, [TD_SURFACE_LINEAR] = walk_linear,
-        [TD_SURFACE_TRIANGLE] = walk_triangle, [TD_SURFACE_BILINEAR] = walk_bilinear};
+#define CW_WALK_ENTRY(sf, name) [sf] = walk_##sf,
+        TD_SURFACE_LIST(CW_WALK_ENTRY)
+#undef CW_WALK_ENTRY
+    };
     return fn[cw->sf](cw, hx, hy, s0, n, e, hit);
 }
