@@ -1200,7 +1200,8 @@ static void trace_columns(worker *w, const blk *b)
     st->hits += nhit;
 }
 
-/* Camera rays. With the silhouette partition, each ray starts from it. Else, with the
+/* Camera rays. With the silhouette partition, each ray starts from it. An upright, level
+ * camera's go a sample column at a time (trace_columns). Else, with the
  * horizon or beam device on (perspective, full grid), the block is cut into TD_SLICES
  * slices across the image direction of the verticals, each traced from its wedge's
  * horizon and beam; else every ray is traced from its start. Rays that must bend are
