@@ -109,6 +109,33 @@ typedef struct cw_line {
 static inline double time_u(const cw_line *l, double i) { return l->su ? (i - l->U) * l->iu : INFINITY; }
 static inline double time_v(const cw_line *l, double j) { return l->sv ? (j - l->V) * l->iv : INFINITY; }
 
+/* The cell the line is in at s along one axis (origin P, step d cells a metre, sign sg,
+ * crossing times of line k: time(k)), by the crossing times the cell-by-cell walk goes by,
+ * not by the rounded position P + s d: in cell c while time(c) <= s < time(c + 1) going up,
+ * time(c + 1) <= s < time(c) going down. A line nearly along a grid line is a rounding off
+ * it in position long before it crosses it (fuzz_render: an eye on row line 6 looking
+ * west, crossing it 64 m out, put a cell in the row below after a box crossed 40 m out, on
+ * the plane surface a column lower). */
+static int32_t cell_by_time(const cw_line *l, int axis, double s)
+{
+    const double P = axis ? l->V : l->U, d = axis ? l->dv : l->du;
+    const int sg = axis ? l->sv : l->su;
+    const int32_t hi = axis ? l->cmax_j : l->cmax_i;
+    int32_t c = cell_at(P + s * d, sg, hi);
+    if (sg > 0) {
+        while (c > 0 && (axis ? time_v(l, c) : time_u(l, c)) > s)
+            c--;
+        while (c < hi && (axis ? time_v(l, c + 1) : time_u(l, c + 1)) <= s)
+            c++;
+    } else if (sg < 0) {
+        while (c < hi && (axis ? time_v(l, c + 1) : time_u(l, c + 1)) > s)
+            c++;
+        while (c > 0 && (axis ? time_v(l, c) : time_u(l, c)) <= s)
+            c--;
+    }
+    return c;
+}
+
 /* The surface sf's height at local (a, b) of a cell (the linear surface's on its boundary,
  * where it is the edge's line, as the bilinear patch's is). */
 static inline __attribute__((always_inline)) double height(const td_surface sf, const double c[4], double a,
@@ -209,7 +236,7 @@ static inline __attribute__((always_inline)) uint32_t walk(const td_colwalk *cw,
     int under = 0;   /* the lowest unfinished ray has been under the surface (through a hole) */
     int stopped = 0; /* the walk stopped after such a ray's hit */
     double s_in = s0 > 0.0 ? s0 : 0.0, hb = 0.0;
-    int32_t ci = cell_at(U + s_in * du, l.su, l.cmax_i), cj = cell_at(V + s_in * dv, l.sv, l.cmax_j);
+    int32_t ci = cell_by_time(&l, 0, s_in), cj = cell_by_time(&l, 1, s_in);
     int done = !(s1 > s_in) || (l.su == 0 && l.sv == 0);
     cw_box b = {.valid = 0};
     while (!done) {
@@ -231,8 +258,8 @@ static inline __attribute__((always_inline)) uint32_t walk(const td_colwalk *cw,
                 s_in = sx;
                 entry = kind;
                 fresh = 1;
-                ci = kind != CW_V ? (l.su > 0 ? b.i1 : b.i0 - 1) : cell_at(U + sx * du, l.su, l.cmax_i);
-                cj = kind != CW_U ? (l.sv > 0 ? b.j1 : b.j0 - 1) : cell_at(V + sx * dv, l.sv, l.cmax_j);
+                ci = kind != CW_V ? (l.su > 0 ? b.i1 : b.i0 - 1) : cell_by_time(&l, 0, sx);
+                cj = kind != CW_U ? (l.sv > 0 ? b.j1 : b.j0 - 1) : cell_by_time(&l, 1, sx);
                 done = ci < 0 || cj < 0 || ci > l.cmax_i || cj > l.cmax_j;
             }
             continue;

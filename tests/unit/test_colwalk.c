@@ -11,8 +11,8 @@
  *   lowered by the walk's margin hits at or before it, and raised by it, at or after (a
  *   tie, which the oracle tests judge the same way); and those ties are rare.
  * - Shaded renders (normals, shadows) give the same picture as the plain walk's.
- * - The height plane's walls at a sample point the line runs through (a finding of
- *   fuzz_render): the rays low enough there to meet them are the plain walk's.
+ * - The height plane's walls at a sample point the line runs through, and a line a
+ *   rounding off a row line (findings of fuzz_render): the plain walk's pixels.
  * - The device applies only where it is exact (column_rays): a level camera with the
  *   method auto and the eye above the surface around it; not pitched or rolled cameras,
  *   other methods, an eye at or below the surface, cylindrical or orthographic views; one
@@ -358,6 +358,54 @@ static void test_columns_plane_vertex(void **state)
     td_grid_free(g);
 }
 
+/* A line a rounding off a grid line (found by fuzz_render on level cameras): the eye on
+ * row line 6 as the frame computes it (y = 80, sy = 13.333333333333332: V =
+ * 6.000000000000001) looking
+ * west (heading 270: d_y = -1.8e-16), so the line crosses the row line only 64 m out. The
+ * box the first rays pass over ends 40 m out, where the rounded position is exactly 6.0,
+ * and the walk went on in the row below, whose columns on the plane surface are 3 m lower.
+ * The cells after a box crossed (and at the start) are taken by the crossing times; every
+ * pixel is the plain walk's, three samples a side. */
+static void test_columns_row_line(void **state)
+{
+    td_grid *g = terrain_seeded(25, 24, 10.0, 1, 5);
+    td_accel *a = NULL;
+    td_accel_opts ao;
+    static td_scene s;
+    td_render_result on, off;
+    (void)state;
+    g->sy = 13.333333333333332; /* 40 / 3 less an ulp: 80 / sy = 6.000000000000001 */
+    for (int32_t j = 0; j < g->h; j++)
+        for (int32_t i = 0; i < g->w; i++)
+            g->z[(size_t)j * g->w + i] = (float)(200 + 2 * i + 3 * j);
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel_opts_for(TD_METHOD_AUTO, &ao);
+    assert_int_equal(td_accel_build(g, &ao, &a, NULL, NULL), TD_OK);
+    const td_view v = {g, a->tiles};
+    td_scene_defaults(&s);
+    s.camera.x = 200.0, s.camera.y = 80.0, s.camera.z = 410.5;
+    s.camera.heading = 270.0, s.camera.fov = 70.0;
+    s.image.width = 5, s.image.height = 21, s.image.format = TD_FORMAT_DEPTH32F;
+    s.quality.method = TD_METHOD_AUTO;
+    s.quality.samples = 3;
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
+        s.quality.surface = (td_surface)sf;
+        render(&v, &s, 0, 1, &on);
+        render(&v, &s, TD_RENDER_OFF_COLUMNS, 1, &off);
+        assert_true(on.stats.column_rays > 0);
+        for (int32_t k = 0; k < 5 * 21; k++) {
+            if (memcmp(&on.depth[k], &off.depth[k], sizeof(float)))
+                print_error("surface %d pixel (%d, %d): %.9g, the plain walk %.9g\n", sf, (int)(k % 5),
+                            (int)(k / 5), (double)on.depth[k], (double)off.depth[k]);
+            assert_memory_equal(&on.depth[k], &off.depth[k], sizeof(float));
+        }
+        td_render_result_free(&on);
+        td_render_result_free(&off);
+    }
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
 /* td_colwalk_init: an eye above the corners of the cells around it (3 x 3 of them) is
  * taken; one off the grid, on its edge, or as high as its own cell's highest corner is
  * not. */
@@ -386,6 +434,7 @@ int main(void)
         cmocka_unit_test(test_columns_shaded),
         cmocka_unit_test(test_columns_where),
         cmocka_unit_test(test_columns_plane_vertex),
+        cmocka_unit_test(test_columns_row_line),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
