@@ -870,8 +870,11 @@ TD_HOT int walk_clip(walk *w, walk_state *st, double tmin, double tmax, double s
 /* The cell the walk starts in, at its clipped start st->t. */
 TD_HOT void start_cell(const walk *w, walk_state *st)
 {
-    st->ci = cell_along(ray_u(w, st->t), w->su, 0, w->cmax_i);
-    st->cj = cell_along(ray_v(w, st->t), w->sv, 0, w->cmax_j);
+    /* by the crossing times, as inside the walk (walk_col, walk_row): a start after the
+       origin (the clip to the grid's heights) may round onto a line the ray crosses only
+       later (test_trace's test_from_after_clip: 107 m along, a line crossed at 180 m) */
+    st->ci = walk_col(w, st->t, 0, w->cmax_i);
+    st->cj = walk_row(w, st->t, 0, w->cmax_j);
 }
 
 /* The walk enters a new tile (one step): skips it whole if the ray passes above it (or
@@ -949,10 +952,16 @@ TD_HOT int skip_to(const walk *w, walk_state *st, double tc)
     } else if (tc > st->t) {
         int32_t ci = walk_col(w, tc, 0, w->cmax_i), cj = walk_row(w, tc, 0, w->cmax_j);
         double teu = entry_u(w, ci), tev = entry_v(w, cj), te = dmax(teu, tev);
-        if (te > st->t) { /* else the ray starts in that cell */
+        if (te > st->t) {
             enter_cell(st, ci, cj, te, crossing(tev, teu), NAN);
-            moved = 1;
+        } else { /* the ray is in that cell from before its clip's start on, to tc: that
+                    cell, not the one its rounded position at the start names (a ray a
+                    rounding off a row line, its clip's start 107 m and tc 110 m out,
+                    started a row too low: fuzz_render, seed row-line-clip) */
+            st->ci = ci;
+            st->cj = cj;
         }
+        moved = 1;
         st->level = 0; /* near the hit: no use testing the tile's big blocks first */
     }
     if (go && !moved)
@@ -1443,6 +1452,28 @@ TD_HOT void vclip(const walk *w, const vwalk *p, vd iz, vd *t0, vstate *st)
     st->t_end = t1;
 }
 
+/* walk_col and walk_row at t for every lane: the cell from the position, then back where
+ * its entry is after t, on where its exit is not (the lanes whose cell the times disagree
+ * with: rare) */
+TD_HOT void vcell_at(const walk *w, const vwalk *p, vd t, vd *ci_out, vd *cj_out)
+{
+    vd ci = vcell_along(vray_u(p, t), p->nu, 0.0, (double)w->cmax_i);
+    vd cj = vcell_along(vray_v(p, t), p->nv, 0.0, (double)w->cmax_j);
+    vd teu = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
+    vd tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
+    vd txu = vtime_u(p, ci + vone(p->pu)), txv = vtime_v(p, cj + vone(p->pv));
+    if (vany((vm)(teu > t) | (vm)(txu <= t) | (vm)(tev > t) | (vm)(txv <= t))) {
+        vd mu = vsel((vm)(teu > t), -p->su, vsel((vm)(txu <= t), p->su, vb(0.0)));
+        vd mv = vsel((vm)(tev > t), -p->sv, vsel((vm)(txv <= t), p->sv, vb(0.0)));
+        mu = vsel((vm)(ci + mu >= 0.0) & (vm)(ci + mu <= (double)w->cmax_i), mu, vb(0.0));
+        mv = vsel((vm)(cj + mv >= 0.0) & (vm)(cj + mv <= (double)w->cmax_j), mv, vb(0.0));
+        ci += mu;
+        cj += mv;
+    }
+    *ci_out = ci;
+    *cj_out = cj;
+}
+
 /* vstart_at for rays that start at their clip (tc 0: shadow packets): *go the lanes whose
  * search is not empty, each in the cell of its clip's start */
 TD_HOT void vstart_clip(const walk *w, vwalk *p, vd iz, vstate *st, vm *go)
@@ -1450,8 +1481,7 @@ TD_HOT void vstart_clip(const walk *w, vwalk *p, vd iz, vstate *st, vm *go)
     vd t0;
     vclip(w, p, iz, &t0, st);
     *go = (vm)(t0 <= st->t_end);
-    st->ci = vcell_along(vray_u(p, t0), p->nu, 0.0, (double)w->cmax_i);
-    st->cj = vcell_along(vray_v(p, t0), p->nv, 0.0, (double)w->cmax_j);
+    vcell_at(w, p, t0, &st->ci, &st->cj);
     st->t = t0;
     st->entry = vb(ENTRY_START);
     st->f = vb(NAN);
@@ -1465,29 +1495,19 @@ TD_HOT void vstart_at(const walk *w, vwalk *p, vd iz, vd tc, vstate *st, vm *go,
     vd t1 = st->t_end;
     *go = (vm)(t0 <= t1) & ~(vm)(tc > t1);
     vm later = (vm)(tc > t0);
-    vd ci = vcell_along(vray_u(p, tc), p->nu, 0.0, (double)w->cmax_i);
-    vd cj = vcell_along(vray_v(p, tc), p->nv, 0.0, (double)w->cmax_j);
+    vd ci, cj;
+    vcell_at(w, p, tc, &ci, &cj);
     vd teu = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
     vd tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
-    /* walk_col and walk_row, lane by lane (the lanes whose cell the times disagree with:
-     * rare): back where the entry is after tc, on where the exit is not */
-    vd txu = vtime_u(p, ci + vone(p->pu)), txv = vtime_v(p, cj + vone(p->pv));
-    if (vany((vm)(teu > tc) | (vm)(txu <= tc) | (vm)(tev > tc) | (vm)(txv <= tc))) {
-        vd mu = vsel((vm)(teu > tc), -p->su, vsel((vm)(txu <= tc), p->su, vb(0.0)));
-        vd mv = vsel((vm)(tev > tc), -p->sv, vsel((vm)(txv <= tc), p->sv, vb(0.0)));
-        mu = vsel((vm)(ci + mu >= 0.0) & (vm)(ci + mu <= (double)w->cmax_i), mu, vb(0.0));
-        mv = vsel((vm)(cj + mv >= 0.0) & (vm)(cj + mv <= (double)w->cmax_j), mv, vb(0.0));
-        ci += mu;
-        cj += mv;
-        teu = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
-        tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
-    }
     vd te = vmax(teu, tev);
     vm moved = later & (vm)(te > t0);
     st->ci = ci, st->cj = cj;
-    if (vany(~moved)) { /* lanes that start at their clip (rare in a camera's fan) */
-        st->ci = vsel(moved, ci, vcell_along(vray_u(p, t0), p->nu, 0.0, (double)w->cmax_i));
-        st->cj = vsel(moved, cj, vcell_along(vray_v(p, t0), p->nv, 0.0, (double)w->cmax_j));
+    if (vany(~later)) { /* lanes that start at their clip (rare in a camera's fan); a lane
+                           in its tc's cell already at its clip keeps that cell (skip_to) */
+        vd ci0, cj0;
+        vcell_at(w, p, t0, &ci0, &cj0);
+        st->ci = vsel(later, ci, ci0);
+        st->cj = vsel(later, cj, cj0);
     }
     st->t = vsel(moved, te, t0);
     st->entry = vsel(moved, vcrossing(tev, teu), vb(ENTRY_START));

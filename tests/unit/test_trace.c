@@ -820,6 +820,37 @@ static void test_from_near_line(void **state)
     assert_true(moved > 1000); /* the starts did skip cells */
 }
 
+/* A start from a t_clear after the ray's clip (the eye over the highest sample: the walk
+ * starts where the ray comes down to it) in a cell the ray entered before that clip: the
+ * walk starts in the cell of t_clear (walk_col, walk_row), not in the one the rounded
+ * position at the clip names. fuzz_render (seed row-line-clip, a level camera's driver):
+ * an eye on row line 6 as the frame computes it (y = 80, sy = 13.333333333333332: V =
+ * 6.000000000000001) looking west and down, d_y = -6.6e-17, crosses the row line 180 m
+ * along the ray; its clip starts 107 m along, where its position rounds below the line,
+ * and a silhouette start (t_clear 110) walked the row below, on the plane surface 3 m
+ * lower: hit at 178.8 m instead of 176.1. Every t_clear from 0 to the hit, every method,
+ * surface and a fan of the ray give td_trace's hit. */
+static void test_from_after_clip(void **state)
+{
+    int moved = 0;
+    (void)state;
+    td_grid *g = make_grid(25, 24, 10.0, 13.333333333333332, 5);
+    for (int32_t j = 0; j < g->h; j++)
+        for (int32_t i = 0; i < g->w; i++)
+            g->z[(size_t)j * (size_t)g->w + (size_t)i] = (float)(200 + 2 * i + 3 * j);
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel *a = build_all(g, TD_PLANES_K_DEFAULT);
+    td_view v = {g, a->tiles};
+    const td_ray r = {{200.0, 80.0, 410.5}, {-0.35728959974141805, -6.5633034703794984e-17, -0.93399365196805118},
+                      0.0, INFINITY};
+    for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
+        double t = assert_walks_agree(&v, (td_surface)sf, &r, 0.0, 0.5, INFINITY, 1, &moved);
+        assert_true(t > 170.0 && t < 180.0);
+    }
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
 /* test_from_near_line's rounding for shallow rays along a row's or a column's line: a
  * block of cells left through its side finds the cell along the other axis from the
  * position (leave_box_at), which rounds onto the line before the ray crosses it. A grid
@@ -957,6 +988,7 @@ int main(void)
         cmocka_unit_test(test_fan_cells),           cmocka_unit_test(test_from_near_line),
         cmocka_unit_test(test_along_line),          cmocka_unit_test(test_through_vertices),
         cmocka_unit_test(test_shadow_from_wall),    cmocka_unit_test(test_shadow_at_edge),
+        cmocka_unit_test(test_from_after_clip),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
