@@ -27,7 +27,8 @@
  * 1 to 3 samples a pixel side and 1 to 3 threads for the renders with the devices on, and
  * levels of detail (square or isometric coarse levels, 1 to 8 pixels a coarse cell: the
  * depths then are the levels' rule's, held on and off and across methods as above, as
- * oracle_lod holds them, but not to td_trace on the full grid).
+ * oracle_lod holds them, but not to td_trace on the full grid), and after them an upright,
+ * level camera over the grid and above the corners around it (the column walk's case).
  * Any render may refuse the camera, but all the same way. */
 #include <math.h>
 #include <stdio.h>
@@ -346,6 +347,25 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     sc.quality.lod = (int)(lodb & 1);
     sc.quality.lod_grid = (lodb >> 1) & 1 ? TD_LOD_GRID_ISOMETRIC : TD_LOD_GRID_SQUARE;
     sc.quality.lod_pixels = 1.0 + (double)((lodb >> 2) % 8);
+    if (fuzz_byte(&r) % 4 == 3) { /* an upright, level camera over the grid, above the
+                                     corners around it: its columns walked as one
+                                     (colwalk.h); the older seeds' bytes here are 0, 17,
+                                     80 and 161, which keep their cameras */
+        sc.camera.pitch = 0.0;
+        sc.camera.roll = 0.0;
+        sc.camera.projection = TD_PROJ_PERSPECTIVE;
+        sc.quality.lod = 0;
+        sc.effects.curvature = curved = 0;
+        sc.camera.x = fmin(fmax(sc.camera.x, 0.05 * (w - 1) * sx), 0.95 * (w - 1) * sx);
+        sc.camera.y = fmin(fmax(sc.camera.y, 0.05 * (h - 1) * sy), 0.95 * (h - 1) * sy);
+        const int32_t i0 = (int32_t)(sc.camera.x / sx), j0 = (int32_t)(sc.camera.y / sy);
+        double top = -INFINITY;
+        for (int32_t j = j0 - 1; j <= j0 + 2; j++)
+            for (int32_t i = i0 - 1; i <= i0 + 2; i++)
+                if (i >= 0 && j >= 0 && i < w && j < h && g->z[(size_t)j * w + i] == g->z[(size_t)j * w + i])
+                    top = fmax(top, g->z[(size_t)j * w + i]);
+        sc.camera.z = (top > -INFINITY ? top : zmax) + agls[(zm / 3) % 6];
+    }
 
     td_accel_opts_default(&ao);
     ao.maxmip = 1;
