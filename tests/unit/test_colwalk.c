@@ -309,6 +309,29 @@ static void test_columns_where(void **state)
     td_grid_free(g);
 }
 
+/* A w x h grid of the plane z = 200 + a i + b j, sx 10 m and sy given, with the max-mipmaps
+ * `auto` reads (*acc, freed by the caller), and a level depth32f scene of it: eye (x, y, z),
+ * heading, fov, an iw x ih image. */
+static td_grid *plane_case(int32_t w, int32_t h, double sy, int a, int b, td_accel **acc, td_scene *s,
+                           const double eye[3], double heading, double fov, int32_t iw, int32_t ih)
+{
+    td_grid *g = terrain_seeded(w, h, 10.0, 1, 5);
+    td_accel_opts ao;
+    g->sy = sy;
+    for (int32_t j = 0; j < g->h; j++)
+        for (int32_t i = 0; i < g->w; i++)
+            g->z[(size_t)j * g->w + i] = (float)(200 + a * i + b * j);
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    td_accel_opts_for(TD_METHOD_AUTO, &ao);
+    assert_int_equal(td_accel_build(g, &ao, acc, NULL, NULL), TD_OK);
+    td_scene_defaults(s);
+    s->camera.x = eye[0], s->camera.y = eye[1], s->camera.z = eye[2];
+    s->camera.heading = heading, s->camera.fov = fov;
+    s->image.width = iw, s->image.height = ih, s->image.format = TD_FORMAT_DEPTH32F;
+    s->quality.method = TD_METHOD_AUTO;
+    return g;
+}
+
 /* The height plane's walls at a sample point (found by fuzz_render on level cameras): a
  * plane z = 200 + 2 i + j, the eye on sample (1, 3) looking along the diagonal (heading
  * 135), so the centre column's line runs through samples. Its rays' own lines pass the
@@ -317,25 +340,13 @@ static void test_columns_where(void **state)
  * Rays that low by a sample point are left to the plain walk: every pixel is td_trace's. */
 static void test_columns_plane_vertex(void **state)
 {
-    td_grid *g = terrain_seeded(23, 7, 10.0, 1, 5);
     td_accel *a = NULL;
-    td_accel_opts ao;
     static td_scene s;
     td_render_result r;
     td_camera cam;
     (void)state;
-    for (int32_t j = 0; j < g->h; j++)
-        for (int32_t i = 0; i < g->w; i++)
-            g->z[(size_t)j * g->w + i] = (float)(200 + 2 * i + j);
-    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
-    td_accel_opts_for(TD_METHOD_AUTO, &ao);
-    assert_int_equal(td_accel_build(g, &ao, &a, NULL, NULL), TD_OK);
+    td_grid *g = plane_case(23, 7, 10.0, 2, 1, &a, &s, (const double[3]){10.0, 30.0, 250.5}, 135.0, 120.0, 11, 19);
     const td_view v = {g, a->tiles};
-    td_scene_defaults(&s);
-    s.camera.x = 10.0, s.camera.y = 30.0, s.camera.z = 250.5;
-    s.camera.heading = 135.0, s.camera.fov = 120.0;
-    s.image.width = 11, s.image.height = 19, s.image.format = TD_FORMAT_DEPTH32F;
-    s.quality.method = TD_METHOD_AUTO;
     for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
         s.quality.surface = (td_surface)sf;
         render(&v, &s, 0, 1, &r);
@@ -360,33 +371,22 @@ static void test_columns_plane_vertex(void **state)
 
 /* A line a rounding off a grid line (found by fuzz_render on level cameras): the eye on
  * row line 6 as the frame computes it (y = 80, sy = 13.333333333333332: V =
- * 6.000000000000001) looking
- * west (heading 270: d_y = -1.8e-16), so the line crosses the row line only 64 m out. The
+ * 6.000000000000001) looking west (heading 270: d_y = -1.8e-16), so the line crosses the
+ * row line only 64 m out. The
  * box the first rays pass over ends 40 m out, where the rounded position is exactly 6.0,
  * and the walk went on in the row below, whose columns on the plane surface are 3 m lower.
  * The cells after a box crossed (and at the start) are taken by the crossing times; every
  * pixel is the plain walk's, three samples a side. */
 static void test_columns_row_line(void **state)
 {
-    td_grid *g = terrain_seeded(25, 24, 10.0, 1, 5);
     td_accel *a = NULL;
-    td_accel_opts ao;
     static td_scene s;
     td_render_result on, off;
     (void)state;
-    g->sy = 13.333333333333332; /* 40 / 3 less an ulp: 80 / sy = 6.000000000000001 */
-    for (int32_t j = 0; j < g->h; j++)
-        for (int32_t i = 0; i < g->w; i++)
-            g->z[(size_t)j * g->w + i] = (float)(200 + 2 * i + 3 * j);
-    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
-    td_accel_opts_for(TD_METHOD_AUTO, &ao);
-    assert_int_equal(td_accel_build(g, &ao, &a, NULL, NULL), TD_OK);
+    /* sy 40 / 3 less an ulp: 80 / sy = 6.000000000000001 */
+    td_grid *g = plane_case(25, 24, 13.333333333333332, 2, 3, &a, &s, (const double[3]){200.0, 80.0, 410.5}, 270.0,
+                            70.0, 5, 21);
     const td_view v = {g, a->tiles};
-    td_scene_defaults(&s);
-    s.camera.x = 200.0, s.camera.y = 80.0, s.camera.z = 410.5;
-    s.camera.heading = 270.0, s.camera.fov = 70.0;
-    s.image.width = 5, s.image.height = 21, s.image.format = TD_FORMAT_DEPTH32F;
-    s.quality.method = TD_METHOD_AUTO;
     s.quality.samples = 3;
     for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
         s.quality.surface = (td_surface)sf;
