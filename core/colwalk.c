@@ -3,7 +3,7 @@
  *
  * The line is E + s h in the horizontal distance s, in cells u = U + s du, v = V + s dv.
  * Cells are entered as trace.c's walk enters them: a point on a grid line belongs to the
- * cell the line goes on into (cell_at), leaving across a sample point moves both indices.
+ * cell the line goes on into (td_cell_along, surface.h), leaving across a sample point moves both indices.
  * A cell's profile is its surface's height at the line's entry (s_in) and exit (s_out) and,
  * on the triangle surface, where the line crosses the diagonal a + b = 1 (trace.c's
  * triangle_cross splits the segment there); each ray's f = z - height is tested over it by
@@ -27,23 +27,6 @@ enum { CW_START, CW_U, CW_V, CW_UV }; /* how a cell was entered (trace.c's ENTRY
 
 static inline double dmin(double a, double b) { return a < b ? a : b; }
 static inline double dmax(double a, double b) { return a > b ? a : b; }
-static inline double clamp01(double x) { return td_clamp01(x); }
-
-/* The cell of position pos along an axis walked in direction s (trace.c's cell_along). */
-static inline int32_t cell_at(double pos, int s, int32_t hi)
-{
-    int32_t c;
-    if (!(pos >= 0.0)) {
-        c = 0;
-    } else if (pos >= (double)hi + 1.0) {
-        c = hi;
-    } else {
-        c = (int32_t)pos;
-        if (s < 0 && (double)c == pos && c > 0)
-            c--;
-    }
-    return c;
-}
 
 int td_colwalk_init(td_colwalk *cw, const td_view *v, td_surface sf, const double o[3])
 {
@@ -121,7 +104,7 @@ static int32_t cell_by_time(const cw_line *l, int axis, double s)
     const double P = axis ? l->V : l->U, d = axis ? l->dv : l->du;
     const int sg = axis ? l->sv : l->su;
     const int32_t hi = axis ? l->cmax_j : l->cmax_i;
-    int32_t c = cell_at(P + s * d, sg, hi);
+    int32_t c = td_cell_along(P + s * d, sg, 0, hi);
     if (sg > 0) {
         while (c > 0 && (axis ? time_v(l, c) : time_u(l, c)) > s)
             c--;
@@ -186,7 +169,7 @@ static inline __attribute__((always_inline)) void finish(const td_surface sf, co
                                                          const double c[4], double s, int wall, int32_t ci,
                                                          int32_t cj, double sx, double sy, td_colhit *h)
 {
-    const double a = clamp01(l->U + s * l->du - ci), b = clamp01(l->V + s * l->dv - cj);
+    const double a = td_clamp01(l->U + s * l->du - ci), b = td_clamp01(l->V + s * l->dv - cj);
     double nv[3] = {0.0, 0.0, 1.0}, gr[2];
     if (sf == TD_SURFACE_PLANE) { /* the top, or the wall the ray came through */
         nv[0] = wall == CW_U ? -(double)l->su : 0.0;
@@ -285,23 +268,24 @@ static inline __attribute__((always_inline)) uint32_t walk(const td_colwalk *cw,
                     /* the entry's height is the cell before's exit height (the same point
                        of their shared edge, where every surface is the edge's line) */
                     const double hprev = hb;
-                    hb = height(sf, c, clamp01(ub), clamp01(vb));
+                    hb = height(sf, c, td_clamp01(ub), td_clamp01(vb));
                     if (sf == TD_SURFACE_LINEAR && entry == CW_START) {
                         /* the start's cell: the line from where it enters the cell behind */
                         double tb = dmax(l.su ? time_u(&l, l.su > 0 ? ci : ci + 1) : -INFINITY,
                                          l.sv ? time_v(&l, l.sv > 0 ? cj : cj + 1) : -INFINITY);
-                        double hback = td_patch_bilinear(c, clamp01(U + tb * du - ci), clamp01(V + tb * dv - cj));
-                        ha = s_out > tb ? hback + (hb - hback) * clamp01((s_in - tb) / (s_out - tb))
-                                        : td_patch_bilinear(c, clamp01(ua), clamp01(va));
+                        double hback =
+                            td_patch_bilinear(c, td_clamp01(U + tb * du - ci), td_clamp01(V + tb * dv - cj));
+                        ha = s_out > tb ? hback + (hb - hback) * td_clamp01((s_in - tb) / (s_out - tb))
+                                        : td_patch_bilinear(c, td_clamp01(ua), td_clamp01(va));
                     } else {
-                        ha = fresh ? height(sf, c, clamp01(ua), clamp01(va)) : hprev;
+                        ha = fresh ? height(sf, c, td_clamp01(ua), td_clamp01(va)) : hprev;
                     }
                     if (sf == TD_SURFACE_TRIANGLE) {
                         const double da = ua + va - 1.0, db = ub + vb - 1.0;
                         if ((da < 0.0 && db > 0.0) || (da > 0.0 && db < 0.0)) {
                             split = 1;
                             sd = s_in + (s_out - s_in) * (da / (da - db));
-                            hd = c[1] + (c[2] - c[1]) * clamp01(V + sd * dv - cj);
+                            hd = c[1] + (c[2] - c[1]) * td_clamp01(V + sd * dv - cj);
                         }
                     }
                 }

@@ -1,7 +1,8 @@
 /* surface.h: the four surfaces' arithmetic inside one cell, for the two walks that decide
  * where a ray meets them: the cell walk (trace.c, one ray) and the column walk (colwalk.c,
  * the rays of one vertical plane). Both take their heights, crossings and normals from
- * these expressions, so a ray's hit is decided by the same rules either way.
+ * these expressions, so a ray's hit is decided by the same rules either way, and enter
+ * cells by the same rule (td_cell_along).
  *
  * A cell's corners are c[0] = (i, j), c[1] = (i+1, j), c[2] = (i, j+1), c[3] = (i+1, j+1);
  * (a, b) in [0, 1]^2 is a point's place in it. f is a ray's height over the surface along
@@ -11,8 +12,27 @@
 #define TD_SURFACE_H
 
 #include <math.h>
+#include <stdint.h>
 
 static inline double td_clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
+
+/* The cell index along one axis that contains a ray just after it is at position pos (in
+ * cells), walking in direction s, within [lo, hi]: a point on a line belongs to the cell
+ * the ray goes on into (going west or south, the cell before the line). */
+static inline int32_t td_cell_along(double pos, int s, int32_t lo, int32_t hi)
+{
+    int32_t c;
+    if (!(pos >= (double)lo)) { /* below the range (or NaN): clamp before converting */
+        c = lo;
+    } else if (pos >= (double)hi + 1.0) {
+        c = hi;
+    } else {
+        c = (int32_t)pos; /* floor, pos >= lo >= 0 */
+        if (s < 0 && (double)c == pos && c > lo)
+            c--;
+    }
+    return c;
+}
 
 /* Height plane: the cell's highest corner. */
 static inline double td_patch_plane(const double c[4])

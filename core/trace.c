@@ -239,20 +239,10 @@ static inline double exit_v(const walk *w, int32_t cj)
     return time_v(w, (double)(cj + (w->sv > 0)));
 }
 
-/* The cell index along one axis that contains the ray just after time t. */
+/* The cell index along one axis that contains the ray just after time t (surface.h). */
 static inline int32_t cell_along(double pos, int s, int32_t lo, int32_t hi)
 {
-    int32_t c;
-    if (!(pos >= (double)lo)) { /* below the range (or NaN): clamp before converting */
-        c = lo;
-    } else if (pos >= (double)hi + 1.0) {
-        c = hi;
-    } else {
-        c = (int32_t)pos; /* floor, pos >= lo >= 0 */
-        if (s < 0 && (double)c == pos && c > lo)
-            c--; /* going west/south, a point on the line belongs to the cell before it */
-    }
-    return c;
+    return td_cell_along(pos, s, lo, hi);
 }
 
 /* cell_along's cell c at time t, put where the walk is at t: back a cell (along the walk's

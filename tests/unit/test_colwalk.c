@@ -4,10 +4,10 @@
  *
  * - Random level cameras over procedural terrain (unequal spacing; heights as they come,
  *   rounded to whole metres with a flat plateau, or with voids; the max-mipmaps resident,
- *   and not, where the silhouette partition takes the rays instead): eyes anywhere, on grid lines and on samples, headings along the axes and the
- *   diagonals or anywhere, fields of view from 20 to 170 degrees, images taller than a
- *   block (so upper blocks start from their wedge's horizon). Every pixel's depth is the
- *   plain walk's, or the pixel's ray only touches the surface: the plain walk with the ray
+ *   and not, where the silhouette partition takes the rays instead): eyes anywhere, on
+ *   grid lines and on samples, headings along the axes and the diagonals or anywhere,
+ *   fields of view from 20 to 170 degrees, images taller than a block (so upper blocks
+ *   start from their wedge's horizon). Every pixel's depth is the plain walk's, or the pixel's ray only touches the surface: the plain walk with the ray
  *   lowered by the walk's margin hits at or before it, and raised by it, at or after (a
  *   tie, which the oracle tests judge the same way); and those ties are rare.
  * - Shaded renders (normals, shadows) give the same picture as the plain walk's.
@@ -42,7 +42,7 @@ static double rnd(uint64_t *s)
 }
 
 enum { PLAIN, INTEGER, VOIDS, KINDS };
-static int cur_kind, cur_res;
+static int cur_kind, cur_res; /* the grid and residency being judged (judge's report) */
 
 /* 97 x 61 samples, 30 x 45 m: as generated, rounded to whole metres with a flat plateau
  * (ties: rays along and through equal heights), or with voids. */
@@ -143,15 +143,14 @@ static int judge(const td_view *v, const td_scene *s, const td_render_result *on
                 continue;
             td_ray r;
             td_camera_ray(&cam, x, y, &r);
-            double lo = walk_t(v, s->quality.surface, &r, -margin), hi = walk_t(v, s->quality.surface, &r, margin);
+            const double lo = walk_t(v, s->quality.surface, &r, -margin);
+            const double hi = walk_t(v, s->quality.surface, &r, margin);
             int ok = (double)a >= (float)lo * (1.0 - 1e-6) && (double)a <= (float)hi * (1.0 + 1e-6);
             if (!ok)
-                print_error("ray %.17g %.17g %.17g  %.17g %.17g %.17g i %zu\n", r.o[0], r.o[1], r.o[2], r.d[0], r.d[1], r.d[2], i);
-            if (!ok)
-                print_error("kind %d res %d surface %d, eye (%.17g, %.17g, %.17g) heading %.17g fov %.17g, pixel (%d, %d): "
-                            "column walk %.9g, plain walk %.9g, lowered %.9g, raised %.9g\n",
-                            cur_kind, cur_res, (int)s->quality.surface, s->camera.x, s->camera.y, s->camera.z, s->camera.heading,
-                            s->camera.fov, (int)x, (int)y, (double)a, (double)b, lo, hi);
+                print_error("grid %d, resident %d, surface %d, eye (%.17g, %.17g, %.17g) heading %.17g fov %.17g, "
+                            "pixel (%d, %d): column walk %.9g, plain walk %.9g, lowered %.9g, raised %.9g\n",
+                            cur_kind, cur_res, (int)s->quality.surface, s->camera.x, s->camera.y, s->camera.z,
+                            s->camera.heading, s->camera.fov, (int)x, (int)y, (double)a, (double)b, lo, hi);
             assert_true(ok);
             ties++;
         }
