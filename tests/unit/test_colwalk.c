@@ -8,8 +8,9 @@
  *   grid lines and on samples, headings along the axes and the diagonals or anywhere,
  *   fields of view from 20 to 170 degrees, images taller than a block (so upper blocks
  *   start from their wedge's horizon). Every pixel's depth is the plain walk's, or the
- *   pixel's ray only touches the surface: the plain walk with the ray lowered by the walk's margin hits at or before it, and raised by it, at or after (a
- *   tie, which the oracle tests judge the same way); and those ties are rare.
+ *   pixel's ray only touches the surface: the plain walk with the ray lowered by the
+ *   walk's margin hits at or before it, and raised by it, at or after (a tie, which the
+ *   oracle tests judge the same way); and those ties are rare.
  * - Shaded renders (normals, shadows) give the same picture as the plain walk's.
  * - The height plane's walls at a sample point the line runs through, and a line a
  *   rounding off a row line (findings of fuzz_render): the plain walk's pixels.
