@@ -211,6 +211,20 @@ out:
     return rc;
 }
 
+/* A panorama's azimuth (radians, clockwise from north) at pixel abscissa px, and its row
+ * at ordinate py: the tangent of the elevation and 1 / sqrt(1 + te^2). td_camera_ray and
+ * the rows of td_camera_cyl_dirs take them from here, so their rays have the same bits. */
+static inline double cyl_azimuth(const td_camera *cam, double px)
+{
+    return cam->heading + (px + 0.5 - 0.5 * cam->width) / cam->focal_px;
+}
+
+static inline void cyl_row(const td_camera *cam, double py, double *te, double *inv)
+{
+    *te = cam->tan_top - (py + 0.5) / cam->fv_px;
+    *inv = 1.0 / sqrt(1.0 + *te * *te);
+}
+
 void td_camera_ray(const td_camera *cam, double px, double py, td_ray *r)
 {
     double u = px + 0.5, v = py + 0.5;
@@ -222,8 +236,8 @@ void td_camera_ray(const td_camera *cam, double px, double py, td_ray *r)
         r->d[1] = 0.0;
         r->d[2] = -1.0;
     } else if (cam->projection == TD_PROJ_CYLINDRICAL) {
-        double az = cam->heading + (u - 0.5 * cam->width) / cam->focal_px;
-        double te = cam->tan_top - v / cam->fv_px, inv = 1.0 / sqrt(1.0 + te * te);
+        double az = cyl_azimuth(cam, px), te, inv;
+        cyl_row(cam, py, &te, &inv);
         memcpy(r->o, cam->o, sizeof r->o);
         r->d[0] = sin(az) * inv;
         r->d[1] = cos(az) * inv;
@@ -271,6 +285,28 @@ void td_camera_dirs(const td_camera *cam, double py, const double *ax, int n, do
     }
 }
 
+void td_camera_cyl_columns(const td_camera *cam, const double *px, int n, double *sa, double *ca)
+{
+    for (int k = 0; k < n; k++) {
+        double az = cyl_azimuth(cam, px[k]);
+        sa[k] = sin(az);
+        ca[k] = cos(az);
+    }
+}
+
+TD_ROW_CLONES
+void td_camera_cyl_dirs(const td_camera *cam, double py, const double *sa, const double *ca, int n,
+                        double *dx, double *dy, double *dz)
+{
+    double te, inv;
+    cyl_row(cam, py, &te, &inv);
+    for (int k = 0; k < n; k++) {
+        dx[k] = sa[k] * inv;
+        dy[k] = ca[k] * inv;
+        dz[k] = te * inv;
+    }
+}
+
 /* Is the image of the vertical direction s (+1 up, -1 down) in front of the camera and
  * within a pixel of the rectangle? */
 static int vertical_inside(const td_camera *cam, double s, double px0, double py0, double px1,
@@ -293,8 +329,12 @@ int td_camera_azimuths_poly(const td_camera *cam, const double (*p)[2], int np, 
         bx0 = p[k][0] < bx0 ? p[k][0] : bx0, bx1 = p[k][0] > bx1 ? p[k][0] : bx1;
         by0 = p[k][1] < by0 ? p[k][1] : by0, by1 = p[k][1] > by1 ? p[k][1] : by1;
     }
-    int ok = np > 0 && cam->projection == TD_PROJ_PERSPECTIVE && !vertical_inside(cam, 1.0, bx0, by0, bx1, by1) &&
-             !vertical_inside(cam, -1.0, bx0, by0, bx1, by1);
+    /* a panorama's azimuth follows px alone (its rays are never vertical): the box's
+       columns less than pi apart, with a pixel's margin, for the extremes below to hold */
+    int ok = np > 0 && (cam->projection == TD_PROJ_CYLINDRICAL
+                            ? (bx1 - bx0 + 1.0) / cam->focal_px < M_PI
+                            : cam->projection == TD_PROJ_PERSPECTIVE && !vertical_inside(cam, 1.0, bx0, by0, bx1, by1) &&
+                                  !vertical_inside(cam, -1.0, bx0, by0, bx1, by1));
     double ref = 0.0, lo = 0.0, hi = 0.0;
     for (int k = 0; ok && k < np; k++) {
         td_ray r;

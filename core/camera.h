@@ -60,12 +60,24 @@ void td_camera_abscissas(const td_camera *cam, const double *px, int n, double *
 void td_camera_dirs(const td_camera *cam, double py, const double *ax, int n, double *dx,
                     double *dy, double *dz);
 
+/* A cylindrical camera's columns: the sine and cosine of the azimuth of the column through
+ * px[k], k < n, into sa[k] and ca[k] (td_camera_ray's). Rows share them, as they share
+ * td_camera_abscissas'. */
+void td_camera_cyl_columns(const td_camera *cam, const double *px, int n, double *sa, double *ca);
+
+/* The unit directions of a cylindrical camera's rays through pixels (px[k], py), k < n,
+ * from their columns' (td_camera_cyl_columns), the same bits as td_camera_ray's, into dx,
+ * dy, dz (the rays start at cam->o): one sine and cosine a column, not one a sample. */
+void td_camera_cyl_dirs(const td_camera *cam, double py, const double *sa, const double *ca, int n,
+                        double *dx, double *dy, double *dz);
+
 /* Bounds the azimuths (atan2(d_y, d_x), radians) of the rays through the rectangle of
  * pixel coordinates [px0, px1] x [py0, py1]: [*az0, *az1], az1 - az0 < pi. The rays of
  * one azimuth pass through one half-line from the image of the vertical (the vanishing
  * point of verticals), so over a rectangle that does not hold that point the extremes are
- * at its corners. Returns 0 (nothing bounded) when it does hold it (with a pixel's
- * margin), for an orthographic camera, or when the corners span pi or more. */
+ * at its corners (a cylindrical camera's azimuth follows the column alone). Returns 0
+ * (nothing bounded) when it does hold it (with a pixel's margin), for an orthographic
+ * camera, or when the corners span pi or more. */
 int td_camera_azimuths(const td_camera *cam, double px0, double py0, double px1, double py1,
                        double *az0, double *az1);
 

@@ -97,11 +97,20 @@
  *              horizon), where the eye is above the surface around it. The same depths and
  *              pictures as the fans on trinidad's level view, every surface; primary stage
  *              (callgrind, triangle) 120.0 -> 91.2 M instructions, 23.5 -> 15.6 ms (medians
- *              of 11 interleaved runs).
+ *              of 11 interleaved runs). A panorama's columns too (each one azimuth at any
+ *              pitch; the rays that bend under curvature left to the curvature stage),
+ *              its rays made a sample row at a time (td_camera_cyl_dirs: a sine and cosine
+ *              a column, not a sample): the README's panorama, primary stage 630 -> 140
+ *              ms, the same picture.
  *   occlusion  shadow and AO rays are any-hit queries (td_occluded): no hit point or
  *              normal, the max-mipmap climbed from 2 x 2 blocks; a block's straight
  *              shadow rays in packets of four that walk their first cells together
- *              (td_occluded_par).
+ *              (td_occluded_par). A shadow ray that bends under curvature is asked
+ *              straight in the same packets first: its chords lie above the straight
+ *              ray, so a clear straight ray is a lit bent one; the others' chords are
+ *              any-hit queries too, with the sun bound (occluded_curved). The README's
+ *              panorama (trinidad, 1800 x 300, 2 x 2 samples, one thread): the shadows
+ *              stage 543 -> 98 ms, 1,069,327 bent rays traced -> 707, the same picture.
  *   sunlit     one sweep against the sun per render bounds, per 4 x 4 cells (coarser on
  *              grids of more than 2^24 cells), the height above which a point is surely
  *              lit (sunlit.h); a shadow ray ends there.
@@ -314,7 +323,9 @@ struct ctx {
     int depth_only;
     int horizon;     /* camera rays start from their wedge's horizon (see horizon.h) */
     int beam;        /* or, where it gives none, from their slice's beam (see beam.h) */
-    int columns;     /* an upright, level camera: its sample columns walked as one (colwalk.h) */
+    int columns;     /* an upright, level camera or a panorama: its sample columns walked as
+                        one (colwalk.h) */
+    int col_horizon; /* their lowest rays started from the block wedge's horizon */
     td_colwalk cw;   /* their eye's set-up */
     int plain_secondary; /* shadow and AO rays traced for their nearest hit (OFF_OCCLUSION) */
     td_ray *shadow_rays; /* the caller's copy of the shadow rays, or NULL */
@@ -364,8 +375,8 @@ static int clip_xy(const ctx *c, const double o[3], const double d[3], double *t
                 ta = tb;
                 tb = tmp;
             }
-            lo = fmax(lo, ta);
-            hi = fmin(hi, tb);
+            lo = dmax_(lo, ta); /* lo and hi are never NaN: fmax's and fmin's answers */
+            hi = dmin_(hi, tb);
         }
     }
     if (ok && !(lo <= hi))
@@ -391,54 +402,115 @@ static int needs_curve(const ctx *c, const double o[3], const double d[3], doubl
 /* The drop a secondary ray must reach to be bent, and its chords' tolerance (metres). */
 #define TD_CURVE_EPS2 0.5
 
-/* A ray bent about its origin, p(t) = o + t*d + (0, 0, a*(t*|d_xy|)^2), as a chain of
- * straight chords on view v (see the top of the file), each within max(0.5 m,
- * eps_per_t * t) of the parabola. On a hit, hit->t is the distance along the unbent
- * ray's parameter, hit->p the terrain point. */
+/* The chords of a ray bent about its origin, p(t) = o + t*d + (0, 0, a*(t*|d_xy|)^2), over
+ * its run across the grid (see the top of the file), each within max(0.5 m, eps_per_t * t)
+ * of the parabola: chords_begin, then chords_next for each in turn. The chain ends at the
+ * run's end, or once a chord ends above every height with the parabola climbing (it only
+ * climbs faster). The chords lie above the parabola, which lies above the straight ray:
+ * each has the straight ray's horizontal direction and at least its slope. */
+typedef struct chords {
+    double a, dxy, eps_per_t;
+    double tc, t1, pc[3]; /* the next chord's start: its ray parameter and point */
+    int more, started;
+} chords;
+
+/* The parabola's point at ray parameter t. */
+static void chord_point(const chords *ch, const td_ray *r, double t, double p[3])
+{
+    for (int k = 0; k < 3; k++)
+        p[k] = r->o[k] + t * r->d[k];
+    p[2] += ch->a * (t * ch->dxy) * (t * ch->dxy);
+}
+
+static void chords_begin(const ctx *c, const td_ray *r, double eps_per_t, chords *ch)
+{
+    double t0 = 0.0, t1 = 0.0;
+    ch->a = c->curv_a;
+    ch->dxy = hypot(r->d[0], r->d[1]);
+    ch->eps_per_t = eps_per_t;
+    ch->more = clip_xy(c, r->o, r->d, &t0, &t1) && ch->dxy > 0.0;
+    ch->started = 0;
+    ch->tc = t0;
+    ch->t1 = t1;
+    if (ch->more)
+        chord_point(ch, r, t0, ch->pc);
+}
+
+/* The next chord as a segment (seg: from its start to its end for t in [0, 1]) and the
+ * bent ray's parameters at its ends, *ta and *tb; 0 when the chain has ended. */
+static int chords_next(const ctx *c, chords *ch, const td_ray *r, td_ray *seg, double *ta, double *tb)
+{
+    /* above every height and climbing after the chord before: the parabola only climbs faster */
+    if (ch->started && ch->pc[2] > c->zmax && r->d[2] + 2.0 * ch->a * ch->dxy * ch->dxy * ch->tc > 0.0)
+        ch->more = 0;
+    ch->more = ch->more && ch->tc < ch->t1;
+    if (ch->more) {
+        double eps = fmax(TD_CURVE_EPS2, ch->eps_per_t * ch->tc);
+        double run = sqrt(4.0 * eps / ch->a); /* horizontal */
+        double tn = fmin(ch->t1, ch->tc + run / ch->dxy);
+        double pn[3];
+        chord_point(ch, r, tn, pn);
+        for (int k = 0; k < 3; k++) {
+            seg->o[k] = ch->pc[k];
+            seg->d[k] = pn[k] - ch->pc[k];
+        }
+        seg->tmin = 0.0;
+        seg->tmax = 1.0;
+        *ta = ch->tc;
+        *tb = tn;
+        ch->tc = tn;
+        memcpy(ch->pc, pn, sizeof pn);
+        ch->started = 1;
+    }
+    return ch->more;
+}
+
+/* A bent ray's nearest hit on view v, its chords traced in turn. On a hit, hit->t is the
+ * distance along the unbent ray's parameter, hit->p the terrain point. */
 static void trace_curved(const ctx *c, const td_view *v, const td_ray *r, double eps_per_t,
                          td_hit *hit, uint64_t *steps, uint64_t *segs)
 {
     const td_scene *s = c->s;
-    double t0, t1, a = c->curv_a, dxy = hypot(r->d[0], r->d[1]);
+    chords ch;
+    td_ray seg;
+    double ta, tb;
     hit->t = INFINITY;
     hit->steps = 0;
     hit->method = s->quality.method;
-    if (!clip_xy(c, r->o, r->d, &t0, &t1) || !(dxy > 0.0))
-        return;
-    double tc = t0;
-    double pc[3];
-    for (int k = 0; k < 3; k++)
-        pc[k] = r->o[k] + tc * r->d[k];
-    pc[2] += a * (tc * dxy) * (tc * dxy);
-    while (tc < t1) {
-        double eps = fmax(TD_CURVE_EPS2, eps_per_t * tc);
-        double run = sqrt(4.0 * eps / a); /* horizontal */
-        double tn = fmin(t1, tc + run / dxy);
-        double pn[3];
-        for (int k = 0; k < 3; k++)
-            pn[k] = r->o[k] + tn * r->d[k];
-        pn[2] += a * (tn * dxy) * (tn * dxy);
-        td_ray seg;
-        for (int k = 0; k < 3; k++) {
-            seg.o[k] = pc[k];
-            seg.d[k] = pn[k] - pc[k];
-        }
-        seg.tmin = 0.0;
-        seg.tmax = 1.0;
+    chords_begin(c, r, eps_per_t, &ch);
+    while (hit->t == INFINITY && chords_next(c, &ch, r, &seg, &ta, &tb)) {
         td_trace(v, s->quality.method, s->quality.surface, &seg, hit);
         *steps += hit->steps;
         *segs += 1;
-        if (hit->t <= 1.0) {
-            hit->t = tc + hit->t * (tn - tc);
-            return;
-        }
-        hit->t = INFINITY;
-        /* above every height and climbing: the parabola only climbs faster */
-        if (pn[2] > c->zmax && r->d[2] + 2.0 * a * dxy * dxy * tn > 0.0)
-            return;
-        tc = tn;
-        memcpy(pc, pn, sizeof pc);
+        hit->t = hit->t <= 1.0 ? ta + hit->t * (tb - ta) : INFINITY;
     }
+}
+
+/* Whether a bent shadow ray meets the terrain: its chords as any-hit queries
+ * (td_occluded), each with the sun bound, which holds for them as for the straight ray.
+ * A chord from a point P has the sun's horizontal direction and at least its slope, so
+ * at horizontal distance d from P it is at least P_z + d tan (the sun's slope) high, and
+ * so are the chords after it (the chain is convex); above the bound of P's block (sunlit.h)
+ * that clears the terrain: a chord's query ends there (lit_end), and a chord starting
+ * there ends the chain (td_sunlit_clear). Any crossing ends it too: the nearest is not
+ * needed.
+ * The answer is trace_curved's (fuzz_render holds the render's pixels to it). */
+static int occluded_curved(const ctx *c, const td_view *v, const td_ray *r, const td_sunlit *lit,
+                           uint64_t *steps, uint64_t *segs)
+{
+    chords ch;
+    td_ray seg;
+    double ta, tb;
+    int hit = 0, clear = 0;
+    chords_begin(c, r, 0.0, &ch);
+    while (!hit && !clear && chords_next(c, &ch, r, &seg, &ta, &tb)) {
+        uint32_t st = 0;
+        clear = td_sunlit_clear(v->grid, lit, seg.o); /* the chain lit from the chord's start on */
+        hit = !clear && td_occluded(v, c->s->quality.method, c->s->quality.surface, &seg, lit, &st);
+        *steps += st;
+        *segs += 1;
+    }
+    return hit;
 }
 
 /* Distance to the water plane along the (possibly bent) camera ray, inside the grid;
@@ -667,16 +739,24 @@ static void keep_ray(const ctx *c, td_ray *out, const blk *b, int i, const td_ra
 }
 
 /* Whether a shadow or AO ray meets the terrain: an any-hit query from the surface
- * (td_occluded), or the bent chords of trace_secondary for a long shadow ray under
- * curvature. */
+ * (td_occluded), or for a long shadow ray under curvature its bent chords, as any-hit
+ * queries (occluded_curved; their nearest hits, trace_secondary, with the device off). */
 static int occluded(const ctx *c, worker *w, td_ray_kind kind, const td_view *v, const td_ray *r)
 {
     int hit;
     uint32_t steps = 0;
     if (kind == TD_RAY_SHADOW && c->curv2 && needs_curve(c, r->o, r->d, c->curv_smin2)) {
-        td_hit h;
-        trace_secondary(c, w, kind, v, r, &h);
-        hit = h.t < INFINITY;
+        if (c->plain_secondary) { /* OFF_OCCLUSION: the nearest hit, as before the device */
+            td_hit h;
+            trace_secondary(c, w, kind, v, r, &h);
+            hit = h.t < INFINITY;
+        } else {
+            uint64_t st = 0;
+            hit = occluded_curved(c, v, r, v == c->v ? c->sunlit : NULL, &st, &w->st.curve_segments);
+            w->st.curved_secondary++;
+            w->st.steps += st;
+            w->st.kind_steps[kind] += st;
+        }
     } else {
         if (c->plain_secondary) { /* OFF_OCCLUSION: the nearest hit, as before the device */
             td_hit h;
@@ -713,13 +793,16 @@ static inline void sample_init(const ctx *c, const double o[3], double dx, doubl
 /* The block's camera rays into its sample records, in sample order (pixels, then
  * sub-samples). A perspective camera's come a sample row at a time (td_camera_dirs, the
  * same rays as td_camera_ray's: measured about 190 -> 70 instructions a sample with its
- * record's initialisation). */
+ * record's initialisation), and so do a panorama's (td_camera_cyl_dirs: one sine and
+ * cosine a sample column). */
 static void camera_samples(const ctx *c, worker *w, const blk *b)
 {
     const int n = c->n, nn = n * n;
     const int32_t ns_row = b->bw * n; /* samples on a sample row of the block */
     double px[TD_BLOCK * TD_SAMPLES_MAX], ax[TD_BLOCK * TD_SAMPLES_MAX], d[3][TD_BLOCK * TD_SAMPLES_MAX];
-    const int persp = c->cam.projection == TD_PROJ_PERSPECTIVE;
+    double sa[TD_BLOCK * TD_SAMPLES_MAX], ca[TD_BLOCK * TD_SAMPLES_MAX]; /* a panorama's columns */
+    const int persp = c->cam.projection == TD_PROJ_PERSPECTIVE, cyl = c->cam.projection == TD_PROJ_CYLINDRICAL;
+    const int eye = persp || cyl; /* rays from the eye, a sample row at a time */
     td_ray r = {.tmin = 0.0, .tmax = INFINITY};
     double sub[TD_SAMPLES_MAX]; /* (s + 0.5) / n: x + sub[s] - 0.5 is the sample's x, the
                                    same bits as computing it whole, without a division */
@@ -730,13 +813,17 @@ static void camera_samples(const ctx *c, worker *w, const blk *b)
             px[k++] = x + sub[sc] - 0.5;
     if (persp)
         td_camera_abscissas(&c->cam, px, ns_row, ax);
+    else if (cyl)
+        td_camera_cyl_columns(&c->cam, px, ns_row, sa, ca);
     for (int32_t y = b->y0; y < b->y1; y++) {
         for (int sr = 0; sr < n; sr++) {
             double py = y + sub[sr] - 0.5;
             smp *row = &w->s[(y - b->y0) * b->bw * nn + sr * n];
             if (persp)
                 td_camera_dirs(&c->cam, py, ax, ns_row, d[0], d[1], d[2]);
-            if (persp && n == 1) { /* a sample row is a pixel row of w->s: one loop (about
+            else if (cyl)
+                td_camera_cyl_dirs(&c->cam, py, sa, ca, ns_row, d[0], d[1], d[2]);
+            if (eye && n == 1) { /* a sample row is a pixel row of w->s: one loop (about
                                       35 instructions a sample less than the general one) */
                 for (int32_t k = 0; k < ns_row; k++)
                     sample_init(c, c->cam.o, d[0][k], d[1][k], d[2][k], &row[k]);
@@ -745,7 +832,7 @@ static void camera_samples(const ctx *c, worker *w, const blk *b)
             for (int32_t k = 0, pix = 0; pix < b->bw; pix++) {
                 smp *sm = &row[pix * nn];
                 for (int sc = 0; sc < n; sc++, k++) {
-                    if (persp) {
+                    if (eye) {
                         sample_init(c, c->cam.o, d[0][k], d[1][k], d[2][k], &sm[sc]);
                     } else { /* an orthographic camera's rays start apart */
                         td_camera_ray(&c->cam, px[k], py, &r);
@@ -1121,11 +1208,14 @@ static void trace_silhouette(worker *w, const blk *b)
     w->st.kind_steps[TD_RAY_PRIMARY] += probes;
 }
 
-/* Camera rays of an upright, level camera, a sample column at a time (colwalk.h): the
- * column's rays share their horizontal direction (td_camera_dirs: the up vector's x and y
- * are 0, so x and y do not depend on the row), taken from the bottom up in rising slope.
- * Each hit is finished as a fan's: t along the ray's own unit direction, the point, the
- * surface's normal there, the height error against the bilinear surface. */
+/* Camera rays of an upright, level camera or a panorama, a sample column at a time
+ * (colwalk.h): the column's rays share their horizontal direction (td_camera_dirs: the up
+ * vector's x and y are 0, so x and y do not depend on the row; a panorama's column is one
+ * azimuth), taken from the bottom up in rising slope. Rays that bend (F_CURVE) are the
+ * curvature stage's: the column's others are walked (a ray above a lower one still cannot
+ * meet the terrain first). Each hit is finished as a fan's: t along the ray's own unit
+ * direction, the point, the surface's normal there, the height error against the
+ * bilinear surface. */
 static void trace_columns(worker *w, const blk *b)
 {
     const ctx *c = w->c;
@@ -1134,15 +1224,16 @@ static void trace_columns(worker *w, const blk *b)
     td_render_stats *st = &w->st;
     double e[TD_BLOCK_TALL * TD_SAMPLES_MAX], hk[TD_BLOCK_TALL * TD_SAMPLES_MAX];
     int row[TD_BLOCK_TALL * TD_SAMPLES_MAX]; /* the k-th sample up a column: its offset */
+    int at[TD_BLOCK_TALL * TD_SAMPLES_MAX];  /* the k-th straight ray up a column: its offset */
     td_colhit h[TD_BLOCK_TALL * TD_SAMPLES_MAX];
-    uint64_t steps = 0, nhit = 0, untraced = 0;
+    uint64_t steps = 0, nhit = 0, untraced = 0, bent = 0;
     uint32_t bins = 0;
     /* the block's wedge: where each column's lowest ray may first meet the terrain */
     const double X0 = b->x0 + 0.5 / n - 0.5, Y0 = b->y0 + 0.5 / n - 0.5, X1 = b->x1 - 0.5 / n - 0.5,
                  Y1 = b->y1 - 0.5 / n - 0.5;
     const double corner[4][2] = {{X0, Y0}, {X1, Y0}, {X1, Y1}, {X0, Y1}};
     double az0, az1;
-    const int hz = c->horizon && td_camera_azimuths_poly(&c->cam, corner, 4, &az0, &az1) &&
+    const int hz = c->col_horizon && td_camera_azimuths_poly(&c->cam, corner, 4, &az0, &az1) &&
                    td_horizon_begin(&w->hz, c->v, c->cam.o, az0, az1);
     for (int32_t k = 0; k < nrow; k++) { /* from the bottom sample row up */
         const int32_t r = nrow - 1 - k;
@@ -1150,23 +1241,30 @@ static void trace_columns(worker *w, const blk *b)
     }
     for (int32_t xs = 0; xs < ncol; xs++) {
         smp *const col = &w->s[xs / n * nn + xs % n];
-        int rising = 1;
+        int rising = 1, m = 0;
         for (int32_t k = 0; k < nrow; k++) {
             const smp *sm = &col[row[k]];
-            hk[k] = sqrt(sm->d[0] * sm->d[0] + sm->d[1] * sm->d[1]);
-            e[k] = sm->d[2] / hk[k];
-            rising &= k == 0 || e[k] >= e[k - 1];
+            if (sm->flags & F_CURVE)
+                continue;
+            at[m] = row[k];
+            hk[m] = sqrt(sm->d[0] * sm->d[0] + sm->d[1] * sm->d[1]);
+            e[m] = sm->d[2] / hk[m];
+            rising &= m == 0 || e[m] >= e[m - 1];
+            m++;
         }
+        bent += (uint64_t)(nrow - m);
         if (!rising) { /* not expected (the rows' slopes rise by a pixel's angle): the plain walk */
-            for (int32_t k = 0; k < nrow; k++)
-                camera_trace(w, &col[row[k]], 0.0);
-            untraced += (uint64_t)nrow;
+            for (int k = 0; k < m; k++)
+                camera_trace(w, &col[at[k]], 0.0);
+            untraced += (uint64_t)m;
             continue;
         }
+        if (m == 0)
+            continue;
         const double s0 = hz ? td_horizon_clear(&w->hz, e[0], &bins) * (1.0 - 1e-12) : 0.0;
-        steps += td_colwalk_trace(&c->cw, col[row[0]].d[0] / hk[0], col[row[0]].d[1] / hk[0], s0, nrow, e, h);
-        for (int32_t k = 0; k < nrow; k++) {
-            smp *sm = &col[row[k]];
+        steps += td_colwalk_trace(&c->cw, col[at[0]].d[0] / hk[0], col[at[0]].d[1] / hk[0], s0, m, e, h);
+        for (int k = 0; k < m; k++) {
+            smp *sm = &col[at[k]];
             if (h[k].s == INFINITY)
                 continue;
             if (h[k].s != h[k].s) { /* not known (colwalk.h): the plain walk */
@@ -1192,7 +1290,8 @@ static void trace_columns(worker *w, const blk *b)
     st->horizon_bins += bins;
     st->steps += steps + bins;
     st->kind_steps[TD_RAY_PRIMARY] += steps + bins;
-    const uint64_t mine = (uint64_t)(ncol * nrow) - untraced; /* camera_trace counted the others */
+    /* camera_trace counted the ones it traced, the curvature stage counts the bent */
+    const uint64_t mine = (uint64_t)(ncol * nrow) - untraced - bent;
     st->rays[TD_RAY_PRIMARY] += mine;
     st->lod_rays[0] += mine;
     st->method_rays[TD_METHOD_HIERARCHICAL] += mine;
@@ -1202,7 +1301,7 @@ static void trace_columns(worker *w, const blk *b)
 }
 
 /* Camera rays. With the silhouette partition, each ray starts from it. An upright, level
- * camera's go a sample column at a time (trace_columns). Else, with the
+ * camera's or a panorama's go a sample column at a time (trace_columns). Else, with the
  * horizon or beam device on (perspective, full grid), the block is cut into TD_SLICES
  * slices across the image direction of the verticals, each traced from its wedge's
  * horizon and beam; else every ray is traced from its start. Rays that must bend are
@@ -1342,19 +1441,30 @@ static int on_water(const ctx *c)
 /* One ray toward the sun per dry hit facing it: 1 lit, 0 shadowed, into the scratch. */
 #define TD_SHADOW_BATCH 64 /* shadow rays a td_occluded_par call takes */
 
-/* The batched shadow rays of a block (np of them, from o[k], sample at[k]): one
- * td_occluded_par along the sun with the sun bound, as occluded() asks each. */
-static void shadows_flush(worker *w, const double (*o)[3], const int *at, int np, float *lit)
+/* The batched shadow rays of a block (np of them, from o[k], sample at[k], bent[k] when
+ * the ray bends): one td_occluded_par along the sun with the sun bound, as occluded() asks
+ * each straight one. A bent ray's chords lie above its straight ray (chords_next), so a
+ * bent ray whose straight ray is clear is lit; the others are asked again bent
+ * (occluded_curved). */
+static void shadows_flush(worker *w, const double (*o)[3], const int *at, const uint8_t *bent, int np,
+                          float *lit)
 {
     const ctx *c = w->c;
     uint8_t hit[TD_SHADOW_BATCH];
     uint32_t steps = 0;
+    uint64_t more = 0;
     td_occluded_par(c->v, c->s->quality.method, c->s->quality.surface, c->sun, np, o, c->sunlit,
                     hit, &steps);
-    for (int k = 0; k < np; k++)
+    for (int k = 0; k < np; k++) {
+        if (hit[k] && bent[k]) {
+            td_ray r = sun_ray(c, o[k]);
+            hit[k] = (uint8_t)occluded_curved(c, c->v, &r, c->sunlit, &more, &w->st.curve_segments);
+            w->st.curved_secondary++;
+        }
         lit[at[k]] = hit[k] ? 0.0f : 1.0f;
-    w->st.steps += steps;
-    w->st.kind_steps[TD_RAY_SHADOW] += steps;
+    }
+    w->st.steps += steps + more;
+    w->st.kind_steps[TD_RAY_SHADOW] += steps + more;
 }
 
 static void stage_shadows(worker *w, const blk *b)
@@ -1363,8 +1473,9 @@ static void stage_shadows(worker *w, const blk *b)
     float *lit = w->scratch[TD_STAGE_SHADOWS];
     double o[TD_SHADOW_BATCH][3];
     int at[TD_SHADOW_BATCH], np = 0;
-    /* straight rays on the full grid are batched (td_occluded_par); a sample on a coarse
-       level, or whose ray bends, is traced alone (occluded) */
+    uint8_t bent[TD_SHADOW_BATCH];
+    /* rays from the full grid are batched (td_occluded_par; a bent one's straight ray
+       first, shadows_flush); a sample on a coarse level is traced alone (occluded) */
     const int batch = !c->plain_secondary, up = c->sun[2] > 0.0, bends = batch && c->curv2;
     /* locals: the loop's stores (the batch's origins are doubles) would reload them */
     const double sun[3] = {c->sun[0], c->sun[1], c->sun[2]};
@@ -1389,10 +1500,11 @@ static void stage_shadows(worker *w, const blk *b)
             td_ray r = sun_ray(c, q);
             keep_ray(c, c->shadow_rays, b, i, &r);
         }
-        if (batch && sm->level == 0 && !(bends && needs_curve(c, q, c->sun, c->curv_smin2))) {
+        if (batch && sm->level == 0) {
+            bent[np] = (uint8_t)(bends && needs_curve(c, q, c->sun, c->curv_smin2));
             at[np++] = i;
             if (np == TD_SHADOW_BATCH) {
-                shadows_flush(w, o, at, np, lit);
+                shadows_flush(w, o, at, bent, np, lit);
                 np = 0;
             }
         } else {
@@ -1401,7 +1513,7 @@ static void stage_shadows(worker *w, const blk *b)
         }
     }
     if (np > 0)
-        shadows_flush(w, o, at, np, lit);
+        shadows_flush(w, o, at, bent, np, lit);
     w->st.rays[TD_RAY_SHADOW] += rays;
 }
 
@@ -1962,17 +2074,21 @@ static td_status setup_silhouette(ctx *c, const td_render_opts *o, int nthreads,
 /* Runs the workers (the caller's thread is the first; a thread that cannot be started
  * leaves its share to the others) and adds their stats into st in thread order. */
 /* The column walk (colwalk.h) for an upright, level perspective camera (its up vector
- * the world's z: td_camera_dirs' x and y the same on every row) on the full grid, its
- * rays straight, with the method `auto` (the walk is its choice there, as the partition
- * is a cold dataset's), and the eye above every surface around it (td_colwalk_init). */
+ * the world's z: td_camera_dirs' x and y the same on every row) or a panorama (every
+ * column one azimuth, whatever the pitch) on the full grid, with the method `auto` (the
+ * walk is its choice there, as the partition is a cold dataset's), and the eye above
+ * every surface around it (td_colwalk_init). With curvature, the rays that bend are the
+ * curvature stage's (trace_columns walks the others). The block wedges' horizon
+ * (horizon.h) starts each column's lowest ray, as the fans' for a perspective camera. */
 static void setup_columns(ctx *c, const td_render_opts *o)
 {
     const td_camera *cam = &c->cam;
-    c->columns = !(o->off & TD_RENDER_OFF_COLUMNS) && cam->projection == TD_PROJ_PERSPECTIVE &&
-                 cam->up[0] == 0.0 && cam->up[1] == 0.0 && cam->up[2] > 0.0 && cam->fwd[2] == 0.0 &&
-                 cam->right[2] == 0.0 && c->nlod == 0 && !c->curv && !c->silh &&
-                 c->s->quality.method == TD_METHOD_AUTO &&
+    const int level = cam->projection == TD_PROJ_PERSPECTIVE && cam->up[0] == 0.0 && cam->up[1] == 0.0 &&
+                      cam->up[2] > 0.0 && cam->fwd[2] == 0.0 && cam->right[2] == 0.0;
+    c->columns = !(o->off & TD_RENDER_OFF_COLUMNS) && (level || cam->projection == TD_PROJ_CYLINDRICAL) &&
+                 c->nlod == 0 && !c->silh && c->s->quality.method == TD_METHOD_AUTO &&
                  td_colwalk_init(&c->cw, c->v, c->s->quality.surface, cam->o);
+    c->col_horizon = c->columns && !(o->off & TD_RENDER_OFF_HORIZON);
 }
 
 static td_status run_workers(worker *ws, int nthreads, td_render_stats *st, td_err *err)

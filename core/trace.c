@@ -2053,6 +2053,19 @@ int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r,
     return hit;
 }
 
+int td_sunlit_clear(const td_grid *g, const td_sunlit *lit, const double p[3])
+{
+    walk w;
+    int clear = 0;
+    if (lit) {
+        const double u = p[0] / g->sx, v = p[1] / g->sy;
+        walk_grid(&w, g, TD_SURFACE_PLANE); /* its margin, zeps */
+        clear = u >= 0.0 && v >= 0.0 && u <= (double)(g->w - 1) && v <= (double)(g->h - 1) &&
+                p[2] > td_sunlit_at(lit, u, v) + w.zeps;
+    }
+    return clear;
+}
+
 void td_occluded_par(const td_view *v, td_method m, td_surface s, const double d[3], int n,
                      const double (*o)[3], const td_sunlit *lit, uint8_t *hit, uint32_t *steps)
 {

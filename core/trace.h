@@ -147,10 +147,17 @@ void td_fan_hit(const td_fan_hits *h, int k, td_hit *out);
 /* Whether the ray meets the surface in [tmin, tmax] (td_trace's hit is finite), for rays
  * that leave the surface (shadow and ambient-occlusion rays): it climbs the max-mipmap
  * from small blocks up, and computes no hit point or normal. A shadow ray (direction the
- * sun's of lit, which may be NULL) also ends, unoccluded, where it rises above lit's bound
- * (sunlit.h). Adds its steps to *steps. */
+ * sun's of lit, which may be NULL, or the sun's azimuth and at least its slope: a chord of
+ * a bent shadow ray) also ends, unoccluded, where it rises above lit's bound (sunlit.h).
+ * Adds its steps to *steps. */
 int td_occluded(const td_view *v, td_method m, td_surface s, const td_ray *r,
                 const td_sunlit *lit, uint32_t *steps);
+
+/* Whether the point p (dataset frame, over the grid) stands above lit's bound (sunlit.h)
+ * by the walk's margin, the test td_occluded makes at each cell: then a ray from p toward
+ * the sun, or along the sun's azimuth and at least as steep, meets no terrain. 0 without
+ * a bound or off the grid. */
+int td_sunlit_clear(const td_grid *g, const td_sunlit *lit, const double p[3]);
 
 /* td_occluded for n parallel rays over [0, +inf): from o[k] along d (the shadow rays of a
  * render, which share the walk's setup of the grid and the direction; with a sun bound,

@@ -1,5 +1,5 @@
 /* test_colwalk.c: the column walk (core/colwalk.c) that renders an upright, level camera's
- * image columns, against the plain walk (td_trace, which the render's other paths give bit
+ * and a panorama's image columns, against the plain walk (td_trace, which the render's other paths give bit
  * for bit), on every surface.
  *
  * - Random level cameras over procedural terrain (unequal spacing; heights as they come,
@@ -14,10 +14,13 @@
  * - Shaded renders (normals, shadows) give the same picture as the plain walk's.
  * - The height plane's walls at a sample point the line runs through, and a line a
  *   rounding off a row line (findings of fuzz_render): the plain walk's pixels.
- * - The device applies only where it is exact (column_rays): a level camera with the
- *   method auto and the eye above the surface around it; not pitched or rolled cameras,
- *   other methods, an eye at or below the surface, cylindrical or orthographic views; one
- *   thread or three give the same bits; supersampled images too. */
+ * - Panoramas (cylindrical: every column one azimuth, whatever the pitch) among the
+ *   random cameras, judged the same way; with curvature the rays that bend are the
+ *   curvature stage's and the others the columns'.
+ * - The device applies only where it is exact (column_rays): a level camera or a panorama
+ *   with the method auto and the eye above the surface around it; not pitched or rolled
+ *   perspective cameras, other methods, an eye at or below the surface, orthographic
+ *   views; one thread or three give the same bits; supersampled images too. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -103,6 +106,17 @@ static void level_scene(td_scene *s, const td_grid *g, uint64_t *seed, td_surfac
     s->quality.surface = sf;
 }
 
+/* A panorama (every column one azimuth, whatever the pitch) from level_scene's eye: pitch
+ * -30 .. 30, fov 20 .. 360, the rows' span from the image's aspect or fov_v 5 .. 60. */
+static void pano_scene(td_scene *s, const td_grid *g, uint64_t *seed, td_surface sf, int32_t w, int32_t h)
+{
+    level_scene(s, g, seed, sf, w, h);
+    s->camera.projection = TD_PROJ_CYLINDRICAL;
+    s->camera.pitch = 60.0 * rnd(seed) - 30.0;
+    s->camera.fov = rnd(seed) < 0.3 ? 360.0 : 20.0 + 340.0 * rnd(seed);
+    s->camera.fov_v = rnd(seed) < 0.5 ? 0.0 : 5.0 + 55.0 * rnd(seed);
+}
+
 static void render(const td_view *v, const td_scene *s, unsigned off, int threads, td_render_result *r)
 {
     td_render_opts o;
@@ -176,7 +190,10 @@ static void test_columns_match_walk(void **state)
                     static td_scene s;
                     td_render_result on, off;
                     uint64_t cam_seed = seed + (uint64_t)k * 7919u;
-                    level_scene(&s, g, &cam_seed, (td_surface)sf, 37, k % 3 ? 41 : 150);
+                    if (k % 4 == 3)
+                        pano_scene(&s, g, &cam_seed, (td_surface)sf, 37, k % 3 ? 41 : 150);
+                    else
+                        level_scene(&s, g, &cam_seed, (td_surface)sf, 37, k % 3 ? 41 : 150);
                     render(&v, &s, 0, 1, &on);
                     render(&v, &s, TD_RENDER_OFF_COLUMNS, 1, &off);
                     /* a cold dataset (no max-mipmaps) takes the silhouette partition where it
@@ -214,6 +231,47 @@ static void test_columns_match_walk(void **state)
     assert_true(under > 0); /* the voids' case is exercised */
     assert_true(columns > 100);
     assert_true(ties * 1000 < pixels); /* rare: under 0.1% */
+}
+
+/* A narrow panorama with curvature (0.1 degree over 40 pixels: rays whose run over the grid
+ * is longer than about 1.3 km bend, render.c): looking across the grid every ray bends and
+ * the curvature stage traces them all, looking at the near edge none does and the columns
+ * take them all; each the same depths as with the column walk off. */
+static void test_columns_curved(void **state)
+{
+    td_grid *g = make_grid(13, PLAIN);
+    td_accel *a = NULL;
+    td_accel_opts ao;
+    uint64_t seed = 3;
+    (void)state;
+    td_accel_opts_for(TD_METHOD_AUTO, &ao);
+    assert_int_equal(td_accel_build(g, &ao, &a, NULL, NULL), TD_OK);
+    const td_view v = {g, a->tiles};
+    for (int across = 0; across < 2; across++) {
+        static td_scene s;
+        td_render_result on, off;
+        pano_scene(&s, g, &seed, TD_SURFACE_TRIANGLE, 40, 30);
+        s.camera.x = 0.05 * (g->w - 1) * g->sx;
+        s.camera.y = 0.05 * (g->h - 1) * g->sy;
+        s.camera.z = local_max(g, s.camera.x, s.camera.y) + 10.0;
+        s.camera.heading = across ? atan2(0.9 * (g->w - 1) * g->sx, 0.9 * (g->h - 1) * g->sy) * 180.0 / M_PI : 225.0;
+        s.camera.pitch = -1.0;
+        s.camera.fov = 0.1;
+        s.camera.fov_v = 0.0;
+        s.effects.curvature = 1;
+        s.effects.curvature_k = 0.13;
+        render(&v, &s, 0, 1, &on);
+        render(&v, &s, TD_RENDER_OFF_COLUMNS, 1, &off);
+        const uint64_t all = 40 * 30;
+        assert_int_equal(on.stats.column_rays, across ? 0 : all);
+        assert_int_equal(on.stats.curved_rays, across ? all : 0);
+        assert_int_equal(on.stats.rays[TD_RAY_PRIMARY], all);
+        assert_int_equal(judge(&v, &s, &on, &off), 0);
+        td_render_result_free(&on);
+        td_render_result_free(&off);
+    }
+    td_accel_free(a);
+    td_grid_free(g);
 }
 
 /* A shaded render with shadows: the same picture as the plain walk's, every surface. */
@@ -295,8 +353,8 @@ static void test_columns_where(void **state)
             t.camera.z = local_ext(g, s.camera.x, s.camera.y, 1, -1.0) - 1.0;
         else if (k == 4) /* as high as a corner of its cell */
             t.camera.z = local_ext(g, s.camera.x, s.camera.y, 1, 1.0);
-        else if (k == 5)
-            t.camera.projection = TD_PROJ_CYLINDRICAL;
+        else if (k == 5) /* a panorama (which columns take) from under the surface */
+            t.camera.projection = TD_PROJ_CYLINDRICAL, t.camera.z = local_ext(g, s.camera.x, s.camera.y, 1, -1.0) - 1.0;
         else
             t.camera.projection = TD_PROJ_ORTHOGRAPHIC;
         render(&v, &t, 0, 1, &r);
@@ -433,6 +491,7 @@ int main(void)
         cmocka_unit_test(test_columns_match_walk),
         cmocka_unit_test(test_columns_shaded),
         cmocka_unit_test(test_columns_where),
+        cmocka_unit_test(test_columns_curved),
         cmocka_unit_test(test_columns_plane_vertex),
         cmocka_unit_test(test_columns_row_line),
     };

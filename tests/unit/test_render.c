@@ -508,18 +508,22 @@ static double mean_rgb(const td_render_result *r)
  * a sun 5 degrees up in the east over a wall 69 km away: a straight ray passes x = 70 km
  * at 69000 tan 5deg = 6037 m; bent, a*69000^2 = 325 m higher (k = 0.13), 6362 m. A wall of
  * 6300 m shadows the ground only without curvature; one of 6420 m shadows it with
- * curvature too, so the drop is right within -19% .. +18%. Camera rays are not bent here
- * (their pixel moves only past 480 km). */
+ * curvature too, so the drop is right within -19% .. +18%; one of 5000 m shadows neither.
+ * Camera rays are not bent here (their pixel moves only past 480 km). The occlusion
+ * device (bent rays as any-hit chords, each asked first straight: its chords lie above the
+ * straight ray, so a clear straight ray is a lit bent one) gives the picture that the
+ * bent rays' nearest hits give (TD_RENDER_OFF_OCCLUSION); under the 5000 m wall it traces
+ * no bent ray at all. */
 static void test_curvature_shadows(void **state)
 {
-    const double walls[2] = {6300.0, 6420.0};
-    double lit[2][2];
+    const double walls[3] = {6300.0, 6420.0, 5000.0};
+    double lit[3][2];
     (void)state;
-    for (int k = 0; k < 2; k++) {
+    for (int k = 0; k < 3; k++) {
         td_grid *g = walled_plain(walls[k]);
         td_view v = {g, NULL};
         for (int curv = 0; curv < 2; curv++) {
-            td_render_result r;
+            td_render_result r, plain;
             td_render_opts o;
             td_err err = {0};
             td_scene_defaults(&scene);
@@ -543,18 +547,27 @@ static void test_curvature_shadows(void **state)
             assert_int_equal(r.stats.hits, 32 * 24);
             assert_int_equal(r.stats.rays[TD_RAY_SHADOW], 32 * 24);
             assert_int_equal(r.stats.curved_rays, 0);
-            assert_int_equal(r.stats.curved_secondary, curv ? 32 * 24 : 0);
-            assert_true(curv ? r.stats.curve_segments >= 32 * 24 : r.stats.curve_segments == 0);
+            /* bent: those whose straight ray is shadowed (every one under the walls that
+               shade it straight, none under the 5000 m one) */
+            assert_int_equal(r.stats.curved_secondary, curv && k < 2 ? 32 * 24 : 0);
+            assert_true(curv && k < 2 ? r.stats.curve_segments >= 32 * 24 : r.stats.curve_segments == 0);
+            o.off = TD_RENDER_OFF_OCCLUSION;
+            assert_int_equal(td_render(&v, &scene, &o, &plain, &err), TD_OK);
+            assert_int_equal(plain.stats.curved_secondary, curv ? 32 * 24 : 0);
+            assert_memory_equal(r.rgba, plain.rgba, (size_t)32 * 24 * 4);
             lit[k][curv] = mean_rgb(&r);
             td_render_result_free(&r);
+            td_render_result_free(&plain);
         }
         td_grid_free(g);
     }
-    print_message("  mean R+G+B: wall 6300 m straight %.1f bent %.1f; wall 6420 m straight %.1f bent %.1f\n",
-                  lit[0][0], lit[0][1], lit[1][0], lit[1][1]);
+    print_message("  mean R+G+B: wall 6300 m straight %.1f bent %.1f; wall 6420 m straight %.1f bent %.1f; "
+                  "wall 5000 m straight %.1f bent %.1f\n",
+                  lit[0][0], lit[0][1], lit[1][0], lit[1][1], lit[2][0], lit[2][1]);
     assert_true(lit[0][0] < 1.0);           /* shadowed, no ambient: black */
     assert_true(lit[0][1] > 10.0);          /* bent over the 6300 m wall: sunlit */
     assert_true(lit[1][0] < 1.0 && lit[1][1] < 1.0); /* 6420 m shadows both */
+    assert_true(lit[2][0] > 10.0 && lit[2][1] > 10.0); /* 5000 m neither */
 }
 
 static void test_refusals_and_cancel(void **state)
