@@ -465,9 +465,13 @@ static int chords_next(const ctx *c, chords *ch, const td_ray *r, td_ray *seg, d
     return ch->more;
 }
 
-/* A bent ray's nearest hit on view v, its chords traced in turn. On a hit, hit->t is the
- * distance along the unbent ray's parameter, hit->p the terrain point. */
-static void trace_curved(const ctx *c, const td_view *v, const td_ray *r, double eps_per_t,
+/* A bent ray's nearest hit on view v, its chords traced in turn, from the ray parameter
+ * t_clear on (0, or where the straight ray with its origin and direction meets nothing
+ * before, horizon.h: the chords lie above that ray, so they meet nothing before either;
+ * +inf: a miss): the chords that end before it are not traced, the one it falls in from
+ * there. On a hit, hit->t is the distance along the unbent ray's parameter, hit->p the
+ * terrain point. */
+static void trace_curved(const ctx *c, const td_view *v, const td_ray *r, double eps_per_t, double t_clear,
                          td_hit *hit, uint64_t *steps, uint64_t *segs)
 {
     const td_scene *s = c->s;
@@ -479,6 +483,9 @@ static void trace_curved(const ctx *c, const td_view *v, const td_ray *r, double
     hit->method = s->quality.method;
     chords_begin(c, r, eps_per_t, &ch);
     while (hit->t == INFINITY && chords_next(c, &ch, r, &seg, &ta, &tb)) {
+        if (tb <= t_clear)
+            continue;
+        seg.tmin = t_clear > ta ? (t_clear - ta) / (tb - ta) : 0.0; /* the chord is linear in t */
         td_trace(v, s->quality.method, s->quality.surface, &seg, hit);
         *steps += hit->steps;
         *segs += 1;
@@ -674,7 +681,7 @@ static double trace_camera(const ctx *c, const td_ray *r, int bent, double t_cle
     uint64_t steps = 0;
     *level = 0;
     if (bent) {
-        trace_curved(c, c->v, r, 0.25 * c->cam.pixel_angle, hit, &steps, &st->curve_segments);
+        trace_curved(c, c->v, r, 0.25 * c->cam.pixel_angle, t_clear, hit, &steps, &st->curve_segments);
         st->curved_rays++;
     } else {
         trace_lod(c, r, t_clear, hit, level, &steps);
@@ -710,7 +717,7 @@ static void trace_secondary(const ctx *c, worker *w, td_ray_kind kind, const td_
 {
     uint64_t steps = 0;
     if (c->curv2 && needs_curve(c, r->o, r->d, c->curv_smin2)) {
-        trace_curved(c, v, r, 0.0, hit, &steps, &w->st.curve_segments);
+        trace_curved(c, v, r, 0.0, 0.0, hit, &steps, &w->st.curve_segments);
         w->st.curved_secondary++;
     } else {
         td_trace(v, c->s->quality.method, c->s->quality.surface, r, hit);
@@ -1208,6 +1215,20 @@ static void trace_silhouette(worker *w, const blk *b)
     w->st.kind_steps[TD_RAY_PRIMARY] += probes;
 }
 
+/* Sets up w->hz for the wedge of the block's samples (the azimuths of its corner samples'
+ * rays: td_camera_azimuths_poly, perspective or cylindrical); 0 when it gives no bound. */
+static int block_wedge(worker *w, const blk *b)
+{
+    const ctx *c = w->c;
+    const int n = c->n;
+    const double X0 = b->x0 + 0.5 / n - 0.5, Y0 = b->y0 + 0.5 / n - 0.5, X1 = b->x1 - 0.5 / n - 0.5,
+                 Y1 = b->y1 - 0.5 / n - 0.5;
+    const double corner[4][2] = {{X0, Y0}, {X1, Y0}, {X1, Y1}, {X0, Y1}};
+    double az0, az1;
+    return td_camera_azimuths_poly(&c->cam, corner, 4, &az0, &az1) &&
+           td_horizon_begin(&w->hz, c->v, c->cam.o, az0, az1);
+}
+
 /* Camera rays of an upright, level camera or a panorama, a sample column at a time
  * (colwalk.h): the column's rays share their horizontal direction (td_camera_dirs: the up
  * vector's x and y are 0, so x and y do not depend on the row; a panorama's column is one
@@ -1228,13 +1249,8 @@ static void trace_columns(worker *w, const blk *b)
     td_colhit h[TD_BLOCK_TALL * TD_SAMPLES_MAX];
     uint64_t steps = 0, nhit = 0, untraced = 0, bent = 0;
     uint32_t bins = 0;
-    /* the block's wedge: where each column's lowest ray may first meet the terrain */
-    const double X0 = b->x0 + 0.5 / n - 0.5, Y0 = b->y0 + 0.5 / n - 0.5, X1 = b->x1 - 0.5 / n - 0.5,
-                 Y1 = b->y1 - 0.5 / n - 0.5;
-    const double corner[4][2] = {{X0, Y0}, {X1, Y0}, {X1, Y1}, {X0, Y1}};
-    double az0, az1;
-    const int hz = c->col_horizon && td_camera_azimuths_poly(&c->cam, corner, 4, &az0, &az1) &&
-                   td_horizon_begin(&w->hz, c->v, c->cam.o, az0, az1);
+    /* where each column's lowest ray may first meet the terrain */
+    const int hz = c->col_horizon && block_wedge(w, b);
     for (int32_t k = 0; k < nrow; k++) { /* from the bottom sample row up */
         const int32_t r = nrow - 1 - k;
         row[k] = r / n * b->bw * nn + r % n * n;
@@ -1368,17 +1384,30 @@ static void stage_curvature(worker *w, const blk *b)
     const ctx *c = w->c;
     td_hit hit;
     td_ray r;
+    uint32_t bins = 0;
+    int hz = -1; /* the block's wedge (block_wedge), set up at its first bent ray */
     for (int i = 0; i < b->ns; i++) {
         smp *sm = &w->s[i];
+        double t_clear = 0.0;
         if (!(sm->flags & F_CURVE))
             continue;
         memcpy(r.o, sm->o, sizeof r.o);
         memcpy(r.d, sm->d, sizeof r.d);
         r.tmin = 0.0;
         r.tmax = INFINITY;
-        trace_camera(c, &r, 1, 0.0, &hit, &sm->level, &w->st);
+        hz = hz < 0 ? (c->horizon || c->col_horizon) && block_wedge(w, b) : hz;
+        const double hk = sqrt(r.d[0] * r.d[0] + r.d[1] * r.d[1]);
+        if (hz && hk > 1e-9) { /* where the straight ray meets nothing before: the bent one neither */
+            const double dc = td_horizon_clear(&w->hz, r.d[2] / hk, &bins);
+            t_clear = dc == INFINITY ? INFINITY : dc / hk * (1.0 - 1e-12);
+            w->st.coherent_rays++;
+        }
+        trace_camera(c, &r, 1, t_clear, &hit, &sm->level, &w->st);
         keep_camera_hit(&w->st, &hit, sm);
     }
+    w->st.horizon_bins += bins;
+    w->st.steps += bins;
+    w->st.kind_steps[TD_RAY_PRIMARY] += bins;
 }
 
 static int on_curvature(const ctx *c)

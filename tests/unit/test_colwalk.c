@@ -233,40 +233,58 @@ static void test_columns_match_walk(void **state)
     assert_true(ties * 1000 < pixels); /* rare: under 0.1% */
 }
 
-/* A narrow panorama with curvature (0.1 degree over 40 pixels: rays whose run over the grid
- * is longer than about 1.3 km bend, render.c): looking across the grid every ray bends and
- * the curvature stage traces them all, looking at the near edge none does and the columns
- * take them all; each the same depths as with the column walk off. */
+/* Views with curvature from the lowest sample, toward the farthest corner. A panorama 60
+ * degrees wide: no ray bends (each pixel's drop at the grid's far side is under a pixel,
+ * render.c), and the columns take them all. 0.1 degree wide (rays whose run over the grid
+ * is longer than about 1.3 km bend), a panorama and a pitched and a level perspective
+ * camera: every ray bends, and the curvature stage starts each where its straight ray
+ * meets nothing before (the block wedge's horizon: the chords lie above that ray). Each
+ * the same depths as with the camera devices off (TD_RENDER_OFF_CAMERA). */
 static void test_columns_curved(void **state)
 {
     td_grid *g = make_grid(13, PLAIN);
     td_accel *a = NULL;
     td_accel_opts ao;
     uint64_t seed = 3;
+    int32_t il = 0, jl = 0; /* the lowest sample off the edges: the eye sees the slopes around */
     (void)state;
+    for (int32_t j = 3; j < g->h - 3; j++)
+        for (int32_t i = 3; i < g->w - 3; i++)
+            if (td_grid_at(g, i, j) < td_grid_at(g, il, jl) || il == 0)
+                il = i, jl = j;
     td_accel_opts_for(TD_METHOD_AUTO, &ao);
     assert_int_equal(td_accel_build(g, &ao, &a, NULL, NULL), TD_OK);
     const td_view v = {g, a->tiles};
-    for (int across = 0; across < 2; across++) {
+    for (int k = 0; k < 4; k++) {
         static td_scene s;
         td_render_result on, off;
+        const int across = k > 0;
         pano_scene(&s, g, &seed, TD_SURFACE_TRIANGLE, 40, 30);
-        s.camera.x = 0.05 * (g->w - 1) * g->sx;
-        s.camera.y = 0.05 * (g->h - 1) * g->sy;
+        s.camera.x = il * g->sx;
+        s.camera.y = jl * g->sy;
         s.camera.z = local_max(g, s.camera.x, s.camera.y) + 10.0;
-        s.camera.heading = across ? atan2(0.9 * (g->w - 1) * g->sx, 0.9 * (g->h - 1) * g->sy) * 180.0 / M_PI : 225.0;
-        s.camera.pitch = -1.0;
-        s.camera.fov = 0.1;
+        /* toward the farthest corner, or (wide: nothing bends) anywhere */
+        const double cx = il < g->w / 2 ? (g->w - 1) * g->sx : 0.0, cy = jl < g->h / 2 ? (g->h - 1) * g->sy : 0.0;
+        s.camera.heading = atan2(cx - s.camera.x, cy - s.camera.y) * 180.0 / M_PI;
+        s.camera.pitch = k == 3 ? 0.0 : -1.0;
+        s.camera.fov = across ? 0.1 : 60.0;
         s.camera.fov_v = 0.0;
+        if (k >= 2)
+            s.camera.projection = TD_PROJ_PERSPECTIVE;
         s.effects.curvature = 1;
         s.effects.curvature_k = 0.13;
         render(&v, &s, 0, 1, &on);
-        render(&v, &s, TD_RENDER_OFF_COLUMNS, 1, &off);
+        render(&v, &s, TD_RENDER_OFF_CAMERA, 1, &off);
         const uint64_t all = 40 * 30;
         assert_int_equal(on.stats.column_rays, across ? 0 : all);
         assert_int_equal(on.stats.curved_rays, across ? all : 0);
+        assert_int_equal(on.stats.coherent_rays, all); /* the columns', or the horizon's */
+        assert_int_equal(off.stats.coherent_rays, 0);
         assert_int_equal(on.stats.rays[TD_RAY_PRIMARY], all);
         assert_int_equal(judge(&v, &s, &on, &off), 0);
+        assert_int_equal(on.stats.hits, off.stats.hits);
+        print_message("case %d: %d hits\n", k, (int)on.stats.hits);
+        assert_true(on.stats.hits > all / 2); /* the rays meet the terrain */
         td_render_result_free(&on);
         td_render_result_free(&off);
     }
