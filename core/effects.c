@@ -13,8 +13,8 @@ void td_sky_color(const double d[3], const double s[3], int disc, float rgb[3])
     double cosg = d[0] * s[0] + d[1] * s[1] + d[2] * s[2];
     double sun_el = s[2] < -1.0 ? -1.0 : s[2];
     /* warmth: strong when the sun is low, toward the sun, near the horizon */
-    double low = exp(-fmax(sun_el, 0.0) / 0.12);
-    double toward = pow(0.5 * (1.0 + cosg), 3.0);
+    double low = exp(-(sun_el > 0.0 ? sun_el : 0.0) / 0.12); /* compares, not libm's fmax */
+    double half = 0.5 * (1.0 + cosg), toward = half * half * half; /* not pow: a call a sample */
     double w = low * toward * (1.0 - t);
     double c[3];
     for (int k = 0; k < 3; k++) {
@@ -22,7 +22,9 @@ void td_sky_color(const double d[3], const double s[3], int disc, float rgb[3])
         c[k] += w * (warm[k] - c[k]);
     }
     if (disc) {
-        double glow = 0.35 * pow(fmax(cosg, 0.0), 200.0);
+        /* cos^200 by squaring (x^8 x^64 x^128), a few multiplications for pow's call */
+        double x = cosg > 0.0 ? cosg : 0.0, x2 = x * x, x4 = x2 * x2, x8 = x4 * x4, x16 = x8 * x8, x32 = x16 * x16;
+        double x64 = x32 * x32, x128 = x64 * x64, glow = 0.35 * (x8 * x64 * x128);
         for (int k = 0; k < 3; k++)
             c[k] += glow * (warm[k] * 0.5 + 0.5);
         if (cosg > cos(0.27 * M_PI / 180.0) && s[2] > -0.01) {

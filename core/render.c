@@ -36,7 +36,10 @@
  * s = 2*pixel_angle/a, where the drop reaches one pixel's footprint, are traced
  * straight; if no ray of the view can reach s, the curvature stage does not run at
  * all. An orthographic top-down view never bends: lowering the terrain under vertical
- * rays moves no pixel.
+ * rays moves no pixel. The chords also lie above the straight ray with the same origin
+ * and direction, so a bent ray meets nothing before that ray does: its chords start where
+ * the straight ray's hit is (a panorama's or level camera's columns walk it with the
+ * others) or where the block wedge's horizon clears it, and a straight miss is a miss.
  *
  * Shadow and reflection rays bend the same way about their own origin W: the terrain at
  * horizontal distance h' from W lies a*h'^2 below W's horizon, so the ray toward the sun
@@ -264,7 +267,9 @@ void td_render_stats_add(td_render_stats *sum, const td_render_stats *part)
     }
 }
 
-enum { F_HIT = 1, F_WATER = 2, F_CURVE = 4 };
+/* F_CLEAR: a bent ray (F_CURVE) whose t holds, until the curvature stage reads it, the
+   ray parameter before which it surely meets nothing (its straight ray's hit, trace_columns) */
+enum { F_HIT = 1, F_WATER = 2, F_CURVE = 4, F_CLEAR = 8 };
 
 typedef struct smp {
     double o[3], d[3]; /* camera ray, unit direction */
@@ -1232,11 +1237,13 @@ static int block_wedge(worker *w, const blk *b)
 /* Camera rays of an upright, level camera or a panorama, a sample column at a time
  * (colwalk.h): the column's rays share their horizontal direction (td_camera_dirs: the up
  * vector's x and y are 0, so x and y do not depend on the row; a panorama's column is one
- * azimuth), taken from the bottom up in rising slope. Rays that bend (F_CURVE) are the
- * curvature stage's: the column's others are walked (a ray above a lower one still cannot
- * meet the terrain first). Each hit is finished as a fan's: t along the ray's own unit
- * direction, the point, the surface's normal there, the height error against the
- * bilinear surface. */
+ * azimuth), taken from the bottom up in rising slope. Each hit is finished as a fan's: t
+ * along the ray's own unit direction, the point, the surface's normal there, the height
+ * error against the bilinear surface. A ray that bends (F_CURVE) is the curvature stage's,
+ * but walked with the others as the straight ray it bends up from: a bent ray lies above
+ * that one, so it meets nothing before the straight ray's hit (a miss: nothing at all),
+ * and the curvature stage starts its chords there (F_CLEAR; a 1e-9 short of it, far more
+ * than the walk's rounding). */
 static void trace_columns(worker *w, const blk *b)
 {
     const ctx *c = w->c;
@@ -1245,7 +1252,7 @@ static void trace_columns(worker *w, const blk *b)
     td_render_stats *st = &w->st;
     double e[TD_BLOCK_TALL * TD_SAMPLES_MAX], hk[TD_BLOCK_TALL * TD_SAMPLES_MAX];
     int row[TD_BLOCK_TALL * TD_SAMPLES_MAX]; /* the k-th sample up a column: its offset */
-    int at[TD_BLOCK_TALL * TD_SAMPLES_MAX];  /* the k-th straight ray up a column: its offset */
+    int at[TD_BLOCK_TALL * TD_SAMPLES_MAX];  /* the k-th ray up a column: its offset */
     td_colhit h[TD_BLOCK_TALL * TD_SAMPLES_MAX];
     uint64_t steps = 0, nhit = 0, untraced = 0, bent = 0;
     uint32_t bins = 0;
@@ -1257,30 +1264,34 @@ static void trace_columns(worker *w, const blk *b)
     }
     for (int32_t xs = 0; xs < ncol; xs++) {
         smp *const col = &w->s[xs / n * nn + xs % n];
-        int rising = 1, m = 0;
+        int rising = 1, m = nrow;
         for (int32_t k = 0; k < nrow; k++) {
             const smp *sm = &col[row[k]];
-            if (sm->flags & F_CURVE)
-                continue;
-            at[m] = row[k];
-            hk[m] = sqrt(sm->d[0] * sm->d[0] + sm->d[1] * sm->d[1]);
-            e[m] = sm->d[2] / hk[m];
-            rising &= m == 0 || e[m] >= e[m - 1];
-            m++;
+            at[k] = row[k];
+            hk[k] = sqrt(sm->d[0] * sm->d[0] + sm->d[1] * sm->d[1]);
+            e[k] = sm->d[2] / hk[k];
+            rising &= k == 0 || e[k] >= e[k - 1];
+            bent += (sm->flags & F_CURVE) != 0;
         }
-        bent += (uint64_t)(nrow - m);
         if (!rising) { /* not expected (the rows' slopes rise by a pixel's angle): the plain walk */
             for (int k = 0; k < m; k++)
-                camera_trace(w, &col[at[k]], 0.0);
-            untraced += (uint64_t)m;
+                if (!(col[at[k]].flags & F_CURVE)) {
+                    camera_trace(w, &col[at[k]], 0.0);
+                    untraced++;
+                }
             continue;
         }
-        if (m == 0)
-            continue;
         const double s0 = hz ? td_horizon_clear(&w->hz, e[0], &bins) * (1.0 - 1e-12) : 0.0;
         steps += td_colwalk_trace(&c->cw, col[at[0]].d[0] / hk[0], col[at[0]].d[1] / hk[0], s0, m, e, h);
         for (int k = 0; k < m; k++) {
             smp *sm = &col[at[k]];
+            if (sm->flags & F_CURVE) { /* where its chords start (not known: from the eye) */
+                if (h[k].s == h[k].s) {
+                    sm->t = h[k].s == INFINITY ? INFINITY : h[k].s / hk[k] * (1.0 - 1e-9);
+                    sm->flags |= F_CLEAR;
+                }
+                continue;
+            }
             if (h[k].s == INFINITY)
                 continue;
             if (h[k].s != h[k].s) { /* not known (colwalk.h): the plain walk */
@@ -1395,12 +1406,19 @@ static void stage_curvature(worker *w, const blk *b)
         memcpy(r.d, sm->d, sizeof r.d);
         r.tmin = 0.0;
         r.tmax = INFINITY;
-        hz = hz < 0 ? (c->horizon || c->col_horizon) && block_wedge(w, b) : hz;
         const double hk = sqrt(r.d[0] * r.d[0] + r.d[1] * r.d[1]);
-        if (hz && hk > 1e-9) { /* where the straight ray meets nothing before: the bent one neither */
-            const double dc = td_horizon_clear(&w->hz, r.d[2] / hk, &bins);
-            t_clear = dc == INFINITY ? INFINITY : dc / hk * (1.0 - 1e-12);
+        if (sm->flags & F_CLEAR) { /* its straight ray's hit, from the columns */
+            t_clear = sm->t;
+            sm->t = INFINITY;
+            sm->flags &= ~(uint32_t)F_CLEAR;
             w->st.coherent_rays++;
+        } else {
+            hz = hz < 0 ? (c->horizon || c->col_horizon) && block_wedge(w, b) : hz;
+            if (hz && hk > 1e-9) { /* where the straight ray meets nothing before: the bent one neither */
+                const double dc = td_horizon_clear(&w->hz, r.d[2] / hk, &bins);
+                t_clear = dc == INFINITY ? INFINITY : dc / hk * (1.0 - 1e-12);
+                w->st.coherent_rays++;
+            }
         }
         trace_camera(c, &r, 1, t_clear, &hit, &sm->level, &w->st);
         keep_camera_hit(&w->st, &hit, sm);
