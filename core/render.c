@@ -1252,46 +1252,48 @@ static void trace_columns(worker *w, const blk *b)
     td_render_stats *st = &w->st;
     double e[TD_BLOCK_TALL * TD_SAMPLES_MAX], hk[TD_BLOCK_TALL * TD_SAMPLES_MAX];
     int row[TD_BLOCK_TALL * TD_SAMPLES_MAX]; /* the k-th sample up a column: its offset */
-    int at[TD_BLOCK_TALL * TD_SAMPLES_MAX];  /* the k-th ray up a column: its offset */
     td_colhit h[TD_BLOCK_TALL * TD_SAMPLES_MAX];
     uint64_t steps = 0, nhit = 0, untraced = 0, bent = 0;
     uint32_t bins = 0;
     /* where each column's lowest ray may first meet the terrain */
-    const int hz = c->col_horizon && block_wedge(w, b);
+    const int hz = c->col_horizon && block_wedge(w, b), curv = c->curv;
     for (int32_t k = 0; k < nrow; k++) { /* from the bottom sample row up */
         const int32_t r = nrow - 1 - k;
         row[k] = r / n * b->bw * nn + r % n * n;
     }
     for (int32_t xs = 0; xs < ncol; xs++) {
         smp *const col = &w->s[xs / n * nn + xs % n];
-        int rising = 1, m = nrow;
+        int rising = 1;
         for (int32_t k = 0; k < nrow; k++) {
             const smp *sm = &col[row[k]];
-            at[k] = row[k];
             hk[k] = sqrt(sm->d[0] * sm->d[0] + sm->d[1] * sm->d[1]);
             e[k] = sm->d[2] / hk[k];
             rising &= k == 0 || e[k] >= e[k - 1];
-            bent += (sm->flags & F_CURVE) != 0;
         }
+        for (int32_t k = 0; k < nrow && curv; k++)
+            bent += (col[row[k]].flags & F_CURVE) != 0;
         if (!rising) { /* not expected (the rows' slopes rise by a pixel's angle): the plain walk */
-            for (int k = 0; k < m; k++)
-                if (!(col[at[k]].flags & F_CURVE)) {
-                    camera_trace(w, &col[at[k]], 0.0);
+            for (int32_t k = 0; k < nrow; k++)
+                if (!(col[row[k]].flags & F_CURVE)) {
+                    camera_trace(w, &col[row[k]], 0.0);
                     untraced++;
                 }
             continue;
         }
         const double s0 = hz ? td_horizon_clear(&w->hz, e[0], &bins) * (1.0 - 1e-12) : 0.0;
-        steps += td_colwalk_trace(&c->cw, col[at[0]].d[0] / hk[0], col[at[0]].d[1] / hk[0], s0, m, e, h);
-        for (int k = 0; k < m; k++) {
-            smp *sm = &col[at[k]];
+        steps += td_colwalk_trace(&c->cw, col[row[0]].d[0] / hk[0], col[row[0]].d[1] / hk[0], s0, nrow, e, h);
+        for (int32_t k = 0; k < nrow && curv; k++) {
+            smp *sm = &col[row[k]];
             if (sm->flags & F_CURVE) { /* where its chords start (not known: from the eye) */
                 if (h[k].s == h[k].s) {
                     sm->t = h[k].s == INFINITY ? INFINITY : h[k].s / hk[k] * (1.0 - 1e-9);
                     sm->flags |= F_CLEAR;
                 }
-                continue;
+                h[k].s = INFINITY; /* the curvature stage's: nothing to finish below */
             }
+        }
+        for (int32_t k = 0; k < nrow; k++) {
+            smp *sm = &col[row[k]];
             if (h[k].s == INFINITY)
                 continue;
             if (h[k].s != h[k].s) { /* not known (colwalk.h): the plain walk */
@@ -1502,14 +1504,14 @@ static void shadows_flush(worker *w, const double (*o)[3], const int *at, const 
     uint64_t more = 0;
     td_occluded_par(c->v, c->s->quality.method, c->s->quality.surface, c->sun, np, o, c->sunlit,
                     hit, &steps);
-    for (int k = 0; k < np; k++) {
+    for (int k = 0; k < np && c->curv2; k++)
         if (hit[k] && bent[k]) {
             td_ray r = sun_ray(c, o[k]);
             hit[k] = (uint8_t)occluded_curved(c, c->v, &r, c->sunlit, &more, &w->st.curve_segments);
             w->st.curved_secondary++;
         }
+    for (int k = 0; k < np; k++)
         lit[at[k]] = hit[k] ? 0.0f : 1.0f;
-    }
     w->st.steps += steps + more;
     w->st.kind_steps[TD_RAY_SHADOW] += steps + more;
 }
