@@ -399,8 +399,16 @@ static int needs_curve(const ctx *c, const double o[3], const double d[3], doubl
     int need = 0;
     double t0, t1;
     if (clip_xy(c, o, d, &t0, &t1)) {
-        double dxy = hypot(d[0], d[1]);
-        need = dxy > 0.0 && t1 * dxy >= smin;
+        /* the squares decide unless the run is within 1e-9 of smin: hypot's answer, without
+           its call (a panorama asks for every sample) */
+        const double q = d[0] * d[0] + d[1] * d[1], r2 = t1 * t1 * q, s2 = smin * smin;
+        const int sure = t1 < 1e150 && q > 1e-200 && s2 < 1e300 && fabs(r2 - s2) > 1e-9 * s2;
+        if (sure) {
+            need = r2 > s2;
+        } else {
+            double dxy = hypot(d[0], d[1]);
+            need = dxy > 0.0 && t1 * dxy >= smin;
+        }
     }
     return need;
 }
