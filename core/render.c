@@ -104,7 +104,7 @@
  *              pitch; the rays that bend under curvature left to the curvature stage),
  *              its rays made a sample row at a time (td_camera_cyl_dirs: a sine and cosine
  *              a column, not a sample): the gallery panorama without curvature, primary
- *              stage 689 -> 108 ms (README, "Coherent camera and shadow rays"), the same
+ *              stage 808 -> 112 ms (README, "Coherent camera and shadow rays"), the same
  *              picture.
  *   occlusion  shadow and AO rays are any-hit queries (td_occluded): no hit point or
  *              normal, the max-mipmap climbed from 2 x 2 blocks; a block's straight
@@ -114,7 +114,7 @@
  *              ray, so a clear straight ray is a lit bent one; the others' chords are
  *              any-hit queries too, with the sun bound (occluded_curved). The gallery
  *              panorama (trinidad, 1800 x 300, 2 x 2 samples, one thread): the shadows
- *              stage 448 -> 83 ms, 1,069,327 bent rays traced -> 707, the same picture.
+ *              stage 512 -> 71 ms, 1,069,327 bent rays traced -> 707, the same picture.
  *   sunlit     one sweep against the sun per render bounds, per 4 x 4 cells (coarser on
  *              grids of more than 2^24 cells), the height above which a point is surely
  *              lit (sunlit.h); a shadow ray ends there.
