@@ -416,6 +416,13 @@ static int needs_curve(const ctx *c, const double o[3], const double d[3], doubl
 /* The drop a secondary ray must reach to be bent, and its chords' tolerance (metres). */
 #define TD_CURVE_EPS2 0.5
 
+/* The method a camera ray known to miss (or, bent, known clear up to each chord) is
+ * counted under without a walk: the one asked for, `auto` as its walk (incremental). */
+static td_method untraced_method(const ctx *c)
+{
+    return c->s->quality.method == TD_METHOD_AUTO ? TD_METHOD_INCREMENTAL : c->s->quality.method;
+}
+
 /* The chords of a ray bent about its origin, p(t) = o + t*d + (0, 0, a*(t*|d_xy|)^2), over
  * its run across the grid (see the top of the file), each within max(0.5 m, eps_per_t * t)
  * of the parabola: chords_begin, then chords_next for each in turn. The chain ends at the
@@ -494,7 +501,7 @@ static void trace_curved(const ctx *c, const td_view *v, const td_ray *r, double
     double ta, tb;
     hit->t = INFINITY;
     hit->steps = 0;
-    hit->method = s->quality.method;
+    hit->method = untraced_method(c); /* a traced chord's walk says which */
     chords_begin(c, r, eps_per_t, &ch);
     while (hit->t == INFINITY && chords_next(c, &ch, r, &seg, &ta, &tb)) {
         if (tb <= t_clear)
@@ -881,7 +888,7 @@ static void camera_keep(worker *w, smp *sm, td_hit *hit)
 static void camera_miss(worker *w, smp *sm)
 {
     const ctx *c = w->c;
-    td_method m = c->s->quality.method == TD_METHOD_AUTO ? TD_METHOD_INCREMENTAL : c->s->quality.method;
+    td_method m = untraced_method(c);
     if (c->silh && m == TD_METHOD_INCREMENTAL)
         m = TD_METHOD_SILHOUETTE;
     sm->level = 0;

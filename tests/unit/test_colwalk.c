@@ -237,9 +237,10 @@ static void test_columns_match_walk(void **state)
  * degrees wide: no ray bends (each pixel's drop at the grid's far side is under a pixel,
  * render.c), and the columns take them all. 0.1 degree wide (rays whose run over the grid
  * is longer than about 1.3 km bend), a panorama and a pitched and a level perspective
- * camera: every ray bends, and the curvature stage starts each where its straight ray
- * meets nothing before (the block wedge's horizon: the chords lie above that ray). Each
- * the same depths as with the camera devices off (TD_RENDER_OFF_CAMERA). */
+ * camera, and a panorama looking up: every ray bends, and the curvature stage starts each
+ * where its straight ray meets nothing before (the columns' hit or the block wedge's
+ * horizon: the chords lie above that ray; a straight miss is a miss, counted as a known
+ * miss is). Each the same depths as with the camera devices off (TD_RENDER_OFF_CAMERA). */
 static void test_columns_curved(void **state)
 {
     td_grid *g = make_grid(13, PLAIN);
@@ -255,7 +256,7 @@ static void test_columns_curved(void **state)
     td_accel_opts_for(TD_METHOD_AUTO, &ao);
     assert_int_equal(td_accel_build(g, &ao, &a, NULL, NULL), TD_OK);
     const td_view v = {g, a->tiles};
-    for (int k = 0; k < 4; k++) {
+    for (int k = 0; k < 5; k++) {
         static td_scene s;
         td_render_result on, off;
         const int across = k > 0;
@@ -266,7 +267,7 @@ static void test_columns_curved(void **state)
         /* toward the farthest corner, or (wide: nothing bends) anywhere */
         const double cx = il < g->w / 2 ? (g->w - 1) * g->sx : 0.0, cy = jl < g->h / 2 ? (g->h - 1) * g->sy : 0.0;
         s.camera.heading = atan2(cx - s.camera.x, cy - s.camera.y) * 180.0 / M_PI;
-        s.camera.pitch = k == 3 ? 0.0 : -1.0;
+        s.camera.pitch = k == 3 ? 0.0 : (k == 4 ? 60.0 : -1.0); /* 4: up, into the sky */
         s.camera.fov = across ? 0.1 : 60.0;
         s.camera.fov_v = 0.0;
         if (k >= 2)
@@ -283,8 +284,10 @@ static void test_columns_curved(void **state)
         assert_int_equal(on.stats.rays[TD_RAY_PRIMARY], all);
         assert_int_equal(judge(&v, &s, &on, &off), 0);
         assert_int_equal(on.stats.hits, off.stats.hits);
+        /* counted under the walks that ran, or auto's (incremental) where none had to */
+        assert_int_equal(on.stats.method_rays[TD_METHOD_AUTO], 0);
         print_message("case %d: %d hits\n", k, (int)on.stats.hits);
-        assert_true(on.stats.hits > all / 2); /* the rays meet the terrain */
+        assert_true(k == 4 ? on.stats.hits < all / 2 : on.stats.hits > all / 2); /* the rays meet the terrain, or not */
         td_render_result_free(&on);
         td_render_result_free(&off);
     }
