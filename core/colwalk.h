@@ -1,10 +1,10 @@
 /* colwalk.h: the camera rays of one vertical plane through the eye, traced together
  * (issue 12: vertical ray coherence, after Qu et al. and Lee and Shin, exact per ray).
  *
- * With the camera upright and level (pitch 0, roll 0: its up vector is the world's z), the
- * rays of one image column share their horizontal direction h, so they lie in one vertical
- * plane through the eye E, and each is E + s (h, e) in the horizontal distance s, with its
- * own slope e. In that plane a ray above a lower one cannot meet the terrain before the
+ * With the camera upright and level (pitch 0, roll 0: its up vector is the world's z), or
+ * cylindrical (a panorama, at any pitch), the rays of one image column share their
+ * horizontal direction h, so they lie in one vertical plane through the eye E, and each is
+ * E + s (h, e) in the horizontal distance s, with its own slope e. In that plane a ray above a lower one cannot meet the terrain before the
  * distance at which the lower one met it (it is above the lower one at every s > 0, and the
  * lower one was above the surface up to its hit). So the rays of a column are taken from the
  * lowest up along one walk of the plane's cells: in each cell the surface along the line

@@ -1286,11 +1286,11 @@ static void trace_columns(worker *w, const blk *b)
             e[k] = sm->d[2] / hk[k];
             rising &= k == 0 || e[k] >= e[k - 1];
         }
-        for (int32_t k = 0; k < nrow && curv; k++)
-            bent += (col[row[k]].flags & F_CURVE) != 0;
         if (!rising) { /* not expected (the rows' slopes rise by a pixel's angle): the plain walk */
             for (int32_t k = 0; k < nrow; k++)
-                if (!(col[row[k]].flags & F_CURVE)) {
+                if (col[row[k]].flags & F_CURVE) {
+                    bent++;
+                } else {
                     camera_trace(w, &col[row[k]], 0.0);
                     untraced++;
                 }
@@ -1301,6 +1301,7 @@ static void trace_columns(worker *w, const blk *b)
         for (int32_t k = 0; k < nrow && curv; k++) {
             smp *sm = &col[row[k]];
             if (sm->flags & F_CURVE) { /* where its chords start (not known: from the eye) */
+                bent++;
                 if (h[k].s == h[k].s) {
                     sm->t = h[k].s == INFINITY ? INFINITY : h[k].s / hk[k] * (1.0 - 1e-9);
                     sm->flags |= F_CLEAR;
@@ -2143,7 +2144,8 @@ static td_status setup_silhouette(ctx *c, const td_render_opts *o, int nthreads,
  * column one azimuth, whatever the pitch) on the full grid, with the method `auto` (the
  * walk is its choice there, as the partition is a cold dataset's), and the eye above
  * every surface around it (td_colwalk_init). With curvature, the rays that bend are the
- * curvature stage's (trace_columns walks the others). The block wedges' horizon
+ * curvature stage's (trace_columns walks them as straight rays for where their chords
+ * start). The block wedges' horizon
  * (horizon.h) starts each column's lowest ray, as the fans' for a perspective camera. */
 static void setup_columns(ctx *c, const td_render_opts *o)
 {
