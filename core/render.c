@@ -221,6 +221,17 @@ static const char *const td_stage_names[] = {
 #undef TD_X_NAME
 };
 
+static const char *const td_sun_bound_names[] = {
+#define TD_X_NAME(e, name) name,
+    TD_SUN_BOUND_LIST(TD_X_NAME)
+#undef TD_X_NAME
+};
+
+const char *td_sun_bound_name(td_sun_bound b)
+{
+    return (unsigned)b < TD_SUN_BOUND_COUNT ? td_sun_bound_names[b] : "unknown";
+}
+
 const char *td_ray_kind_name(td_ray_kind k)
 {
     return (unsigned)k < TD_RAY_KIND_COUNT ? td_ray_kind_names[k] : "unknown";
@@ -335,7 +346,9 @@ struct ctx {
     td_colwalk cw;   /* their eye's set-up */
     int plain_secondary; /* shadow and AO rays traced for their nearest hit (OFF_OCCLUSION) */
     td_ray *shadow_rays; /* the caller's copy of the shadow rays, or NULL */
-    td_sunlit *sunlit;   /* heights surely in the sun (shadow rays end there), or NULL */
+    const td_sunlit *sunlit; /* heights surely in the sun (shadow rays end there), or NULL */
+    td_sunlit *sunlit_own;   /* that bound when this render built it (freed with the render) */
+    td_sun_bound sun_bound;  /* where c->sunlit came from */
     td_silhouette *silh; /* the camera rays' silhouette partition (method silhouette), or NULL */
     double silh_ms;      /* its build */
     double sunlit_ms;    /* its build */
@@ -2082,14 +2095,27 @@ out:
     return rc;
 }
 
-/* The sun bound of the shadow rays (sunlit.h), once per render; its time is the shadows
- * stage's. None with the occlusion device off, or for a sun it cannot bound. */
+/* The sun bound of the shadow rays (sunlit.h): the caller's kept one (o->sunlit) when it
+ * fits this render's sun and grid, else one built for this render; its time (a lookup, or
+ * the build) is the shadows stage's. None with the occlusion device off, or for a sun it
+ * cannot bound. */
 static td_status setup_sunlit(ctx *c, const td_render_opts *o, td_err *err)
 {
     td_status rc = TD_OK;
     if (c->on[TD_STAGE_SHADOWS] && !(o->off & TD_RENDER_OFF_SUNLIT) && !c->plain_secondary) {
         double t = td_clock_s();
-        rc = td_sunlit_build(c->v, c->sun, &c->sunlit, err);
+        const td_sunlit *kept = NULL;
+        int was_kept = 0;
+        if (o->sunlit)
+            rc = o->sunlit(o->sunlit_ctx, c->v, c->sun, &kept, &was_kept, err);
+        if (rc == TD_OK && td_sunlit_fits(kept, c->v, c->sun)) {
+            c->sunlit = kept;
+            c->sun_bound = was_kept ? TD_SUN_BOUND_KEPT : TD_SUN_BOUND_BUILT;
+        } else if (rc == TD_OK) {
+            rc = td_sunlit_build(c->v, c->sun, &c->sunlit_own, err);
+            c->sunlit = c->sunlit_own;
+            c->sun_bound = c->sunlit ? TD_SUN_BOUND_BUILT : TD_SUN_BOUND_NONE;
+        }
         c->sunlit_ms = 1000.0 * (td_clock_s() - t);
     }
     return rc;
@@ -2226,6 +2252,7 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
     setup_columns(c, o);
     rc = run_workers(ws, nthreads, &res->stats, err);
     res->stats.stage_ms[TD_STAGE_SHADOWS] += c->sunlit_ms;
+    res->stats.sun_bound = c->sun_bound;
     res->stats.stage_ms[TD_STAGE_PRIMARY] += c->silh_ms;
     if (c->silh) {
         res->stats.silhouette_entries = c->silh->entries;
@@ -2235,7 +2262,7 @@ td_status td_render(const td_view *v, const td_scene *s, const td_render_opts *o
     res->stats.total_ms = 1000.0 * (td_clock_s() - t_start);
 out:
     free_workers(ws, nthreads);
-    td_sunlit_free(c ? c->sunlit : NULL);
+    td_sunlit_free(c ? c->sunlit_own : NULL);
     td_silhouette_free(c ? c->silh : NULL);
     td_image_free(drape);
     free(c);

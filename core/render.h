@@ -29,6 +29,7 @@
 #include "image.h"
 #include "lod.h"
 #include "scene.h"
+#include "sunlit.h"
 
 #define TD_RAY_KIND_LIST(X)                                                    \
     X(TD_RAY_PRIMARY, "primary")                                               \
@@ -72,8 +73,22 @@ typedef enum td_stage {
     TD_STAGE_COUNT
 } td_stage;
 
+/* Where a render's sun bound came from (its stats, `sun_bound`): enum, name */
+#define TD_SUN_BOUND_LIST(X)                                                   \
+    X(TD_SUN_BOUND_NONE, "none")   /* no shadows, or a sun it cannot bound */  \
+    X(TD_SUN_BOUND_BUILT, "built") /* for this render, in the shadows stage */ \
+    X(TD_SUN_BOUND_KEPT, "kept")   /* from an earlier render (opts.sunlit) */
+
+typedef enum td_sun_bound {
+#define TD_X_ENUM(e, name) e,
+    TD_SUN_BOUND_LIST(TD_X_ENUM)
+#undef TD_X_ENUM
+    TD_SUN_BOUND_COUNT
+} td_sun_bound;
+
 const char *td_ray_kind_name(td_ray_kind k);
 const char *td_stage_name(td_stage s);
+const char *td_sun_bound_name(td_sun_bound b);
 
 typedef struct td_render_stats {
     uint64_t rays[TD_RAY_KIND_COUNT];
@@ -104,6 +119,7 @@ typedef struct td_render_stats {
     double stage_ms[TD_STAGE_COUNT];
     double total_ms;           /* wall time of td_render */
     int threads;
+    td_sun_bound sun_bound;    /* where the shadow rays' sun bound (sunlit.h) came from */
 } td_render_stats;
 
 typedef struct td_render_opts {
@@ -118,6 +134,15 @@ typedef struct td_render_opts {
                                   shadow ray, in image order (row-major pixels, then the
                                   pixel's samples), tmax -1 where it has none; for tracing
                                   the same rays with another tracer (benchmark, CLI) */
+    /* A sun bound kept across renders (sunlit.h), or NULL to build one per render. Called
+     * at most once, with the render's view and the unit direction of the sun its shadow
+     * rays take, when they take a bound: *out a bound of td_sunlit_build for the same
+     * heights (any view of them) or NULL, valid until td_render returns and not freed by
+     * it; *kept non-zero when it was not built for this call. A bound that does not fit
+     * (td_sunlit_fits: another sun or grid size) is not used; the render builds its own. */
+    td_status (*sunlit)(void *ctx, const td_view *v, const double sun[3], const td_sunlit **out,
+                        int *kept, td_err *err);
+    void *sunlit_ctx;
 } td_render_opts;
 
 #define TD_RENDER_OFF_HORIZON 1u   /* camera rays each traced from their start (no horizon,

@@ -317,6 +317,9 @@ td_status td_sunlit_build(const td_view *v, const double sun[3], td_sunlit **out
     s->nst = nst;
     s->kmin = kmin;
     s->bytes = sizeof *s + nh * sizeof *s->h;
+    memcpy(s->sun, sun, sizeof s->sun);
+    s->gw = g->w;
+    s->gh = g->h;
     block_maxima(v, &w, shift, bm);
     size_t ahead = sweep_strips(&w, s, bm, 0, w.decay, s->h, bm + n);
     rc = build_lo(v, &w, shift, dtan * (1.0 + 1e-9), ahead, s, bm, bm + n, err);
@@ -328,6 +331,11 @@ out:
     free(bm);
     td_sunlit_free(s);
     return rc;
+}
+
+int td_sunlit_fits(const td_sunlit *s, const td_view *v, const double sun[3])
+{
+    return s && memcmp(s->sun, sun, sizeof s->sun) == 0 && s->gw == v->grid->w && s->gh == v->grid->h;
 }
 
 void td_sunlit_free(td_sunlit *s)

@@ -61,12 +61,20 @@ typedef struct td_sunlit {
     float *h;       /* na * nst bounds: column ia, strip k at h[ia * nst + k - kmin] */
     float *lo;      /* the shadow side's L, laid out as h (-inf: no claim), or NULL */
     size_t bytes;
+    double sun[3];  /* the sun it was built for, and the grid's size: what td_sunlit_fits */
+    int32_t gw, gh; /* checks before a bound built for one render serves another */
 } td_sunlit;
 
 /* Builds the bound for the view and the sun's unit direction; *out NULL (and TD_OK) when
  * the sun gives none. */
 td_status td_sunlit_build(const td_view *v, const double sun[3], td_sunlit **out, td_err *err);
 void td_sunlit_free(td_sunlit *s);
+
+/* Whether s was built for exactly this sun (the same bits) and a grid of v's size. A
+ * bound holds for every view of the heights it was built from (it bounds the terrain,
+ * whatever structures the view holds), so a server may keep one across renders of the
+ * same heights and sun (render.h, td_render_opts.sunlit): the answers are the same. */
+int td_sunlit_fits(const td_sunlit *s, const td_view *v, const double sun[3]);
 
 /* The strip of the point (u, v) of the grid, in cells (u in [0, w - 1], v in [0, h - 1]):
  * the index of its column 0 bound in h, or -1 for a point off the grid. A ray toward the

@@ -14,7 +14,7 @@
  * terrain point of each pixel). --stats writes JSON: rays {primary, shadow, reflection,
  * ao}, steps {total, primary, shadow, reflection, ao}, coherent_rays, horizon_bins,
  * silhouette_rays, silhouette_entries, column_rays, hits, curved_rays, curved_secondary,
- * curve_segments, height_error_m {mean, max, hits},
+ * curve_segments, height_error_m {mean, max, hits}, sun_bound (none, built),
  * stages_ms (one entry per stage that ran), load_ms, accel_ms, render_ms, total_ms,
  * threads, bytes. --rays and --shadow-rays write the render's rays for another tracer
  * (the benchmark traces them with Embree). --edit applies a heights edit to the loaded
@@ -196,6 +196,7 @@ static json_t *stats_json(const td_render_stats *st)
     json_object_set_new(o, "curved_rays", json_integer((json_int_t)st->curved_rays));
     json_object_set_new(o, "curved_secondary", json_integer((json_int_t)st->curved_secondary));
     json_object_set_new(o, "curve_segments", json_integer((json_int_t)st->curve_segments));
+    json_object_set_new(o, "sun_bound", json_string(td_sun_bound_name(st->sun_bound)));
     json_object_set_new(o, "height_error_m",
                         json_pack("{s:f, s:f, s:I}", "mean", st->height_err_mean_m, "max", st->height_err_max_m,
                                   "hits", (json_int_t)st->height_err_hits));

@@ -4,7 +4,8 @@
  * A tile request is checked on the HTTP thread (path, style, query, the dataset's map,
  * the tile against the dataset's Web Mercator bounds, If-None-Match), then traced on a
  * render worker: the pixel positions (td_merc_positions), the sun bound for shadows on
- * the full grid (sunlit.h), the pixels (td_maptile_render), the PNG. The sun of ?time= is
+ * the full grid (sunlit.h; the dataset keeps it for the next tiles with the same sun,
+ * td_snapshot_sunlit), the pixels (td_maptile_render), the PNG. The sun of ?time= is
  * NOAA's (core/solar.h) at the dataset's centre, turned into the dataset frame by the
  * CRS's meridian convergence (td_merc_proj_grid_north), as ?azimuth= is.
  *
@@ -303,9 +304,9 @@ static int tile_png(map_job *j, td_merc_proj *proj, td_http_resp *r, td_buf *png
     size_t n = (size_t)j->px * (size_t)j->px;
     double *xy = malloc(2 * n * sizeof *xy), foot = 0.0, t0 = td_clock_s();
     uint8_t *rgba = malloc(4 * n);
-    td_sunlit *lit = NULL;
+    const td_sunlit *lit = NULL; /* held by the snapshot */
     td_err e = {0};
-    int exact = 0, rc = -1, level;
+    int exact = 0, rc = -1, level, kept = 0;
     if (!xy || !rgba) {
         td_routes_error(r, "internal", NULL, "out of memory");
         goto out;
@@ -318,7 +319,7 @@ static int tile_png(map_job *j, td_merc_proj *proj, td_http_resp *r, td_buf *png
     t0 = td_clock_s();
     level = td_maptile_level(v->grid, lod, foot, j->mq.spec.lod_pixels);
     if (j->mq.spec.style == TD_MAPSTYLE_SHADED && j->mq.spec.shadows && level == 0 &&
-        td_sunlit_build(v, j->mq.spec.sun, &lit, &e)) {
+        td_snapshot_sunlit(j->snap, j->mq.spec.sun, &lit, &kept, &e)) {
         td_routes_error(r, "internal", NULL, e.msg);
         goto out;
     }
@@ -339,7 +340,6 @@ static int tile_png(map_job *j, td_merc_proj *proj, td_http_resp *r, td_buf *png
     ms[2] = (td_clock_s() - t0) * 1e3;
     rc = 0;
 out:
-    td_sunlit_free(lit);
     free(xy);
     free(rgba);
     return rc;

@@ -234,6 +234,14 @@ static void put_totals(td_buf *b, td_metrics *m, const td_metrics_ext *e)
             "terrad_cache_loads_total{result=\"hit\"} %llu\n"
             "terrad_cache_loads_total{result=\"miss\"} %llu\n",
         (unsigned long long)e->cache_hits, (unsigned long long)e->cache_misses);
+    put(b, "# HELP terrad_sun_bounds_total Sun bounds of shadow rays (renders and map tiles), by whether "
+            "the dataset kept one for the same heights and sun.\n"
+            "# TYPE terrad_sun_bounds_total counter\n"
+            "terrad_sun_bounds_total{result=\"kept\"} %llu\n"
+            "terrad_sun_bounds_total{result=\"built\"} %llu\n"
+            "# HELP terrad_sun_bounds_bytes Bytes of the sun bounds the datasets keep (in terrad_resident_bytes).\n"
+            "# TYPE terrad_sun_bounds_bytes gauge\nterrad_sun_bounds_bytes %llu\n",
+        (unsigned long long)e->sun_kept, (unsigned long long)e->sun_built, (unsigned long long)e->sun_bytes);
     put(b, "# HELP terrad_build_jobs Admin preload jobs, by state.\n"
             "# TYPE terrad_build_jobs gauge\n"
             "terrad_build_jobs{state=\"queued\"} %llu\nterrad_build_jobs{state=\"running\"} %llu\n"

@@ -31,6 +31,7 @@ typedef struct td_metrics_ext {
     int datasets;
     uint64_t resident_tiles, total_tiles, resident_bytes, budget_bytes;
     uint64_t tiles_built, tiles_evicted, cache_hits, cache_misses;
+    uint64_t sun_kept, sun_built, sun_bytes; /* sun bounds (td_snapshot_sunlit) */
     uint64_t jobs_queued, jobs_running, jobs_done, jobs_failed;
     /* prepared datasets' mapped heights: mapped, resident in the process, trims */
     uint64_t heights_mapped, heights_resident, heights_trims;

@@ -333,6 +333,9 @@ static void h_metrics(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
     e.tiles_evicted = st.tiles_evicted;
     e.cache_hits = st.cache_hits;
     e.cache_misses = st.cache_misses;
+    e.sun_kept = st.sun_kept;
+    e.sun_built = st.sun_built;
+    e.sun_bytes = st.sun_bytes;
     e.heights_mapped = st.heights_mapped;
     e.heights_resident = st.heights_mapped_resident;
     e.heights_trims = st.heights_trims;
@@ -983,6 +986,14 @@ out:
     return ok;
 }
 
+/* td_render_opts.sunlit: the sun bound the snapshot's dataset keeps for the sun */
+static td_status snapshot_sunlit(void *ctx, const td_view *v, const double sun[3], const td_sunlit **out, int *kept,
+                                 td_err *err)
+{
+    (void)v; /* the snapshot's own (td_snapshot_view) */
+    return td_snapshot_sunlit(ctx, sun, out, kept, err);
+}
+
 /* A render (or a map tile): 200 with the encoded image and its format's headers, the
  * result in *res (the caller frees it); else r holds the error. 1 when answered 200. */
 static int work_image(td_app *app, td_rjob *j, td_pagein_guard *pg, td_snapshot *snap, td_http_resp *r,
@@ -1000,6 +1011,8 @@ static int work_image(td_app *app, td_rjob *j, td_pagein_guard *pg, td_snapshot 
     o.cancel = td_pagein_flag(app->pagein, pg); /* raised at --render-timeout (http.c) or
                                                    --pagein-timeout (pagein.h) */
     o.lod = td_snapshot_lod(snap);
+    o.sunlit = snapshot_sunlit; /* kept across renders of the same heights and sun */
+    o.sunlit_ctx = snap;
     /* the drape, decoded once and kept with the dataset (a depth image has none) */
     rc = TD_OK;
     if (j->scene.effects.drape[0] && j->scene.image.format != TD_FORMAT_DEPTH16 &&
@@ -1049,6 +1062,8 @@ static void work_headers(const td_rjob *j, const td_render_stats *st, td_http_re
     td_http_resp_header(r, "X-Terrad-Rays", "%llu", (unsigned long long)(st->rays[TD_RAY_PRIMARY] +
                         st->rays[TD_RAY_SHADOW] + st->rays[TD_RAY_REFLECTION] + st->rays[TD_RAY_AO]));
     td_http_resp_header(r, "X-Terrad-Steps", "%llu", (unsigned long long)st->steps);
+    if (st->sun_bound != TD_SUN_BOUND_NONE) /* built for this render, or kept from an earlier one */
+        td_http_resp_header(r, "X-Terrad-Sun-Bound", "%s", td_sun_bound_name(st->sun_bound));
     /* how far the picture is from the exact one (render.h): metres, over the camera hits */
     if (st->height_err_hits)
         td_http_resp_header(r, "X-Terrad-Height-Error", "mean=%.3g; max=%.3g; hits=%llu", st->height_err_mean_m,

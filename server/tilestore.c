@@ -12,6 +12,8 @@
  *                 hver (the version that last changed the tile's heights) }
  *         td_part { atomic refs, kind, object, bytes }   immutable once built
  *       td_drape { atomic refs, path, RGB image, bytes } immutable, kept for the store's life
+ *       td_sunkeep { atomic refs, version, sun, bound, bytes } immutable, the last few suns'
+ *                 bounds of the current heights (td_snapshot_sunlit), least recently used last
  * Slots and counters are read and written under `mu` only; a part's refcount is atomic
  * so that snapshots release without the lock. A dataset's counters (tiles per kind,
  * resident and pinned tiles, bytes) change with its slots in slot_put_locked and
@@ -49,10 +51,15 @@
 #include "maxmip.h"
 #include "planes.h"
 #include "prepared.h"
+#include "sunlit.h"
 
 /* The most pixels of a drape: td_render's own limit when it loads one itself
  * (td_render_opts.drape_max_pixels 0). */
 #define TD_STORE_DRAPE_MAX_PIXELS (64u << 20)
+
+/* Sun bounds kept per dataset (td_snapshot_sunlit): a map's tiles and a page's renders
+ * share one sun; a time slider moves through several. */
+#define TD_STORE_SUNS 4
 
 /* How often the background thread holds mapped heights to the budget (trim_mapped). */
 #define TD_TRIM_MS 25
@@ -98,6 +105,15 @@ typedef struct td_drape {
     char path[];
 } td_drape;
 
+typedef struct td_sunkeep {
+    atomic_int refs;
+    struct td_sunkeep *next; /* the dataset's kept bounds, most recently used first */
+    uint64_t version;        /* of the heights it was built from */
+    double sun[3];
+    td_sunlit *lit;          /* NULL: the sun gives none */
+    uint64_t bytes;
+} td_sunkeep;
+
 typedef struct td_ds {
     char id[TD_STORE_ID_MAX + 1];
     char file[256];
@@ -111,9 +127,10 @@ typedef struct td_ds {
     uint64_t fingerprint; /* of heights and tiling, for the disk cache */
     /* kept with the slots (store lock) */
     size_t resident_tiles, pinned_tiles, part_tiles[TD_PART_COUNT];
-    uint64_t accel_bytes, drape_bytes;
+    uint64_t accel_bytes, drape_bytes, sun_bytes;
     uint64_t snapshots;   /* requests that traced it (td_store_acquire) */
     td_drape *drapes;
+    td_sunkeep *suns;
     /* a prepared dataset (prepared.h): its index, and the background check of its chunks
        (state and progress under `mu`); NULL for a dataset whose heights were loaded */
     td_prepared *prep;
@@ -132,8 +149,9 @@ struct td_store {
     pthread_mutex_t preload;  /* one preload at a time */
     pthread_mutex_t edit;     /* one edit at a time (the only writer of td_ds.cur) */
     uint64_t clock;
-    uint64_t resident_bytes;  /* grids + parts in slots + kept drapes */
+    uint64_t resident_bytes;  /* grids + parts in slots + kept drapes and sun bounds */
     uint64_t tiles_built, tiles_evicted, cache_hits, cache_misses;
+    uint64_t sun_kept, sun_built; /* td_snapshot_sunlit's answers */
     td_ds *ds;
     size_t nds;
     int lod_iso; /* td_store_set_lod_iso */
@@ -155,6 +173,7 @@ struct td_snapshot {
     size_t nparts;
     size_t count[TD_PART_COUNT];
     td_drape *drape;
+    td_sunkeep *sun;
 };
 
 /* --- the kinds of part: per-kind operations --------------------------------------- */
@@ -485,6 +504,14 @@ static void drape_unref(td_drape *dr)
     }
 }
 
+static void sunkeep_unref(td_sunkeep *k)
+{
+    if (k && atomic_fetch_sub_explicit(&k->refs, 1, memory_order_acq_rel) == 1) {
+        td_sunlit_free(k->lit);
+        free(k);
+    }
+}
+
 /* --- slots (store lock held) ------------------------------------------------------ */
 
 static int slot_resident(const td_slot *sl)
@@ -565,7 +592,7 @@ static uint64_t kept_bytes_locked(const td_store *s)
     uint64_t kept = 0;
     for (size_t k = 0; k < s->nds; k++) {
         const td_ds *d = &s->ds[k];
-        kept += d->grid_bytes + d->drape_bytes;
+        kept += d->grid_bytes + d->drape_bytes + d->sun_bytes;
         for (size_t t = 0; t < d->ntiles; t++) {
             const td_slot *sl = &d->slots[t];
             for (int j = 0; j < TD_PART_COUNT && (sl->pinned || sl->job); j++)
@@ -641,6 +668,11 @@ void td_store_free(td_store *s)
             td_drape *next = ds->drapes->next;
             drape_unref(ds->drapes);
             ds->drapes = next;
+        }
+        while (ds->suns) {
+            td_sunkeep *next = ds->suns->next;
+            sunkeep_unref(ds->suns);
+            ds->suns = next;
         }
         free(ds->slots);
         hver_unref(ds->cur);
@@ -1244,6 +1276,10 @@ void td_store_stats_get(td_store *s, td_store_stats *st)
     st->tiles_evicted = s->tiles_evicted;
     st->cache_hits = s->cache_hits;
     st->cache_misses = s->cache_misses;
+    st->sun_kept = s->sun_kept;
+    st->sun_built = s->sun_built;
+    for (size_t d = 0; d < s->nds; d++)
+        st->sun_bytes += s->ds[d].sun_bytes;
     st->heights_trims = s->heights_trims;
     pthread_mutex_unlock(&s->mu);
     st->heights_mapped_resident = mapped_resident(s, &st->heights_mapped);
@@ -1341,6 +1377,7 @@ void td_snapshot_release(td_snapshot *snap)
     for (size_t i = 0; i < snap->nparts; i++)
         part_unref(snap->parts[i]);
     drape_unref(snap->drape);
+    sunkeep_unref(snap->sun);
     hver_unref(snap->hv);
     free(snap->parts);
     free(snap->accel);
@@ -1443,6 +1480,111 @@ td_status td_snapshot_drape(td_snapshot *snap, const char *path, const td_image8
     *out = dr->img;
 out:
     drape_unref(mine);
+    return rc;
+}
+
+/* --- sun bounds ------------------------------------------------------------------- */
+
+/* The dataset's kept bound for these heights and this sun (the same bits), moved to the
+ * front, with a reference for the caller; NULL if none is kept. */
+static td_sunkeep *sun_find_locked(td_ds *d, uint64_t version, const double sun[3])
+{
+    td_sunkeep **pp = &d->suns, *k;
+    while ((k = *pp) && !(k->version == version && memcmp(k->sun, sun, sizeof k->sun) == 0))
+        pp = &k->next;
+    if (k) {
+        *pp = k->next;
+        k->next = d->suns;
+        d->suns = k;
+        atomic_fetch_add_explicit(&k->refs, 1, memory_order_relaxed);
+    }
+    return k;
+}
+
+/* Drops the dataset's reference to *pp (unlinked; freed with the last snapshot's). */
+static void sun_drop_locked(td_store *s, td_ds *d, td_sunkeep **pp)
+{
+    td_sunkeep *k = *pp;
+    *pp = k->next;
+    d->sun_bytes -= k->bytes;
+    s->resident_bytes -= k->bytes;
+    sunkeep_unref(k);
+}
+
+/* Keeps a new bound at the front (a reference of its own): bounds of other heights are
+ * dropped, and the least recently used beyond TD_STORE_SUNS; then it is kept if the
+ * budget has room after evicting acceleration least recently used first. 0 if not. */
+static int sun_keep_locked(td_store *s, td_ds *d, td_sunkeep *k)
+{
+    td_sunkeep **pp = &d->suns;
+    int n = 1, kept;
+    while (*pp)
+        if ((*pp)->version != k->version || n >= TD_STORE_SUNS)
+            sun_drop_locked(s, d, pp);
+        else {
+            pp = &(*pp)->next;
+            n++;
+        }
+    while (s->resident_bytes + k->bytes > s->o.budget_bytes && evict_lru_locked(s))
+        ;
+    kept = s->resident_bytes + k->bytes <= s->o.budget_bytes;
+    if (kept) {
+        atomic_fetch_add_explicit(&k->refs, 1, memory_order_relaxed);
+        k->next = d->suns;
+        d->suns = k;
+        d->sun_bytes += k->bytes;
+        s->resident_bytes += k->bytes;
+    }
+    return kept;
+}
+
+td_status td_snapshot_sunlit(td_snapshot *snap, const double sun[3], const td_sunlit **out, int *kept,
+                             td_err *err)
+{
+    td_status rc = TD_OK;
+    td_store *s = snap->store;
+    td_ds *d = &s->ds[snap->ds];
+    td_sunkeep *k, *mine = NULL;
+
+    *out = NULL;
+    *kept = 0;
+    pthread_mutex_lock(&s->mu);
+    k = sun_find_locked(d, snap->hv->version, sun);
+    s->sun_kept += k != NULL;
+    pthread_mutex_unlock(&s->mu);
+    if (k) {
+        *kept = 1;
+    } else {
+        /* built without the lock on this snapshot's view; a render that built it
+         * meanwhile wins */
+        mine = calloc(1, sizeof *mine);
+        if (!mine) {
+            rc = td_err_set(err, TD_ENOMEM, "out of memory for a sun bound");
+            goto out;
+        }
+        atomic_init(&mine->refs, 1);
+        mine->version = snap->hv->version;
+        memcpy(mine->sun, sun, sizeof mine->sun);
+        rc = td_sunlit_build(&snap->view, sun, &mine->lit, err);
+        if (rc)
+            goto out;
+        mine->bytes = sizeof *mine + (mine->lit ? mine->lit->bytes : 0);
+        pthread_mutex_lock(&s->mu);
+        s->sun_built++;
+        k = sun_find_locked(d, snap->hv->version, sun);
+        if (!k) {
+            k = mine;
+            mine = NULL;
+            if (k->lit && d->cur->version == k->version) /* a bound, of the heights now */
+                sun_keep_locked(s, d, k);
+        }
+        pthread_mutex_unlock(&s->mu);
+    }
+    sunkeep_unref(snap->sun);
+    snap->sun = k;
+    *out = k->lit;
+out:
+    sunkeep_unref(mine);
     return rc;
 }
 
@@ -1914,6 +2056,8 @@ static void edit_publish_locked(td_store *s, td_ds *d, td_hver *hv, const size_t
             slot_put_locked(s, d, sl, (td_part_kind)k, NULL);
         sl->hver = hv->version;
     }
+    while (d->suns) /* bounds of the heights replaced (snapshots holding one keep it) */
+        sun_drop_locked(s, d, &d->suns);
     d->cur = hv;
 }
 

@@ -54,6 +54,7 @@
 #include "gridedit.h"
 #include "image.h"
 #include "lod.h"
+#include "sunlit.h"
 #include "trace.h"
 
 #define TD_STORE_ID_MAX 64
@@ -117,6 +118,8 @@ typedef struct td_store_stats {
     size_t datasets;
     uint64_t total_tiles, resident_tiles, resident_bytes, budget_bytes;
     uint64_t tiles_built, tiles_evicted, cache_hits, cache_misses;
+    uint64_t sun_kept, sun_built; /* td_snapshot_sunlit: bounds found kept, and built */
+    uint64_t sun_bytes;           /* the kept sun bounds' (in resident_bytes) */
     /* prepared datasets: bytes of heights mapped, resident in the process (counted in
        resident_bytes too), and how often they were trimmed back to the budget */
     uint64_t heights_mapped, heights_mapped_resident, heights_trims;
@@ -193,6 +196,16 @@ size_t td_snapshot_count(const td_snapshot *snap, td_part_kind kind);
  * drops the first one's reference. */
 td_status td_snapshot_drape(td_snapshot *snap, const char *path, const td_image8 **out,
                             td_err *err);
+/* The sun bound (sunlit.h) of the snapshot's heights for the sun's unit direction, held
+ * by the snapshot until its release (one per snapshot: a second call drops the first
+ * one's reference): built on the first use of those heights with that sun (the same
+ * bits), and kept with the dataset, the last TD_STORE_SUNS suns (tilestore.c), counted
+ * in the budget (when it cannot fit, this snapshot alone keeps it); an edit's new heights
+ * start afresh. *out NULL for a sun that gives none; *kept 1 when it was not built by this
+ * call. A bound bounds the heights whatever structures the view that built it held, so
+ * every snapshot of the same heights gives the same answers with it (td_sunlit_fits). */
+td_status td_snapshot_sunlit(td_snapshot *snap, const double sun[3], const td_sunlit **out, int *kept,
+                             td_err *err);
 void td_snapshot_release(td_snapshot *snap);
 
 typedef struct td_preload_spec {

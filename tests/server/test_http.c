@@ -787,6 +787,45 @@ static void test_render_during_preload_and_evict(void **state)
     assert_int_equal(b.png, b.n);
 }
 
+/* A sun bound is built by the first render with a sun and kept with the dataset for the
+ * next ones (X-Terrad-Sun-Bound, /metrics): the same picture either way. */
+static void test_render_sun_bound_kept(void **state)
+{
+    th_resp r[3];
+    char v[128];
+    const char *scene = "{\"dataset\":\"trinidad\",\"camera\":{\"position\":{\"x\":22000,\"y\":2000,"
+                        "\"z\":4300},\"pitch\":-8},\"image\":{\"width\":64,\"height\":48},"
+                        "\"effects\":{\"shadows\":true,\"sun\":{\"azimuth\":123.25,\"elevation\":17.5}}}";
+    (void)state;
+    for (int k = 0; k < 2; k++) {
+        req(&A, "POST", "/v1/render", JSON_CT, scene, &r[k]);
+        assert_int_equal(r[k].status, 200);
+        assert_true(th_header(&r[k], "X-Terrad-Sun-Bound", v, sizeof v));
+        assert_string_equal(v, k == 0 ? "built" : "kept");
+    }
+    assert_int_equal(r[0].len, r[1].len);
+    assert_memory_equal(r[0].body, r[1].body, r[0].len);
+    /* no shadows: no bound */
+    req(&A, "POST", "/v1/render", JSON_CT,
+        "{\"dataset\":\"trinidad\",\"camera\":{\"position\":{\"x\":22000,\"y\":2000,\"z\":4300},\"pitch\":-8},"
+        "\"image\":{\"width\":64,\"height\":48}}", &r[2]);
+    assert_int_equal(r[2].status, 200);
+    assert_false(th_header(&r[2], "X-Terrad-Sun-Bound", v, sizeof v));
+    for (int k = 0; k < 3; k++)
+        th_resp_free(&r[k]);
+    req(&A, "GET", "/metrics", NULL, NULL, &r[0]);
+    assert_int_equal(r[0].status, 200);
+    {
+        const char *p = strstr(r[0].body, "terrad_sun_bounds_total{result=\"kept\"} ");
+        const char *q = strstr(r[0].body, "\nterrad_sun_bounds_bytes ");
+        assert_non_null(p);
+        assert_non_null(q);
+        assert_true(atoll(p + strlen("terrad_sun_bounds_total{result=\"kept\"} ")) >= 1);
+        assert_true(atoll(q + strlen("\nterrad_sun_bounds_bytes ")) > 0);
+    }
+    th_resp_free(&r[0]);
+}
+
 /* --- metrics (after the requests above) ---------------------------------------------------- */
 
 static void test_metrics(void **state)
@@ -1343,6 +1382,7 @@ int main(void)
         cmocka_unit_test(test_admin_preload),
         cmocka_unit_test(test_render_during_preload_and_evict),
         cmocka_unit_test(test_web),
+        cmocka_unit_test(test_render_sun_bound_kept),
         cmocka_unit_test(test_metrics),
         cmocka_unit_test(test_dataset_routing_key),
         cmocka_unit_test(test_render_sun_time),

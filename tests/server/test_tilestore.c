@@ -504,6 +504,141 @@ static void test_drape(void **state)
     unlink(path);
 }
 
+/* --- sun bounds (td_snapshot_sunlit) --------------------------------------------------- */
+
+static float *block(int32_t w, int32_t h, float z);
+
+/* The sun's unit direction at azimuth az (degrees clockwise from north), elevation el */
+static void sun_dir(double az, double el, double d[3])
+{
+    double a = az * M_PI / 180.0, e = el * M_PI / 180.0;
+    d[0] = sin(a) * cos(e);
+    d[1] = cos(a) * cos(e);
+    d[2] = sin(e);
+}
+
+/* The bound equals a fresh build on the snapshot's heights without any structure. */
+static void same_as_fresh(const td_snapshot *snap, const double sun[3], const td_sunlit *lit)
+{
+    td_view plain = {td_snapshot_view(snap)->grid, NULL};
+    td_sunlit *f = NULL;
+    td_err e;
+    assert_int_equal(td_sunlit_build(&plain, sun, &f, &e), TD_OK);
+    assert_non_null(f);
+    assert_true(td_sunlit_fits(lit, &plain, sun));
+    assert_int_equal(lit->na, f->na);
+    assert_int_equal(lit->nst, f->nst);
+    assert_memory_equal(lit->h, f->h, (size_t)f->na * (size_t)f->nst * sizeof *f->h);
+    td_sunlit_free(f);
+}
+
+/* A sun bound is built on the first use of the heights with a sun and kept with the
+ * dataset (counted in the budget) for the next snapshots with that sun, the last
+ * TD_STORE_SUNS (4) suns, least recently used out first; an edit's heights start afresh
+ * while a snapshot of the old ones keeps its bound; without room each snapshot builds
+ * its own; a sun below the horizon gives none (and keeps no place). */
+static void test_sun_bounds(void **state)
+{
+    td_grid *g = terrain(17), *g2 = terrain(17);
+    uint64_t gb = dataset_bytes(g);
+    td_store *s = store_new(gb + (64u << 20), NULL), *tight = store_new(gb + 100, NULL);
+    td_snapshot *a = NULL, *b = NULL, *c = NULL;
+    const td_sunlit *la = NULL, *lb = NULL, *lc = NULL;
+    td_dataset_info di;
+    td_store_stats st;
+    td_edit_result res;
+    td_err e;
+    double sun[6][3];
+    int kept = -1;
+    (void)state;
+    for (int k = 0; k < 6; k++)
+        sun_dir(200.0 + 20.0 * k, 10.0, sun[k]);
+    assert_int_equal(td_store_add_grid(s, "t", "api", g, &e), TD_OK);
+    assert_int_equal(td_store_add_grid(tight, "t", "api", g2, &e), TD_OK);
+    assert_int_equal(td_store_acquire(s, "t", &a, &e), TD_OK);
+    assert_int_equal(td_snapshot_sunlit(a, sun[0], &la, &kept, &e), TD_OK);
+    assert_non_null(la);
+    assert_int_equal(kept, 0);
+    same_as_fresh(a, sun[0], la);
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.sun_built, 1);
+    assert_int_equal(st.sun_kept, 0);
+    assert_true(st.sun_bytes >= la->bytes);
+    assert_int_equal(st.resident_bytes, gb + st.sun_bytes);
+    /* kept: the next snapshot with that sun takes it, also after the first released it */
+    td_snapshot_release(a);
+    assert_int_equal(td_store_acquire(s, "t", &b, &e), TD_OK);
+    assert_int_equal(td_snapshot_sunlit(b, sun[0], &lb, &kept, &e), TD_OK);
+    assert_ptr_equal(lb, la);
+    assert_int_equal(kept, 1);
+    /* below the horizon: none */
+    double down[3] = {0.0, 0.6, -0.8};
+    assert_int_equal(td_snapshot_sunlit(b, down, &lb, &kept, &e), TD_OK);
+    assert_null(lb);
+    /* four more suns: sun 0, the least recently used, is dropped */
+    size_t bytes[5] = {la->bytes};
+    for (int k = 1; k < 5; k++) {
+        assert_int_equal(td_snapshot_sunlit(b, sun[k], &lb, &kept, &e), TD_OK);
+        assert_int_equal(kept, 0);
+        same_as_fresh(b, sun[k], lb);
+        bytes[k] = lb->bytes;
+    }
+    assert_int_equal(td_snapshot_sunlit(b, sun[4], &lb, &kept, &e), TD_OK);
+    assert_int_equal(kept, 1);
+    assert_int_equal(td_snapshot_sunlit(b, sun[0], &la, &kept, &e), TD_OK);
+    assert_int_equal(kept, 0);
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.sun_kept, 2);
+    assert_int_equal(st.sun_built, 7);
+    {
+        size_t want = bytes[0] + bytes[2] + bytes[3] + bytes[4]; /* and four small records */
+        assert_true(st.sun_bytes >= want && st.sun_bytes < want + 4096);
+    }
+    /* an edit: the kept bounds go, b keeps its own; the new heights get a new bound */
+    {
+        td_grid_region r = {100, 100, 20, 20};
+        float *z = block(20, 20, 9000.0f);
+        assert_int_equal(td_store_edit(s, 0, &r, z, &res, &e), TD_OK);
+        free(z);
+        free((void *)res.rebuild.tiles);
+    }
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.sun_bytes, 0);
+    assert_int_equal(st.resident_bytes, gb);
+    same_as_fresh(b, sun[0], la); /* still b's, of the old heights */
+    assert_int_equal(td_store_acquire(s, "t", &c, &e), TD_OK);
+    assert_int_equal(td_snapshot_sunlit(c, sun[0], &lc, &kept, &e), TD_OK);
+    assert_int_equal(kept, 0);
+    same_as_fresh(c, sun[0], lc);
+    assert_true(memcmp(lc->h, la->h, (size_t)la->na * (size_t)la->nst * sizeof *la->h) != 0);
+    /* a snapshot of the old heights asking again builds (and does not keep) its own */
+    assert_int_equal(td_snapshot_sunlit(b, sun[1], &lb, &kept, &e), TD_OK);
+    assert_int_equal(kept, 0);
+    same_as_fresh(b, sun[1], lb);
+    td_store_info(s, 0, &di);
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.resident_bytes, gb + st.sun_bytes);
+    assert_true(st.sun_bytes >= lc->bytes && st.sun_bytes < lc->bytes + 1024);
+    td_snapshot_release(b);
+    td_snapshot_release(c);
+
+    /* no room: each snapshot builds its own, nothing is kept */
+    assert_int_equal(td_store_acquire(tight, "t", &a, &e), TD_OK);
+    assert_int_equal(td_store_acquire(tight, "t", &c, &e), TD_OK);
+    assert_int_equal(td_snapshot_sunlit(a, sun[0], &la, &kept, &e), TD_OK);
+    assert_int_equal(td_snapshot_sunlit(c, sun[0], &lc, &kept, &e), TD_OK);
+    assert_int_equal(kept, 0);
+    assert_ptr_not_equal(la, lc);
+    same_as_fresh(c, sun[0], lc);
+    td_store_stats_get(tight, &st);
+    assert_int_equal(st.sun_bytes, 0);
+    assert_int_equal(st.resident_bytes, gb);
+    td_snapshot_release(a);
+    td_snapshot_release(c);
+    td_store_free(s);
+    td_store_free(tight);
+}
+
 /* --- edits (td_store_edit) ------------------------------------------------------------- */
 
 /* A region of w x h samples at (x, y), file order, all at height z (a block). */
@@ -1073,6 +1208,7 @@ int main(void)
         cmocka_unit_test(test_disk_cache),
         cmocka_unit_test(test_failed_preload_publishes_nothing),
         cmocka_unit_test(test_drape),
+        cmocka_unit_test(test_sun_bounds),
         cmocka_unit_test(test_concurrent_snapshots),
         cmocka_unit_test(test_edit_versions),
         cmocka_unit_test(test_edit_races_preload),

@@ -570,6 +570,94 @@ static void test_curvature_shadows(void **state)
     assert_true(lit[2][0] > 10.0 && lit[2][1] > 10.0); /* 5000 m neither */
 }
 
+/* td_render_opts.sunlit, as the server keeps sun bounds (tilestore.h, td_snapshot_sunlit) */
+typedef struct sun_keeper {
+    int mode;         /* 0 build and keep; 1 the kept one; 2 one for another sun; 3 none */
+    int calls;
+    double sun[3];    /* the sun the render asked for */
+    td_sunlit *lit;   /* kept (mode 0 builds it on a view with the max-mipmaps) */
+    td_sunlit *other; /* built for another sun */
+    const td_view *build_view;
+} sun_keeper;
+
+static td_status keep_sun(void *ctx, const td_view *v, const double sun[3], const td_sunlit **out, int *kept,
+                          td_err *err)
+{
+    sun_keeper *k = ctx;
+    td_status rc = TD_OK;
+    k->calls++;
+    memcpy(k->sun, sun, sizeof k->sun);
+    *out = NULL;
+    *kept = k->mode != 0;
+    if (k->mode == 0) {
+        rc = td_sunlit_build(k->build_view ? k->build_view : v, sun, &k->lit, err);
+        *out = k->lit;
+    } else if (k->mode == 1) {
+        *out = k->lit;
+    } else if (k->mode == 2) {
+        double other[3] = {sun[1], -sun[0], sun[2]}; /* turned a quarter: same elevation */
+        rc = td_sunlit_build(v, other, &k->other, err);
+        *out = k->other;
+    }
+    return rc;
+}
+
+/* A sun bound kept from an earlier render (built on a view with the max-mipmaps) gives
+ * the render without them the same picture, and the render does not build its own; one
+ * for another sun, or none, is not used: the render builds its own, same picture. With
+ * the sun bound off the keeper is not asked. */
+static void test_kept_sun_bound(void **state)
+{
+    td_accel *a = NULL;
+    td_accel_opts ao;
+    td_err err = {0};
+    (void)state;
+    td_accel_opts_for(TD_METHOD_AUTO, &ao);
+    ao.threads = 1;
+    assert_int_equal(td_accel_build(grid, &ao, &a, NULL, &err), TD_OK);
+    td_view va = {grid, a->tiles}, v = {grid, NULL};
+    for (int surf = 0; surf < TD_SURFACE_COUNT; surf++) {
+        td_render_result plain, r;
+        td_render_opts o;
+        sun_keeper k = {0};
+        base_scene(&scene);
+        scene.quality.surface = (td_surface)surf;
+        scene.effects.shadows = 1;
+        scene.effects.sun_elevation = 8.0; /* long shadows: the bound ends most rays */
+        td_render_opts_default(&o);
+        o.threads = 2;
+        assert_int_equal(td_render(&v, &scene, &o, &plain, &err), TD_OK);
+        assert_int_equal(plain.stats.sun_bound, TD_SUN_BOUND_BUILT);
+        o.sunlit = keep_sun;
+        o.sunlit_ctx = &k;
+        k.build_view = &va;
+        const td_sun_bound want[4] = {TD_SUN_BOUND_BUILT, TD_SUN_BOUND_KEPT, TD_SUN_BOUND_BUILT, TD_SUN_BOUND_BUILT};
+        for (k.mode = 0; k.mode < 4; k.mode++) {
+            k.calls = 0;
+            assert_int_equal(td_render(&v, &scene, &o, &r, &err), TD_OK);
+            assert_int_equal(k.calls, 1);
+            assert_true(td_sunlit_fits(k.lit, &v, k.sun));
+            assert_int_equal(r.stats.sun_bound, want[k.mode]);
+            assert_memory_equal(r.rgba, plain.rgba, (size_t)W * H * 4);
+            assert_int_equal(r.stats.rays[TD_RAY_SHADOW], plain.stats.rays[TD_RAY_SHADOW]);
+            td_render_result_free(&r);
+        }
+        assert_false(td_sunlit_fits(k.other, &v, k.sun));
+        o.off = TD_RENDER_OFF_SUNLIT;
+        k.calls = 0;
+        k.mode = 1;
+        assert_int_equal(td_render(&v, &scene, &o, &r, &err), TD_OK);
+        assert_int_equal(k.calls, 0);
+        assert_int_equal(r.stats.sun_bound, TD_SUN_BOUND_NONE);
+        assert_memory_equal(r.rgba, plain.rgba, (size_t)W * H * 4);
+        td_render_result_free(&r);
+        td_render_result_free(&plain);
+        td_sunlit_free(k.lit);
+        td_sunlit_free(k.other);
+    }
+    td_accel_free(a);
+}
+
 static void test_refusals_and_cancel(void **state)
 {
     td_render_result r;
@@ -1307,6 +1395,7 @@ int main(void)
         cmocka_unit_test(test_depth_matches_pick),
         cmocka_unit_test(test_curvature),
         cmocka_unit_test(test_curvature_shadows),
+        cmocka_unit_test(test_kept_sun_bound),
         cmocka_unit_test(test_refusals_and_cancel),
         cmocka_unit_test(test_level_of_detail),
         cmocka_unit_test(test_cli_render),
