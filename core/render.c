@@ -117,7 +117,11 @@
  *              stage 512 -> 71 ms, 1,069,327 bent rays traced -> 707, the same picture.
  *   sunlit     one sweep against the sun per render bounds, per 4 x 4 cells (coarser on
  *              grids of more than 2^24 cells), the height above which a point is surely
- *              lit (sunlit.h); a shadow ray ends there.
+ *              lit (sunlit.h); a shadow ray ends there. The server keeps the bound with
+ *              the dataset for the next renders of the same heights and sun
+ *              (td_render_opts.sunlit, td_snapshot_sunlit): no sweep then (trinidad's
+ *              bench views: 5.7 / 12.0 / 6.0 / 5.7 M instructions of shadows stages of
+ *              51 / 100 / 63 / 147 M, callgrind).
  * Method silhouette (issue 13) replaces the horizon and the beam for the camera rays: one
  * partition of the view per render from the heights alone (silhouette.h, built with the
  * render's threads before the blocks, timed in the primary stage), each ray started where

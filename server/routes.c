@@ -353,7 +353,7 @@ static void h_metrics(td_app *app, td_http_req *q, td_http_resp *r, char **seg)
         td_dataset_info di;
         td_store_info(app->store, i, &di);
         ds[i] = (td_metrics_dataset){di.id, di.resident_tiles,
-                                     di.grid_bytes + di.accel_bytes + di.drape_bytes, di.snapshots};
+                                     di.grid_bytes + di.accel_bytes + di.drape_bytes + di.sun_bytes, di.snapshots};
     }
     text = ds ? td_metrics_format(app->metrics, &e, &len) : NULL;
     free(ds);

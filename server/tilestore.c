@@ -1246,6 +1246,7 @@ void td_store_info(td_store *s, size_t idx, td_dataset_info *out)
     out->pinned_tiles = d->pinned_tiles;
     out->accel_bytes = d->accel_bytes;
     out->drape_bytes = d->drape_bytes;
+    out->sun_bytes = d->sun_bytes;
     out->prepared = d->prep != NULL;
     out->chunks = d->prep ? td_prepared_chunks(d->prep) : 0;
     out->chunks_checked = d->vdone;

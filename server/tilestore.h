@@ -105,6 +105,7 @@ typedef struct td_dataset_info {
     size_t pinned_tiles;
     uint64_t grid_bytes, accel_bytes;
     uint64_t drape_bytes;   /* decoded drapes kept with the dataset */
+    uint64_t sun_bytes;     /* sun bounds kept with it (td_snapshot_sunlit) */
     int prepared;           /* served from a prepared folder (td_store_add_prepared) */
     int32_t chunks, chunks_checked; /* its chunks (heights and levels), and how many the background check passed */
     int levels;             /* coarse levels (quality.lod) */

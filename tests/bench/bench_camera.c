@@ -128,7 +128,26 @@ typedef struct cam_run {
     uint8_t *occ;             /* Embree's occluded answers (n) */
     uint64_t prim_rays[TD_SURFACE_COUNT][NCONF], shadow_rays[TD_SURFACE_COUNT][NCONF];
     double *ms;               /* NQ x runs timings */
+    td_sunlit **kept;         /* the view's sun bound, kept across its renders (TD_BENCH_KEEP_SUN) */
 } cam_run;
+
+/* td_render_opts.sunlit of the renders with TD_BENCH_KEEP_SUN: the view's bound, built
+ * by the first such render (an untimed one, cam_capture) and kept for the next, as the
+ * server keeps one (td_snapshot_sunlit). */
+static td_status keep_sun(void *ctx, const td_view *v, const double sun[3], const td_sunlit **out, int *kept,
+                          td_err *err)
+{
+    td_sunlit **k = ctx;
+    td_status rc = TD_OK;
+    *kept = td_sunlit_fits(*k, v, sun);
+    if (!*kept) {
+        td_sunlit_free(*k);
+        *k = NULL;
+        rc = td_sunlit_build(v, sun, k, err);
+    }
+    *out = *k;
+    return rc;
+}
 
 /* ---- measuring -------------------------------------------------------------------- */
 
@@ -196,8 +215,12 @@ static td_status cam_render_on(const cam_run *c, const td_view *tv, td_method m,
     sc.effects.shadows = 1;
     td_render_opts_default(&ro);
     ro.threads = 1;
-    ro.off = off;
+    ro.off = off & ~TD_BENCH_KEEP_SUN;
     ro.shadow_rays = slots;
+    if (off & TD_BENCH_KEEP_SUN) {
+        ro.sunlit = keep_sun;
+        ro.sunlit_ctx = c->kept;
+    }
     memset(res, 0, sizeof *res);
     return td_render(tv, &sc, &ro, res, err);
 }
@@ -215,7 +238,8 @@ static td_status cam_capture(cam_run *c, td_surface s, td_err *err)
 {
     td_render_result res;
     size_t k = 0;
-    td_status rc = cam_render(c, s, TD_FORMAT_PNG, 0, c->slots, &res, err);
+    /* (with the bound kept: the first capture builds it, untimed) */
+    td_status rc = cam_render(c, s, TD_FORMAT_PNG, TD_BENCH_KEEP_SUN, c->slots, &res, err);
     if (rc)
         goto out;
     for (size_t p = 0; p < c->n; p++)
@@ -451,6 +475,8 @@ static td_status cam_view(cam_run *c, bench_ds *d, int k, td_err *err)
         v->done = 1;
     }
     cam_free_shadows(c);
+    td_sunlit_free(*c->kept);
+    *c->kept = NULL;
     return rc;
 }
 
@@ -487,8 +513,10 @@ td_status td_bench_camera_run(bench_ctx *b, bench_ds *d, td_err *err)
     cam_run c;
     td_embree *emb = NULL;
     td_embree_opts eo;
+    td_sunlit *kept = NULL;
     memset(&c, 0, sizeof c);
     c.b = b;
+    c.kept = &kept;
     c.w = c.h = b->o->quick ? 32 : 512;
     c.n = (size_t)c.w * (size_t)c.h;
     c.view.grid = d->g;
@@ -544,12 +572,12 @@ static double cam_ratio(const bench_cam_view *v, int s, int shadow, int k)
     return shadow ? quot(o->shadow_rps[k], o->emb_shadow_rps) : quot(o->prim_rps[k], v->emb_prim_rps);
 }
 
-/* The surface with the highest (best = 1) or lowest ratio, devices on; NaN if none. */
-static double cam_pick(const bench_cam_view *v, int shadow, int best, int *s_out)
+/* The surface with the highest (best = 1) or lowest ratio in configuration k; NaN if none. */
+static double cam_pick(const bench_cam_view *v, int shadow, int best, int k, int *s_out)
 {
     double r = NAN;
     for (int s = 0; s < TD_SURFACE_COUNT; s++) {
-        double q = cam_ratio(v, s, shadow, TD_BENCH_CONF_ON);
+        double q = cam_ratio(v, s, shadow, k);
         if (!isnan(q) && (isnan(r) || (best ? q > r : q < r))) {
             r = q;
             *s_out = s;
@@ -590,21 +618,22 @@ static void cam_write_views(FILE *f, const bench_ctx *b)
  * shadow rays in every configuration. */
 static void cam_write_row(FILE *f, const bench_ds *d, int q, int s)
 {
-    enum { ON = TD_BENCH_CONF_ON, NS = TD_BENCH_CONF_NO_SUNLIT, OFF = TD_BENCH_CONF_OFF };
+    enum { ON = TD_BENCH_CONF_ON, KEPT = TD_BENCH_CONF_KEPT, NS = TD_BENCH_CONF_NO_SUNLIT, OFF = TD_BENCH_CONF_OFF };
     const bench_cam_view *v = &d->cam[q];
     const bench_cam_surf *o = &v->s[s];
-    char a[8][32], r[5][16], st[5][16];
+    char a[8][32], r[6][16], st[5][16];
     fprintf(f, "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %llu | %s | %s | %s | %s | %s | %s | %s | %s | %s "
-               "| %s |\n",
+               "| %s | %s | %s |\n",
             d->name, td_bench_cam_name(q), td_surface_name((td_surface)s), mrate(a[0], 32, o->prim_rps[ON]),
             mrate(a[1], 32, o->prim_rps[OFF]), mrate(a[2], 32, v->emb_prim_rps),
             fixed(r[0], 16, cam_ratio(v, s, 0, ON), 2), fixed(r[1], 16, cam_ratio(v, s, 0, OFF), 2),
             fixed(st[0], 16, o->prim_steps[ON], 2), fixed(st[1], 16, o->prim_steps[OFF], 2),
-            (unsigned long long)o->shadow_rays, mrate(a[3], 32, o->shadow_rps[ON]), mrate(a[4], 32, o->shadow_rps[NS]),
-            mrate(a[5], 32, o->shadow_rps[OFF]), mrate(a[6], 32, o->emb_shadow_rps),
-            fixed(r[2], 16, cam_ratio(v, s, 1, ON), 2), fixed(r[3], 16, cam_ratio(v, s, 1, NS), 2),
-            fixed(r[4], 16, cam_ratio(v, s, 1, OFF), 2), fixed(st[2], 16, o->shadow_steps[ON], 2),
-            fixed(st[3], 16, o->shadow_steps[NS], 2), fixed(st[4], 16, o->shadow_steps[OFF], 2));
+            (unsigned long long)o->shadow_rays, mrate(a[3], 32, o->shadow_rps[ON]), mrate(a[7], 32, o->shadow_rps[KEPT]),
+            mrate(a[4], 32, o->shadow_rps[NS]), mrate(a[5], 32, o->shadow_rps[OFF]), mrate(a[6], 32, o->emb_shadow_rps),
+            fixed(r[2], 16, cam_ratio(v, s, 1, ON), 2), fixed(r[5], 16, cam_ratio(v, s, 1, KEPT), 2),
+            fixed(r[3], 16, cam_ratio(v, s, 1, NS), 2), fixed(r[4], 16, cam_ratio(v, s, 1, OFF), 2),
+            fixed(st[2], 16, o->shadow_steps[ON], 2), fixed(st[3], 16, o->shadow_steps[NS], 2),
+            fixed(st[4], 16, o->shadow_steps[OFF], 2));
 }
 
 static void cam_write_table(FILE *f, const bench_ctx *b)
@@ -613,13 +642,17 @@ static void cam_write_table(FILE *f, const bench_ctx *b)
                "M rays/s; *on*: every coherence device on (camera rays: the horizon and beam bounds, and a level camera's "
                "image columns walked as one, colwalk.h; shadow rays: the "
                "occlusion query, the sun bound and the packets of four that walk the rays' first cells and end them "
-               "against the bound); *no sun*: the sun bound off (`TD_RENDER_OFF_SUNLIT`, and with it the packets), "
+               "against the bound; the shadows stage includes the bound's build); *kept*: the same with the sun "
+               "bound kept from an earlier render of the view (`td_render_opts.sunlit`: what the server does for "
+               "renders and map tiles of the same heights and sun, `X-Terrad-Sun-Bound: kept`; the same rays, "
+               "steps and answers, the build not in the stage, as Embree's is not in its time); *no sun*: the sun "
+               "bound off (`TD_RENDER_OFF_SUNLIT`, and with it the packets), "
                "the occlusion query kept; *off*: every device off; x Embree = terrad / Embree on the same rays; "
                "steps per shadow ray count the cells a packet walked, then the one-ray walk's steps.\n\n"
                "| dataset | view | surface | camera M rays/s, on | off | Embree rtcIntersect16 | x Embree, on | "
-               "off | steps per camera ray, on | off | shadow rays | shadow M rays/s, on | no sun | off | Embree "
-               "rtcOccluded16 | x Embree, on | no sun | off | steps per shadow ray, on | no sun | off |\n"
-               "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+               "off | steps per camera ray, on | off | shadow rays | shadow M rays/s, on | kept | no sun | off | Embree "
+               "rtcOccluded16 | x Embree, on | kept | no sun | off | steps per shadow ray, on | no sun | off |\n"
+               "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (int k = 0; k < b->nds; k++)
         for (int q = 0; q < TD_BENCH_CAM_COUNT; q++)
             for (int s = 0; s < TD_SURFACE_COUNT && b->ds[k].cam[q].done; s++)
@@ -795,12 +828,12 @@ static void cam_extremes(const bench_ds *d, int shadow, double *lo, int lo_at[2]
         double r;
         if (!d->cam[q].done)
             continue;
-        r = cam_pick(&d->cam[q], shadow, 0, &s);
+        r = cam_pick(&d->cam[q], shadow, 0, TD_BENCH_CONF_ON, &s);
         if (!isnan(r) && (isnan(*lo) || r < *lo)) {
             *lo = r;
             lo_at[0] = q, lo_at[1] = s;
         }
-        r = cam_pick(&d->cam[q], shadow, 1, &s);
+        r = cam_pick(&d->cam[q], shadow, 1, TD_BENCH_CONF_ON, &s);
         if (!isnan(r) && (isnan(*hi) || r > *hi)) {
             *hi = r;
             hi_at[0] = q, hi_at[1] = s;
@@ -859,30 +892,34 @@ void td_bench_camera_targets(FILE *f, const bench_ctx *b)
 }
 
 /* The summary's row of one view: the best surface for camera and for shadow rays. */
-static void cam_summary_row(FILE *f, const bench_ds *d, int q, int met[3])
+static void cam_summary_row(FILE *f, const bench_ds *d, int q, int met[4])
 {
     const bench_cam_view *v = &d->cam[q];
-    int sp = 0, ss = 0;
-    double rp = cam_pick(v, 0, 1, &sp), rs = cam_pick(v, 1, 1, &ss), st = v->s[sp].prim_steps[TD_BENCH_CONF_ON];
-    char a[16], c[16], e[16];
-    fprintf(f, "| %s | %s | %s (%s) | %s (%s) | %s |\n", d->name, td_bench_cam_name(q), fixed(a, sizeof a, rp, 2),
-            td_surface_name((td_surface)sp), fixed(c, sizeof c, rs, 2), td_surface_name((td_surface)ss),
+    int sp = 0, ss = 0, sk = 0;
+    double rp = cam_pick(v, 0, 1, TD_BENCH_CONF_ON, &sp), rs = cam_pick(v, 1, 1, TD_BENCH_CONF_ON, &ss);
+    double rk = cam_pick(v, 1, 1, TD_BENCH_CONF_KEPT, &sk), st = v->s[sp].prim_steps[TD_BENCH_CONF_ON];
+    char a[16], c[16], e[16], g[16];
+    fprintf(f, "| %s | %s | %s (%s) | %s (%s) | %s (%s) | %s |\n", d->name, td_bench_cam_name(q),
+            fixed(a, sizeof a, rp, 2), td_surface_name((td_surface)sp), fixed(c, sizeof c, rs, 2),
+            td_surface_name((td_surface)ss), fixed(g, sizeof g, rk, 2), td_surface_name((td_surface)sk),
             fixed(e, sizeof e, st, 2));
     met[0] += rp >= 3;
     met[1] += rs >= 3;
     met[2] += st <= 2;
+    met[3] += rk >= 3;
 }
 
 void td_bench_camera_summary(FILE *f, const bench_ctx *b)
 {
-    int met[3] = {0, 0, 0}, n = 0;
+    int met[4] = {0, 0, 0, 0}, n = 0;
     uint64_t tot[5];
     if (b->cam_w > 0) {
         fprintf(f, "\nCamera views (issue 12; section 7 of the report): %d x %d pixels, 70 degrees, one thread on "
                    "each side, the same rays; terrad with its coherence devices on, on the best surface of each "
                    "view (every surface, and the devices off, in the report).\n\n", b->cam_w, b->cam_h);
         fprintf(f, "| dataset | view | camera rays x rtcIntersect16 (surface) | shadow rays x rtcOccluded16 "
-                   "(surface) | steps per camera ray (that surface) |\n|---|---|---|---|---|\n");
+                   "(surface) | the same, sun bound kept (surface) | steps per camera ray (that surface) "
+                   "|\n|---|---|---|---|---|---|\n");
         for (int k = 0; k < b->nds; k++)
             for (int q = 0; q < TD_BENCH_CAM_COUNT; q++)
                 if (b->ds[k].cam[q].done) {
@@ -890,9 +927,11 @@ void td_bench_camera_summary(FILE *f, const bench_ctx *b)
                     n++;
                 }
         fprintf(f, "\n- Targets (issue 12): camera rays 3x rtcIntersect16 (met in %d of %d views), shadow rays 3x "
-                   "rtcOccluded16 (met in %d of %d), at most 2 steps per camera ray (met in %d of %d); each on the "
-                   "view's best surface, where the issue asks for every surface.\n",
-                met[0], n, met[1], n, met[2], n);
+                   "rtcOccluded16 (met in %d of %d with the sun bound built per render, %d of %d with it kept from "
+                   "an earlier render, as the server keeps it for the same heights and sun), at most 2 steps per "
+                   "camera ray (met in %d of %d); each on the view's best surface, where the issue asks for every "
+                   "surface.\n",
+                met[0], n, met[1], n, met[3], n, met[2], n);
         cam_totals(b, tot);
         fprintf(f, "- Exactness on the triangle surface against Embree (reported, the oracle tests judge): %llu of "
                    "%llu camera rays and %llu of %llu shadow rays disagree.\n", (unsigned long long)tot[1],

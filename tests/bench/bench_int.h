@@ -80,10 +80,15 @@ typedef enum td_bench_cam {
 const char *td_bench_cam_name(int v);
 
 /* The render configurations the camera section times per surface: every coherence
- * device on, the shadow rays' sun bound off (the occlusion query kept), every device off.
- * A device to measure alone is a row here. */
+ * device on; the same with the sun bound kept from an earlier render of the view
+ * (td_render_opts.sunlit, as the server keeps it for renders of the same heights and sun,
+ * tilestore.h: its build is then not in the shadows stage; TD_BENCH_KEEP_SUN is the
+ * bench's own flag, not a TD_RENDER_OFF_ bit); the shadow rays' sun bound off (the
+ * occlusion query kept); every device off. A device to measure alone is a row here. */
+#define TD_BENCH_KEEP_SUN (1u << 31)
 #define TD_BENCH_CONF_LIST(X)                                                  \
     X(TD_BENCH_CONF_ON, "on", 0u)                                              \
+    X(TD_BENCH_CONF_KEPT, "on, bound kept", TD_BENCH_KEEP_SUN)                 \
     X(TD_BENCH_CONF_NO_SUNLIT, "no sun bound", TD_RENDER_OFF_SUNLIT)           \
     X(TD_BENCH_CONF_OFF, "off",                                                \
       TD_RENDER_OFF_CAMERA | TD_RENDER_OFF_OCCLUSION | TD_RENDER_OFF_SUNLIT)
