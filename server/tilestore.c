@@ -1514,7 +1514,8 @@ static void sun_drop_locked(td_store *s, td_ds *d, td_sunkeep **pp)
 
 /* Keeps a new bound at the front (a reference of its own): bounds of other heights are
  * dropped, and the least recently used beyond TD_STORE_SUNS; then it is kept if the
- * budget has room after evicting acceleration least recently used first. 0 if not. */
+ * budget has room for it as it is (no acceleration is evicted for a bound: a tile's
+ * max-mipmap saves more than a sun bound's build). 0 if not. */
 static int sun_keep_locked(td_store *s, td_ds *d, td_sunkeep *k)
 {
     td_sunkeep **pp = &d->suns;
@@ -1526,8 +1527,6 @@ static int sun_keep_locked(td_store *s, td_ds *d, td_sunkeep *k)
             pp = &(*pp)->next;
             n++;
         }
-    while (s->resident_bytes + k->bytes > s->o.budget_bytes && evict_lru_locked(s))
-        ;
     kept = s->resident_bytes + k->bytes <= s->o.budget_bytes;
     if (kept) {
         atomic_fetch_add_explicit(&k->refs, 1, memory_order_relaxed);

@@ -201,7 +201,8 @@ td_status td_snapshot_drape(td_snapshot *snap, const char *path, const td_image8
  * by the snapshot until its release (one per snapshot: a second call drops the first
  * one's reference): built on the first use of those heights with that sun (the same
  * bits), and kept with the dataset, the last TD_STORE_SUNS suns (tilestore.c), counted
- * in the budget (when it cannot fit, this snapshot alone keeps it); an edit's new heights
+ * in the budget (when it does not fit without evicting acceleration, this snapshot alone
+ * keeps it); an edit's new heights
  * start afresh. *out NULL for a sun that gives none; *kept 1 when it was not built by this
  * call. A bound bounds the heights whatever structures the view that built it held, so
  * every snapshot of the same heights gives the same answers with it (td_sunlit_fits). */

@@ -975,6 +975,9 @@ typedef struct shared {
     atomic_int over_budget;
     char drape[256]; /* every snapshot asks for it: decoded once, kept, shared */
     atomic_int bad_drapes;
+    double sun[2][3];       /* every snapshot asks for one of two suns' bounds */
+    td_sunlit *sun_ref[2];  /* each built on the plain grid */
+    atomic_int bad_suns;
 } shared;
 
 static int same_t(double a, double b)
@@ -1002,6 +1005,19 @@ static void *reader(void *arg)
                 img->px[(5 * 8 + 3) * 3] != 60)
                 atomic_fetch_add(&sh->bad_drapes, 1);
         }
+        {
+            const td_sunlit *lit = NULL, *ref = sh->sun_ref[k & 1];
+            int kept = 0;
+            /* built on whatever snapshot came first: from max-mipmap codes (rounded up,
+               at most a code step above the maxima) where it held them, so at or above the
+               plain grid's bound and close to it, never below */
+            int bad = td_snapshot_sunlit(snap, sh->sun[k & 1], &lit, &kept, &e) != TD_OK ||
+                      !td_sunlit_fits(lit, v, sh->sun[k & 1]) || lit->na != ref->na || lit->nst != ref->nst;
+            for (size_t i = 0; !bad && i < (size_t)ref->na * (size_t)ref->nst; i++)
+                bad = !(lit->h[i] >= ref->h[i] && lit->h[i] <= ref->h[i] + 1.0f);
+            if (bad)
+                atomic_fetch_add(&sh->bad_suns, 1);
+        }
         for (int i = 0; i < NRAYS; i++) {
             td_hit h;
             td_trace(v, methods[k % 3], TD_SURFACE_BILINEAR, &sh->rays[i], &h);
@@ -1028,14 +1044,19 @@ static void test_concurrent_snapshots(void **state)
     (void)state;
     assert_non_null(sh);
     tb = tile_bytes(g);
-    /* Room for 24 of the 64 tiles: preloads of 16 keep evicting each other. */
-    sh->budget = gb + 24 * tb + tb;
+    plain.grid = g;
+    plain.accel = NULL;
+    for (int k = 0; k < 2; k++) {
+        sun_dir(250.0 + 40.0 * k, 12.0, sh->sun[k]);
+        assert_int_equal(td_sunlit_build(&plain, sh->sun[k], &sh->sun_ref[k], &e), TD_OK);
+    }
+    /* Room for 24 of the 64 tiles (preloads of 16 keep evicting each other) and the two
+       suns' bounds. */
+    sh->budget = gb + 24 * tb + tb + 2 * (sh->sun_ref[0]->bytes + sh->sun_ref[1]->bytes);
     sh->slack = tb;
     sh->s = store_new(sh->budget, NULL);
     snprintf(sh->drape, sizeof sh->drape, "%s/terrad-drape-c%ld.png", P_tmpdir, (long)getpid());
     write_png(sh->drape, 8, 6);
-    plain.grid = g;
-    plain.accel = NULL;
     for (int i = 0; i < NRAYS; i++) {
         td_ray *r = &sh->rays[i];
         td_hit h;
@@ -1056,6 +1077,19 @@ static void test_concurrent_snapshots(void **state)
         sh->ref[i] = h.t;
     }
     assert_int_equal(td_store_add_grid(sh->s, "t", "api", g, &e), TD_OK);
+    {
+        /* both suns' bounds kept while the budget has room (no tile is evicted for one
+           later): the readers share them, each snapshot with a reference of its own */
+        td_snapshot *snap = NULL;
+        const td_sunlit *lit = NULL;
+        int kept = 1;
+        assert_int_equal(td_store_acquire(sh->s, "t", &snap, &e), TD_OK);
+        for (int k = 0; k < 2; k++) {
+            assert_int_equal(td_snapshot_sunlit(snap, sh->sun[k], &lit, &kept, &e), TD_OK);
+            assert_int_equal(kept, 0);
+        }
+        td_snapshot_release(snap);
+    }
     for (int i = 0; i < 2; i++)
         assert_int_equal(pthread_create(&th[i], NULL, reader, sh), 0);
     for (int round = 0; round < 12; round++) {
@@ -1080,7 +1114,16 @@ static void test_concurrent_snapshots(void **state)
     assert_int_equal(atomic_load(&sh->over_budget), 0);
     assert_true(atomic_load(&sh->snapshots) >= 6);
     assert_int_equal(atomic_load(&sh->bad_drapes), 0);
+    assert_int_equal(atomic_load(&sh->bad_suns), 0);
     check_counters(sh->s, 0);
+    {
+        td_store_stats st;
+        td_store_stats_get(sh->s, &st);
+        print_message("  sun bounds: %llu kept, %llu built, %llu bytes\n", (unsigned long long)st.sun_kept, (unsigned long long)st.sun_built, (unsigned long long)st.sun_bytes);
+        assert_true(st.sun_kept > 0 && st.sun_built == 2 && st.sun_bytes > 0);
+    }
+    td_sunlit_free(sh->sun_ref[0]);
+    td_sunlit_free(sh->sun_ref[1]);
     unlink(sh->drape);
     td_store_free(sh->s);
     free(sh);
