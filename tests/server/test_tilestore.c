@@ -618,6 +618,7 @@ static void test_sun_bounds(void **state)
     td_store_info(s, 0, &di);
     td_store_stats_get(s, &st);
     assert_int_equal(st.resident_bytes, gb + st.sun_bytes);
+    assert_int_equal(di.sun_bytes, st.sun_bytes); /* the dataset's own figure */
     assert_true(st.sun_bytes >= lc->bytes && st.sun_bytes < lc->bytes + 1024);
     td_snapshot_release(b);
     td_snapshot_release(c);
