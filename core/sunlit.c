@@ -3,9 +3,9 @@
  *
  * Called by td_render when a scene has shadows (one build per render, its time counted in
  * the shadows stage, unless the caller keeps one for the sun: the server does, per
- * dataset, td_snapshot_sunlit), and by the map tiles; read by td_occluded. Layout: one float per column of blocks of
- * 2^shift cells a side (along the axis the sun crosses faster) and strip, the strips of a
- * column contiguous. The sweep visits the columns from the sun's side, so every column's
+ * dataset, td_snapshot_sunlit), and by the map tiles; read by td_occluded. Layout: one
+ * float per column of blocks of 2^shift cells a side (along the axis the sun crosses
+ * faster) and strip, the strips of a column contiguous. The sweep visits the columns from the sun's side, so every column's
  * successor is done before it: per column, each strip's maximum over the <= 3 blocks it
  * crosses (a window over the column's block maxima, shifted by the column's offset) and
  * one bound of the column before, all in contiguous rows. */
