@@ -42,7 +42,8 @@ int td_cors_apply(const char *origins, td_http_req *q, td_http_resp *r, const ch
     } else {
         td_http_resp_header(r, "Access-Control-Expose-Headers",
                             "ETag, Server-Timing, X-Terrad-Method, X-Terrad-Surface, X-Terrad-Sun, X-Terrad-Rays, "
-                            "X-Terrad-Steps, X-Terrad-Height-Error, X-Terrad-Level, Retry-After");
+                            "X-Terrad-Steps, X-Terrad-Sun-Bound, X-Terrad-Height-Error, X-Terrad-Level, "
+                            "Retry-After");
     }
 out:
     return preflight;

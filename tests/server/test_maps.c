@@ -307,7 +307,7 @@ static void test_cache_cors(void **state)
     assert_true(strstr(etag, "-v1.") != NULL);
     assert_true(th_header(&r, "Cache-Control", v, sizeof v) && strstr(v, "max-age=86400"));
     assert_true(th_header(&r, "Access-Control-Allow-Origin", v, sizeof v) && !strcmp(v, "*"));
-    assert_true(th_header(&r, "Access-Control-Expose-Headers", v, sizeof v) && strstr(v, "ETag"));
+    assert_true(th_header(&r, "Access-Control-Expose-Headers", v, sizeof v) && strstr(v, "ETag") && strstr(v, "X-Terrad-Sun-Bound"));
     th_resp_free(&r);
     snprintf(hdr, sizeof hdr, "If-None-Match: %s", etag);
     {

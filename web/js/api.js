@@ -120,7 +120,8 @@ export function parseHeightError(value) {
 }
 
 // Reads the render's headers: Server-Timing stages and whatever terrad says about the
-// method, surface, rays and steps (X-Terrad-*).
+// method, surface, rays, steps and the shadow rays' sun bound (X-Terrad-*: `built` for this
+// render, or `kept` by the dataset from an earlier one with the same sun).
 export function renderInfo(headers) {
   const get = (n) => headers.get(n);
   const num = (n) => { const v = get(n); return v == null || v === '' ? null : Number(v); };
@@ -132,6 +133,7 @@ export function renderInfo(headers) {
     steps: num('X-Terrad-Steps'),
     stepsPerRay: num('X-Terrad-Steps-Per-Ray'),
     heightError: parseHeightError(get('X-Terrad-Height-Error')),
+    sunBound: get('X-Terrad-Sun-Bound'),
   };
   if (info.stepsPerRay == null && info.rays > 0 && info.steps != null) info.stepsPerRay = info.steps / info.rays;
   return info;

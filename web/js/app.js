@@ -466,6 +466,8 @@ function describeInfo(info, scene) {
   let t = `${m}${head !== q.method ? ` (asked ${q.method})` : ''} / ${s}, ${q.samples}×${q.samples} samples`;
   if (info.rays != null) t += `, ${info.rays.toLocaleString('en-US')} rays`;
   if (info.stepsPerRay != null && Number.isFinite(info.stepsPerRay)) t += `, ${info.stepsPerRay.toFixed(1)} steps/ray`;
+  /* the shadow rays' sun bound kept from an earlier render (its build not in `shadows`) */
+  if (info.sunBound === 'kept') t += ', sun bound kept';
   if (info.heightError) t += `, ${heightErrorText(info.heightError)}`;
   return t;
 }

@@ -56,6 +56,8 @@ test('render headers: steps per ray from X-Terrad-Steps over X-Terrad-Rays', () 
   assert.equal(i.stepsPerRay, 12.5);
   assert.equal(renderInfo(new Headers()).stepsPerRay, null);
   assert.equal(renderInfo(new Headers()).heightError, null);
+  assert.equal(renderInfo(new Headers()).sunBound, null);
+  assert.equal(renderInfo(new Headers({ 'X-Terrad-Sun-Bound': 'kept' })).sunBound, 'kept');
 });
 
 test('render headers: how far the picture is from the exact one', () => {
