@@ -17,7 +17,6 @@
 
 #include <jansson.h>
 
-#include "prefault.h"
 
 #define TD_SIDECAR_MAX_BYTES (1u << 20) /* a sidecar is a few hundred bytes */
 
@@ -423,8 +422,6 @@ td_status td_demutil_create(const char *path, const td_dem_opts *o, int32_t w, i
         name_file(path, err);
     else if (geo)
         (*out)->geo = *geo;
-    if (rc == TD_OK) /* the loader writes every sample next: its pages mapped at once (prefault.h) */
-        td_prefault((*out)->z, (size_t)w * (size_t)h * sizeof(float));
     return rc;
 }
 

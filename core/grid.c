@@ -8,6 +8,7 @@
 #include <string.h>
 #include <sys/mman.h>
 
+#include "bigalloc.h"
 #include "simd.h"
 
 void td_grid_limits_default(td_grid_limits *lim)
@@ -89,7 +90,7 @@ td_status td_grid_create(int32_t w, int32_t h, double sx, double sy, int tile_lo
     g->tiles_x = tiles_along(w, tile_log2);
     g->tiles_y = tiles_along(h, tile_log2);
     ntiles = (size_t)g->tiles_x * (size_t)g->tiles_y;
-    g->z = malloc(bytes);
+    g->z = td_bigalloc(bytes); /* written whole by the loader next (bigalloc.h) */
     g->tiles = calloc(ntiles, sizeof *g->tiles);
     g->zmin = g->zmax = NAN;
     if (!g->z || !g->tiles) {

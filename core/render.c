@@ -166,6 +166,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "bigalloc.h"
 #include "effects.h"
 #include "beam.h"
 #include "colwalk.h"
@@ -2043,11 +2044,11 @@ static td_status alloc_image(ctx *c, td_render_result *res, td_err *err)
     const td_scene *s = c->s;
     size_t npix = (size_t)s->image.width * (size_t)s->image.height, bytes;
     if (c->depth_only) {
-        if (!td_mul_size(npix, sizeof(float), &bytes) || !(res->depth = malloc(bytes)))
+        if (!td_mul_size(npix, sizeof(float), &bytes) || !(res->depth = td_bigalloc(bytes)))
             rc = td_err_set(err, TD_ENOMEM, "render: no memory for a %d x %d depth image",
                             (int)s->image.width, (int)s->image.height);
     } else {
-        if (!td_mul_size(npix, 4, &bytes) || !(res->rgba = malloc(bytes)))
+        if (!td_mul_size(npix, 4, &bytes) || !(res->rgba = td_bigalloc(bytes)))
             rc = td_err_set(err, TD_ENOMEM, "render: no memory for a %d x %d image",
                             (int)s->image.width, (int)s->image.height);
     }

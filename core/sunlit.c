@@ -16,6 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bigalloc.h"
 #include "maxmip.h"
 #include "simd.h"
 
@@ -250,7 +251,7 @@ static td_status build_lo(const td_view *v, const sweep *w, int shift, double de
     size_t nh = (size_t)w->na * (size_t)s->nst;
     if (ahead < (size_t)w->na * (size_t)w->nb / 8 / TD_SUNLIT_LO_AHEAD || !block_minima(v, w, shift, bm))
         goto out;
-    s->lo = malloc(nh * sizeof *s->lo);
+    s->lo = td_bigalloc(nh * sizeof *s->lo);
     if (!s->lo) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for the shadow bound (%zu bounds)", nh);
         goto out;
@@ -305,8 +306,8 @@ td_status td_sunlit_build(const td_view *v, const double sun[3], td_sunlit **out
     const int32_t kmin = (int32_t)floor(lam0) - 1, nst = (int32_t)ceil(lam1) + 1 - kmin + 1;
     size_t n = (size_t)bw * (size_t)bh, nh = (size_t)w.na * (size_t)nst; /* nh <= 2^21 */
     s = calloc(1, sizeof *s);
-    bm = malloc((n + 3 * (size_t)nst + 3) * sizeof *bm);
-    if (!s || !bm || !(s->h = malloc(nh * sizeof *s->h))) {
+    bm = td_bigalloc((n + 3 * (size_t)nst + 3) * sizeof *bm);
+    if (!s || !bm || !(s->h = td_bigalloc(nh * sizeof *s->h))) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for the sun bound (%zu bounds)", nh);
         goto out;
     }

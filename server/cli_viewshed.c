@@ -24,7 +24,7 @@
 
 #include "accel.h"
 #include "dem.h"
-#include "prefault.h"
+#include "bigalloc.h"
 #include "viewshed_api.h" /* the encoder and the figures, shared with the service */
 
 typedef struct vs_cli {
@@ -186,12 +186,11 @@ static int vs_run(vs_cli *c)
     ck[2] = clock();
     v.grid = g;
     v.accel = acc ? acc->tiles : NULL;
-    counts = malloc((size_t)g->w * (size_t)g->h);
+    counts = td_bigalloc((size_t)g->w * (size_t)g->h); /* written whole next (bigalloc.h) */
     if (!counts) {
         fprintf(stderr, "terrad viewshed: out of memory\n");
         goto out;
     }
-    td_prefault(counts, (size_t)g->w * (size_t)g->h); /* written whole next (prefault.h) */
     if (td_viewshed(&v, &c->o, counts, &st, &err)) {
         fprintf(stderr, "terrad viewshed: %s\n", err.msg);
         goto out;

@@ -23,7 +23,7 @@
 
 #include "clock.h"
 #include "limit.h"
-#include "prefault.h"
+#include "bigalloc.h"
 
 /* ---- answers -------------------------------------------------------------------------- */
 
@@ -293,7 +293,7 @@ static td_status work_viewshed(vs_job *j, td_http_req *hq, td_http_resp *r, td_v
 {
     const td_view *v = td_snapshot_view(j->h.snap);
     td_vs_point *pts = calloc((size_t)j->q.npts, sizeof *pts);
-    uint8_t *counts = malloc((size_t)v->grid->w * (size_t)v->grid->h);
+    uint8_t *counts = td_bigalloc((size_t)v->grid->w * (size_t)v->grid->h); /* written whole next */
     td_buf png = {0};
     td_status rc = TD_OK;
     double t;
@@ -302,7 +302,6 @@ static td_status work_viewshed(vs_job *j, td_http_req *hq, td_http_resp *r, td_v
                         (int)v->grid->h);
         goto out;
     }
-    td_prefault(counts, (size_t)v->grid->w * (size_t)v->grid->h); /* written whole next */
     rc = resolve(v->grid, &j->q, pts, e);
     j->q.o.obs = pts;
     j->q.o.nobs = j->q.npts;

@@ -1,0 +1,45 @@
+/* bigalloc.h: large buffers on transparent huge pages.
+ *
+ * The first touch of a fresh 4 KiB page costs a trap, and on the virtual machines terrad
+ * runs on (shadow page tables: the guest's fault and then the host's) about 10 us:
+ * trinidad's 11.5 MB of heights, written once by the loader, were 28 ms of a 29 ms load,
+ * and a viewshed's counts or a render's sun bound pay the same on every request. Asking
+ * for one populate call first (MADV_POPULATE_WRITE) saved little there (30.4 -> 29.5 ms
+ * for 11.5 MB), since the host still maps each page on its first use. A 2 MiB huge page
+ * is one fault for 512 pages and one TLB entry: the same 11.5 MB copied into a
+ * 2 MiB-aligned buffer advised MADV_HUGEPAGE took 1.4-1.8 ms (12 runs, 2026-12-01, AMD
+ * EPYC guest, 23 GB free); populated first it took 14 ms, so these buffers are not.
+ *
+ * The costs: with the kernel's default defrag ("madvise"), a fault in an advised range
+ * compacts memory when no free 2 MiB block is left; and a huge page is resident whole
+ * once touched, so a buffer's last, partial one is advised (the buffer rounded up to it)
+ * only when that adds at most a quarter to the buffer (11.5 MB of heights take 12), else
+ * it stays 4 KiB pages (a 2.1 MB sun bound kept by the server costs no more than its size).
+ * Those 4 KiB pages are mapped in one call (MADV_POPULATE_WRITE), since every user writes
+ * its buffer whole right after: picos's 1.4 MB of heights load 1.5 ms faster so. Where
+ * the kernel has no transparent huge pages (or is older than 5.14) the advice fails and
+ * the buffer is an aligned malloc like any other.
+ *
+ * Used for the buffers of megabytes a grid or an image sizes: the heights (grid.c), a
+ * viewshed's counts and visibility (viewshed.c, server/viewshed.c, server/cli_viewshed.c),
+ * a render's sun bound (sunlit.c) and its result planes (render.c). */
+#ifndef TD_BIGALLOC_H
+#define TD_BIGALLOC_H
+
+#include <stddef.h>
+
+/* Buffers below this many bytes are plain malloc */
+#define TD_BIGALLOC_MIN ((size_t)1 << 20)
+/* The huge page size the buffers are aligned to and rounded up to */
+#define TD_BIGALLOC_PAGE ((size_t)2 << 20)
+
+/* n bytes, uninitialised, or NULL when out of memory; free() releases them. From
+ * TD_BIGALLOC_MIN bytes on, 2 MiB-aligned, its whole huge pages advised MADV_HUGEPAGE (the
+ * last, partial one as above) and the 4 KiB pages after them mapped: for a buffer the
+ * caller writes whole next. */
+void *td_bigalloc(size_t n);
+
+/* td_bigalloc of n zero bytes (count * size, NULL on overflow) */
+void *td_bigcalloc(size_t count, size_t size);
+
+#endif
