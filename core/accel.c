@@ -10,6 +10,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "bigalloc.h"
 #include "maxmip.h"
 #include "planes.h"
 
@@ -38,6 +39,10 @@ int td_cpu_count(void)
 typedef struct build_job {
     const td_grid *g;
     td_accel *a;
+    const size_t *at; /* max-mipmaps: tile i's codes at code + at[2 i], its minima at
+                         mins + at[2 i + 1] */
+    uint16_t *code;
+    float *mins;
     int what; /* 0 maxmip, 1 planes */
     int k;
     int minima; /* td_accel_opts.minima */
@@ -57,9 +62,10 @@ static void *build_worker(void *arg)
         if (i >= job->a->ntiles || atomic_load(&job->failed))
             break;
         if (job->what == 0) {
-            td_maxmip *m = NULL;
-            rc = td_maxmip_build_opts(job->g, i, job->minima, &m, &err);
-            job->a->tiles[i].maxmip = m;
+            td_maxmip *m = &job->a->mm[i];
+            rc = td_maxmip_build_into(job->g, i, job->minima, m, job->code + job->at[2 * i],
+                                      job->mins + job->at[2 * i + 1], &err);
+            job->a->tiles[i].maxmip = rc == TD_OK ? m : NULL;
         } else {
             td_planes *p = NULL;
             rc = td_planes_build(job->g, i, job->k, &p, &err);
@@ -77,14 +83,18 @@ static void *build_worker(void *arg)
 }
 
 static td_status run_build(const td_grid *g, td_accel *a, int what, const td_accel_opts *o, int threads,
-                           double *seconds, td_err *err)
+                           const size_t *at, double *seconds, td_err *err)
 {
     td_status rc = TD_OK;
-    build_job job = {.g = g, .a = a, .what = what, .k = o->planes_k, .minima = o->minima};
+    build_job job = {.g = g, .a = a, .what = what, .k = o->planes_k, .minima = o->minima, .at = at};
     pthread_t tid[256];
     int started = 0;
     double t0 = td_clock_s();
 
+    if (at) {
+        job.code = a->store;
+        job.mins = (float *)(void *)((char *)a->store + at[2 * a->ntiles]);
+    }
     atomic_init(&job.next, 0);
     atomic_init(&job.failed, 0);
     pthread_mutex_init(&job.err_lock, NULL);
@@ -107,12 +117,40 @@ static td_status run_build(const td_grid *g, td_accel *a, int what, const td_acc
     return rc;
 }
 
+/* The max-mipmaps' records and their one buffer: *at (malloc'ed, 2 ntiles + 1 entries) gets
+ * where each tile's codes and minima start (in codes and in floats from the first of each)
+ * and, last, the byte offset of the first minimum in the buffer. */
+static td_status maxmip_store(const td_grid *g, td_accel *a, int minima, size_t **at, td_err *err)
+{
+    td_status rc = TD_OK;
+    size_t codes = 0, mins = 0, bytes = 0, *o = malloc((2 * a->ntiles + 1) * sizeof *o);
+    for (size_t i = 0; o && i < a->ntiles; i++) {
+        size_t c, m;
+        td_maxmip_sizes(g, i, minima, &c, &m);
+        o[2 * i] = codes;
+        o[2 * i + 1] = mins;
+        codes += c;
+        mins += m;
+    }
+    if (o) /* the minima after the codes, on a float's boundary */
+        o[2 * a->ntiles] = (codes * sizeof(uint16_t) + sizeof(float) - 1) & ~(sizeof(float) - 1);
+    a->mm = calloc(a->ntiles ? a->ntiles : 1, sizeof *a->mm);
+    if (o && !td_add_size(o[2 * a->ntiles], mins * sizeof(float), &bytes)) /* cannot overflow: */
+        bytes = 0;                                                         /* they fit the grid */
+    a->store = o && bytes ? td_bigalloc(bytes) : NULL;
+    if (!o || !a->mm || !a->store)
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for the max-mipmaps (%zu bytes)", bytes);
+    *at = o;
+    return rc;
+}
+
 td_status td_accel_build(const td_grid *g, const td_accel_opts *o, td_accel **out,
                          td_accel_stats *st, td_err *err)
 {
     td_status rc = TD_OK;
     td_accel_stats stats;
     td_accel *a = NULL;
+    size_t *at = NULL;
     int threads = o->threads > 0 ? o->threads : td_cpu_count();
 
     memset(&stats, 0, sizeof stats);
@@ -130,20 +168,23 @@ td_status td_accel_build(const td_grid *g, const td_accel_opts *o, td_accel **ou
     }
     stats.tiles = (int64_t)a->ntiles;
     if (o->maxmip) {
-        rc = run_build(g, a, 0, o, threads, &stats.maxmip_seconds, err);
+        rc = maxmip_store(g, a, o->minima, &at, err);
+        if (rc == TD_OK)
+            rc = run_build(g, a, 0, o, threads, at, &stats.maxmip_seconds, err);
         if (rc != TD_OK)
             goto out;
         for (size_t i = 0; i < a->ntiles; i++)
             stats.maxmip_bytes += a->tiles[i].maxmip->bytes;
     }
     if (o->planes) {
-        rc = run_build(g, a, 1, o, threads, &stats.planes_seconds, err);
+        rc = run_build(g, a, 1, o, threads, NULL, &stats.planes_seconds, err);
         if (rc != TD_OK)
             goto out;
         for (size_t i = 0; i < a->ntiles; i++)
             stats.planes_bytes += a->tiles[i].planes->bytes;
     }
 out:
+    free(at);
     if (rc != TD_OK) {
         td_accel_free(a);
         a = NULL;
@@ -157,10 +198,10 @@ out:
 void td_accel_free(td_accel *a)
 {
     if (a) {
-        for (size_t i = 0; a->tiles && i < a->ntiles; i++) {
-            td_maxmip_free((td_maxmip *)a->tiles[i].maxmip);
-            td_planes_free((td_planes *)a->tiles[i].planes);
-        }
+        for (size_t i = 0; a->tiles && i < a->ntiles; i++)
+            td_planes_free((td_planes *)a->tiles[i].planes); /* the max-mipmaps are a->mm's */
+        free(a->mm);
+        free(a->store);
         free(a->tiles);
         free(a);
     }

@@ -31,6 +31,10 @@ typedef struct td_accel_stats {
 typedef struct td_accel {
     size_t ntiles;
     td_tile_accel *tiles; /* ntiles entries, owned */
+    td_maxmip *mm;        /* the tiles' max-mipmaps when built, one record a tile, owned */
+    void *store;          /* all their codes, then all their minima: one buffer (bigalloc.h),
+                             where a buffer a tile was 2 MB of fresh pages in 50 pieces on
+                             trinidad, 640 page faults and 6 of the build's 12 ms */
 } td_accel;
 
 void td_accel_opts_default(td_accel_opts *o);

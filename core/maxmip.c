@@ -178,38 +178,49 @@ td_status td_maxmip_build(const td_grid *g, size_t tile, td_maxmip **out, td_err
     return td_maxmip_build_opts(g, tile, 1, out, err);
 }
 
-td_status td_maxmip_build_opts(const td_grid *g, size_t tile, int minima, td_maxmip **out, td_err *err)
+/* m's levels, their blocks and offsets, and its minima's size for tile t: the pyramid
+ * covers the tile's cells (a partial tile, on the east or north edge or of a small grid,
+ * gets a smaller one). Returns the codes of all its levels. */
+static size_t shape(const td_grid *g, const td_tile *t, int minima, td_maxmip *m)
 {
-    td_status rc = TD_OK;
-    const td_tile *t = &g->tiles[tile];
     const int32_t n = t->nx > t->ny ? t->nx : t->ny;
     int L = 1;
-    while (L < g->tile_log2 && ((int32_t)1 << L) < n)
-        L++; /* a partial tile (east or north edge, small grid) gets a smaller pyramid */
-    const int32_t T = (int32_t)1 << L;
-    float *cell = NULL, *max = NULL;
-    td_maxmip *m = NULL;
     size_t total = 0;
-
-    *out = NULL;
-    m = calloc(1, sizeof *m);
-    cell = malloc(sizeof(float) * ((size_t)t->nx * (size_t)t->ny + 2 * ((size_t)t->nx + 1)));
-    if (!m || !cell) {
-        rc = td_err_set(err, TD_ENOMEM, "out of memory for a max-mipmap");
-        goto out;
-    }
+    while (L < g->tile_log2 && ((int32_t)1 << L) < n)
+        L++;
     m->levels = L;
     for (int l = 1; l <= L; l++) {
-        m->dim[l] = T >> l;
+        m->dim[l] = ((int32_t)1 << L) >> l;
         m->offset[l] = total;
         total += (size_t)m->dim[l] * (size_t)m->dim[l];
     }
     m->min4_w = minima ? (t->nx + 3) / 4 : 0;
     m->min4_h = minima ? (t->ny + 3) / 4 : 0;
+    return total;
+}
+
+void td_maxmip_sizes(const td_grid *g, size_t tile, int minima, size_t *codes, size_t *mins)
+{
+    td_maxmip m;
+    *codes = shape(g, &g->tiles[tile], minima, &m);
+    *mins = (size_t)m.min4_w * (size_t)m.min4_h;
+}
+
+td_status td_maxmip_build_into(const td_grid *g, size_t tile, int minima, td_maxmip *m, uint16_t *code,
+                               float *min4, td_err *err)
+{
+    td_status rc = TD_OK;
+    const td_tile *t = &g->tiles[tile];
+    float *cell = NULL, *max = NULL;
+    size_t total;
+
+    memset(m, 0, sizeof *m);
+    total = shape(g, t, minima, m);
+    m->code = code;
+    m->min4 = minima ? min4 : NULL;
+    cell = malloc(sizeof(float) * ((size_t)t->nx * (size_t)t->ny + 2 * ((size_t)t->nx + 1)));
     max = malloc(sizeof(float) * total);
-    m->code = malloc(sizeof(uint16_t) * total);
-    m->min4 = minima ? malloc(sizeof(float) * (size_t)m->min4_w * (size_t)m->min4_h) : NULL;
-    if (!max || !m->code || (minima && !m->min4)) {
+    if (!cell || !max) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for a max-mipmap");
         goto out;
     }
@@ -218,7 +229,7 @@ td_status td_maxmip_build_opts(const td_grid *g, size_t tile, int minima, td_max
         blocks_min4(g, t, m, cell); /* cell: nx x ny floats, free until level1 */
     td_grid_cell_max(g, t, cell);
     level1(cell, t->nx, t->ny, m->dim[1], max + m->offset[1]);
-    for (int l = 2; l <= L; l++) {
+    for (int l = 2; l <= m->levels; l++) {
         const float *src = max + m->offset[l - 1];
         float *dst = max + m->offset[l];
         int32_t sd = m->dim[l - 1], dd = m->dim[l];
@@ -235,8 +246,28 @@ td_status td_maxmip_build_opts(const td_grid *g, size_t tile, int minima, td_max
 out:
     free(cell);
     free(max);
+    return rc;
+}
+
+td_status td_maxmip_build_opts(const td_grid *g, size_t tile, int minima, td_maxmip **out, td_err *err)
+{
+    td_status rc = TD_OK;
+    td_maxmip *m = calloc(1, sizeof *m);
+    uint16_t *code = NULL;
+    float *min4 = NULL;
+    size_t codes, mins;
+
+    td_maxmip_sizes(g, tile, minima, &codes, &mins);
+    code = malloc(sizeof *code * codes);
+    min4 = minima ? malloc(sizeof *min4 * (mins ? mins : 1)) : NULL;
+    if (!m || !code || (minima && !min4))
+        rc = td_err_set(err, TD_ENOMEM, "out of memory for a max-mipmap");
+    else
+        rc = td_maxmip_build_into(g, tile, minima, m, code, min4, err);
     if (rc != TD_OK) {
-        td_maxmip_free(m);
+        free(code);
+        free(min4);
+        free(m);
         m = NULL;
     }
     *out = m;

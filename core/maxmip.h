@@ -45,4 +45,13 @@ td_status td_maxmip_build(const td_grid *g, size_t tile, td_maxmip **out, td_err
 td_status td_maxmip_build_opts(const td_grid *g, size_t tile, int minima, td_maxmip **out, td_err *err);
 void td_maxmip_free(td_maxmip *m);
 
+/* The storage tile `tile`'s max-mipmap takes: its codes and, with `minima`, its 4 x 4
+ * blocks' minima (0 without). */
+void td_maxmip_sizes(const td_grid *g, size_t tile, int minima, size_t *codes, size_t *mins);
+/* td_maxmip_build_opts into storage the caller owns (a whole grid's codes in one buffer,
+ * accel.c): m is filled, its code and min4 pointing at `code` and `min4` (the sizes
+ * td_maxmip_sizes gives; min4 unused without minima). Not for td_maxmip_free. */
+td_status td_maxmip_build_into(const td_grid *g, size_t tile, int minima, td_maxmip *m, uint16_t *code,
+                               float *min4, td_err *err);
+
 #endif
