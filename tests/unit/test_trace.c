@@ -398,6 +398,60 @@ static void test_maxmip_and_edt(void **state)
     }
 }
 
+/* A whole grid's max-mipmaps, built into td_accel's one buffer (td_maxmip_build_into),
+ * are each tile's own build (td_maxmip_build_opts) to the bit: shape, scale, codes and
+ * minima, on partial edge tiles and a hole, with and without the minima; and the tiles'
+ * codes and minima do not overlap in the buffer. */
+static void test_accel_maxmip_store(void **state)
+{
+    (void)state;
+    td_grid *g = procedural(40, 23, 8, 4); /* 3 x 2 tiles, partial on the east and north */
+    g->z[(size_t)3 * (size_t)g->w + 35] = NAN;
+    assert_int_equal(td_grid_finish(g, NULL), TD_OK);
+    for (int minima = 0; minima < 2; minima++) {
+        td_accel *a = NULL;
+        td_accel_opts o;
+        td_accel_opts_default(&o);
+        o.planes = 0;
+        o.minima = minima;
+        o.threads = 2;
+        assert_int_equal(td_accel_build(g, &o, &a, NULL, NULL), TD_OK);
+        for (size_t t = 0; t < a->ntiles; t++) {
+            const td_maxmip *m = a->tiles[t].maxmip;
+            td_maxmip *r = NULL;
+            size_t codes, mins;
+            assert_int_equal(td_maxmip_build_opts(g, t, minima, &r, NULL), TD_OK);
+            td_maxmip_sizes(g, t, minima, &codes, &mins);
+            assert_int_equal(m->levels, r->levels);
+            assert_true(m->base == r->base && m->step == r->step);
+            assert_int_equal(m->bytes, r->bytes);
+            for (int l = 1; l <= r->levels; l++) {
+                assert_int_equal(m->dim[l], r->dim[l]);
+                assert_int_equal(m->offset[l], r->offset[l]);
+            }
+            assert_int_equal(codes, r->offset[r->levels] + (size_t)r->dim[r->levels] * (size_t)r->dim[r->levels]);
+            assert_memory_equal(m->code, r->code, codes * sizeof *m->code);
+            assert_int_equal(m->min4_w, r->min4_w);
+            assert_int_equal(m->min4_h, r->min4_h);
+            assert_int_equal(mins, (size_t)r->min4_w * (size_t)r->min4_h);
+            if (minima) {
+                assert_memory_equal(m->min4, r->min4, mins * sizeof *m->min4); /* NaN bits too */
+            } else {
+                assert_null(m->min4);
+                assert_int_equal(mins, 0);
+            }
+            if (t + 1 < a->ntiles) { /* the next tile's codes and minima start past these */
+                assert_true(m->code + codes <= a->tiles[t + 1].maxmip->code);
+                if (minima)
+                    assert_true(m->min4 + mins <= a->tiles[t + 1].maxmip->min4);
+            }
+            td_maxmip_free(r);
+        }
+        td_accel_free(a);
+    }
+    td_grid_free(g);
+}
+
 /* Plane surface: a wall hit has a horizontal normal facing the ray. */
 static void test_plane_walls(void **state)
 {
@@ -982,6 +1036,7 @@ int main(void)
         cmocka_unit_test(test_flat_analytic),       cmocka_unit_test(test_single_cell_bilinear),
         cmocka_unit_test(test_methods_vs_reference), cmocka_unit_test(test_planes_bound),
         cmocka_unit_test(test_planes_degenerate),   cmocka_unit_test(test_maxmip_and_edt),
+        cmocka_unit_test(test_accel_maxmip_store),
         cmocka_unit_test(test_plane_walls),         cmocka_unit_test(test_validate),
         cmocka_unit_test(test_steps_fewer),         cmocka_unit_test(test_batches_same),
         cmocka_unit_test(test_occluded_packets),
