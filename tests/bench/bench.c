@@ -444,7 +444,12 @@ static td_status run_speed(bench_ctx *b, bench_ds *d, td_err *err)
     td_embree_prepare(emb[0], d->rays, d->n, er);
 
     for (int r = 0; r < b->runs; r++) {
+        uint64_t wsteps, whits;
         td_bench_progress(b, "%s: tracing, round %s", d->name, r == 0 ? "1" : r == 1 ? "2" : "3+");
+        /* every timed loop warm: an untimed one on the same data before the first of each
+         * side (Embree's BVH is cold after terrad's loops, terrad's data after Embree's) */
+        (void)td_bench_trace_loop(&views[TD_METHOD_HIERARCHICAL], TD_METHOD_HIERARCHICAL, TD_SURFACE_PLANE, d->rays,
+                                  d->n, d->t, d->steps, &wsteps, &whits);
         for (int m = 0; m < TD_METHOD_COUNT; m++) {
             for (int s = 0; s < TD_SURFACE_COUNT && td_bench_traced(m); s++) {
                 bench_trace *o = &d->tr[m][s];
@@ -461,6 +466,7 @@ static td_status run_speed(bench_ctx *b, bench_ds *d, td_err *err)
             }
         }
         for (int g = 0; g < TD_EMBREE_GEOM_COUNT; g++) {
+            td_embree_trace16(emb[g], er, d->n, d->t); /* warm, untimed */
             for (int w = 0; w < 2; w++) {
                 double t0 = td_clock_s();
                 if (w == 0)

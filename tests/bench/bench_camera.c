@@ -18,7 +18,8 @@
  * sample instead of the ground. Positions in whole metres, headings in tenths of a
  * degree: the report's views table is the exact scene.
  *
- * Timing, per view, in `runs` interleaved rounds, medians over rounds:
+ * Timing, per view, in `runs` interleaved rounds, medians over rounds; every timed call
+ * warm (an untimed call on the same data just before it; see emb_warm_ms):
  *   for each surface: td_render (one thread, method auto, one sample, PNG, shadows on
  *     with the view's sun) in each configuration of TD_BENCH_CONF_LIST (bench_int.h:
  *     every device on; the sun bound off; every device off); terrad's rate is
@@ -388,18 +389,37 @@ static void cam_counts(cam_run *c, int s, int k, const td_render_stats *st)
 
 static double ms_since(double t0) { return (td_clock_s() - t0) * 1e3; }
 
-/* Round r: every surface in every configuration, Embree on its shadow rays, then
- * Embree on the camera rays. */
+/* Embree's call on n prepared rays (occlusion, or the nearest hit), untimed once and then
+ * timed: ms of the second call. The first warms the caches and TLB for Embree's BVH, as
+ * the renders before a timed render warm terrad's grid and structures; timed cold, after
+ * a dozen renders, Embree ran 1.5-4x slower here (trinidad 8-12 against 20-40 M rays/s on
+ * the same rays; 2026-12-01), which made terrad look that much faster than it is. */
+static double emb_warm_ms(const cam_run *c, const td_embree_ray *r, size_t n, int occlusion)
+{
+    double t0 = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        t0 = td_clock_s();
+        if (occlusion)
+            td_embree_occluded16(c->emb, r, n, c->occ);
+        else
+            td_embree_trace16(c->emb, r, n, c->t);
+    }
+    return ms_since(t0);
+}
+
+/* Round r: per surface an untimed render (warming terrad's side as emb_warm_ms warms
+ * Embree's), that surface in every configuration, Embree on its shadow rays; then Embree
+ * on the camera rays; then the grid-only configurations, after an untimed render of the
+ * first. */
 static td_status cam_round(cam_run *c, int r, td_err *err)
 {
     td_status rc = TD_OK;
     const size_t runs = (size_t)c->b->runs, rr = (size_t)r;
-    double t0;
     for (int s = 0; s < TD_SURFACE_COUNT && rc == TD_OK; s++) {
-        for (int k = 0; k < NCONF && rc == TD_OK; k++) {
+        for (int k = -1; k < NCONF && rc == TD_OK; k++) {
             td_render_result res;
-            rc = cam_render(c, (td_surface)s, TD_FORMAT_PNG, conf_off[k], NULL, &res, err);
-            if (rc == TD_OK) {
+            rc = cam_render(c, (td_surface)s, TD_FORMAT_PNG, conf_off[k < 0 ? 0 : k], NULL, &res, err);
+            if (rc == TD_OK && k >= 0) {
                 c->ms[(size_t)Q_PRIM(s, k) * runs + rr] = res.stats.stage_ms[TD_STAGE_PRIMARY];
                 c->ms[(size_t)Q_SHADOW(s, k) * runs + rr] = res.stats.stage_ms[TD_STAGE_SHADOWS];
                 if (r == 0)
@@ -407,13 +427,14 @@ static td_status cam_round(cam_run *c, int r, td_err *err)
             }
             td_render_result_free(&res);
         }
-        t0 = td_clock_s();
-        td_embree_occluded16(c->emb, c->esh[s], c->nsh[s], c->occ);
-        c->ms[(size_t)Q_EOCC(s) * runs + rr] = ms_since(t0);
+        c->ms[(size_t)Q_EOCC(s) * runs + rr] = emb_warm_ms(c, c->esh[s], c->nsh[s], 1);
     }
-    t0 = td_clock_s();
-    td_embree_trace16(c->emb, c->er, c->n, c->t);
-    c->ms[(size_t)Q_EPRIM * runs + rr] = ms_since(t0);
+    c->ms[(size_t)Q_EPRIM * runs + rr] = emb_warm_ms(c, c->er, c->n, 0);
+    if (rc == TD_OK) {
+        td_render_result warm;
+        rc = cam_cold_render(c, 0, &warm, err);
+        td_render_result_free(&warm);
+    }
     if (rc == TD_OK)
         rc = cam_cold_round(c, r, err);
     return rc;
