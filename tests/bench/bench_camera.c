@@ -443,10 +443,40 @@ static td_status cam_round(cam_run *c, int r, td_err *err)
 /* rays per second, NaN without rays or time */
 static double per_s(uint64_t n, double ms) { return n > 0 && ms > 0 ? (double)n / (ms * 1e-3) : NAN; }
 
+/* terrad's rate over Embree's, each round's (ms ta[r] for na rays against tb[r] for nb),
+ * the median over the rounds; NaN unless every round has both. Paired by round, the ratio
+ * drops the drift of a shared machine's speed from one round to the next, which the ratio
+ * of the two medians keeps. q: room for `runs` doubles. */
+static double paired_x(const double *ta, uint64_t na, const double *tb, uint64_t nb, int runs, double *q)
+{
+    int m = 0;
+    for (int r = 0; r < runs; r++) {
+        double a = per_s(na, ta[r]), b = per_s(nb, tb[r]);
+        if (a > 0 && b > 0 && isfinite(a) && isfinite(b))
+            q[m++] = a / b;
+    }
+    return m == runs && m > 0 ? td_bench_median(q, m) : NAN;
+}
+
+/* The medians of the rounds (td_bench_median sorts in place: the paired ratios first) */
 static void cam_medians(cam_run *c)
 {
     const int runs = c->b->runs;
     bench_cam_view *v = c->v;
+    double *q = malloc((size_t)runs * sizeof *q);
+    for (int s = 0; s < TD_SURFACE_COUNT; s++) {
+        bench_cam_surf *o = &v->s[s];
+        for (int k = 0; k < NCONF; k++) {
+            o->prim_x[k] = o->shadow_x[k] = NAN;
+            if (!q)
+                continue; /* out of memory: the report shows "-" */
+            o->prim_x[k] = paired_x(c->ms + (size_t)Q_PRIM(s, k) * (size_t)runs, c->prim_rays[s][k],
+                                    c->ms + (size_t)Q_EPRIM * (size_t)runs, c->n, runs, q);
+            o->shadow_x[k] = paired_x(c->ms + (size_t)Q_SHADOW(s, k) * (size_t)runs, c->shadow_rays[s][k],
+                                      c->ms + (size_t)Q_EOCC(s) * (size_t)runs, c->nsh[s], runs, q);
+        }
+    }
+    free(q);
     for (int s = 0; s < TD_SURFACE_COUNT; s++) {
         bench_cam_surf *o = &v->s[s];
         for (int k = 0; k < NCONF; k++) {
@@ -586,11 +616,11 @@ static const char *fixed(char *buf, size_t n, double v, int prec)
 
 static double quot(double a, double b) { return a > 0 && b > 0 && isfinite(a) && isfinite(b) ? a / b : NAN; }
 
-/* terrad in configuration k / Embree, for camera (shadow = 0) or shadow rays. */
+/* terrad in configuration k / Embree, for camera (shadow = 0) or shadow rays (paired_x) */
 static double cam_ratio(const bench_cam_view *v, int s, int shadow, int k)
 {
     const bench_cam_surf *o = &v->s[s];
-    return shadow ? quot(o->shadow_rps[k], o->emb_shadow_rps) : quot(o->prim_rps[k], v->emb_prim_rps);
+    return shadow ? o->shadow_x[k] : o->prim_x[k];
 }
 
 /* The surface with the highest (best = 1) or lowest ratio in configuration k; NaN if none. */
@@ -668,7 +698,9 @@ static void cam_write_table(FILE *f, const bench_ctx *b)
                "renders and map tiles of the same heights and sun, `X-Terrad-Sun-Bound: kept`; the same rays, "
                "steps and answers, the build not in the stage, as Embree's is not in its time); *no sun*: the sun "
                "bound off (`TD_RENDER_OFF_SUNLIT`, and with it the packets), "
-               "the occlusion query kept; *off*: every device off; x Embree = terrad / Embree on the same rays; "
+               "the occlusion query kept; *off*: every device off; x Embree = terrad / Embree on the same rays, "
+               "taken in each round (both sides timed within about a second) and the median over rounds, so it "
+               "can differ a little from the ratio of the two medians beside it; "
                "steps per shadow ray count the cells a packet walked, then the one-ray walk's steps.\n\n"
                "| dataset | view | surface | camera M rays/s, on | off | Embree rtcIntersect16 | x Embree, on | "
                "off | steps per camera ray, on | off | shadow rays | shadow M rays/s, on | kept | no sun | off | Embree "

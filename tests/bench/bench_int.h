@@ -131,6 +131,8 @@ typedef struct bench_cam_surf {
                                          rays / its time, steps a ray */
     double shadow_rps[TD_BENCH_CONF_COUNT], shadow_steps[TD_BENCH_CONF_COUNT]; /* stage shadows */
     double emb_shadow_rps;            /* rtcOccluded16 on this render's shadow rays */
+    double prim_x[TD_BENCH_CONF_COUNT], shadow_x[TD_BENCH_CONF_COUNT]; /* terrad / Embree:
+                                         each round's ratio, the median over rounds */
 } bench_cam_surf;
 
 typedef struct bench_cam_view {
