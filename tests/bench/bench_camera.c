@@ -25,7 +25,8 @@
  *     every device on; the sun bound off; every device off); terrad's rate is
  *     rays[kind] / stage_ms[stage] (primary: camera ray setup, horizon bins and tracing;
  *     shadows: the sun bound's build and the shadow rays), steps a ray
- *     kind_steps[kind] / rays[kind];
+ *     kind_steps[kind] / rays[kind]; x Embree is each round's terrad / Embree, the median
+ *     over the rounds (paired_x);
  *     then rtcOccluded16 on that surface's shadow rays: td_render_opts.shadow_rays of an
  *     untimed render, the slots with a ray kept in image order, 16 consecutive a packet;
  *   then rtcIntersect16 on the camera rays (td_camera_ray of every pixel centre, which
@@ -443,6 +444,9 @@ static td_status cam_round(cam_run *c, int r, td_err *err)
 /* rays per second, NaN without rays or time */
 static double per_s(uint64_t n, double ms) { return n > 0 && ms > 0 ? (double)n / (ms * 1e-3) : NAN; }
 
+/* a / b, NaN unless both are finite and positive */
+static double quot(double a, double b) { return a > 0 && b > 0 && isfinite(a) && isfinite(b) ? a / b : NAN; }
+
 /* terrad's rate over Embree's, each round's (ms ta[r] for na rays against tb[r] for nb),
  * the median over the rounds; NaN unless every round has both. Paired by round, the ratio
  * drops the drift of a shared machine's speed from one round to the next, which the ratio
@@ -451,9 +455,9 @@ static double paired_x(const double *ta, uint64_t na, const double *tb, uint64_t
 {
     int m = 0;
     for (int r = 0; r < runs; r++) {
-        double a = per_s(na, ta[r]), b = per_s(nb, tb[r]);
-        if (a > 0 && b > 0 && isfinite(a) && isfinite(b))
-            q[m++] = a / b;
+        double x = quot(per_s(na, ta[r]), per_s(nb, tb[r]));
+        if (!isnan(x))
+            q[m++] = x;
     }
     return m == runs && m > 0 ? td_bench_median(q, m) : NAN;
 }
@@ -613,8 +617,6 @@ static const char *fixed(char *buf, size_t n, double v, int prec)
         snprintf(buf, n, "-");
     return buf;
 }
-
-static double quot(double a, double b) { return a > 0 && b > 0 && isfinite(a) && isfinite(b) ? a / b : NAN; }
 
 /* terrad in configuration k / Embree, for camera (shadow = 0) or shadow rays (paired_x) */
 static double cam_ratio(const bench_cam_view *v, int s, int shadow, int k)
