@@ -34,6 +34,13 @@
  * the machine picks (valgrind reports no AVX-512, so callgrind counts the AVX2 one; the
  * sanitizer builds the baseline's). */
 #define TD_PACKET_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
+/* The packets again, eight lanes wide, for processors with AVX-512 (trace.c includes
+ * trace_lanes.inc a second time under #pragma GCC target("arch=x86-64-v4") and picks that
+ * instance at run time, td_trace_lanes): GCC only (clang ignores the pragma, and would
+ * build the eight lanes for the baseline). Measured in trace_lanes.inc's users' comments. */
+#if defined(__GNUC__) && !defined(__clang__)
+#define TD_PACKET_WIDE 1
+#endif
 #endif
 #endif
 #ifndef TD_ROW_CLONES
@@ -41,6 +48,9 @@
 #endif
 #ifndef TD_PACKET_CLONES
 #define TD_PACKET_CLONES
+#endif
+#ifndef TD_PACKET_WIDE
+#define TD_PACKET_WIDE 0
 #endif
 
 #endif

@@ -1109,508 +1109,6 @@ void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r,
  * answer is the same (every method's answer is the exact walk's; the bound only proves
  * lit); test_occluded_packets holds them to td_occluded. */
 
-/* The helpers below are always inlined into fan_packet, so no vector crosses a call: the
- * warning that a 32-byte vector's calling convention differs without AVX does not apply.
- * (Not popped: GCC gives it at the end of the file.) */
-#pragma GCC diagnostic ignored "-Wpsabi"
-
-typedef double vd __attribute__((vector_size(32)));
-typedef int64_t vm __attribute__((vector_size(32))); /* a lane mask: all ones or zero */
-typedef int32_t vi __attribute__((vector_size(16)));
-typedef float vf __attribute__((vector_size(16)));
-#define TD_LANES 4
-
-TD_HOT vd vb(double x) { return (vd){x, x, x, x}; }
-TD_HOT vd vsel(vm m, vd a, vd b) { return (vd)(((vm)a & m) | ((vm)b & ~m)); }
-TD_HOT vd vmin(vd a, vd b) { return vsel((vm)(a < b), a, b); } /* dmin, lane by lane */
-TD_HOT vd vmax(vd a, vd b) { return vsel((vm)(a > b), a, b); }
-TD_HOT vd vclamp01(vd x) { return vsel((vm)(x < 0.0), vb(0.0), vsel((vm)(x > 1.0), vb(1.0), x)); }
-TD_HOT vd vabs(vd x) { return (vd)((vm)x & ~(vm)vb(-0.0)); }
-TD_HOT vm vnan(vd x) { return (vm)(x != x); }
-TD_HOT int vany(vm m) { return (m[0] | m[1] | m[2] | m[3]) != 0; }
-TD_HOT int vall(vm m) { return (m[0] & m[1] & m[2] & m[3]) != 0; }
-
-/* One packet's rays: direction per unit t (cell units), signs as masks, reciprocals. */
-typedef struct vwalk {
-    vd du, dv, dz, iu, iv;
-    vm pu, nu, pv, nv; /* du > 0, du < 0, dv > 0, dv < 0 */
-    vd su, sv;         /* -1, 0, +1 */
-    vd ou, ov, oz;     /* each lane's origin (walk_origin's; a fan's in every lane) */
-} vwalk;
-
-TD_HOT vd vray_u(const vwalk *p, vd t) { return p->ou + p->du * t; }
-TD_HOT vd vray_v(const vwalk *p, vd t) { return p->ov + p->dv * t; }
-TD_HOT vd vray_z(const vwalk *p, vd t) { return p->oz + p->dz * t; }
-
-/* time_u and time_v of a sample line k (a vector of integers) */
-TD_HOT vd vtime_u(const vwalk *p, vd k) { return vsel(p->pu | p->nu, (k - p->ou) * p->iu, vb(INFINITY)); }
-TD_HOT vd vtime_v(const vwalk *p, vd k) { return vsel(p->pv | p->nv, (k - p->ov) * p->iv, vb(INFINITY)); }
-TD_HOT vd vone(vm m) { return vsel(m, vb(1.0), vb(0.0)); }
-
-/* crossing(a, b) as the ENTRY_ codes in doubles */
-TD_HOT vd vcrossing(vd tu, vd tv)
-{
-    return vsel((vm)(tu < tv), vb(ENTRY_U), vsel((vm)(tv < tu), vb(ENTRY_V), vb(ENTRY_UV)));
-}
-
-/* cell_along for every lane (neg: the lanes going west or south) */
-TD_HOT vd vcell_along(vd pos, vm neg, double lo, double hi)
-{
-    vm below = ~(vm)(pos >= lo), above = (vm)(pos >= hi + 1.0);
-    vd safe = vsel(below | above, vb(lo), pos);
-    /* floor: safe >= lo >= 0 (whole-vector conversions: lanes written one by one and
-       read back as a vector would stall on store forwarding) */
-    vd c = __builtin_convertvector(__builtin_convertvector(safe, vi), vd);
-    vm back = neg & (vm)(c == safe) & (vm)(c > lo);
-    c = c - vone(back);
-    return vsel(below, vb(lo), vsel(above, vb(hi), c));
-}
-
-/* clip_slab for every lane */
-TD_HOT void vclip_slab(vd o, vd d, vd inv, double lo, double hi, vd *t0, vd *t1)
-{
-    vm zero = (vm)(d == 0.0);
-    vm out = ~((vm)(o >= lo) & (vm)(o <= hi));
-    vd a = (lo - o) * inv, b = (hi - o) * inv;
-    vm sw = (vm)(a > b);
-    vd a2 = vsel(sw, b, a), b2 = vsel(sw, a, b);
-    vd n0 = vsel((vm)(a2 > *t0), a2, *t0), n1 = vsel((vm)(b2 < *t1), b2, *t1);
-    *t0 = vsel(zero, *t0, n0);
-    *t1 = vsel(zero, vsel(out, vb(-INFINITY), *t1), n1);
-}
-
-/* A cell's corners for every lane, as cell_seg's c[4] (lanes off `act` read nothing) */
-typedef struct vcell {
-    vd c[4];
-} vcell;
-
-TD_HOT vcell vcorners(const walk *w, vd ci, vd cj, vm act)
-{
-    const size_t W = w->cz.stride;
-    /* a lane off act reads cell (0, 0), which every grid has, and is not used */
-    vi i = __builtin_convertvector(vsel(act, ci, vb(0.0)), vi);
-    vi j = __builtin_convertvector(vsel(act, cj, vb(0.0)), vi);
-    const float *s[TD_LANES];
-    for (int l = 0; l < TD_LANES; l++)
-        s[l] = td_grid_corner(&w->cz, i[l], j[l]);
-    vcell k = {{(vd){s[0][0], s[1][0], s[2][0], s[3][0]}, (vd){s[0][1], s[1][1], s[2][1], s[3][1]},
-                (vd){s[0][W], s[1][W], s[2][W], s[3][W]},
-                (vd){s[0][W + 1], s[1][W + 1], s[2][W + 1], s[3][W + 1]}}};
-    return k;
-}
-
-/* boundary_height for every lane: the crossing `kind` of the cell, entry side (0) or exit
- * side (1) */
-TD_HOT vd vboundary(const vwalk *p, const vcell *k, vd ci, vd cj, vd kind, int side, vd t)
-{
-    const vd *c = k->c;
-    vm eu = side ? p->pu : p->nu, ev = side ? p->pv : p->nv, on_u = (vm)(kind == ENTRY_U);
-    /* a column's edge (U): from c[eu] to c[2 + eu] along v; a row's (V): from c[2 ev] to
-       c[2 ev + 1] along u; a sample point (UV): c[2 ev + eu] */
-    vd a = vsel(on_u, vsel(eu, c[1], c[0]), vsel(ev, c[2], c[0]));
-    vd b = vsel(on_u, vsel(eu, c[3], c[2]), vsel(ev, c[3], c[1]));
-    vd pos = vsel(on_u, vray_v(p, t), vray_u(p, t)), at = vsel(on_u, cj, ci);
-    vd huv = vsel(ev, vsel(eu, c[3], c[2]), vsel(eu, c[1], c[0]));
-    return vsel((vm)(kind == ENTRY_UV), huv, a + (b - a) * vclamp01(pos - at));
-}
-
-/* triangle_patch for every lane */
-TD_HOT vd vtriangle_patch(const vd *c, vd a, vd b)
-{
-    vd lo = c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b;
-    vd hi = c[3] + (c[2] - c[3]) * (1.0 - a) + (c[1] - c[3]) * (1.0 - b);
-    return vsel((vm)(a + b <= 1.0), lo, hi);
-}
-
-/* seg_hit for every lane: *hit the lanes that cross, *t their crossing */
-TD_HOT void vseg_hit(vd ta, vd fa, vd tb, vd fb, vm *hit, vd *t)
-{
-    vm z = (vm)(fa == 0.0);
-    vm change = ((vm)(fa > 0.0) ^ (vm)(fb > 0.0)) | (vm)(fb == 0.0);
-    *t = vsel(z, ta, ta + (tb - ta) * (fa / (fa - fb)));
-    *hit = z | change;
-}
-
-/* The surface under the ray at t inside the cell, for every lane: patch_under (triangle,
- * bilinear) and linear_under. */
-TD_HOT vd vbilinear_patch(const vd *c, vd a, vd b)
-{
-    return c[0] + (c[1] - c[0]) * a + (c[2] - c[0]) * b + (c[0] - c[1] - c[2] + c[3]) * a * b;
-}
-
-TD_HOT vd vlinear_under(const vwalk *p, const vcell *k, vd ci, vd cj, vd t)
-{
-    vd tu0 = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
-    vd tv0 = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
-    vd tu1 = vtime_u(p, ci + vone(p->pu)), tv1 = vtime_v(p, cj + vone(p->pv));
-    vd tin = vmax(tu0, tv0), tout = vmin(tu1, tv1);
-    vm inf = (vm)vb(INFINITY);
-    vm touch = ~(vm)(tout > tin) | (vm)(((vm)vabs(tin) & inf) == inf) | (vm)(((vm)vabs(tout) & inf) == inf);
-    vd patch = vbilinear_patch(k->c, vclamp01(vray_u(p, t) - ci), vclamp01(vray_v(p, t) - cj));
-    vd hin = vboundary(p, k, ci, cj, vsel((vm)(tu0 >= tv0), vb(ENTRY_U), vb(ENTRY_V)), 0, tin);
-    vd hout = vboundary(p, k, ci, cj, vsel((vm)(tu1 <= tv1), vb(ENTRY_U), vb(ENTRY_V)), 1, tout);
-    vd lin = hin + (hout - hin) * vclamp01((t - tin) / (tout - tin));
-    return vsel(touch, patch, lin);
-}
-
-TD_HOT vd vunder(const vwalk *p, const vcell *k, td_surface sf, vd ci, vd cj, vd t)
-{
-    vd h;
-    if (sf == TD_SURFACE_LINEAR) {
-        h = vlinear_under(p, k, ci, cj, t);
-    } else {
-        vd a = vclamp01(vray_u(p, t) - ci), b = vclamp01(vray_v(p, t) - cj);
-        h = sf == TD_SURFACE_TRIANGLE ? vtriangle_patch(k->c, a, b) : vbilinear_patch(k->c, a, b);
-    }
-    return h;
-}
-
-/* seg_f for every lane: f at both ends of the segment (fa where it is NaN) */
-TD_HOT void vseg_f(const vwalk *p, const vcell *k, td_surface sf, vd ci, vd cj, vd ta, vd tb,
-                   vd entry, vd exit, vd *fa, vd *fb)
-{
-    /* f carried from the cell before, and both ends on boundaries, are the common case:
-       the surface inside the cell only where a lane needs it */
-    vm need = vnan(*fa);
-    if (vany(need)) {
-        vm inside = need & (vm)(entry == ENTRY_START);
-        vd h = vboundary(p, k, ci, cj, entry, 0, ta);
-        if (vany(inside))
-            h = vsel(inside, vunder(p, k, sf, ci, cj, ta), h);
-        *fa = vsel(need, vray_z(p, ta) - h, *fa);
-    }
-    vm inside = (vm)(exit == ENTRY_START);
-    vd h = vboundary(p, k, ci, cj, exit, 1, tb);
-    if (vany(inside))
-        h = vsel(inside, vunder(p, k, sf, ci, cj, tb), h);
-    *fb = vray_z(p, tb) - h;
-}
-
-/* The surfaces' cell intersections (plane_cross .. bilinear_cross) for every lane, over
- * the segment [ta, tb] entered across `entry` (f there fa, NaN: not known) and left across
- * `exit`: the lanes that hit (their t in *t, the plane's wall in *wall), and f at tb (*fb,
- * NaN for the plane, which computes none). */
-typedef struct vseg {
-    vd ci, cj, ta, tb, entry, exit, fa;
-} vseg;
-
-TD_HOT vm vplane_cross(const vwalk *p, const vcell *k, const vseg *g, vd *t, vd *wall)
-{
-    const vd *c = k->c;
-    vd top = vmax(vmax(c[0], c[1]), vmax(c[2], c[3]));
-    vd za = vray_z(p, g->ta), zb = vray_z(p, g->tb);
-    vm at_a = (vm)(za <= top), at_b = ~at_a & (vm)(zb <= top);
-    vd th = g->ta + (za - top) / -p->dz;
-    vd tc = vsel((vm)(th < g->ta), g->ta, vsel((vm)(th > g->tb), g->tb, th));
-    vm side = (vm)(za < top) & ((vm)(g->entry == ENTRY_U) | (vm)(g->entry == ENTRY_V));
-    *t = vsel(at_a, g->ta, tc);
-    *wall = vsel(at_a & side, g->entry, vb(0.0));
-    return at_a | at_b;
-}
-
-TD_HOT vm vtriangle_cross(const vwalk *p, const vcell *k, const vseg *g, vd fa, vd fb, vd *t)
-{
-    const vd *c = k->c;
-    vd sa = (vray_u(p, g->ta) - g->ci) + (vray_v(p, g->ta) - g->cj) - 1.0;
-    vd sb = (vray_u(p, g->tb) - g->ci) + (vray_v(p, g->tb) - g->cj) - 1.0;
-    vm split = ((vm)(sa < 0.0) & (vm)(sb > 0.0)) | ((vm)(sa > 0.0) & (vm)(sb < 0.0));
-    vd td = g->tb, fd = fb; /* where the first part ends: the diagonal where the lane splits */
-    if (vany(split)) {
-        vd ts = g->ta + (g->tb - g->ta) * (sa / (sa - sb));
-        vd bd = vclamp01(vray_v(p, ts) - g->cj);
-        td = vsel(split, ts, td);
-        fd = vsel(split, vray_z(p, ts) - (c[1] + (c[2] - c[1]) * bd), fd);
-    }
-    vm h1, h2;
-    vd t2;
-    vseg_hit(g->ta, fa, td, fd, &h1, t);
-    vm second = split & ~h1;
-    if (vany(second)) {
-        vseg_hit(td, fd, g->tb, fb, &h2, &t2);
-        *t = vsel(second, t2, *t);
-        h1 |= second & h2;
-    }
-    return h1;
-}
-
-TD_HOT vd vsqrt(vd x) { return (vd){sqrt(x[0]), sqrt(x[1]), sqrt(x[2]), sqrt(x[3])}; }
-TD_HOT vd vcopysign(vd m, vd s)
-{
-    vm sign = (vm)vb(-0.0);
-    return (vd)(((vm)m & ~sign) | ((vm)s & sign));
-}
-
-TD_HOT vm vbilinear_cross(const vwalk *p, const vcell *k, const vseg *g, vd fa, vd fb, vd *t)
-{
-    const vd *c = k->c;
-    vd ta = g->ta, L = g->tb - g->ta;
-    vd kk = c[0] - c[1] - c[2] + c[3];
-    vd A = -kk * p->du * p->dv;
-    vm z = (vm)(fa == 0.0), flat = ~(vm)(L > 0.0);
-    vm lin = ~z & ~flat & ((vm)(A == 0.0) | (vm)(vabs(A) * L * L <= 1e-12 * (vabs(fa) + vabs(fb))));
-    vm quad = ~z & ~flat & ~lin;
-    vm h, hl;
-    vd tl;
-    vseg_hit(ta, fa, g->tb, fb, &hl, &tl);
-    h = z | (lin & hl);
-    *t = vsel(z, ta, tl);
-    if (vany(quad)) {
-        vd B = (fb - fa - A * L * L) / L;
-        vm change = ((vm)(fa > 0.0) ^ (vm)(fb > 0.0)) | (vm)(fb == 0.0);
-        vd smin = -B / (2.0 * A);
-        vd fext = fa + 0.5 * B * smin;
-        vm inside = (vm)(smin > 0.0) & (vm)(smin < L) &
-                    ((vm)(fext == 0.0) | ((vm)(fext > 0.0) ^ (vm)(fa > 0.0)));
-        vm root = quad & (change | inside);
-        if (vany(root)) {
-            vd disc = B * B - 4.0 * A * fa;
-            vd sq = vsqrt(vsel((vm)(disc > 0.0), disc, vb(0.0)));
-            vd q = -0.5 * (B + vcopysign(sq, B));
-            vd r1 = q / A, r2 = vsel((vm)(q != 0.0), fa / q, r1);
-            vd lo = vmin(r1, r2), hi = vmax(r1, r2);
-            vd hiend = vsel(change, L, smin);
-            vd sr = vsel((vm)(lo >= 0.0), lo, hi);
-            vm bad = ~((vm)(sr >= 0.0) & (vm)(sr <= hiend));
-            sr = vsel(bad, vsel(change, L * (fa / (fa - fb)), smin), sr);
-            *t = vsel(root, ta + sr, *t);
-            h |= root;
-        }
-    }
-    return h;
-}
-
-TD_HOT vm vcross(const vwalk *p, const vcell *k, td_surface sf, const vseg *g, vd *fb, vd *t,
-                 vd *wall)
-{
-    vm h;
-    vd fa = g->fa;
-    *fb = vb(NAN);
-    *wall = vb(0.0);
-    if (sf == TD_SURFACE_PLANE) {
-        h = vplane_cross(p, k, g, t, wall);
-    } else {
-        vseg_f(p, k, sf, g->ci, g->cj, g->ta, g->tb, g->entry, g->exit, &fa, fb);
-        if (sf == TD_SURFACE_TRIANGLE)
-            h = vtriangle_cross(p, k, g, fa, *fb, t);
-        else if (sf == TD_SURFACE_BILINEAR)
-            h = vbilinear_cross(p, k, g, fa, *fb, t);
-        else /* linear: f is linear along the ray */
-            vseg_hit(g->ta, fa, g->tb, *fb, &h, t);
-    }
-    return h;
-}
-
-/* The packet's rays set up, clipped and started (walk_dir, walk_clip, skip_to; the origins
- * p->ou, p->ov, p->oz set by the caller): *go the lanes whose search is not empty, *near
- * those of them that start at their t_clear (with a near walk; the others start behind
- * their clip, and trace_one takes them). A t_clear of 0 starts a lane at its clip. */
-typedef struct vstate {
-    vd ci, cj, t, f, entry, t_end;
-} vstate;
-
-/* The packet's directions (walk_dir's part of vstart): per unit t in cell units, signs,
- * reciprocals; *iz the reciprocal of dz. Shadow packets share one (occ_packets). */
-TD_HOT void vdir(const walk *w, vwalk *p, const vd d[3], vd *iz)
-{
-    const td_grid *g = w->g;
-    vd f[3];
-    for (int i = 0; i < 3; i++) /* flush_tiny */
-        f[i] = vsel((vm)(vabs(d[i]) < 1e-200), vb(0.0), d[i]);
-    p->du = f[0] / g->sx;
-    p->dv = f[1] / g->sy;
-    p->dz = f[2];
-    p->pu = (vm)(p->du > 0.0), p->nu = (vm)(p->du < 0.0);
-    p->pv = (vm)(p->dv > 0.0), p->nv = (vm)(p->dv < 0.0);
-    p->su = vone(p->pu) - vone(p->nu);
-    p->sv = vone(p->pv) - vone(p->nv);
-    p->iu = vsel(p->pu | p->nu, 1.0 / p->du, vb(INFINITY));
-    p->iv = vsel(p->pv | p->nv, 1.0 / p->dv, vb(INFINITY));
-    *iz = 1.0 / p->dz;
-}
-
-/* The packet's rays clipped to the grid's box and heights (walk_clip): *t0 where each
- * search starts, st->t_end where it ends */
-TD_HOT void vclip(const walk *w, const vwalk *p, vd iz, vd *t0, vstate *st)
-{
-    const td_grid *g = w->g;
-    vd t1 = vb(INFINITY);
-    *t0 = vb(0.0);
-    vclip_slab(p->ou, p->du, p->iu, 0.0, (double)(g->w - 1), t0, &t1);
-    vclip_slab(p->ov, p->dv, p->iv, 0.0, (double)(g->h - 1), t0, &t1);
-    vclip_slab(p->oz, p->dz, iz, w->surf->solid ? -INFINITY : (double)g->zmin - w->zeps,
-               (double)g->zmax + w->zeps, t0, &t1);
-    st->t_end = t1;
-}
-
-/* walk_col and walk_row at t for every lane: the cell from the position, then back where
- * its entry is after t, on where its exit is not (the lanes whose cell the times disagree
- * with: rare) */
-TD_HOT void vcell_at(const walk *w, const vwalk *p, vd t, vd *ci_out, vd *cj_out)
-{
-    vd ci = vcell_along(vray_u(p, t), p->nu, 0.0, (double)w->cmax_i);
-    vd cj = vcell_along(vray_v(p, t), p->nv, 0.0, (double)w->cmax_j);
-    vd teu = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
-    vd tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
-    vd txu = vtime_u(p, ci + vone(p->pu)), txv = vtime_v(p, cj + vone(p->pv));
-    if (vany((vm)(teu > t) | (vm)(txu <= t) | (vm)(tev > t) | (vm)(txv <= t))) {
-        vd mu = vsel((vm)(teu > t), -p->su, vsel((vm)(txu <= t), p->su, vb(0.0)));
-        vd mv = vsel((vm)(tev > t), -p->sv, vsel((vm)(txv <= t), p->sv, vb(0.0)));
-        mu = vsel((vm)(ci + mu >= 0.0) & (vm)(ci + mu <= (double)w->cmax_i), mu, vb(0.0));
-        mv = vsel((vm)(cj + mv >= 0.0) & (vm)(cj + mv <= (double)w->cmax_j), mv, vb(0.0));
-        ci += mu;
-        cj += mv;
-    }
-    *ci_out = ci;
-    *cj_out = cj;
-}
-
-/* vstart_at for rays that start at their clip (tc 0: shadow packets): *go the lanes whose
- * search is not empty, each in the cell of its clip's start */
-TD_HOT void vstart_clip(const walk *w, vwalk *p, vd iz, vstate *st, vm *go)
-{
-    vd t0;
-    vclip(w, p, iz, &t0, st);
-    *go = (vm)(t0 <= st->t_end);
-    vcell_at(w, p, t0, &st->ci, &st->cj);
-    st->t = t0;
-    st->entry = vb(ENTRY_START);
-    st->f = vb(NAN);
-}
-
-/* vstart with the directions set (vdir) */
-TD_HOT void vstart_at(const walk *w, vwalk *p, vd iz, vd tc, vstate *st, vm *go, vm *near)
-{
-    vd t0;
-    vclip(w, p, iz, &t0, st);
-    vd t1 = st->t_end;
-    *go = (vm)(t0 <= t1) & ~(vm)(tc > t1);
-    vm later = (vm)(tc > t0);
-    vd ci, cj;
-    vcell_at(w, p, tc, &ci, &cj);
-    vd teu = vsel(p->pu | p->nu, vtime_u(p, ci + vone(p->nu)), vb(-INFINITY));
-    vd tev = vsel(p->pv | p->nv, vtime_v(p, cj + vone(p->nv)), vb(-INFINITY));
-    vd te = vmax(teu, tev);
-    vm moved = later & (vm)(te > t0);
-    st->ci = ci, st->cj = cj;
-    if (vany(~later)) { /* lanes that start at their clip (rare in a camera's fan); a lane
-                           in its tc's cell already at its clip keeps that cell (skip_to) */
-        vd ci0, cj0;
-        vcell_at(w, p, t0, &ci0, &cj0);
-        st->ci = vsel(later, ci, ci0);
-        st->cj = vsel(later, cj, cj0);
-    }
-    st->t = vsel(moved, te, t0);
-    st->entry = vsel(moved, vcrossing(tev, teu), vb(ENTRY_START));
-    st->f = vb(NAN);
-    *near = *go & later;
-}
-
-TD_HOT void vstart(const walk *w, vwalk *p, const vd d[3], vd tc, vstate *st, vm *go, vm *near)
-{
-    vd iz;
-    vdir(w, p, d, &iz);
-    vstart_at(w, p, iz, tc, st, go, near);
-}
-
-/* advance() for the lanes of m */
-TD_HOT void vadvance(const vwalk *p, vstate *st, vm m, vd kind, vd t, vd f)
-{
-    st->ci = vsel(m & (vm)(kind != ENTRY_V), st->ci + p->su, st->ci);
-    st->cj = vsel(m & (vm)(kind != ENTRY_U), st->cj + p->sv, st->cj);
-    st->t = vsel(m, t, st->t);
-    st->f = vsel(m, f, st->f);
-    st->entry = vsel(m, kind, st->entry);
-}
-
-/* One step of the near walk (walk_cell, then cell_test where it does not reject) for the
- * lanes of act: *hit gets the lanes that hit (their t in *th, the plane's wall in *hwall,
- * *end those whose search ends in the cell; a lane that hits stays in its cell). */
-TD_HOT void vstep(const walk *w, const vwalk *p, td_surface sf, vstate *st, vm act, vm *hit,
-                  vm *end, vd *th, vd *hwall)
-{
-    vd tu = vtime_u(p, st->ci + vone(p->pu)), tv = vtime_v(p, st->cj + vone(p->pv));
-    vd tb = vmin(tu, tv), kind = vcrossing(tu, tv);
-    vcell k = vcorners(w, st->ci, st->cj, act);
-    const vd *c = k.c;
-    vd top = vmax(vmax(c[0], c[1]), vmax(c[2], c[3]));
-    vd bottom = vmin(vmin(c[0], c[1]), vmin(c[2], c[3]));
-    vm quick = act & (vm)(tb < st->t_end) & (vm)(vmin(vray_z(p, st->t), vray_z(p, tb)) > top);
-    vm test = act & ~quick;
-    /* cell_test */
-    vm ends = (vm)(tb >= st->t_end);
-    vd tb2 = vsel(ends, st->t_end, tb), exit = vsel(ends, vb(ENTRY_START), kind);
-    vd za = vray_z(p, st->t), zb = vray_z(p, tb2);
-    vm ok = ~vnan(c[0] + c[1] + c[2] + c[3]) & (vm)(tb2 >= st->t);
-    vm clear = (vm)(vmin(za, zb) > top);
-    if (!w->surf->solid)
-        clear |= (vm)(vmax(za, zb) < bottom);
-    vm cross = test & ok & ~clear;
-    vd fb = vb(NAN), t = vb(INFINITY), wall = vb(0.0);
-    vm h = {0, 0, 0, 0};
-    if (vany(cross)) {
-        vseg g = {st->ci, st->cj, st->t, tb2, st->entry, exit, st->f};
-        h = cross & vcross(p, &k, sf, &g, &fb, &t, &wall);
-    }
-    *hit = h;
-    *th = t;
-    *hwall = wall;
-    vm go_on = test & ~h;
-    *end = go_on & (vm)(exit == ENTRY_START);
-    /* the lanes over the cell (quick) and those that go on, in one pass: their masks are
-       disjoint */
-    vadvance(p, st, quick | (go_on & ~*end), vsel(quick, kind, exit), vsel(quick, tb, tb2),
-             vsel(cross, fb, vb(NAN)));
-}
-
-TD_HOT vm von_grid(const walk *w, const vstate *st)
-{
-    return (vm)(st->ci >= 0.0) & (vm)(st->cj >= 0.0) & (vm)(st->ci <= (double)w->cmax_i) &
-           (vm)(st->cj <= (double)w->cmax_j);
-}
-
-/* The packet's hits as trace_one writes them (keep_hit) for every lane: the point and the
- * normal's vector (surface_normal's, from the corners each lane read at its hit), in
- * vectors; fan_packet stores the lanes that hit. */
-typedef struct vhit {
-    vd p[3], nv[3]; /* nv: the unit normal (unit_normal's, before its rounding to float) */
-    vd zb; /* td_grid_bilinear_cell's height at the point (td_trace_fan's zb) */
-} vhit;
-
-TD_HOT vhit vhits(const walk *w, const vwalk *q, td_surface sf, const double o[3], const vd d[3],
-                  vd t, vd ci, vd cj, vd wall, const vcell *k)
-{
-    vhit h;
-    const vd *c = k->c;
-    for (int i = 0; i < 3; i++)
-        h.p[i] = o[i] + t * d[i];
-    vd u = vclamp01(h.p[0] / w->g->sx - ci), v = vclamp01(h.p[1] / w->g->sy - cj);
-    h.zb = vsel(vnan(c[0] + c[1] + c[2] + c[3]), vb(NAN),
-                (1 - v) * ((1 - u) * c[0] + u * c[1]) + v * ((1 - u) * c[2] + u * c[3]));
-    if (sf == TD_SURFACE_PLANE) { /* the top, or the wall the ray came through */
-        h.nv[0] = vsel((vm)(wall == ENTRY_U), -q->su, vb(0.0));
-        h.nv[1] = vsel((vm)(wall == ENTRY_V), -q->sv, vb(0.0));
-        h.nv[2] = vsel((vm)(wall != 0.0), vb(0.0), vb(1.0));
-    } else { /* triangle_gradient, bilinear_gradient (the linear surface's too) */
-        vd a = vclamp01(vray_u(q, t) - ci), b = vclamp01(vray_v(q, t) - cj), g0, g1;
-        if (sf == TD_SURFACE_TRIANGLE) {
-            vm lower = (vm)(a + b <= 1.0);
-            g0 = vsel(lower, c[1] - c[0], c[3] - c[2]);
-            g1 = vsel(lower, c[2] - c[0], c[3] - c[1]);
-        } else {
-            vd kk = c[0] - c[1] - c[2] + c[3];
-            g0 = (c[1] - c[0]) + kk * b;
-            g1 = (c[2] - c[0]) + kk * a;
-        }
-        h.nv[0] = -g0 / w->g->sx;
-        h.nv[1] = -g1 / w->g->sy;
-        h.nv[2] = vb(1.0);
-    }
-    vd len = vsqrt(h.nv[0] * h.nv[0] + h.nv[1] * h.nv[1] + h.nv[2] * h.nv[2]); /* unit_normal */
-    for (int i = 0; i < 3; i++)
-        h.nv[i] = h.nv[i] / len;
-    return h;
-}
-
 /* td_trace_fan's zb for a hit traced one ray at a time */
 static double hit_bilinear(const td_grid *g, const td_hit *h)
 {
@@ -1690,97 +1188,6 @@ static void fan_one(const td_view *v, td_method m, walk *w, const double o[3], c
         fan_store(h, k, &x, NAN);
 }
 
-/* Loads four doubles from a (no alignment asked) */
-TD_HOT vd vload(const double *a)
-{
-    vd x;
-    memcpy(&x, a, sizeof x);
-    return x;
-}
-
-/* The near walk of fan rays k0 .. k0 + 3 (see the section's comment; nl of them the
- * fan's, the slots past its last ray copies of ray k0): each lane it finishes gets its
- * record in h as fan_one would leave it. Returns the lanes finished (bit l: ray k0 + l);
- * the caller traces the others with fan_one. A lane that cannot be a packet's (a ray
- * known to miss, or whose direction walk_dir would rescale) is left to fan_one whole. */
-TD_PACKET_CLONES static int fan_packet(const td_view *v, td_method m, walk *w, const double o[3],
-                                    const td_fan *f, int k0, int nl, td_fan_hits *h)
-{
-    vd d[3] = {vload(&f->dx[k0]), vload(&f->dy[k0]), vload(&f->dz[k0])}, tc = vload(&f->t_clear[k0]);
-    vd dlen = vmax(vabs(d[0]), vmax(vabs(d[1]), vabs(d[2])));
-    vm lane = (vm)(tc < INFINITY) & (vm)(dlen >= 0x1p-20) & (vm)(dlen <= 0x1p20); /* scale 1 */
-    vwalk p;
-    vstate st;
-    vm go, near, hit = {0, 0, 0, 0}, cont;
-    vd n = vb(0.0), th = vb(INFINITY), hw = vb(0.0);
-    const td_surface sf = (td_surface)(w->surf - surfaces);
-    p.ou = vb(w->ou), p.ov = vb(w->ov), p.oz = vb(w->oz);
-    vstart(w, &p, d, tc, &st, &go, &near);
-    go &= lane;
-    near &= lane;
-    cont = near;
-    /* run_walk's near loop while a lane walks it (a lone lane handed to the scalar walk
-       there instead: 0.6-1.7% more instructions in the primary stage of trinidad's bench
-       views, 1-3% more time; its walk's setup is redone) */
-    int k = 0;
-    for (; k < TD_NEAR_CELLS; k++) {
-        vm act = cont & von_grid(w, &st), hl, end;
-        vd t, wall;
-        if (!vany(act))
-            break;
-        n += vone(act);
-        vstep(w, &p, sf, &st, act, &hl, &end, &t, &wall);
-        th = vsel(hl, t, th);
-        hw = vsel(hl, wall, hw);
-        hit |= hl;
-        cont &= ~(hl | end);
-    }
-    /* a lane still walking goes on alone (packet_rest); one that starts behind its clip
-       (no near walk) is trace_one's */
-    vm rest = cont, done = lane & (~go | near);
-    vcell hk = vcorners(w, st.ci, st.cj, hit); /* the hit cell's: a lane that hits stays there */
-    vhit hv = vhits(w, &p, sf, o, d, th, st.ci, st.cj, hw, &hk);
-    /* every lane's record as trace_one leaves a finished one (tmin 0 for a fan; a miss all
-       zero but t, the cell -1, steps and method), stored a vector at a time; the lanes
-       that are not finished here are written again below or by the caller */
-    vd ht = vsel(hit, vsel((vm)(th < 0.0), vb(0.0), th), vb(INFINITY));
-    vd hp[3] = {vsel(hit, hv.p[0], vb(0.0)), vsel(hit, hv.p[1], vb(0.0)), vsel(hit, hv.p[2], vb(0.0))};
-    vf hn[3];
-    for (int i = 0; i < 3; i++)
-        hn[i] = __builtin_convertvector(vsel(hit, hv.nv[i], vb(0.0)), vf);
-    vi hci = __builtin_convertvector(vsel(hit, st.ci, vb(-1.0)), vi);
-    vi hcj = __builtin_convertvector(vsel(hit, st.cj, vb(-1.0)), vi);
-    const int32_t wm = (int32_t)walk_method(m);
-    vi hs = __builtin_convertvector(n, vi), hm = {wm, wm, wm, wm};
-    vd hz = vsel(hit, hv.zb, vb(NAN));
-    memcpy(&h->t[k0], &ht, sizeof ht);
-    memcpy(&h->px[k0], &hp[0], sizeof ht);
-    memcpy(&h->py[k0], &hp[1], sizeof ht);
-    memcpy(&h->pz[k0], &hp[2], sizeof ht);
-    memcpy(&h->nx[k0], &hn[0], sizeof hn[0]);
-    memcpy(&h->ny[k0], &hn[1], sizeof hn[1]);
-    memcpy(&h->nz[k0], &hn[2], sizeof hn[2]);
-    memcpy(&h->ci[k0], &hci, sizeof hci);
-    memcpy(&h->cj[k0], &hcj, sizeof hcj);
-    memcpy(&h->steps[k0], &hs, sizeof hs);
-    memcpy(&h->method[k0], &hm, sizeof hm);
-    memcpy(&h->zb[k0], &hz, sizeof hz);
-    int fin = 0;
-    for (int l = 0; l < TD_LANES; l++) {
-        fin |= (done[l] != 0) << l;
-        if (rest[l] && l < nl) {
-            walk_state at = {.ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .t = st.t[l],
-                             .f = st.f[l], .entry = (int)st.entry[l], .level = 0};
-            double nv[3], dl[3] = {d[0][l], d[1][l], d[2][l]};
-            td_hit x;
-            memset(&x, 0, sizeof x);
-            packet_rest(v, m, w, o, dl, &at, (uint32_t)n[l], k, &x, nv);
-            fan_keep(w->g, &x, nv, h, k0 + l);
-        }
-    }
-    return fin;
-}
-
 /* Cells a packet of shadow rays walks together before a lane still walking goes on alone.
  * Measured (callgrind, trinidad's bench views, shadows stage, M instructions, level /
  * grazing / rolled / down): 4 cells 64.3 / 168.8 / 79.1 / 202.3; 8: 63.1 / 152.4 / 77.9 /
@@ -1790,49 +1197,6 @@ TD_PACKET_CLONES static int fan_packet(const td_view *v, td_method m, walk *w, c
  * than the scalar walk's tile entry and block climb. */
 #define TD_OCC_NEAR_CELLS 16
 
-
-/* td_sunlit_strip for every lane's origin: *has the lanes that have one, *k its index (0
- * for the others) */
-TD_HOT void vsun_strip(const td_sunlit *lit, const vwalk *p, vi *k, vm *has)
-{
-    vd A = (lit->a_is_x ? p->ou : p->ov) * lit->inv, B = (lit->a_is_x ? p->ov : p->ou) * lit->inv;
-    vd lam = B - lit->del * A, safe = vsel((vm)(vabs(lam) < 0x1p30), lam, vb(0.0));
-    vd f = __builtin_convertvector(__builtin_convertvector(safe, vi), vd);
-    vd kk = f - vone((vm)(f > safe)) - (double)lit->kmin; /* floor */
-    *has = (vm)(lam == safe) & (vm)(kk >= 0.0) & (vm)(kk < (double)lit->nst);
-    *k = __builtin_convertvector(vsel(*has, kk, vb(0.0)), vi);
-}
-
-/* surely_shadowed for the lanes of m (their strips k) */
-TD_HOT vm vsurely_shadowed(const walk *w, td_surface sf, const vwalk *p, vi k, vm m)
-{
-    const td_sunlit *lit = w->lit;
-    const td_grid *g = w->g;
-    vm in = m & (vm)(p->ou >= 0.0) & (vm)(p->ov >= 0.0) & (vm)(p->ou <= (double)(g->w - 1)) &
-            (vm)(p->ov <= (double)(g->h - 1));
-    vm sure = {0, 0, 0, 0};
-    if (vany(in)) {
-        vd u = vsel(in, p->ou, vb(0.0)), v = vsel(in, p->ov, vb(0.0)), L;
-        vd ci = vcell_along(u, p->nu, 0.0, (double)w->cmax_i); /* surely_shadowed's cells */
-        vd cj = vcell_along(v, p->nv, 0.0, (double)w->cmax_j);
-        vi ia = __builtin_convertvector(lit->a_is_x ? ci : cj, vi) >> lit->shift;
-        for (int l = 0; l < TD_LANES; l++)
-            L[l] = (double)lit->lo[(size_t)ia[l] * (size_t)lit->nst + (size_t)(in[l] ? k[l] : 0)];
-        vm cand = in & (vm)(p->oz < L - w->zeps);
-        if (w->surf->solid) {
-            sure = cand; /* below L is enough */
-        } else if (vany(cand)) {
-            vcell c = vcorners(w, ci, cj, cand);
-            vd a = u - ci, b = v - cj, h; /* the surface under the origin (t = 0) */
-            if (sf == TD_SURFACE_LINEAR)
-                h = vlinear_under(p, &c, ci, cj, vb(0.0));
-            else
-                h = sf == TD_SURFACE_TRIANGLE ? vtriangle_patch(c.c, a, b) : vbilinear_patch(c.c, a, b);
-            sure = cand & (vm)(p->oz > h + w->zeps);
-        }
-    }
-    return sure;
-}
 
 /* What a lane of occ_packets left: the rest of occluded_one's walk (the tiles, from blocks
  * of 2 x 2 cells up) from the cell, time, f and entry the lane stood at, after n steps. */
@@ -1849,118 +1213,62 @@ static int occ_rest(const td_view *v, td_method m, walk *w, const double o[3],
     return tile_walk(v, m, w, &st, &hr, steps, &used) == STEP_HIT;
 }
 
-/* Shadow rays o[0 .. n) along one direction d (walk_dir's scale 1), as occluded_one asks
- * each, four at a time: a packet walks its rays' cells from their clipped starts (vstep,
- * each lane the scalar walk's bits), and a lane ends when it hits, when its search ends or
- * leaves the grid, or when it stands above the sun bound of its cell's block (lit_end); a
- * lane still walking after TD_OCC_NEAR_CELLS cells goes on alone. The direction is set up
- * once for all the packets. The answers are td_occluded's; the steps are the cells walked
- * (fewer than the max-mipmap's climb for rays that end lit within a few cells, nearly all
- * of a render's). With lo_first (a bound with a shadow side: low sun over relief) the
- * lanes surely shadowed are asked first, and a packet of four such lanes starts no walk
- * (picos's grazing bench view, plane: 73,549 of its 73,639 shadow rays; the shadows stage 20.5 ->
- * 15.0 M instructions with vsurely_shadowed's solid surface answered before its corners). */
-static inline __attribute__((always_inline)) int occ_packets_of(const td_view *v, td_method m, walk *w,
-                                                                  const double d[3], const double (*o)[3], int n,
-                                                                  uint8_t *hit, uint32_t *steps, const int lo_first)
+/* The packets, four lanes wide and (TD_PACKET_WIDE) eight (trace_lanes.inc). Their helpers
+ * are always inlined into the entry points (fan_packet, occ_packets, occ_packets_lo), so
+ * no vector crosses a call: the warning that a wide vector's calling convention differs
+ * without AVX does not apply. (Not popped: GCC gives it at the end of the file.) */
+#pragma GCC diagnostic ignored "-Wpsabi"
+#define TD_LANES 4
+#define TD_LANES_FN TD_PACKET_CLONES
+#include "trace_lanes.inc"
+#undef TD_LANES
+#undef TD_LANES_FN
+#if TD_PACKET_WIDE
+#pragma GCC push_options
+#pragma GCC target("arch=x86-64-v4")
+#define TD_LANES 8
+#define TD_LANES_FN
+#include "trace_lanes.inc"
+#undef TD_LANES
+#undef TD_LANES_FN
+#pragma GCC pop_options
+#endif
+
+/* 0: the processor's choice; 4 or 8: td_trace_set_lanes' (atomic: read by every render's
+ * threads) */
+static _Atomic int lanes_set;
+
+static int lanes_wide(void)
 {
-    const td_grid *g = w->g;
-    const td_surface sf = (td_surface)(w->surf - surfaces);
-    vd dv[3] = {vb(d[0]), vb(d[1]), vb(d[2])}, iz;
-    vwalk p = {.ou = vb(0.0)}; /* (the origins are set per packet) */
-    int k0 = 0;
-    vdir(w, &p, dv, &iz);
-    for (; n - k0 >= 2; k0 += TD_LANES) { /* a last lone ray is occluded_one's */
-        const int nl = n - k0 < TD_LANES ? n - k0 : TD_LANES;
-        vd cells = vb(0.0);
-        vstate st;
-        vm go, occ = {0, 0, 0, 0}, cont;
-        vi strip = {0, 0, 0, 0};
-        vm has = {0, 0, 0, 0};
-        if (nl == TD_LANES) { /* four origins, x y z each: three loads and their transpose */
-            const double *q = &o[0][0] + 3 * k0; /* the rows as one array of doubles (o[k0] + 4
-                                                    indexed past its row of three: UBSan) */
-            vd a0 = vload(q), a1 = vload(q + 4), a2 = vload(q + 8);
-            vd x01 = __builtin_shufflevector(a0, a1, 0, 3, 6, 0);
-            vd y01 = __builtin_shufflevector(a0, a1, 1, 4, 7, 0);
-            vd z01 = __builtin_shufflevector(a0, a1, 2, 5, 0, 0);
-            p.ou = __builtin_shufflevector(x01, a2, 0, 1, 2, 5);
-            p.ov = __builtin_shufflevector(y01, a2, 0, 1, 2, 6);
-            p.oz = __builtin_shufflevector(z01, a2, 0, 1, 4, 7);
-        } else { /* a packet short of rays repeats its first */
-            for (int l = 0; l < TD_LANES; l++) {
-                const double *q = o[k0 + (l < nl ? l : 0)];
-                p.ou[l] = q[0], p.ov[l] = q[1], p.oz[l] = q[2];
-            }
-        }
-        p.ou /= g->sx; /* walk_origin */
-        p.ov /= g->sy;
-        if (lo_first) { /* surely shadowed (as td_occluded asks it, before the walk) */
-            vsun_strip(w->lit, &p, &strip, &has);
-            occ = vany(has) ? vsurely_shadowed(w, sf, &p, strip, has) : occ;
-            if (vall(occ)) { /* no walk to start */
-                for (int l = 0; l < nl; l++)
-                    hit[k0 + l] = 1;
-                continue;
-            }
-            vstart_clip(w, &p, iz, &st, &go);
-            cont = go & ~occ;
-        } else {
-            vstart_clip(w, &p, iz, &st, &go);
-            cont = go;
-            if (w->lit)
-                vsun_strip(w->lit, &p, &strip, &has);
-        }
-        for (int k = 0; k < TD_OCC_NEAR_CELLS && vany(cont); k++) {
-            vm h, end;
-            vd t, wall;
-            cells += vone(cont);
-            vstep(w, &p, sf, &st, cont, &h, &end, &t, &wall);
-            occ |= h;
-            cont &= ~(h | end) & von_grid(w, &st);
-            if (w->lit) { /* lit_end: each lane's block's bound (a packet with no lane left
-                             looks too: cheaper than asking first) */
-                const td_sunlit *lit = w->lit;
-                vd z = vray_z(&p, st.t);
-                /* a lane off cont reads column 0, which every strip has, and is not used;
-                   the index fits an int32 (at most TD_SUNLIT_MAX_BOUNDS bounds) */
-                vi ia = __builtin_convertvector(vsel(cont, lit->a_is_x ? st.ci : st.cj, vb(0.0)), vi) >> lit->shift;
-                vi at = ia * lit->nst + strip;
-                vf hb;
-                for (int l = 0; l < TD_LANES; l++)
-                    hb[l] = lit->h[at[l]];
-                vd bound = __builtin_convertvector(hb, vd);
-                cont &= ~((vm)(z > bound + w->zeps) & has);
-            }
-        }
-        for (int l = 0; l < nl; l++) {
-            uint32_t s = (uint32_t)cells[l];
-            hit[k0 + l] = occ[l] != 0;
-            if (cont[l]) {
-                walk_state at = {.ci = (int32_t)st.ci[l], .cj = (int32_t)st.cj[l], .t = st.t[l],
-                                 .f = st.f[l], .entry = (int)st.entry[l], .level = 1};
-                hit[k0 + l] = (uint8_t)occ_rest(v, m, w, o[k0 + l], &at, &s);
-            }
-            *steps += s;
-        }
-    }
-    return k0 < n ? k0 : n;
+#if TD_PACKET_WIDE
+    return __builtin_cpu_supports("x86-64-v4") > 0;
+#else
+    return 0;
+#endif
 }
 
-/* occ_packets_of for a sun bound with a shadow side (lo) and for one without or none:
- * two functions, so that the common one's loop is compiled as it was before lo_first
- * (asking lo before vstart_clip in one body made the level and rolled views' shadows
- * stage 5% slower; on picos's grazing view, lo_first takes it from 2.53 to 2.13 ms) */
-TD_PACKET_CLONES static int occ_packets_lo(const td_view *v, td_method m, walk *w, const double d[3],
-                                        const double (*o)[3], int n, uint8_t *hit, uint32_t *steps)
+int td_trace_lanes(void)
 {
-    return occ_packets_of(v, m, w, d, o, n, hit, steps, 1);
+    const int set = lanes_set;
+    return set == 4 || !lanes_wide() ? 4 : 8;
 }
 
-TD_PACKET_CLONES static int occ_packets(const td_view *v, td_method m, walk *w, const double d[3],
-                                     const double (*o)[3], int n, uint8_t *hit, uint32_t *steps)
+int td_trace_set_lanes(int lanes)
 {
-    return occ_packets_of(v, m, w, d, o, n, hit, steps, 0);
+    lanes_set = lanes == 4 || lanes == 8 ? lanes : 0;
+    return td_trace_lanes();
+}
+
+/* fan_packet of the width in use */
+static int fan_packet_of(int lanes, const td_view *v, td_method m, walk *w, const double o[3],
+                         const td_fan *f, int k0, int nl, td_fan_hits *h)
+{
+#if TD_PACKET_WIDE
+    if (lanes == 8)
+        return fan_packet8(v, m, w, o, f, k0, nl, h);
+#endif
+    (void)lanes;
+    return fan_packet(v, m, w, o, f, k0, nl, h);
 }
 
 void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3], int n, td_fan *f,
@@ -1968,18 +1276,19 @@ void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3]
 {
     walk w;
     int ok = valid_call(v->grid, m, s);
+    const int lanes = td_trace_lanes();
     n = n < TD_FAN_MAX ? n : TD_FAN_MAX;
     if (ok) {
         walk_grid(&w, v->grid, s);
         walk_origin(&w, o);
     }
-    for (int k0 = 0; k0 < n; k0 += TD_LANES) {
-        const int nl = n - k0 < TD_LANES ? n - k0 : TD_LANES;
-        for (int l = nl; l < TD_LANES; l++) { /* a packet short of rays repeats its first */
+    for (int k0 = 0; k0 < n; k0 += lanes) {
+        const int nl = n - k0 < lanes ? n - k0 : lanes;
+        for (int l = nl; l < lanes; l++) { /* a packet short of rays repeats its first */
             f->dx[k0 + l] = f->dx[k0], f->dy[k0 + l] = f->dy[k0], f->dz[k0 + l] = f->dz[k0];
             f->t_clear[k0 + l] = f->t_clear[k0];
         }
-        int fin = ok ? fan_packet(v, m, &w, o, f, k0, nl, h) : 0;
+        int fin = ok ? fan_packet_of(lanes, v, m, &w, o, f, k0, nl, h) : 0;
         for (int l = 0; l < nl; l++) /* what the packet left */
             if (!(fin >> l & 1))
                 fan_one(v, m, &w, o, f, k0 + l, ok, h);
@@ -2066,6 +1375,22 @@ int td_sunlit_clear(const td_grid *g, const td_sunlit *lit, const double p[3])
     return clear;
 }
 
+/* occ_packets or occ_packets_lo (lo: the bound has a shadow side) of the width in use */
+static int occ_packets_of_width(int lanes, int lo, const td_view *v, td_method m, walk *w,
+                                const double d[3], const double (*o)[3], int n, uint8_t *hit,
+                                uint32_t *steps)
+{
+    int k;
+#if TD_PACKET_WIDE
+    if (lanes == 8)
+        k = lo ? occ_packets_lo8(v, m, w, d, o, n, hit, steps) : occ_packets8(v, m, w, d, o, n, hit, steps);
+    else
+#endif
+        k = lo ? occ_packets_lo(v, m, w, d, o, n, hit, steps) : occ_packets(v, m, w, d, o, n, hit, steps);
+    (void)lanes;
+    return k;
+}
+
 void td_occluded_par(const td_view *v, td_method m, td_surface s, const double d[3], int n,
                      const double (*o)[3], const td_sunlit *lit, uint8_t *hit, uint32_t *steps)
 {
@@ -2081,7 +1406,7 @@ void td_occluded_par(const td_view *v, td_method m, td_surface s, const double d
        ends only on a hit or past the grid, and the max-mipmap's climb is the faster walk:
        measured 2.3x the packets' rate on trinidad's views with the bound off) */
     if (ok && scale == 1.0 && lit)
-        k = lit->lo ? occ_packets_lo(v, m, &w, d, o, n, hit, steps) : occ_packets(v, m, &w, d, o, n, hit, steps);
+        k = occ_packets_of_width(td_trace_lanes(), lit->lo != NULL, v, m, &w, d, o, n, hit, steps);
     for (; k < n; k++)
         hit[k] = ok && occluded_one(v, m, &w, o[k], 0.0, INFINITY, scale, steps);
 }

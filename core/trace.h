@@ -109,12 +109,12 @@ void td_trace(const td_view *v, td_method m, td_surface s, const td_ray *r, td_h
 void td_trace_from(const td_view *v, td_method m, td_surface s, const td_ray *r, double t_clear,
                    td_hit *hit);
 
-/* A fan: camera rays from one origin, as arrays (a packet of four loads each as one
- * vector): ray k's direction (dx[k], dy[k], dz[k]) and where it may start, t_clear[k]
+/* A fan: camera rays from one origin, as arrays (a packet of four or eight loads each as
+ * one vector): ray k's direction (dx[k], dy[k], dz[k]) and where it may start, t_clear[k]
  * (td_trace_from's; +inf: a miss known without tracing). At most TD_FAN_MAX rays; the
  * TD_FAN_PAD slots past them are td_trace_fan's (a last short packet's padding). */
 #define TD_FAN_MAX 64
-#define TD_FAN_PAD 3
+#define TD_FAN_PAD 7
 typedef struct td_fan {
     double dx[TD_FAN_MAX + TD_FAN_PAD], dy[TD_FAN_MAX + TD_FAN_PAD], dz[TD_FAN_MAX + TD_FAN_PAD];
     double t_clear[TD_FAN_MAX + TD_FAN_PAD];
@@ -133,6 +133,15 @@ typedef struct td_fan_hits {
     uint32_t steps[TD_FAN_MAX + TD_FAN_PAD];
     int32_t method[TD_FAN_MAX + TD_FAN_PAD]; /* a td_method */
 } td_fan_hits;
+
+/* The lanes of the ray packets that walk fans and shadow rays together (td_trace_fan,
+ * td_occluded_par): 8 where the build has the AVX-512 instance and the processor runs it,
+ * else 4. td_trace_set_lanes(4 or 8) makes this process use that width where it can (the
+ * tests hold both to the scalar walk; the benchmark compares them), 0 goes back to the
+ * processor's choice; it returns the width now used. Both widths give the same answers,
+ * bit for bit. */
+int td_trace_lanes(void);
+int td_trace_set_lanes(int lanes);
 
 /* td_trace_from for the first n (<= TD_FAN_MAX) rays of fan f from origin o, each over
  * [0, +inf): the camera rays of a render, which share the walk's setup of the grid and

@@ -532,15 +532,29 @@ static void test_steps_fewer(void **state)
     td_grid_free(g);
 }
 
-/* A fan from one origin (td_trace_fan, with its packets of four rays) and parallel rays
+/* A packet test at both widths (td_trace_set_lanes 4, then 8): where the build or the
+ * processor has no eight-lane instance (or under valgrind, which runs no AVX-512), both runs
+ * take four lanes. */
+static void at_each_width(void (*body)(void))
+{
+    static const int widths[] = {4, 8};
+    for (size_t i = 0; i < sizeof widths / sizeof widths[0]; i++) {
+        int used = td_trace_set_lanes(widths[i]);
+        assert_true(used == widths[i] || used == 4);
+        body();
+    }
+    assert_int_equal(td_trace_set_lanes(4), 4);
+    td_trace_set_lanes(0);
+}
+
+/* A fan from one origin (td_trace_fan, with its packets of four or eight rays) and parallel rays
  * (td_occluded_par) give, bit for bit, what td_trace_from and td_occluded give each ray,
  * on every method and surface: from above, from below the crests, with t_clear 0, real
  * bounds (from half the way to 1 - 1e-12 of it), +inf, with grazing directions and
  * directions along sample rows, columns and diagonals; a grid with voids; more rays than
  * one batch holds. */
-static void test_batches_same(void **state)
+static void batches_same(void)
 {
-    (void)state;
     td_grid *g = procedural(193, 161, 33, 5);
     for (int32_t i = 40; i < 60; i++)
         g->z[(size_t)70 * (size_t)g->w + (size_t)i] = NAN; /* a void across the middle */
@@ -616,7 +630,7 @@ static void test_batches_same(void **state)
                 }
                 assert_true(hit_count > N / 6); /* the rays do meet the terrain */
                 /* parallel rays along the fan's first direction, from points of the relief
-                   (packets of four and, for the last two, of two) */
+                   (packets of four or eight and, for the last two or six, a short one) */
                 uint32_t s1 = 0, s2 = 0;
                 td_occluded_par(&v, (td_method)m, (td_surface)sf, fan[1].d, N, (const double(*)[3])po, NULL,
                                 occ, &s1);
@@ -637,16 +651,21 @@ static void test_batches_same(void **state)
     td_grid_free(g);
 }
 
-/* Shadow rays in packets (td_occluded_par: four lanes walk their cells together, ending
+static void test_batches_same(void **state)
+{
+    (void)state;
+    at_each_width(batches_same);
+}
+
+/* Shadow rays in packets (td_occluded_par: four or eight lanes walk their cells together, ending
  * on a hit, at the grid's edge, or above the sun bound) answer as td_occluded does each
  * ray, with the bound and without: suns from every quarter, steep, grazing and along the
  * axes and diagonals, from just above the surface (as a render's shadow rays start, on
  * slopes that face the sun and that do not), from below it and from high above, over
- * voids; 61 rays: fifteen packets of four (every other one a point four times), then one
- * ray alone. */
-static void test_occluded_packets(void **state)
+ * voids; 57 rays: fourteen packets of four or seven of eight (every other one a point
+ * four or eight times), then one ray alone. */
+static void occluded_packets(void)
 {
-    (void)state;
     td_grid *g = procedural(150, 130, 91, 5);
     for (int32_t i = 30; i < 50; i++)
         g->z[(size_t)60 * (size_t)g->w + (size_t)i] = NAN;
@@ -654,7 +673,8 @@ static void test_occluded_packets(void **state)
     td_accel *a = build_all(g, 8);
     td_view v = {g, a->tiles};
     static const double suns[][2] = {{30, 35}, {135, 4}, {220, 60}, {300, 1}, {0, 20}, {90, 10}, {45, 15}, {180, 80}};
-    enum { N = 61 };
+    enum { N = 57 };
+    const int lanes = td_trace_lanes();
     double o[N][3];
     uint8_t occ[N];
     uint64_t seed = 5;
@@ -672,10 +692,10 @@ static void test_occluded_packets(void **state)
             o[k][1] = y; /* mostly just above the ground; some under it, some far above */
             o[k][2] = isnan(z) || k % 9 == 4 ? g->zmax + 50.0 : (k % 7 == 3 ? z - 1.0 : z + 1e-3 * (k % 4));
         }
-        for (int k = 0; k < N; k++) /* every other packet one point four times: low suns
-                                       prove all four lanes shadowed, and no lane walks */
-            if (k / 4 % 2 == 1)
-                memcpy(o[k], o[k - k % 4], sizeof o[k]);
+        for (int k = 0; k < N; k++) /* every other packet one point in every lane: low suns
+                                       prove all its lanes shadowed, and no lane walks */
+            if (k / lanes % 2 == 1)
+                memcpy(o[k], o[k - k % lanes], sizeof o[k]);
         for (int m = 0; m < TD_METHOD_COUNT; m++)
             for (int sf = 0; sf < TD_SURFACE_COUNT; sf++) {
                 uint32_t s1 = 0, s2 = 0;
@@ -695,6 +715,12 @@ static void test_occluded_packets(void **state)
     td_grid_free(g);
 }
 
+static void test_occluded_packets(void **state)
+{
+    (void)state;
+    at_each_width(occluded_packets);
+}
+
 /* The packets' cell intersections where the scalar ones branch: on a grid of saddles
  * (corners 0 and 10 m alternating), horizontal rays along and beside the cells' diagonals
  * (through sample points, or just off them) at heights below, at and above the patches'
@@ -703,9 +729,8 @@ static void test_occluded_packets(void **state)
  * cell and rise out of it with f of one sign at both ends, triangle rays split at the
  * diagonal, plane rays that meet walls and tops; started inside a cell, on its sample lines
  * and at a sample point. Each gives td_trace_from's hit bit for bit. */
-static void test_fan_cells(void **state)
+static void fan_cells(void)
 {
-    (void)state;
     td_grid *g = make_grid(24, 24, 3.0, 2.0, 3);
     for (int32_t j = 0; j < g->h; j++)
         for (int32_t i = 0; i < g->w; i++)
@@ -743,6 +768,12 @@ static void test_fan_cells(void **state)
     assert_true(hits > tried / 2 && hits < tried);
     td_accel_free(a);
     td_grid_free(g);
+}
+
+static void test_fan_cells(void **state)
+{
+    (void)state;
+    at_each_width(fan_cells);
 }
 
 /* The same hit as td_trace, from any t_clear before it: t, point, normal and cell. */
