@@ -28,8 +28,8 @@
  *                  direction) and each ray's clip: td_trace_fan (a render's camera rays)
  *                  and td_occluded_par (its shadow rays) set up the shared part once, and
  *                  every ray still takes the one walk, so its answer is the one-ray call's;
- *   vstep() ..     the one twin: setup and the cell walk for four rays at once, in
- *                  vectors, each lane the scalar code's operations in its order (the
+ *   vstep() ..     the one twin (trace_lanes.inc): setup and the cell walk for four rays
+ *                  at once (eight with AVX-512), in vectors, each lane the scalar code's operations in its order (the
  *                  Packets section says why that is the same bits, and the tests hold it
  *                  there); a change to a surface or to the walk's first cells changes both.
  *                  fan_packet() walks a fan's camera rays with it, occ_packets() a render's
