@@ -70,6 +70,10 @@
 #include "simd.h"
 #include "sunlit.h"
 
+#if TD_PACKET_WIDE
+#include <immintrin.h> /* the eight-lane packets' mask tests and gathers */
+#endif
+
 static const char *const td_method_names[] = {
 #define TD_X_NAME(e, name) name,
     TD_METHOD_LIST(TD_X_NAME)
