@@ -38,16 +38,6 @@
  * the machine picks (valgrind reports no AVX-512, so callgrind counts the AVX2 one; the
  * sanitizer builds the baseline's). */
 #define TD_PACKET_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
-/* The packets again, eight lanes wide, for processors with AVX-512 (trace.c includes
- * trace_lanes.inc a second time under #pragma GCC target("arch=x86-64-v4") and picks that
- * instance at run time, td_trace_lanes; on such a processor it runs instead of the clone
- * above): GCC only (clang ignores the pragma, and would build the eight lanes for the
- * baseline). Against four lanes on the same EPYC (interleaved, best of 9 renders): camera
- * rays of the bench's pitched views 1.07-1.19x faster, shadow rays 1.02-1.21x (README,
- * "Coherent camera and shadow rays"). */
-#if defined(__GNUC__) && !defined(__clang__)
-#define TD_PACKET_WIDE 1
-#endif
 #endif
 #endif
 #ifndef TD_ROW_CLONES
@@ -56,7 +46,17 @@
 #ifndef TD_PACKET_CLONES
 #define TD_PACKET_CLONES
 #endif
-#ifndef TD_PACKET_WIDE
+/* The packets again, eight lanes wide, for processors with AVX-512 (trace.c includes
+ * trace_lanes.inc a second time under #pragma GCC target("arch=x86-64-v4") and picks that
+ * instance at run time, td_trace_lanes; on such a processor it runs instead of the clone
+ * above): GCC on x86-64 only (clang ignores the pragma, and would build the eight lanes for
+ * the baseline), sanitizers included (no loader resolver: the pick is a plain call, so the
+ * sanitizer builds test the eight lanes too). Against four lanes on the same EPYC
+ * (interleaved, best of 9 renders): camera rays of the bench's pitched views 1.07-1.19x
+ * faster, shadow rays 1.02-1.21x (README, "Coherent camera and shadow rays"). */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define TD_PACKET_WIDE 1
+#else
 #define TD_PACKET_WIDE 0
 #endif
 
