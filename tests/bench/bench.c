@@ -950,6 +950,7 @@ static void machine_info(bench_ctx *b)
     if (f)
         fclose(f);
     b->cores = (int)sysconf(_SC_NPROCESSORS_ONLN);
+    b->lanes = td_trace_lanes();
     snprintf(b->commit, sizeof b->commit, "unknown");
     f = popen("git -C '" TERRAD_SOURCE_DIR "' rev-parse --short=12 HEAD 2>/dev/null", "r");
     if (f) {

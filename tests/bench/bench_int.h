@@ -216,6 +216,7 @@ typedef struct bench_ctx {
     double t_start, total_s;
     char cpu[256], commit[64], date[64];
     int cores, dirty;
+    int lanes; /* the ray packets' width (td_trace_lanes) */
     int nds;
     bench_ds ds[4];
     int nk;
