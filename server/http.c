@@ -1,8 +1,14 @@
 /* http.c: libmicrohttpd glue (see http.h for the threads and the life of a request).
  *
  * Daemon: MHD_USE_INTERNAL_POLLING_THREAD with a thread pool (MHD_OPTION_THREAD_POOL_SIZE)
- * and MHD_USE_AUTO, which picks epoll on Linux; MHD_ALLOW_SUSPEND_RESUME for deferred
- * work; MHD_USE_ITC so that MHD_quiesce_daemon can stop the listeners of a pool.
+ * and poll(); MHD_ALLOW_SUSPEND_RESUME for deferred work; MHD_USE_ITC so that
+ * MHD_quiesce_daemon can stop the listeners of a pool. Not epoll (MHD_USE_AUTO's choice on
+ * Linux, used until 2026-12-02): libmicrohttpd 0.9.75's MHD_quiesce_daemon removes the
+ * listening socket from each pool thread's epoll set while that thread may be removing it
+ * itself, and panics (abort) when it finds it gone: "Failed to remove listen FD from epoll
+ * set" (daemon.c:5531), seen once in CI as a SIGABRT on SIGTERM, the requests in flight
+ * lost. With poll() it wakes each thread through its ITC instead, and the thread stops
+ * polling the socket. A pool thread polls its own connections, a few dozen at most here.
  * Limits: connection timeout (libmicrohttpd's default is none), per-IP connections, and
  * the body cap, checked against Content-Length before any byte is read and again while
  * a chunked body streams in.
@@ -552,7 +558,7 @@ td_status td_http_start(const td_http_opts *o, td_http **out, td_err *err)
     td_http *h = NULL;
     struct addrinfo hints, *ai = NULL;
     char port[16];
-    unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_AUTO | MHD_ALLOW_SUSPEND_RESUME |
+    unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_POLL | MHD_ALLOW_SUSPEND_RESUME |
                      MHD_USE_ITC | MHD_USE_ERROR_LOG;
     const union MHD_DaemonInfo *di;
     int gai;
