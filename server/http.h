@@ -11,7 +11,7 @@
  * raises it once the work has run for work_timeout_s, and td_http_stop raises every
  * flag when its deadline passes.
  *
- *   MHD threads (pool, epoll)          worker threads (render_workers)
+ *   MHD threads (pool, poll)           worker threads (render_workers)
  *   access cb -> handler --defer-->  [bounded queue] -> work fn -> resume connection
  *            <---------------- response queued on the next access cb ------------
  *                                      watchdog: raises a worker's flag at its deadline
