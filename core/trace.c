@@ -71,7 +71,7 @@
 #include "sunlit.h"
 
 #if TD_PACKET_WIDE
-#include <immintrin.h> /* the eight-lane packets' mask tests and gathers */
+#include <immintrin.h> /* the eight-lane packets' mask tests */
 #endif
 
 static const char *const td_method_names[] = {
@@ -1267,12 +1267,15 @@ int td_trace_set_lanes(int lanes)
 static int fan_packet_of(int lanes, const td_view *v, td_method m, walk *w, const double o[3],
                          const td_fan *f, int k0, int nl, td_fan_hits *h)
 {
+    int fin;
 #if TD_PACKET_WIDE
     if (lanes == 8)
-        return fan_packet8(v, m, w, o, f, k0, nl, h);
+        fin = fan_packet8(v, m, w, o, f, k0, nl, h);
+    else
 #endif
+        fin = fan_packet(v, m, w, o, f, k0, nl, h);
     (void)lanes;
-    return fan_packet(v, m, w, o, f, k0, nl, h);
+    return fin;
 }
 
 void td_trace_fan(const td_view *v, td_method m, td_surface s, const double o[3], int n, td_fan *f,
