@@ -176,6 +176,7 @@
 #include "limit.h"
 #include "lod.h"
 #include "shade.h"
+#include "simd.h"
 
 #define TD_BLOCK 16
 /* Blocks are TD_BLOCK wide and bh tall: TD_BLOCK_TALL where the camera stands upright
@@ -1768,12 +1769,72 @@ static inline __attribute__((always_inline)) void resolve_block(const ctx *c, co
     }
 }
 
+/* resolve_block's colour for one sample a pixel, cnt pixels of a row (sm[k] -> dst[4 k ..]),
+ * four at a time: each lane resolve_block's expressions for its pixel in the same order (no
+ * FMA: the same bytes), the square roots four to an instruction; a row's last pixels
+ * repeat its last one in the lanes past it, and only theirs are stored. Trinidad's and
+ * levi's views, one thread: the stage 2.7-3.6 -> 2.1-2.2 ms a 512 x 512 render. */
+typedef double rd4 __attribute__((vector_size(32)));
+typedef int64_t rm4 __attribute__((vector_size(32)));
+typedef int32_t ri4 __attribute__((vector_size(16)));
+typedef float rf4 __attribute__((vector_size(16)));
+
+/* lane by lane m ? a : b (a macro: no vector crosses a call) */
+#define RSEL(m, a, b) ((rd4)(((rm4)(a) & (m)) | ((rm4)(b) & ~(m))))
+
+/* Four pixels' RGBA (lane l: sample p[l]) as four little-endian words */
+static inline __attribute__((always_inline)) ri4 resolve4(const smp *const p[4])
+{
+    rf4 af, cf[3];
+    for (int l = 0; l < 4; l++) {
+        af[l] = p[l]->alpha;
+        cf[0][l] = p[l]->rgb[0], cf[1][l] = p[l]->rgb[1], cf[2][l] = p[l]->rgb[2];
+    }
+    const rd4 a = 0.0 + __builtin_convertvector(af, rd4), zero = {0}, one = zero + 1.0; /* a += alpha */
+    const rm4 opaque = (rm4)(a == 1.0);
+    const int all = (opaque[0] & opaque[1] & opaque[2] & opaque[3]) != 0; /* no division */
+    ri4 px = (__builtin_convertvector(a / 1.0 * 255.0 + 0.5, ri4) & 0xff) << 24;
+    for (int ch = 0; ch < 3; ch++) {
+        rd4 acc = 0.0 + __builtin_convertvector(af * cf[ch], rd4); /* alpha * rgb: a float product */
+        rd4 q = all ? acc : RSEL(opaque, acc, RSEL((rm4)(a > 0.0), acc / a, zero));
+        rd4 v = RSEL((rm4)(q > 0.0), q, zero);
+        for (int l = 0; l < 4; l++)
+            v[l] = sqrt(v[l]);
+        v = RSEL((rm4)(v < 1.0), v, one);
+        px |= (__builtin_convertvector(v * 255.0 + 0.5, ri4) & 0xff) << (8 * ch);
+    }
+    return px;
+}
+
+TD_ROW_CLONES static void resolve_row1(const smp *sm, int32_t cnt, uint8_t *dst)
+{
+    int32_t x = 0;
+    for (; x + 4 <= cnt; x += 4) {
+        const smp *const p[4] = {&sm[x], &sm[x + 1], &sm[x + 2], &sm[x + 3]};
+        ri4 px = resolve4(p);
+        memcpy(dst + 4 * x, &px, sizeof px);
+    }
+    if (x < cnt) { /* the row's last pixels, the last one repeated in the lanes past it */
+        const smp *const p[4] = {&sm[x], &sm[x + 1 < cnt ? x + 1 : x], &sm[x + 2 < cnt ? x + 2 : x],
+                                 &sm[x + 3 < cnt ? x + 3 : x]};
+        ri4 px = resolve4(p);
+        for (int l = 0; x + l < cnt; l++)
+            memcpy(dst + 4 * (x + l), &px[l], 4);
+    }
+}
+
 static void stage_resolve(worker *w, const blk *b)
 {
-    if (w->c->n == 1)
-        resolve_block(w->c, w->s, b, 1);
-    else
-        resolve_block(w->c, w->s, b, w->c->n);
+    const ctx *c = w->c;
+    if (c->n == 1 && !c->depth_only) {
+        for (int32_t y = b->y0; y < b->y1; y++)
+            resolve_row1(&w->s[(y - b->y0) * b->bw], b->bw,
+                         c->rgba + 4 * ((size_t)y * (size_t)c->cam.width + (size_t)b->x0));
+    } else if (c->n == 1) {
+        resolve_block(c, w->s, b, 1);
+    } else {
+        resolve_block(c, w->s, b, c->n);
+    }
 }
 
 static int on_resolve(const ctx *c)
