@@ -1818,8 +1818,10 @@ TD_ROW_CLONES static void resolve_row1(const smp *sm, int32_t cnt, uint8_t *dst)
         const smp *const p[4] = {&sm[x], &sm[x + 1 < cnt ? x + 1 : x], &sm[x + 2 < cnt ? x + 2 : x],
                                  &sm[x + 3 < cnt ? x + 3 : x]};
         ri4 px = resolve4(p);
-        for (int l = 0; x + l < cnt; l++)
-            memcpy(dst + 4 * (x + l), &px[l], 4);
+        for (int l = 0; x + l < cnt; l++) {
+            const int32_t word = px[l]; /* (no address of a vector's element: clang) */
+            memcpy(dst + 4 * (x + l), &word, sizeof word);
+        }
     }
 }
 
