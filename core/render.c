@@ -660,12 +660,40 @@ static void trace_lod(const ctx *c, const td_ray *r, double t_clear, td_hit *hit
     *level = l;
 }
 
-/* A hit's height error into the stats (the sum in the order the hits come). */
+/* The height errors' sum (in the order the hits come), maximum and count: taken from the
+ * stats and put back by the loops that store samples between hits (the compiler cannot
+ * keep the stats' fields in registers across those stores: trinidad's level view spent a
+ * fifth of its column loop reloading and storing the maximum). */
+typedef struct err_acc {
+    double sum, max;
+    uint64_t hits;
+} err_acc;
+
+static inline err_acc err_take(const td_render_stats *st)
+{
+    return (err_acc){st->height_err_sum_m, st->height_err_max_m, st->height_err_hits};
+}
+
+static inline void err_put(td_render_stats *st, const err_acc *a)
+{
+    st->height_err_sum_m = a->sum;
+    st->height_err_max_m = a->max;
+    st->height_err_hits = a->hits;
+}
+
+static inline void err_add(err_acc *a, double e)
+{
+    a->sum += e;
+    a->max = e > a->max ? e : a->max;
+    a->hits++;
+}
+
+/* A hit's height error into the stats. */
 static inline void count_error(td_render_stats *st, double e)
 {
-    st->height_err_sum_m += e;
-    st->height_err_max_m = e > st->height_err_max_m ? e : st->height_err_max_m;
-    st->height_err_hits++;
+    err_acc a = err_take(st);
+    err_add(&a, e);
+    err_put(st, &a);
 }
 
 /* How far a camera ray's hit lies above or below the exact surface (bilinear, full grid)
@@ -950,6 +978,7 @@ static void fan_flush(worker *w, fan *f)
     /* count_camera and camera_keep for each ray (a fan: full grid, no silhouette
        partition), the integer counts added once; the height errors in ray order, as
        note_error adds them; sample_hit's fields from the fan's arrays */
+    err_acc err = err_take(st);
     for (int k = 0; k < f->n; k++) {
         smp *sm = f->sm[k];
         steps += h.steps[k];
@@ -959,7 +988,7 @@ static void fan_flush(worker *w, fan *f)
         if (h.t[k] < INFINITY) {
             nhit++;
             if (!isnan(h.zb[k]))
-                count_error(st, fabs(h.pz[k] - h.zb[k]));
+                err_add(&err, fabs(h.pz[k] - h.zb[k]));
             sm->flags |= F_HIT;
             sm->t = h.t[k];
             sm->p[0] = h.px[k], sm->p[1] = h.py[k], sm->p[2] = h.pz[k];
@@ -968,6 +997,7 @@ static void fan_flush(worker *w, fan *f)
             sm->cj = h.cj[k];
         }
     }
+    err_put(st, &err);
     st->steps += steps;
     st->kind_steps[TD_RAY_PRIMARY] += steps;
     st->rays[TD_RAY_PRIMARY] += (uint64_t)f->n;
@@ -1279,6 +1309,41 @@ static int block_wedge(worker *w, const blk *b)
  * that one, so it meets nothing before the straight ray's hit (a miss: nothing at all),
  * and the curvature stage starts its chords there (F_CLEAR; a 1e-9 short of it, far more
  * than the walk's rounding). */
+/* Vectors of four for the per-sample loops that GCC does not vectorise on its own (the
+ * samples' fields strided in their structs): trace_columns' slopes, the resolve stage. */
+typedef double rd4 __attribute__((vector_size(32)));
+typedef int64_t rm4 __attribute__((vector_size(32)));
+typedef int32_t ri4 __attribute__((vector_size(16)));
+typedef float rf4 __attribute__((vector_size(16)));
+
+/* lane by lane m ? a : b (a macro: no vector crosses a call) */
+#define RSEL(m, a, b) ((rd4)(((rm4)(a) & (m)) | ((rm4)(b) & ~(m))))
+
+/* trace_columns' slopes of a sample column, four samples at a time: the k-th up it,
+ * col[row[k]], has the horizontal length hk[k] of its direction and rise e[k] per unit of
+ * it (each lane the scalar expressions, the same bits; a column's last lanes repeat its
+ * last sample and are not stored). Returns whether e rises up the column. */
+TD_ROW_CLONES static int column_slopes(const smp *col, const int *row, int32_t nrow, double *hk, double *e)
+{
+    int rising = 1;
+    for (int32_t k = 0; k < nrow; k += 4) {
+        rd4 d0, d1, d2;
+        for (int l = 0; l < 4; l++) {
+            const smp *sm = &col[row[k + l < nrow ? k + l : nrow - 1]];
+            d0[l] = sm->d[0], d1[l] = sm->d[1], d2[l] = sm->d[2];
+        }
+        rd4 h = d0 * d0 + d1 * d1;
+        for (int l = 0; l < 4; l++)
+            h[l] = sqrt(h[l]);
+        const rd4 ek = d2 / h;
+        for (int l = 0; l < 4 && k + l < nrow; l++)
+            hk[k + l] = h[l], e[k + l] = ek[l];
+    }
+    for (int32_t k = 1; k < nrow; k++)
+        rising &= e[k] >= e[k - 1];
+    return rising;
+}
+
 static void trace_columns(worker *w, const blk *b)
 {
     const ctx *c = w->c;
@@ -1298,14 +1363,7 @@ static void trace_columns(worker *w, const blk *b)
     }
     for (int32_t xs = 0; xs < ncol; xs++) {
         smp *const col = &w->s[xs / n * nn + xs % n];
-        int rising = 1;
-        for (int32_t k = 0; k < nrow; k++) {
-            const smp *sm = &col[row[k]];
-            hk[k] = sqrt(sm->d[0] * sm->d[0] + sm->d[1] * sm->d[1]);
-            e[k] = sm->d[2] / hk[k];
-            rising &= k == 0 || e[k] >= e[k - 1];
-        }
-        if (!rising) { /* not expected (the rows' slopes rise by a pixel's angle): the plain walk */
+        if (!column_slopes(col, row, nrow, hk, e)) { /* not expected (the rows' slopes rise by a pixel's angle): the plain walk */
             for (int32_t k = 0; k < nrow; k++)
                 if (col[row[k]].flags & F_CURVE) {
                     bent++;
@@ -1328,12 +1386,15 @@ static void trace_columns(worker *w, const blk *b)
                 h[k].s = INFINITY; /* the curvature stage's: nothing to finish below */
             }
         }
+        err_acc err = err_take(st);
         for (int32_t k = 0; k < nrow; k++) {
             smp *sm = &col[row[k]];
             if (h[k].s == INFINITY)
                 continue;
-            if (h[k].s != h[k].s) { /* not known (colwalk.h): the plain walk */
+            if (h[k].s != h[k].s) { /* not known (colwalk.h): the plain walk (its error in order) */
+                err_put(st, &err);
                 camera_trace(w, sm, 0.0);
+                err = err_take(st);
                 untraced++;
                 continue;
             }
@@ -1349,8 +1410,9 @@ static void trace_columns(worker *w, const blk *b)
             sm->ci = h[k].ci;
             sm->cj = h[k].cj;
             if (!isnan(h[k].zb))
-                count_error(st, fabs(sm->p[2] - h[k].zb));
+                err_add(&err, fabs(sm->p[2] - h[k].zb));
         }
+        err_put(st, &err);
     }
     st->horizon_bins += bins;
     st->steps += steps + bins;
@@ -1774,13 +1836,6 @@ static inline __attribute__((always_inline)) void resolve_block(const ctx *c, co
  * FMA: the same bytes), the square roots four to an instruction; a row's last pixels
  * repeat its last one in the lanes past it, and only theirs are stored. Trinidad's and
  * levi's views, one thread: the stage 2.7-3.6 -> 2.1-2.2 ms a 512 x 512 render. */
-typedef double rd4 __attribute__((vector_size(32)));
-typedef int64_t rm4 __attribute__((vector_size(32)));
-typedef int32_t ri4 __attribute__((vector_size(16)));
-typedef float rf4 __attribute__((vector_size(16)));
-
-/* lane by lane m ? a : b (a macro: no vector crosses a call) */
-#define RSEL(m, a, b) ((rd4)(((rm4)(a) & (m)) | ((rm4)(b) & ~(m))))
 
 /* Four pixels' RGBA (lane l: sample p[l]) as four little-endian words */
 static inline __attribute__((always_inline)) ri4 resolve4(const smp *const p[4])
