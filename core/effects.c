@@ -3,30 +3,36 @@
 
 #include <math.h>
 
-void td_sky_color(const double d[3], const double s[3], int disc, float rgb[3])
+void td_sky_init(td_sky *k, const double s[3])
+{
+    double sun_el = s[2] < -1.0 ? -1.0 : s[2];
+    k->s[0] = s[0], k->s[1] = s[1], k->s[2] = s[2];
+    /* warmth: strong when the sun is low, toward the sun, near the horizon */
+    k->low = exp(-(sun_el > 0.0 ? sun_el : 0.0) / 0.12); /* compares, not libm's fmax */
+}
+
+void td_sky_shade(const td_sky *k, const double d[3], int disc, float rgb[3])
 {
     /* display-space colours, squared to linear at the end */
     static const double horizon[3] = {0.80, 0.86, 0.93}, zenith[3] = {0.27, 0.47, 0.80};
     static const double warm[3] = {1.00, 0.62, 0.34};
+    const double *s = k->s;
     double e = d[2] < 0.0 ? 0.0 : d[2];
     double t = sqrt(e); /* the blue deepens quickly above the horizon */
     double cosg = d[0] * s[0] + d[1] * s[1] + d[2] * s[2];
-    double sun_el = s[2] < -1.0 ? -1.0 : s[2];
-    /* warmth: strong when the sun is low, toward the sun, near the horizon */
-    double low = exp(-(sun_el > 0.0 ? sun_el : 0.0) / 0.12); /* compares, not libm's fmax */
     double half = 0.5 * (1.0 + cosg), toward = half * half * half; /* not pow: a call a sample */
-    double w = low * toward * (1.0 - t);
+    double w = k->low * toward * (1.0 - t);
     double c[3];
-    for (int k = 0; k < 3; k++) {
-        c[k] = horizon[k] + t * (zenith[k] - horizon[k]);
-        c[k] += w * (warm[k] - c[k]);
+    for (int i = 0; i < 3; i++) {
+        c[i] = horizon[i] + t * (zenith[i] - horizon[i]);
+        c[i] += w * (warm[i] - c[i]);
     }
     if (disc) {
         /* cos^200 by squaring (x^8 x^64 x^128), a few multiplications for pow's call */
         double x = cosg > 0.0 ? cosg : 0.0, x2 = x * x, x4 = x2 * x2, x8 = x4 * x4, x16 = x8 * x8, x32 = x16 * x16;
         double x64 = x32 * x32, x128 = x64 * x64, glow = 0.35 * (x8 * x64 * x128);
-        for (int k = 0; k < 3; k++)
-            c[k] += glow * (warm[k] * 0.5 + 0.5);
+        for (int i = 0; i < 3; i++)
+            c[i] += glow * (warm[i] * 0.5 + 0.5);
         if (cosg > cos(0.27 * M_PI / 180.0) && s[2] > -0.01) {
             /* brighter than any glow around it, a touch warm */
             c[0] = 1.0;
@@ -34,15 +40,22 @@ void td_sky_color(const double d[3], const double s[3], int disc, float rgb[3])
             c[2] = 0.90;
         }
     }
-    for (int k = 0; k < 3; k++) {
-        double v = c[k] > 1.0 ? 1.0 : c[k];
-        rgb[k] = (float)(v * v);
+    for (int i = 0; i < 3; i++) {
+        double v = c[i] > 1.0 ? 1.0 : c[i];
+        rgb[i] = (float)(v * v);
     }
+}
+
+void td_sky_color(const double d[3], const double s[3], int disc, float rgb[3])
+{
+    td_sky k;
+    td_sky_init(&k, s);
+    td_sky_shade(&k, d, disc, rgb);
 }
 
 double td_haze_beta(double visibility_km) { return 3.912 / (visibility_km * 1000.0); }
 
-double td_haze_transmittance(double beta0, double z0, double z1, double len)
+double td_haze_transmittance_e0(double beta0, double z0, double e0, double z1, double len)
 {
     const double H = TD_HAZE_SCALE_HEIGHT_M;
     double dz = z1 - z0, tau;
@@ -50,9 +63,14 @@ double td_haze_transmittance(double beta0, double z0, double z1, double len)
         tau = beta0 * len * exp(-0.5 * (z0 + z1) / H);
     } else {
         /* integral of beta0 exp(-z(s)/H) ds along the segment, z linear in s */
-        tau = beta0 * len * H * (exp(-z0 / H) - exp(-z1 / H)) / dz;
+        tau = beta0 * len * H * (e0 - exp(-z1 / H)) / dz;
     }
     return exp(-tau);
+}
+
+double td_haze_transmittance(double beta0, double z0, double z1, double len)
+{
+    return td_haze_transmittance_e0(beta0, z0, exp(-z0 / TD_HAZE_SCALE_HEIGHT_M), z1, len);
 }
 
 double td_water_fresnel(double cos_i)

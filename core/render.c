@@ -360,6 +360,7 @@ struct ctx {
     double sunlit_ms;    /* its build */
     int on[TD_STAGE_COUNT]; /* the stages this render runs (their on_<name>) */
     double sun[3];
+    td_sky sky; /* the sky's terms of the sun alone (td_sky_shade) */
     double eps;      /* origin offset along the normal for secondary rays */
     double zlo, zspan;
     const td_image8 *drape;
@@ -1568,7 +1569,7 @@ static void stage_water(worker *w, const blk *b)
         if (hit.t < INFINITY)
             shade_plain(c, &hit, sm->level, rf);
         else
-            td_sky_color(r.d, c->sun, 1, rf);
+            td_sky_shade(&c->sky, r.d, 1, rf);
         rf[3] = (float)td_water_fresnel(fabs(sm->d[2]));
     }
 }
@@ -1748,16 +1749,21 @@ static void stage_haze(worker *w, const blk *b)
 {
     const ctx *c = w->c;
     const td_scene *s = c->s;
+    double z0 = NAN, e0 = NAN; /* the last start's height and its exp (a camera's: one) */
     for (int i = 0; i < b->ns; i++) {
         smp *sm = &w->s[i];
         if (!(sm->flags & (F_HIT | F_WATER)))
             continue;
         double dist = (sm->flags & F_WATER) ? sm->tw : sm->t;
         double zend = (sm->flags & F_WATER) ? s->effects.water_level : sm->p[2];
-        double tr = td_haze_transmittance(c->beta0, sm->o[2] - c->zref, zend - c->zref, dist);
+        if (!(sm->o[2] - c->zref == z0)) {
+            z0 = sm->o[2] - c->zref;
+            e0 = exp(-z0 / TD_HAZE_SCALE_HEIGHT_M);
+        }
+        double tr = td_haze_transmittance_e0(c->beta0, z0, e0, zend - c->zref, dist);
         double hd[3] = {sm->d[0], sm->d[1], 0.0};
         float hc[3];
-        td_sky_color(hd, c->sun, 0, hc);
+        td_sky_shade(&c->sky, hd, 0, hc);
         for (int k = 0; k < 3; k++)
             sm->rgb[k] = (float)(sm->rgb[k] * tr + hc[k] * (1.0 - tr));
     }
@@ -1776,7 +1782,7 @@ static void stage_sky(worker *w, const blk *b)
         smp *sm = &w->s[i];
         if (sm->flags & (F_HIT | F_WATER))
             continue;
-        td_sky_color(sm->d, c->sun, 1, sm->rgb);
+        td_sky_shade(&c->sky, sm->d, 1, sm->rgb);
         sm->alpha = 1.0f;
     }
 }
@@ -2008,6 +2014,7 @@ static td_status setup_ctx(ctx *c, const td_view *v, const td_scene *s, td_err *
     if (rc)
         goto out;
     td_shade_sun_dir(s->effects.sun_azimuth, s->effects.sun_elevation, c->sun);
+    td_sky_init(&c->sky, c->sun);
     c->gx1 = (g->w - 1) * g->sx;
     c->gy1 = (g->h - 1) * g->sy;
     c->zlo = isfinite(g->zmin) ? g->zmin : 0.0;
