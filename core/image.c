@@ -119,7 +119,7 @@ static td_status encode(const void *pixels, int32_t width, int32_t height, int c
     }
     png_set_write_fn(png, &sink, sink_write, sink_flush);
     png_set_compression_level(png, 1);
-    if (flat || channels == 4) /* image.h: smaller and faster than the default for both */
+    if (flat)
         png_set_compression_strategy(png, Z_RLE);
     png_set_filter(png, PNG_FILTER_TYPE_BASE, flat ? PNG_FILTER_NONE : PNG_FILTER_SUB);
     png_set_IHDR(png, info, (png_uint_32)width, (png_uint_32)height, bit_depth, color_type,

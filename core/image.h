@@ -4,11 +4,7 @@
  * Encoding is set for speed: zlib level 1 and the `sub` filter only (rendered terrain
  * is smooth horizontally, so `sub` roughly halves the size of `none` for a few percent
  * of the time; adaptive filtering costs several times more and gains little at level
- * 1), and for RGBA zlib's run-length strategy (what `sub` leaves of smooth terrain and
- * sky is runs of small differences): on five renders of the demo data (512 x 512 to
- * 800 x 450, shadows, sky, haze) 6-28% smaller and 5-29% faster than the default
- * strategy (e.g. 173.9 -> 155.1 kB, 7.09 -> 6.53 ms; 119.5 -> 86.0 kB, 5.67 -> 4.05 ms).
- * Output goes to a growable buffer owned by the caller (td_buf_free). */
+ * 1). Output goes to a growable buffer owned by the caller (td_buf_free). */
 #ifndef TD_IMAGE_H
 #define TD_IMAGE_H
 
