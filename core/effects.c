@@ -46,16 +46,9 @@ void td_sky_shade(const td_sky *k, const double d[3], int disc, float rgb[3])
     }
 }
 
-void td_sky_color(const double d[3], const double s[3], int disc, float rgb[3])
-{
-    td_sky k;
-    td_sky_init(&k, s);
-    td_sky_shade(&k, d, disc, rgb);
-}
-
 double td_haze_beta(double visibility_km) { return 3.912 / (visibility_km * 1000.0); }
 
-double td_haze_transmittance_e0(double beta0, double z0, double e0, double z1, double len)
+double td_haze_transmittance(double beta0, double z0, double e0, double z1, double len)
 {
     const double H = TD_HAZE_SCALE_HEIGHT_M;
     double dz = z1 - z0, tau;
@@ -66,11 +59,6 @@ double td_haze_transmittance_e0(double beta0, double z0, double e0, double z1, d
         tau = beta0 * len * H * (e0 - exp(-z1 / H)) / dz;
     }
     return exp(-tau);
-}
-
-double td_haze_transmittance(double beta0, double z0, double z1, double len)
-{
-    return td_haze_transmittance_e0(beta0, z0, exp(-z0 / TD_HAZE_SCALE_HEIGHT_M), z1, len);
 }
 
 double td_water_fresnel(double cos_i)

@@ -22,13 +22,10 @@
 #define TD_EARTH_RADIUS_M 6371000.0
 #define TD_HAZE_SCALE_HEIGHT_M 1500.0
 
-/* Sky colour (linear) seen along unit direction d, with the sun along unit s. With
- * `disc` zero, no sun disc or glow (for reflections and the haze colour). */
-void td_sky_color(const double d[3], const double s[3], int disc, float rgb[3]);
-
-/* td_sky_color for many directions under one sun: the terms of the sun alone computed
- * once (td_sky_init), then td_sky_shade per direction, the same colours bit for bit (a
- * render's haze stage called exp for the sun's warmth at every sample). */
+/* The sky, for every direction under one sun: the terms of the sun alone computed once
+ * (td_sky_init; a render's haze stage called exp for the sun's warmth at every sample),
+ * then td_sky_shade gives the colour (linear) seen along unit direction d, the sun along
+ * unit s. With `disc` zero, no sun disc or glow (for reflections and the haze colour). */
 typedef struct td_sky {
     double s[3]; /* the sun, unit */
     double low;  /* the warmth's strength for the sun's height */
@@ -37,13 +34,10 @@ void td_sky_init(td_sky *k, const double s[3]);
 void td_sky_shade(const td_sky *k, const double d[3], int disc, float rgb[3]);
 
 /* Transmittance of a straight segment of length len (metres) from height z0 to z1,
- * both relative to the reference height of beta0 (extinction per metre there). */
-double td_haze_transmittance(double beta0, double z0, double z1, double len);
-
-/* td_haze_transmittance with e0 = exp(-z0 / TD_HAZE_SCALE_HEIGHT_M) given (segments that
- * share their start, as a perspective camera's: one exp less a segment), the same value
- * bit for bit. */
-double td_haze_transmittance_e0(double beta0, double z0, double e0, double z1, double len);
+ * both relative to the reference height of beta0 (extinction per metre there), with
+ * e0 = exp(-z0 / TD_HAZE_SCALE_HEIGHT_M) given (segments that share their start, as a
+ * perspective camera's, compute it once). */
+double td_haze_transmittance(double beta0, double z0, double e0, double z1, double len);
 
 /* Extinction per metre for a visibility in km. */
 double td_haze_beta(double visibility_km);

@@ -1300,16 +1300,6 @@ static int block_wedge(worker *w, const blk *b)
            td_horizon_begin(&w->hz, c->v, c->cam.o, az0, az1);
 }
 
-/* Camera rays of an upright, level camera or a panorama, a sample column at a time
- * (colwalk.h): the column's rays share their horizontal direction (td_camera_dirs: the up
- * vector's x and y are 0, so x and y do not depend on the row; a panorama's column is one
- * azimuth), taken from the bottom up in rising slope. Each hit is finished as a fan's: t
- * along the ray's own unit direction, the point, the surface's normal there, the height
- * error against the bilinear surface. A ray that bends (F_CURVE) is the curvature stage's,
- * but walked with the others as the straight ray it bends up from: a bent ray lies above
- * that one, so it meets nothing before the straight ray's hit (a miss: nothing at all),
- * and the curvature stage starts its chords there (F_CLEAR; a 1e-9 short of it, far more
- * than the walk's rounding). */
 /* Vectors of four for the per-sample loops that GCC does not vectorise on its own (the
  * samples' fields strided in their structs): trace_columns' slopes, the resolve stage. */
 typedef double rd4 __attribute__((vector_size(32)));
@@ -1345,6 +1335,16 @@ TD_ROW_CLONES static int column_slopes(const smp *col, const int *row, int32_t n
     return rising;
 }
 
+/* Camera rays of an upright, level camera or a panorama, a sample column at a time
+ * (colwalk.h): the column's rays share their horizontal direction (td_camera_dirs: the up
+ * vector's x and y are 0, so x and y do not depend on the row; a panorama's column is one
+ * azimuth), taken from the bottom up in rising slope. Each hit is finished as a fan's: t
+ * along the ray's own unit direction, the point, the surface's normal there, the height
+ * error against the bilinear surface. A ray that bends (F_CURVE) is the curvature stage's,
+ * but walked with the others as the straight ray it bends up from: a bent ray lies above
+ * that one, so it meets nothing before the straight ray's hit (a miss: nothing at all),
+ * and the curvature stage starts its chords there (F_CLEAR; a 1e-9 short of it, far more
+ * than the walk's rounding). */
 static void trace_columns(worker *w, const blk *b)
 {
     const ctx *c = w->c;
@@ -1760,7 +1760,7 @@ static void stage_haze(worker *w, const blk *b)
             z0 = sm->o[2] - c->zref;
             e0 = exp(-z0 / TD_HAZE_SCALE_HEIGHT_M);
         }
-        double tr = td_haze_transmittance_e0(c->beta0, z0, e0, zend - c->zref, dist);
+        double tr = td_haze_transmittance(c->beta0, z0, e0, zend - c->zref, dist);
         double hd[3] = {sm->d[0], sm->d[1], 0.0};
         float hc[3];
         td_sky_shade(&c->sky, hd, 0, hc);
@@ -1837,12 +1837,6 @@ static inline __attribute__((always_inline)) void resolve_block(const ctx *c, co
     }
 }
 
-/* resolve_block's colour for one sample a pixel, cnt pixels of a row (sm[k] -> dst[4 k ..]),
- * four at a time: each lane resolve_block's expressions for its pixel in the same order (no
- * FMA: the same bytes), the square roots four to an instruction; a row's last pixels
- * repeat its last one in the lanes past it, and only theirs are stored. Trinidad's and
- * levi's views, one thread: the stage 2.7-3.6 -> 2.1-2.2 ms a 512 x 512 render. */
-
 /* Four pixels' RGBA (lane l: sample p[l]) as four little-endian words */
 static inline __attribute__((always_inline)) ri4 resolve4(const smp *const p[4])
 {
@@ -1854,7 +1848,7 @@ static inline __attribute__((always_inline)) ri4 resolve4(const smp *const p[4])
     const rd4 a = 0.0 + __builtin_convertvector(af, rd4), zero = {0}, one = zero + 1.0; /* a += alpha */
     const rm4 opaque = (rm4)(a == 1.0);
     const int all = (opaque[0] & opaque[1] & opaque[2] & opaque[3]) != 0; /* no division */
-    ri4 px = (__builtin_convertvector(a / 1.0 * 255.0 + 0.5, ri4) & 0xff) << 24;
+    ri4 px = (__builtin_convertvector(a * 255.0 + 0.5, ri4) & 0xff) << 24; /* a / (n n), n 1 */
     for (int ch = 0; ch < 3; ch++) {
         rd4 acc = 0.0 + __builtin_convertvector(af * cf[ch], rd4); /* alpha * rgb: a float product */
         rd4 q = all ? acc : RSEL(opaque, acc, RSEL((rm4)(a > 0.0), acc / a, zero));
@@ -1867,6 +1861,11 @@ static inline __attribute__((always_inline)) ri4 resolve4(const smp *const p[4])
     return px;
 }
 
+/* resolve_block's colour for one sample a pixel, cnt pixels of a row (sm[k] -> dst[4 k ..]),
+ * four at a time: each lane resolve_block's expressions for its pixel in the same order (no
+ * FMA: the same bytes), the square roots four to an instruction; a row's last pixels
+ * repeat its last one in the lanes past it, and only theirs are stored. Trinidad's and
+ * levi's views, one thread: the stage 2.7-3.6 -> 2.1-2.2 ms a 512 x 512 render. */
 TD_ROW_CLONES static void resolve_row1(const smp *sm, int32_t cnt, uint8_t *dst)
 {
     int32_t x = 0;
@@ -1893,9 +1892,7 @@ static void stage_resolve(worker *w, const blk *b)
         for (int32_t y = b->y0; y < b->y1; y++)
             resolve_row1(&w->s[(y - b->y0) * b->bw], b->bw,
                          c->rgba + 4 * ((size_t)y * (size_t)c->cam.width + (size_t)b->x0));
-    } else if (c->n == 1) {
-        resolve_block(c, w->s, b, 1);
-    } else {
+    } else { /* several samples a pixel, or the depth alone */
         resolve_block(c, w->s, b, c->n);
     }
 }
