@@ -2,6 +2,9 @@
 #include "bigalloc.h"
 
 #include <stdlib.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <string.h>
 #include <sys/mman.h>
 
@@ -40,4 +43,12 @@ void *td_bigcalloc(size_t count, size_t size)
     if (p)
         memset(p, 0, n);
     return p;
+}
+
+void td_bigalloc_policy(void)
+{
+#if defined(__GLIBC__)
+    (void)mallopt(M_MMAP_THRESHOLD, 4 << 20);
+    (void)mallopt(M_TRIM_THRESHOLD, 32 << 20);
+#endif
 }

@@ -1,10 +1,11 @@
 /* image.h: encoding rendered buffers (RGBA8 PNG, 16-bit depth PNG, raw float32 depth)
  * into memory, and decoding a PNG into RGB8 for texture drapes.
  *
- * Encoding is set for speed: zlib level 1 and the `sub` filter only (rendered terrain
- * is smooth horizontally, so `sub` roughly halves the size of `none` for a few percent
- * of the time; adaptive filtering costs several times more and gains little at level
- * 1). Output goes to a growable buffer owned by the caller (td_buf_free). */
+ * Encoding is set for speed: deflate level 1 (libdeflate's, image.c says why) and the
+ * `sub` filter only (rendered terrain is smooth horizontally, so `sub` roughly halves
+ * the size of `none` for a few percent of the time; adaptive filtering costs several
+ * times more and gains little at level 1). Output goes to a growable buffer owned by
+ * the caller (td_buf_free). */
 #ifndef TD_IMAGE_H
 #define TD_IMAGE_H
 

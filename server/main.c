@@ -1,11 +1,9 @@
 /* main.c: the `terrad` command. Dispatches to the subcommands of cli.h, after setting
- * the process's malloc policy (td_malloc_policy). */
+ * the process's malloc policy (td_bigalloc_policy, bigalloc.h). */
 #include <stdio.h>
 #include <string.h>
-#if defined(__GLIBC__)
-#include <malloc.h>
-#endif
 
+#include "bigalloc.h"
 #include "cli.h"
 
 #define TD_SUBCOMMANDS(X)                                                          \
@@ -26,29 +24,12 @@ static void usage(FILE *f)
     fprintf(f, "\n`terrad <command> --help` describes each one.\n");
 }
 
-/* Every request allocates and frees buffers of up to a few MB (a 512 x 512 render's 1 MiB
- * of pixels, the sun bound, the samples of each worker), and on the virtual machines
- * terrad runs on a page's first touch costs about 10 us (core/bigalloc.h). glibc's
- * defaults give a freed buffer of more than 128 KiB (at first; the threshold then follows
- * the largest freed) back to the kernel and the next request maps it again: a 512 x 512
- * render of trinidad with shadows took 16.3-18.1 ms (mean of 15, one thread), 13.4 ms
- * with buffers under 4 MiB taken from the heap and 32 MiB of freed memory kept for reuse
- * (the resolve stage, which first writes the pixels, 0.9-2.4 -> 0.8 ms). Larger buffers
- * (a DEM's heights) still get their own mappings, returned when freed. */
-static void td_malloc_policy(void)
-{
-#if defined(__GLIBC__)
-    (void)mallopt(M_MMAP_THRESHOLD, 4 << 20);
-    (void)mallopt(M_TRIM_THRESHOLD, 32 << 20);
-#endif
-}
-
 int main(int argc, char **argv)
 {
     int rc = 2;
     const char *cmd = argc > 1 ? argv[1] : NULL;
 
-    td_malloc_policy();
+    td_bigalloc_policy();
 
     if (!cmd) {
         usage(stderr);

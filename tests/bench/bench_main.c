@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "bench.h"
+#include "bigalloc.h"
 
 static void bench_usage(FILE *f, const td_bench_opts *d)
 {
@@ -77,6 +78,7 @@ int main(int argc, char **argv)
     td_bench_opts o, defaults;
     td_err err = {0};
 
+    td_bigalloc_policy(); /* terrad's: the renders' buffers as the server allocates them */
     td_bench_opts_default(&o);
     defaults = o;
     o.verbose = 1;

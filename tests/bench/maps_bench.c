@@ -21,6 +21,7 @@
 #include <time.h>
 
 #include "accel.h"
+#include "bigalloc.h"
 #include "clock.h"
 #include "dem.h"
 #include "image.h"
@@ -229,6 +230,7 @@ int main(int argc, char **argv)
     char path[3][1024];
     const char *labels[3] = {"trinidad (demo, lon/lat, 600 x 500)", "N37W105.hgt (lon/lat, 1201 x 1201)",
                              "trinidad-utm13.tif (UTM 13N, 154 x 154)"};
+    td_bigalloc_policy(); /* terrad's: the tiles' buffers as the server allocates them */
     FILE *out = stdout;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--runs") && i + 1 < argc)

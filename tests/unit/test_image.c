@@ -1,7 +1,7 @@
 /* test_image.c: encodings (core/image.c): RGBA8 PNG and 16-bit depth PNG decode back to
  * the same values (read with libpng directly, not with our decoder), the depth PNG
- * carries its scale, the fast settings (zlib level 1 is smaller than none, no
- * interlace), raw float32 is little-endian; decoding refuses garbage and oversize
+ * carries its scale, images a row or a column wide and the viewshed's 8-bit gray round
+ * trip too, the fast settings (deflate level 1 is smaller than none, no interlace), raw float32 is little-endian; decoding refuses garbage and oversize
  * images before allocating. */
 #include <math.h>
 #include <png.h>
@@ -100,6 +100,54 @@ static void test_rgba_round_trip(void **state)
     free(img);
 }
 
+/* Images a row or a column wide (libdeflate's path filters each row from its second
+ * pixel on: a row of one pixel is its filter byte and the pixel) and the viewshed's flat
+ * 8-bit gray (libpng's zlib), each read back whole by libpng, which checks every chunk's
+ * CRC and the IEND after the data. */
+static void test_thin_images_and_gray8(void **state)
+{
+    const int32_t sizes[][2] = {{1, 1}, {1, 5}, {5, 1}, {2, 3}, {300, 2}};
+    td_err err = {0};
+    char text[64];
+    (void)state;
+    for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; k++) {
+        const int32_t W = sizes[k][0], H = sizes[k][1];
+        uint8_t img[300 * 5 * 4], g8[300 * 5];
+        uint16_t g16[300 * 5];
+        td_buf b;
+        png_uint_32 w, h;
+        int depth, ctype;
+        for (int i = 0; i < W * H * 4; i++)
+            img[i] = (uint8_t)(i * 53 + 11 * (int)k);
+        for (int i = 0; i < W * H; i++) {
+            g8[i] = (uint8_t)(i % 3 == 0 ? 255 : (i % 3 == 1 ? 0 : 128));
+            g16[i] = (uint16_t)(i * 4099 + 3);
+        }
+        assert_int_equal(td_image_encode_rgba(img, W, H, &b, &err), TD_OK);
+        uint8_t *px = raw_decode(&b, &w, &h, &depth, &ctype, text, sizeof text);
+        assert_non_null(px);
+        assert_true(w == (png_uint_32)W && h == (png_uint_32)H && depth == 8 && ctype == PNG_COLOR_TYPE_RGBA);
+        assert_memory_equal(px, img, (size_t)W * H * 4);
+        free(px);
+        td_buf_free(&b);
+        assert_int_equal(td_image_encode_gray16(g16, W, H, NULL, NULL, &b, &err), TD_OK);
+        px = raw_decode(&b, &w, &h, &depth, &ctype, text, sizeof text);
+        assert_non_null(px);
+        assert_true(depth == 16 && ctype == PNG_COLOR_TYPE_GRAY && text[0] == 0);
+        for (int i = 0; i < W * H; i++)
+            assert_int_equal((px[2 * i] << 8) | px[2 * i + 1], g16[i]);
+        free(px);
+        td_buf_free(&b);
+        assert_int_equal(td_image_encode_gray8(g8, W, H, &b, &err), TD_OK);
+        px = raw_decode(&b, &w, &h, &depth, &ctype, text, sizeof text);
+        assert_non_null(px);
+        assert_true(depth == 8 && ctype == PNG_COLOR_TYPE_GRAY);
+        assert_memory_equal(px, g8, (size_t)W * H);
+        free(px);
+        td_buf_free(&b);
+    }
+}
+
 static void test_fast_settings_compress(void **state)
 {
     /* a smooth gradient: level 1 + sub must be well under the raw size */
@@ -191,6 +239,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_rgba_round_trip),
+        cmocka_unit_test(test_thin_images_and_gray8),
         cmocka_unit_test(test_fast_settings_compress),
         cmocka_unit_test(test_gray16_and_scale),
         cmocka_unit_test(test_f32_little_endian),
