@@ -9,15 +9,20 @@
  * The image data of RGBA and 16-bit images is deflated by libdeflate, not by libpng's
  * zlib: the rows are filtered here (`sub`, what libpng's PNG_FILTER_SUB writes), the
  * whole stream compressed in one call, and written as IDAT chunks between libpng's IHDR
- * (and tEXt) and IEND (png_write_chunk). Level 1, or 2 where more than 9 in 10 filtered
- * bytes are 0 (a sky, flat colour): libdeflate's level 1 inserts every position of a
- * run into its hash table, 256 KiB of zeros 0.71 ms against 0.31 ms at level 2.
+ * (and tEXt) and IEND (png_write_chunk). Level 1, or 2 where more than 65% of the
+ * filtered rows' 8-byte words are 0 (a pixel like the one before it, twice: a sky, flat
+ * colour, a map tile mostly outside the data): libdeflate's level 1 inserts every
+ * position of a run into its hash table, 256 KiB of zeros 0.70 ms against 0.30 ms at
+ * level 2, while level 2 is slower on textured images (the gallery's hillshade 3.9 ->
+ * 6.0 ms). Of 14 renders and tiles the threshold picks the faster level for each, or
+ * one within 1% (the labelled panorama's 0.67, the sunset's 0.59).
  * Measured on 2026-12-02 (one thread, the shared 2-core VM, terrad's malloc policy;
- * best of 3 x 20, zlib level 1 -> libdeflate): 256 x 256 map tiles, shaded 1.58 -> 0.98
- * ms, terrain-rgb 2.05 -> 1.25 ms (53.4 -> 48.2 kB), terrarium 2.61 -> 1.56 ms; a
- * 512 x 512 render with sky and haze 4.90 -> 4.49 ms (84.7 -> 67.8 kB); the gallery's
- * 480 x 502 hillshade 10.26 -> 5.42 ms (266.8 -> 244.0 kB); a tile of no data (all
- * zeros) 0.54 -> 0.69 ms, the one case zlib's lazy matching wins. The viewsheds' flat
+ * best of 3 x 20, zlib level 1 -> libdeflate): 256 x 256 map tiles, shaded 1.15 -> 0.82
+ * ms, terrain-rgb 1.81 -> 0.94 ms (53.4 -> 48.2 kB), terrarium 2.17 -> 1.28 ms; a
+ * 512 x 512 render with sky and haze 3.63 -> 2.96 ms (84.7 -> 67.8 kB); the gallery's
+ * 480 x 502 hillshade 8.03 -> 4.24 ms (266.8 -> 244.0 kB), its 1800 x 300 panorama 10.66
+ * -> 8.40 ms; tiles mostly or wholly outside the data 0.93-1.08x (0.38 -> 0.41 ms for
+ * none at all), smaller. The viewsheds' flat
  * gray images stay with zlib's run-length strategy, which libdeflate does not beat
  * (2401 x 1201: 7.6 ms and 91 kB against 9.5 ms and 131 kB at level 1). The whole
  * filtered image is held once, plus the compressed bound: a 4-megapixel RGBA render
@@ -105,12 +110,14 @@ static void on_png_warning(png_structp png, png_const_charp msg)
 /* The image's rows as PNG's filtered stream into dst ((rowbytes + 1) * height bytes):
  * each row its filter byte (1: sub) and each byte less the one bpp bytes before it (0
  * before the row's first pixel); 16-bit samples big-endian first. Returns how many of
- * the filtered bytes are 0 (deflate_image's choice of level). */
+ * each row's whole 8-byte words of filtered bytes are 0 (runs: deflate_image's choice of
+ * level), in *words how many there are. */
 static size_t filter_sub(const void *pixels, int32_t width, int32_t height, int bit_depth, int channels,
-                         size_t rowbytes, uint8_t *restrict dst)
+                         size_t rowbytes, uint8_t *restrict dst, size_t *words)
 {
     const size_t bpp = (size_t)channels * (size_t)(bit_depth / 8);
     size_t zeros = 0;
+    *words = rowbytes / 8 * (size_t)height;
     for (int32_t y = 0; y < height; y++) {
         uint8_t *restrict d = dst + (size_t)y * (rowbytes + 1);
         d[0] = 1;
@@ -129,8 +136,11 @@ static size_t filter_sub(const void *pixels, int32_t width, int32_t height, int 
             for (size_t i = bpp; i < rowbytes; i++)
                 d[i] = (uint8_t)(s[i] - s[i - bpp]);
         }
-        for (size_t i = 0; i < rowbytes; i++)
-            zeros += d[i] == 0;
+        for (size_t i = 0; i + 8 <= rowbytes; i += 8) {
+            uint64_t u;
+            memcpy(&u, d + i, 8);
+            zeros += u == 0;
+        }
     }
     return zeros;
 }
@@ -151,9 +161,9 @@ static td_status deflate_image(const void *pixels, int32_t width, int32_t height
         goto out;
     }
     f = malloc(n);
-    if (f) { /* nearly all zeros (sky, flat colour, no data): level 2 (image.c's top) */
-        size_t zeros = filter_sub(pixels, width, height, bit_depth, channels, rowbytes, f);
-        c = libdeflate_alloc_compressor(zeros > n / 10 * 9 ? 2 : 1);
+    if (f) { /* mostly runs (sky, flat colour, no data): level 2 (the top of the file) */
+        size_t words, zeros = filter_sub(pixels, width, height, bit_depth, channels, rowbytes, f, &words);
+        c = libdeflate_alloc_compressor(zeros > words / 20 * 13 ? 2 : 1);
     }
     bound = c ? libdeflate_zlib_compress_bound(c, n) : 0;
     *z = c ? malloc(bound) : NULL;
