@@ -2239,7 +2239,7 @@ static td_status setup_sunlit(ctx *c, const td_render_opts *o, td_err *err)
             c->sunlit = kept;
             c->sun_bound = was_kept ? TD_SUN_BOUND_KEPT : TD_SUN_BOUND_BUILT;
         } else if (rc == TD_OK) {
-            rc = td_sunlit_build(c->v, c->sun, &c->sunlit_own, err);
+            rc = td_sunlit_build(c->v, c->sun, 0, &c->sunlit_own, err);
             c->sunlit = c->sunlit_own;
             c->sun_bound = c->sunlit ? TD_SUN_BOUND_BUILT : TD_SUN_BOUND_NONE;
         }

@@ -21,7 +21,8 @@
 #include "simd.h"
 
 /* Blocks of 2^shift cells a side: the finest shift from TD_SUNLIT_MIN_SHIFT up whose
- * columns times strips number at most TD_SUNLIT_MAX_BOUNDS (8 MB). A shadow ray ends at the
+ * columns times strips number at most TD_SUNLIT_MAX_BOUNDS (8 MB; a kept bound's:
+ * TD_SUNLIT_MAX_BOUNDS_KEPT). A shadow ray ends at the
  * first cell where it rises above its block's bound, and a block's bound is at least its
  * own highest corner, so smaller blocks end rays sooner, for a build that grows with the
  * blocks. Measured (callgrind, trinidad's four bench views, shadows stage with the build,
@@ -42,6 +43,18 @@
  * bound (low sun, long walks); where the block's own top did, a packet's strips cost a
  * little. */
 #define TD_SUNLIT_MAX_BOUNDS ((uint64_t)1 << 21)
+/* A bound kept across renders (td_sunlit_build's `kept`: the server's, td_snapshot_sunlit)
+ * is built once for many renders of the same heights and sun, so its blocks may be finer:
+ * up to twice the bounds (16 MB, and as much again for the shadow side). Trinidad's
+ * 2401 x 1201 then takes 2-cell blocks instead of 4. Measured 2026-12-02 (shadows stage,
+ * plane, the bound kept, best of 3 x 9, one thread): level 2.55 -> 2.30 ms (steps per
+ * shadow ray 1.13 -> 1.05), grazing sunset 5.91 -> 4.65 (3.87 -> 2.59), rolled 3.37 ->
+ * 3.12, straight down 10.32 -> 8.30 (2.71 -> 1.78); built for each render instead, the
+ * finer bound cost more than it saved on the level view (3.06 -> 4.96 ms) and the
+ * grazing sunset (7.01 -> 9.26), which is why a render's own bound keeps the cap above.
+ * Grids whose blocks are 2 cells within that cap already (picos, SRTM tiles of 1201 x
+ * 1201, the demo data) build the same bound either way. */
+#define TD_SUNLIT_MAX_BOUNDS_KEPT ((uint64_t)1 << 22)
 /* The shadow side is built when at least 1 / TD_SUNLIT_LO_AHEAD of the upper bounds come
  * from terrain further on by more than a decay: low sun over relief, where rays from the
  * surface walk far (build_lo). Measured (callgrind, shadows stage with the build, M
@@ -263,20 +276,20 @@ out:
 }
 
 /* The finest shift from TD_SUNLIT_MIN_SHIFT up whose columns times strips number at most
- * TD_SUNLIT_MAX_BOUNDS for any sun (strips: at most the blocks across plus along, plus 4). */
-static int block_shift(const td_grid *g)
+ * max_bounds for any sun (strips: at most the blocks across plus along, plus 4). */
+static int block_shift(const td_grid *g, uint64_t max_bounds)
 {
     int shift = TD_SUNLIT_MIN_SHIFT;
     for (; shift < 30; shift++) {
         uint64_t bw = (uint64_t)((g->w - 2) >> shift) + 1, bh = (uint64_t)((g->h - 2) >> shift) + 1;
         uint64_t na = bw > bh ? bw : bh;
-        if (na * (bw + bh + 4) <= TD_SUNLIT_MAX_BOUNDS)
+        if (na * (bw + bh + 4) <= max_bounds)
             break;
     }
     return shift;
 }
 
-td_status td_sunlit_build(const td_view *v, const double sun[3], td_sunlit **out, td_err *err)
+td_status td_sunlit_build(const td_view *v, const double sun[3], int kept, td_sunlit **out, td_err *err)
 {
     td_status rc = TD_OK;
     const td_grid *g = v->grid;
@@ -286,7 +299,7 @@ td_status td_sunlit_build(const td_view *v, const double sun[3], td_sunlit **out
     *out = NULL;
     if (!(sun[2] > 0.0) || !(hs > 1e-9) || isnan(g->zmax) || g->w < 2 || g->h < 2)
         goto out; /* no bound: the sun at the zenith, below the horizon, or no terrain */
-    const int shift = block_shift(g);
+    const int shift = block_shift(g, kept ? TD_SUNLIT_MAX_BOUNDS_KEPT : TD_SUNLIT_MAX_BOUNDS);
     const int32_t S = (int32_t)1 << shift;
     const int32_t bw = ((g->w - 2) >> shift) + 1, bh = ((g->h - 2) >> shift) + 1;
     const double rx = fabs(sun[0]) / hs / g->sx, ry = fabs(sun[1]) / hs / g->sy; /* cells a metre */
@@ -304,7 +317,7 @@ td_status td_sunlit_build(const td_view *v, const double sun[3], td_sunlit **out
     const double q = w.del * w.sa; /* B's change per unit of A along the sun */
     const double lam0 = q > 0.0 ? -q * w.na : 0.0, lam1 = w.nb + (q < 0.0 ? -q * w.na : 0.0);
     const int32_t kmin = (int32_t)floor(lam0) - 1, nst = (int32_t)ceil(lam1) + 1 - kmin + 1;
-    size_t n = (size_t)bw * (size_t)bh, nh = (size_t)w.na * (size_t)nst; /* nh <= 2^21 */
+    size_t n = (size_t)bw * (size_t)bh, nh = (size_t)w.na * (size_t)nst; /* nh <= 2^22 */
     s = calloc(1, sizeof *s);
     bm = td_bigalloc((n + 3 * (size_t)nst + 3) * sizeof *bm);
     if (!s || !bm || !(s->h = td_bigalloc(nh * sizeof *s->h))) {

@@ -22,7 +22,8 @@
  * the bound of the <= 2 blocks a block's rays land in, a window one block wider with each
  * step: a far ridge raised the bound of a band as wide as it is far, and lit rays walked
  * on (sunlit.c has the figures). Blocks are 2 x 2 cells, or the next power of two up
- * that keeps the columns times strips to 2^21 (sunlit.c says why). A shadow ray whose
+ * that keeps the columns times strips to 2^21 (2^22 for a bound kept across renders:
+ * sunlit.c says why). A shadow ray whose
  * point is above its bound (with the walk's margin) is lit: td_occluded ends it there.
  * Sun at the zenith (no horizontal part) or below the horizon: no bound is built.
  *
@@ -66,8 +67,10 @@ typedef struct td_sunlit {
 } td_sunlit;
 
 /* Builds the bound for the view and the sun's unit direction; *out NULL (and TD_OK) when
- * the sun gives none. */
-td_status td_sunlit_build(const td_view *v, const double sun[3], td_sunlit **out, td_err *err);
+ * the sun gives none. `kept`: the bound will serve many renders (a server's), so its
+ * blocks may be finer (TD_SUNLIT_MAX_BOUNDS_KEPT in sunlit.c): a dearer build, cheaper
+ * shadow rays. */
+td_status td_sunlit_build(const td_view *v, const double sun[3], int kept, td_sunlit **out, td_err *err);
 void td_sunlit_free(td_sunlit *s);
 
 /* Whether s was built for exactly this sun (the same bits) and a grid of v's size. A

@@ -1565,7 +1565,7 @@ td_status td_snapshot_sunlit(td_snapshot *snap, const double sun[3], const td_su
         atomic_init(&mine->refs, 1);
         mine->version = snap->hv->version;
         memcpy(mine->sun, sun, sizeof mine->sun);
-        rc = td_sunlit_build(&snap->view, sun, &mine->lit, err);
+        rc = td_sunlit_build(&snap->view, sun, 1, &mine->lit, err);
         if (rc)
             goto out;
         mine->bytes = sizeof *mine + (mine->lit ? mine->lit->bytes : 0);

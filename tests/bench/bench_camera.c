@@ -145,7 +145,7 @@ static td_status keep_sun(void *ctx, const td_view *v, const double sun[3], cons
     if (!*kept) {
         td_sunlit_free(*k);
         *k = NULL;
-        rc = td_sunlit_build(v, sun, k, err);
+        rc = td_sunlit_build(v, sun, 1, k, err);
     }
     *out = *k;
     return rc;
@@ -289,7 +289,7 @@ static td_status cam_exact_shadows(cam_run *c, td_err *err)
     const size_t n = c->nsh[TD_SURFACE_TRIANGLE];
     const td_embree_ray *er = c->esh[TD_SURFACE_TRIANGLE];
     td_sunlit *lit = NULL;
-    td_status rc = n ? td_sunlit_build(&c->view, c->sh_tri[0].d, &lit, err) : TD_OK;
+    td_status rc = n ? td_sunlit_build(&c->view, c->sh_tri[0].d, 0, &lit, err) : TD_OK;
     if (rc)
         goto out;
     td_embree_occluded16(c->emb, er, n, c->occ);

@@ -125,7 +125,7 @@ static int measure(const td_view *v, const td_lod *lod, td_merc_proj *p, const s
     td_shade_sun_dir(row->az + 0.0, row->el, sp.sun);
     memset(f, 0, sizeof *f);
     f->tiles = nt;
-    if (row->kept && td_sunlit_build(v, sp.sun, &kept, &e))
+    if (row->kept && td_sunlit_build(v, sp.sun, 1, &kept, &e))
         goto fail;
     for (int r = 0; r < runs; r++) {
         double a = 0, b = 0, c = 0, rays = 0, steps = 0;
@@ -140,7 +140,7 @@ static int measure(const td_view *v, const td_lod *lod, td_merc_proj *p, const s
             t1 = td_clock_s();
             level = td_maptile_level(v->grid, lod, foot, sp.lod_pixels);
             if (sp.style == TD_MAPSTYLE_SHADED && sp.shadows && level == 0 && !kept &&
-                td_sunlit_build(v, sp.sun, &lit, &e))
+                td_sunlit_build(v, sp.sun, 0, &lit, &e))
                 goto fail;
             if (td_maptile_render(v, lod, level == 0 && kept ? kept : lit, &sp, xy, PX, foot, rgba, NULL, &st, &e))
                 goto fail;

@@ -187,7 +187,7 @@ static void check_shadows(const td_view *v, td_scene *sc, int curved, const run 
     fuzz_report("render with shadows", r1, e1.msg);
     if (r1 != r2 || (r1 == TD_OK && memcmp(on.rgba, off.rgba, (size_t)n * 4)))
         fail("shadows differ with the occlusion query and the sun bound");
-    if (r1 == TD_OK && td_sunlit_build(v, sun, &lit, &e1))
+    if (r1 == TD_OK && td_sunlit_build(v, sun, 0, &lit, &e1))
         fail("harness");
     for (int32_t k = 0; r1 == TD_OK && !curved && k < ns; k++) {
         td_hit h;

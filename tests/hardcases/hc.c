@@ -676,7 +676,7 @@ static td_sunlit *ray_sunlit(const hc_scene *sc, const td_ray *r, uint64_t k)
     double n = sqrt(r->d[0] * r->d[0] + r->d[1] * r->d[1] + r->d[2] * r->d[2]);
     if (k % 4 == 0 && r->d[2] > 0.0 && n > 0.0 && isfinite(n)) {
         double sun[3] = {r->d[0] / n, r->d[1] / n, r->d[2] / n};
-        td_sunlit_build(&sc->view, sun, &lit, NULL);
+        td_sunlit_build(&sc->view, sun, 0, &lit, NULL);
     }
     return lit;
 }

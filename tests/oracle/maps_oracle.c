@@ -69,7 +69,7 @@ static void run_tile(const td_view *v, const td_lod *lod, td_merc_proj *proj, co
     td_maptile_stats st;
     int exact = 0;
     if (td_merc_positions(proj, z, x, y, PX, t->xy, &exact, &t->foot, &e) ||
-        (spec->shadows && td_sunlit_build(v, spec->sun, &lit, &e)) ||
+        (spec->shadows && td_sunlit_build(v, spec->sun, 0, &lit, &e)) ||
         td_maptile_render(v, lod, lit, spec, t->xy, PX, t->foot, t->rgba, t->rays, &st, &e)) {
         fprintf(stderr, "oracle_maps: tile %d/%d/%d: %s\n", z, x, y, e.msg);
         exit(2);

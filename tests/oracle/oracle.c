@@ -597,7 +597,7 @@ static uint64_t camera_shadows(ctx *c, td_scene *sc, td_surface sf, td_ray *sh, 
     o.threads = 1;
     o.shadow_rays = sh;
     memset(&res, 0, sizeof res);
-    if (td_render(&c->view, sc, &o, &res, &err) || td_sunlit_build(&c->view, sun, &lit, &err)) {
+    if (td_render(&c->view, sc, &o, &res, &err) || td_sunlit_build(&c->view, sun, 0, &lit, &err)) {
         printf("ERROR shadows: %s\n", err.msg);
         errors++;
     }

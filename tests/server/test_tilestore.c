@@ -523,7 +523,7 @@ static void same_as_fresh(const td_snapshot *snap, const double sun[3], const td
     td_view plain = {td_snapshot_view(snap)->grid, NULL};
     td_sunlit *f = NULL;
     td_err e;
-    assert_int_equal(td_sunlit_build(&plain, sun, &f, &e), TD_OK);
+    assert_int_equal(td_sunlit_build(&plain, sun, 1, &f, &e), TD_OK);
     assert_non_null(f);
     assert_true(td_sunlit_fits(lit, &plain, sun));
     assert_int_equal(lit->na, f->na);
@@ -1049,7 +1049,7 @@ static void test_concurrent_snapshots(void **state)
     plain.accel = NULL;
     for (int k = 0; k < 2; k++) {
         sun_dir(250.0 + 40.0 * k, 12.0, sh->sun[k]);
-        assert_int_equal(td_sunlit_build(&plain, sh->sun[k], &sh->sun_ref[k], &e), TD_OK);
+        assert_int_equal(td_sunlit_build(&plain, sh->sun[k], 1, &sh->sun_ref[k], &e), TD_OK);
     }
     /* Room for 24 of the 64 tiles (preloads of 16 keep evicting each other) and the two
        suns' bounds. */

@@ -175,7 +175,7 @@ static void test_wall_shadow(void **state)
     td_shade_sun_dir(270.0, 30.0, sp.sun);
     sp.surface = TD_SURFACE_TRIANGLE;
     sp.method = TD_METHOD_INCREMENTAL;
-    assert_int_equal(td_sunlit_build(&v, sp.sun, &lit, NULL), TD_OK);
+    assert_int_equal(td_sunlit_build(&v, sp.sun, 0, &lit, NULL), TD_OK);
     lattice(xy, 215.0, 40.0, 15.0); /* x from 215 to 440 m along y = 40 .. -185 */
     assert_int_equal(td_maptile_render(&v, NULL, lit, &sp, xy, PX, 15.0, rgba, NULL, &st, NULL), TD_OK);
     for (int c = 0; c < PX; c++) {

@@ -590,13 +590,13 @@ static td_status keep_sun(void *ctx, const td_view *v, const double sun[3], cons
     *out = NULL;
     *kept = k->mode != 0;
     if (k->mode == 0) {
-        rc = td_sunlit_build(k->build_view ? k->build_view : v, sun, &k->lit, err);
+        rc = td_sunlit_build(k->build_view ? k->build_view : v, sun, 0, &k->lit, err);
         *out = k->lit;
     } else if (k->mode == 1) {
         *out = k->lit;
     } else if (k->mode == 2) {
         double other[3] = {sun[1], -sun[0], sun[2]}; /* turned a quarter: same elevation */
-        rc = td_sunlit_build(v, other, &k->other, err);
+        rc = td_sunlit_build(v, other, 0, &k->other, err);
         *out = k->other;
     }
     return rc;

@@ -4,7 +4,8 @@
  * block's bound sees the sun (td_trace finds nothing on the way); and td_occluded with
  * the bound answers as td_trace for rays from the surface, while taking fewer steps
  * than without it; with the blocks' maxima read from the max-mipmaps, from the samples,
- * and from a mix of both. */
+ * and from a mix of both; and a bound kept across renders, finer on a grid of trinidad's
+ * size, holds the same and ends rays sooner. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -71,18 +72,19 @@ static void check_min4(const td_grid *g, const td_accel *a)
     }
 }
 
-/* The bound's claims for one sun over grid g (with per-tile acceleration tiles, or NULL);
- * fewer: and that it saves steps. */
-static size_t check_sun(const td_grid *g, const td_tile_accel *tiles, const double sun[3], uint64_t *seed,
-                        int fewer)
+/* The bound's claims for one sun over grid g (with per-tile acceleration tiles, or NULL),
+ * built as td_sunlit_build's `kept` says into blocks of 2^shift cells; fewer: and that it
+ * saves steps (the steps with it added to *steps when not NULL). */
+static size_t check_sun_as(const td_grid *g, const td_tile_accel *tiles, const double sun[3], uint64_t *seed,
+                           int fewer, int kept, int shift, uint64_t *steps)
 {
     size_t below = 0; /* points the shadow side holds shadowed */
     td_view v = {g, tiles};
     td_sunlit *lit = NULL;
     uint64_t with = 0, without = 0;
-    assert_int_equal(td_sunlit_build(&v, sun, &lit, NULL), TD_OK);
+    assert_int_equal(td_sunlit_build(&v, sun, kept, &lit, NULL), TD_OK);
     assert_non_null(lit);
-    assert_int_equal(lit->shift, 1); /* the finest blocks for a grid this small: 2 x 2 cells */
+    assert_int_equal(lit->shift, shift);
     for (int32_t cj = 0; cj <= g->h - 2; cj++) /* every point's bound, that of its strip and */
         for (int32_t ci = 0; ci <= g->w - 2; ci++) { /* column, is at least its cell's top */
             double u = ci + rnd(seed), w = cj + rnd(seed), bound = td_sunlit_at(lit, u, w);
@@ -113,9 +115,15 @@ static size_t check_sun(const td_grid *g, const td_tile_accel *tiles, const doub
         r.o[2] = ground + 0.5; /* from just above the surface: the same answer, fewer steps */
         ptrdiff_t sk = td_sunlit_strip(lit, x / g->sx, y / g->sy);
         if (lit->lo && sk >= 0 && r.o[2] < td_sunlit_lo(lit, sk, ci, cj) - 1e-3) {
-            /* below the shadow side: every surface under the point meets the ray */
+            /* below the shadow side: every surface under the point meets the ray (not the
+               linear surface, whose height under a point depends on the ray: td_surface_height
+               gives the bilinear patch's, and a point 0.5 m above that may be under the
+               linear surface along the sun, where the ray meets nothing; td_occluded takes it
+               along the ray, and the checks below hold it to td_trace) */
             for (int s = 0; s < TD_SURFACE_COUNT; s++) {
                 double under = td_surface_height(g, (td_surface)s, ci, cj, x, y);
+                if (s == TD_SURFACE_LINEAR)
+                    continue;
                 td_trace(&v, TD_METHOD_INCREMENTAL, (td_surface)s, &r, &h);
                 if (s == TD_SURFACE_PLANE || (!isnan(under) && r.o[2] > under + 1e-3))
                     assert_true(h.t < INFINITY);
@@ -132,8 +140,18 @@ static size_t check_sun(const td_grid *g, const td_tile_accel *tiles, const doub
     }
     if (fewer) /* the walks the bound ends outweigh its checks */
         assert_true(with < without);
+    if (steps)
+        *steps += with;
     td_sunlit_free(lit);
     return below;
+}
+
+/* check_sun_as for the grids of these tests, small enough that even a render's own bound
+ * takes the finest blocks: 2 x 2 cells */
+static size_t check_sun(const td_grid *g, const td_tile_accel *tiles, const double sun[3], uint64_t *seed,
+                        int fewer)
+{
+    return check_sun_as(g, tiles, sun, seed, fewer, 0, 1, NULL);
 }
 
 static void test_sunlit_bounds(void **state)
@@ -165,6 +183,31 @@ static void test_sunlit_bounds(void **state)
     }
     assert_true(below > 100); /* the low suns' shadow side holds points (and the voids') */
     free(some);
+    td_accel_free(a);
+    td_grid_free(g);
+}
+
+/* A bound kept across renders (td_sunlit_build's `kept`) on a grid of trinidad's size,
+ * 2401 x 1201, where a render's own bound takes 4 x 4-cell blocks to stay within its cap:
+ * the kept one takes 2 x 2, its claims hold the same (check_sun_as: every block's bound
+ * over its cells' tops, nothing above it on the way, td_occluded as td_trace), and its
+ * shadow rays walk fewer cells. */
+static void test_sunlit_kept_finer(void **state)
+{
+    static const double suns[][2] = {{250, 12}, {40, 35}};
+    uint64_t seed = 777;
+    (void)state;
+    td_grid *g = terrain(2401, 1201, 30.0, 8);
+    td_accel *a = accel(g, 2);
+    for (size_t k = 0; k < sizeof suns / sizeof suns[0]; k++) {
+        double sun[3];
+        uint64_t coarse = 0, fine = 0, s0 = seed, s1 = seed;
+        sun_of(suns[k][0], suns[k][1], sun);
+        check_sun_as(g, a->tiles, sun, &s0, 1, 0, 2, &coarse);
+        check_sun_as(g, a->tiles, sun, &s1, 1, 1, 1, &fine); /* the same points and rays */
+        assert_true(fine < coarse);
+        seed = s1;
+    }
     td_accel_free(a);
     td_grid_free(g);
 }
@@ -201,8 +244,8 @@ static void test_sunlit_without_minima(void **state)
     sun_of(250.0, 3.0, sun); /* low over relief: the full build's bound has a shadow side */
     td_view v1 = {g, with->tiles}, v0 = {g, without->tiles};
     td_sunlit *l1 = NULL, *l0 = NULL;
-    assert_int_equal(td_sunlit_build(&v1, sun, &l1, NULL), TD_OK);
-    assert_int_equal(td_sunlit_build(&v0, sun, &l0, NULL), TD_OK);
+    assert_int_equal(td_sunlit_build(&v1, sun, 0, &l1, NULL), TD_OK);
+    assert_int_equal(td_sunlit_build(&v0, sun, 0, &l0, NULL), TD_OK);
     assert_non_null(l1->lo);
     assert_null(l0->lo);
     td_sunlit_free(l1);
@@ -255,7 +298,7 @@ static void test_sunlit_strips(void **state)
     td_view v = {g, NULL};
     sun_of(80.0, 5.0, sun); /* toward the east, 10 degrees north of it, 5 degrees up */
     td_sunlit *lit = NULL;
-    assert_int_equal(td_sunlit_build(&v, sun, &lit, NULL), TD_OK);
+    assert_int_equal(td_sunlit_build(&v, sun, 0, &lit, NULL), TD_OK);
     assert_non_null(lit);
     const double tan5 = tan(5.0 * M_PI / 180.0), drift = sun[1] / sun[0]; /* cells north per cell east */
     int raised = 0;
@@ -288,10 +331,10 @@ static void test_sunlit_none(void **state)
     p.height = 40;
     assert_int_equal(td_terrain_generate(&p, 4, &g, NULL), TD_OK);
     td_view v = {g, NULL};
-    assert_int_equal(td_sunlit_build(&v, up, &lit, NULL), TD_OK);
+    assert_int_equal(td_sunlit_build(&v, up, 0, &lit, NULL), TD_OK);
     assert_null(lit);
     lit = (td_sunlit *)1;
-    assert_int_equal(td_sunlit_build(&v, down, &lit, NULL), TD_OK);
+    assert_int_equal(td_sunlit_build(&v, down, 0, &lit, NULL), TD_OK);
     assert_null(lit);
     td_grid_free(g);
 }
@@ -303,6 +346,7 @@ int main(void)
         cmocka_unit_test(test_sunlit_small_tiles),
         cmocka_unit_test(test_sunlit_without_minima),
         cmocka_unit_test(test_sunlit_strips),
+        cmocka_unit_test(test_sunlit_kept_finer),
         cmocka_unit_test(test_sunlit_none),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -683,7 +683,7 @@ static void occluded_packets(void)
         double az = suns[si][0] * M_PI / 180.0, el = suns[si][1] * M_PI / 180.0;
         double d[3] = {sin(az) * cos(el), cos(az) * cos(el), sin(el)};
         td_sunlit *lit = NULL;
-        assert_int_equal(td_sunlit_build(&v, d, &lit, NULL), TD_OK);
+        assert_int_equal(td_sunlit_build(&v, d, 0, &lit, NULL), TD_OK);
         assert_non_null(lit);
         for (int k = 0; k < N; k++) {
             double x = (g->w - 1) * g->sx * rnd(&seed), y = (g->h - 1) * g->sy * rnd(&seed), z = NAN;
@@ -850,7 +850,7 @@ static int shadow_rays_agree(const td_grid *g, double az, double el, const doubl
                            cos(az * M_PI / 180.0) * cos(el * M_PI / 180.0), sin(el * M_PI / 180.0)};
     td_sunlit *lit = NULL;
     int lit_rays = 0;
-    assert_int_equal(td_sunlit_build(&v, sun, &lit, NULL), TD_OK);
+    assert_int_equal(td_sunlit_build(&v, sun, 0, &lit, NULL), TD_OK);
     assert_non_null(lit);
     assert_non_null(lit->lo);
     for (int sf = 0; sf < TD_SURFACE_COUNT; sf++)
