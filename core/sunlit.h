@@ -22,8 +22,8 @@
  * the bound of the <= 2 blocks a block's rays land in, a window one block wider with each
  * step: a far ridge raised the bound of a band as wide as it is far, and lit rays walked
  * on (sunlit.c has the figures). Blocks are 2 x 2 cells, or the next power of two up
- * that keeps the columns times strips to 2^21 (2^22 for a bound kept across renders:
- * sunlit.c says why). A shadow ray whose
+ * that keeps the columns times strips to 2^21 (for a bound kept across renders: from
+ * blocks of one cell up, within 2^22; sunlit.c says why). A shadow ray whose
  * point is above its bound (with the walk's margin) is lit: td_occluded ends it there.
  * Sun at the zenith (no horizontal part) or below the horizon: no bound is built.
  *

@@ -180,6 +180,8 @@ static void test_sunlit_bounds(void **state)
         sun_of(suns[k][0], suns[k][1], sun);
         below += check_sun(g, a->tiles, sun, &seed, 1);
         check_sun(g, k % 2 ? NULL : some, sun, &seed, 1);
+        /* kept across renders: blocks of one cell on a grid this small */
+        below += check_sun_as(g, k % 2 ? a->tiles : some, sun, &seed, 1, 1, 0, NULL);
     }
     assert_true(below > 100); /* the low suns' shadow side holds points (and the voids') */
     free(some);
