@@ -145,7 +145,7 @@ static size_t filter_sub(const void *pixels, int32_t width, int32_t height, int 
     return zeros;
 }
 
-/* The image data's zlib stream (libdeflate, level 1) of a non-flat image: *z (malloc'd,
+/* The image data's zlib stream (libdeflate, level 1 or 2) of a non-flat image: *z (malloc'd,
  * *zlen bytes), or TD_ENOMEM / TD_ERANGE. */
 static td_status deflate_image(const void *pixels, int32_t width, int32_t height, int bit_depth,
                                int channels, size_t rowbytes, uint8_t **z, size_t *zlen, td_err *err)
