@@ -57,7 +57,12 @@
  * the bench views of picos (714 x 482) level 2.35 -> 1.97 ms, rolled 7.84 -> 7.00,
  * straight down 12.15 -> 9.30, and of levi level 3.39 -> 2.92, rolled 4.91 -> 4.34,
  * straight down 8.42 -> 7.02; the grazing sunsets, whose rays end at once (surely
- * shadowed or lit), within 3%. Picos's kept bound is then 3.4 MB, an SRTM tile's 11.5. */
+ * shadowed or lit), within 3%. Picos's kept bound is then 3.4 MB, an SRTM tile's 11.5.
+ * The price is the first render with a sun, which builds the kept bound (best of 15):
+ * trinidad 0.45 -> 3.14 ms (sun 80/35) and 0.91 -> 6.38 ms (258/3), picos 0.21 -> 0.80
+ * and 0.41 -> 2.10, an SRTM tile 2.18 -> 5.36 (315/45), the demo data 0.18 -> 0.70 and
+ * 0.18 -> 1.40; repaid after one to a few renders of the same sun where shadow rays walk
+ * (trinidad straight down, picos), after about ten on trinidad's level view. */
 #define TD_SUNLIT_MAX_BOUNDS_KEPT ((uint64_t)1 << 22)
 #define TD_SUNLIT_MIN_SHIFT_KEPT 0
 /* The shadow side is built when at least 1 / TD_SUNLIT_LO_AHEAD of the upper bounds come
