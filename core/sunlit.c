@@ -62,7 +62,9 @@
  * trinidad 0.45 -> 3.14 ms (sun 80/35) and 0.91 -> 6.38 ms (258/3), picos 0.21 -> 0.80
  * and 0.41 -> 2.10, an SRTM tile 2.18 -> 5.36 (315/45), the demo data 0.18 -> 0.70 and
  * 0.18 -> 1.40; repaid after one to a few renders of the same sun where shadow rays walk
- * (trinidad straight down, picos), after about ten on trinidad's level view. */
+ * (trinidad straight down, picos), after about ten on trinidad's level view. So the
+ * server keeps a render's own bound at a sun's first use and builds the finer one at its
+ * second (td_snapshot_sunlit): a sun used once costs no more than before. */
 #define TD_SUNLIT_MAX_BOUNDS_KEPT ((uint64_t)1 << 22)
 #define TD_SUNLIT_MIN_SHIFT_KEPT 0
 /* The shadow side is built when at least 1 / TD_SUNLIT_LO_AHEAD of the upper bounds come
@@ -312,6 +314,12 @@ static int block_shift(const td_grid *g, int min_shift, uint64_t max_bounds)
             break;
     }
     return shift;
+}
+
+int td_sunlit_kept_finer(const td_grid *g)
+{
+    return block_shift(g, TD_SUNLIT_MIN_SHIFT_KEPT, TD_SUNLIT_MAX_BOUNDS_KEPT) <
+           block_shift(g, TD_SUNLIT_MIN_SHIFT, TD_SUNLIT_MAX_BOUNDS);
 }
 
 td_status td_sunlit_build(const td_view *v, const double sun[3], int kept, td_sunlit **out, td_err *err)

@@ -73,6 +73,10 @@ typedef struct td_sunlit {
 td_status td_sunlit_build(const td_view *v, const double sun[3], int kept, td_sunlit **out, td_err *err);
 void td_sunlit_free(td_sunlit *s);
 
+/* Whether a kept bound (td_sunlit_build's `kept`) of grid g takes finer blocks than a
+ * render's own: else the two are the same bound. */
+int td_sunlit_kept_finer(const td_grid *g);
+
 /* Whether s was built for exactly this sun (the same bits) and a grid of v's size. A
  * bound holds for every view of the heights it was built from (it bounds the terrain,
  * whatever structures the view holds), so a server may keep one across renders of the

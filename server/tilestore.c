@@ -111,6 +111,8 @@ typedef struct td_sunkeep {
     uint64_t version;        /* of the heights it was built from */
     double sun[3];
     td_sunlit *lit;          /* NULL: the sun gives none */
+    int fine;                /* as fine as a kept bound (td_sunlit_build's kept): a sun used
+                                before, or a grid whose kept bound is no finer; or NULL lit */
     uint64_t bytes;
 } td_sunkeep;
 
@@ -1544,7 +1546,7 @@ td_status td_snapshot_sunlit(td_snapshot *snap, const double sun[3], const td_su
     td_status rc = TD_OK;
     td_store *s = snap->store;
     td_ds *d = &s->ds[snap->ds];
-    td_sunkeep *k, *mine = NULL;
+    td_sunkeep *k, *had, *mine = NULL;
 
     *out = NULL;
     *kept = 0;
@@ -1552,11 +1554,13 @@ td_status td_snapshot_sunlit(td_snapshot *snap, const double sun[3], const td_su
     k = sun_find_locked(d, snap->hv->version, sun);
     s->sun_kept += k != NULL;
     pthread_mutex_unlock(&s->mu);
-    if (k) {
+    had = k && !k->fine ? k : NULL; /* a render's bound kept from the sun's first use */
+    if (k && !had) {
         *kept = 1;
     } else {
-        /* built without the lock on this snapshot's view; a render that built it
-         * meanwhile wins */
+        /* built without the lock on this snapshot's view: a sun's first use takes a
+           render's own bound (cheap), its second the finer one kept bounds may take
+           (sunlit.c), which replaces it; a render that built as fine a one meanwhile wins */
         mine = calloc(1, sizeof *mine);
         if (!mine) {
             rc = td_err_set(err, TD_ENOMEM, "out of memory for a sun bound");
@@ -1564,19 +1568,27 @@ td_status td_snapshot_sunlit(td_snapshot *snap, const double sun[3], const td_su
         }
         atomic_init(&mine->refs, 1);
         mine->version = snap->hv->version;
+        mine->fine = had != NULL || !td_sunlit_kept_finer(snap->view.grid);
         memcpy(mine->sun, sun, sizeof mine->sun);
-        rc = td_sunlit_build(&snap->view, sun, 1, &mine->lit, err);
+        rc = td_sunlit_build(&snap->view, sun, mine->fine, &mine->lit, err);
         if (rc)
             goto out;
         mine->bytes = sizeof *mine + (mine->lit ? mine->lit->bytes : 0);
         pthread_mutex_lock(&s->mu);
         s->sun_built++;
-        k = sun_find_locked(d, snap->hv->version, sun);
+        k = sun_find_locked(d, snap->hv->version, sun); /* at the front when found */
+        if (k && k->fine < mine->fine) { /* the coarse one goes */
+            sun_drop_locked(s, d, &d->suns);
+            sunkeep_unref(k);
+            k = NULL;
+        }
         if (!k) {
             k = mine;
             mine = NULL;
             if (k->lit && d->cur->version == k->version) /* a bound, of the heights now */
                 sun_keep_locked(s, d, k);
+        } else {
+            *kept = 1;
         }
         pthread_mutex_unlock(&s->mu);
     }
@@ -1584,6 +1596,7 @@ td_status td_snapshot_sunlit(td_snapshot *snap, const double sun[3], const td_su
     snap->sun = k;
     *out = k->lit;
 out:
+    sunkeep_unref(had);
     sunkeep_unref(mine);
     return rc;
 }

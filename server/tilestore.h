@@ -200,7 +200,9 @@ td_status td_snapshot_drape(td_snapshot *snap, const char *path, const td_image8
 /* The sun bound (sunlit.h) of the snapshot's heights for the sun's unit direction, held
  * by the snapshot until its release (one per snapshot: a second call drops the first
  * one's reference): built on the first use of those heights with that sun (the same
- * bits), and kept with the dataset, the last TD_STORE_SUNS suns (tilestore.c), counted
+ * bits) as a render builds its own, again at the second use as a kept bound, finer where
+ * the grid allows (td_sunlit_kept_finer: dearer to build, cheaper rays; sunlit.c), and
+ * kept with the dataset, the last TD_STORE_SUNS suns (tilestore.c), counted
  * in the budget (when it does not fit without evicting acceleration, this snapshot alone
  * keeps it); an edit's new heights
  * start afresh. *out NULL for a sun that gives none; *kept 1 when it was not built by this

@@ -517,13 +517,14 @@ static void sun_dir(double az, double el, double d[3])
     d[2] = sin(e);
 }
 
-/* The bound equals a fresh build on the snapshot's heights without any structure. */
-static void same_as_fresh(const td_snapshot *snap, const double sun[3], const td_sunlit *lit)
+/* The bound equals a fresh build on the snapshot's heights without any structure, as a
+ * render's own bound (fine 0) or as a kept one (fine 1). */
+static void same_as_fresh(const td_snapshot *snap, const double sun[3], const td_sunlit *lit, int fine)
 {
     td_view plain = {td_snapshot_view(snap)->grid, NULL};
     td_sunlit *f = NULL;
     td_err e;
-    assert_int_equal(td_sunlit_build(&plain, sun, 1, &f, &e), TD_OK);
+    assert_int_equal(td_sunlit_build(&plain, sun, fine, &f, &e), TD_OK);
     assert_non_null(f);
     assert_true(td_sunlit_fits(lit, &plain, sun));
     assert_int_equal(lit->na, f->na);
@@ -556,18 +557,30 @@ static void test_sun_bounds(void **state)
     assert_int_equal(td_store_add_grid(s, "t", "api", g, &e), TD_OK);
     assert_int_equal(td_store_add_grid(tight, "t", "api", g2, &e), TD_OK);
     assert_int_equal(td_store_acquire(s, "t", &a, &e), TD_OK);
+    assert_true(td_sunlit_kept_finer(g));
     assert_int_equal(td_snapshot_sunlit(a, sun[0], &la, &kept, &e), TD_OK);
     assert_non_null(la);
     assert_int_equal(kept, 0);
-    same_as_fresh(a, sun[0], la);
+    same_as_fresh(a, sun[0], la, 0); /* a sun's first use: a render's own bound */
+    const int coarse = la->shift; /* (la is gone once a releases it and the finer replaces it) */
     td_store_stats_get(s, &st);
     assert_int_equal(st.sun_built, 1);
     assert_int_equal(st.sun_kept, 0);
     assert_true(st.sun_bytes >= la->bytes);
     assert_int_equal(st.resident_bytes, gb + st.sun_bytes);
-    /* kept: the next snapshot with that sun takes it, also after the first released it */
+    /* its second use, also after the first snapshot released it: the finer kept bound
+       replaces it; the third takes that one */
     td_snapshot_release(a);
     assert_int_equal(td_store_acquire(s, "t", &b, &e), TD_OK);
+    assert_int_equal(td_snapshot_sunlit(b, sun[0], &lb, &kept, &e), TD_OK);
+    assert_int_equal(kept, 0);
+    same_as_fresh(b, sun[0], lb, 1);
+    assert_true(lb->shift < coarse);
+    td_store_stats_get(s, &st);
+    assert_int_equal(st.sun_built, 2);
+    assert_int_equal(st.sun_kept, 1);
+    assert_true(st.sun_bytes >= lb->bytes && st.sun_bytes < lb->bytes + 1024); /* the coarse one dropped */
+    la = lb;
     assert_int_equal(td_snapshot_sunlit(b, sun[0], &lb, &kept, &e), TD_OK);
     assert_ptr_equal(lb, la);
     assert_int_equal(kept, 1);
@@ -580,16 +593,22 @@ static void test_sun_bounds(void **state)
     for (int k = 1; k < 5; k++) {
         assert_int_equal(td_snapshot_sunlit(b, sun[k], &lb, &kept, &e), TD_OK);
         assert_int_equal(kept, 0);
-        same_as_fresh(b, sun[k], lb);
+        same_as_fresh(b, sun[k], lb, 0);
         bytes[k] = lb->bytes;
     }
+    assert_int_equal(td_snapshot_sunlit(b, sun[4], &lb, &kept, &e), TD_OK); /* its second use */
+    assert_int_equal(kept, 0);
+    same_as_fresh(b, sun[4], lb, 1);
+    bytes[4] = lb->bytes;
     assert_int_equal(td_snapshot_sunlit(b, sun[4], &lb, &kept, &e), TD_OK);
     assert_int_equal(kept, 1);
-    assert_int_equal(td_snapshot_sunlit(b, sun[0], &la, &kept, &e), TD_OK);
+    assert_int_equal(td_snapshot_sunlit(b, sun[0], &la, &kept, &e), TD_OK); /* dropped: anew */
     assert_int_equal(kept, 0);
+    same_as_fresh(b, sun[0], la, 0);
+    bytes[0] = la->bytes;
     td_store_stats_get(s, &st);
-    assert_int_equal(st.sun_kept, 2);
-    assert_int_equal(st.sun_built, 7);
+    assert_int_equal(st.sun_kept, 4);
+    assert_int_equal(st.sun_built, 9); /* and the sun below the horizon */
     {
         size_t want = bytes[0] + bytes[2] + bytes[3] + bytes[4]; /* and four small records */
         assert_true(st.sun_bytes >= want && st.sun_bytes < want + 4096);
@@ -605,16 +624,16 @@ static void test_sun_bounds(void **state)
     td_store_stats_get(s, &st);
     assert_int_equal(st.sun_bytes, 0);
     assert_int_equal(st.resident_bytes, gb);
-    same_as_fresh(b, sun[0], la); /* still b's, of the old heights */
+    same_as_fresh(b, sun[0], la, 0); /* still b's, of the old heights */
     assert_int_equal(td_store_acquire(s, "t", &c, &e), TD_OK);
     assert_int_equal(td_snapshot_sunlit(c, sun[0], &lc, &kept, &e), TD_OK);
     assert_int_equal(kept, 0);
-    same_as_fresh(c, sun[0], lc);
+    same_as_fresh(c, sun[0], lc, 0);
     assert_true(memcmp(lc->h, la->h, (size_t)la->na * (size_t)la->nst * sizeof *la->h) != 0);
     /* a snapshot of the old heights asking again builds (and does not keep) its own */
     assert_int_equal(td_snapshot_sunlit(b, sun[1], &lb, &kept, &e), TD_OK);
     assert_int_equal(kept, 0);
-    same_as_fresh(b, sun[1], lb);
+    same_as_fresh(b, sun[1], lb, 0);
     td_store_info(s, 0, &di);
     td_store_stats_get(s, &st);
     assert_int_equal(st.resident_bytes, gb + st.sun_bytes);
@@ -630,7 +649,7 @@ static void test_sun_bounds(void **state)
     assert_int_equal(td_snapshot_sunlit(c, sun[0], &lc, &kept, &e), TD_OK);
     assert_int_equal(kept, 0);
     assert_ptr_not_equal(la, lc);
-    same_as_fresh(c, sun[0], lc);
+    same_as_fresh(c, sun[0], lc, 0);
     td_store_stats_get(tight, &st);
     assert_int_equal(st.sun_bytes, 0);
     assert_int_equal(st.resident_bytes, gb);
@@ -1085,10 +1104,11 @@ static void test_concurrent_snapshots(void **state)
         const td_sunlit *lit = NULL;
         int kept = 1;
         assert_int_equal(td_store_acquire(sh->s, "t", &snap, &e), TD_OK);
-        for (int k = 0; k < 2; k++) {
-            assert_int_equal(td_snapshot_sunlit(snap, sh->sun[k], &lit, &kept, &e), TD_OK);
-            assert_int_equal(kept, 0);
-        }
+        for (int k = 0; k < 2; k++)
+            for (int use = 0; use < 2; use++) { /* the second use builds the finer bound */
+                assert_int_equal(td_snapshot_sunlit(snap, sh->sun[k], &lit, &kept, &e), TD_OK);
+                assert_int_equal(kept, 0);
+            }
         td_snapshot_release(snap);
     }
     for (int i = 0; i < 2; i++)
@@ -1121,7 +1141,7 @@ static void test_concurrent_snapshots(void **state)
         td_store_stats st;
         td_store_stats_get(sh->s, &st);
         print_message("  sun bounds: %llu kept, %llu built, %llu bytes\n", (unsigned long long)st.sun_kept, (unsigned long long)st.sun_built, (unsigned long long)st.sun_bytes);
-        assert_true(st.sun_kept > 0 && st.sun_built == 2 && st.sun_bytes > 0);
+        assert_true(st.sun_kept > 0 && st.sun_built == 4 && st.sun_bytes > 0);
     }
     td_sunlit_free(sh->sun_ref[0]);
     td_sunlit_free(sh->sun_ref[1]);
