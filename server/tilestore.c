@@ -111,8 +111,9 @@ typedef struct td_sunkeep {
     uint64_t version;        /* of the heights it was built from */
     double sun[3];
     td_sunlit *lit;          /* NULL: the sun gives none */
-    int fine;                /* as fine as a kept bound (td_sunlit_build's kept): a sun used
-                                before, or a grid whose kept bound is no finer; or NULL lit */
+    atomic_int fine;         /* as fine as a kept bound (td_sunlit_build's kept): a sun used
+                                before, or a grid whose kept bound is no finer; or set on a
+                                coarse one that the budget has no room to replace */
     uint64_t bytes;
 } td_sunkeep;
 
@@ -1554,7 +1555,8 @@ td_status td_snapshot_sunlit(td_snapshot *snap, const double sun[3], const td_su
     k = sun_find_locked(d, snap->hv->version, sun);
     s->sun_kept += k != NULL;
     pthread_mutex_unlock(&s->mu);
-    had = k && !k->fine ? k : NULL; /* a render's bound kept from the sun's first use */
+    /* a render's bound kept from the sun's first use */
+    had = k && !atomic_load_explicit(&k->fine, memory_order_relaxed) ? k : NULL;
     if (k && !had) {
         *kept = 1;
     } else {
@@ -1566,26 +1568,35 @@ td_status td_snapshot_sunlit(td_snapshot *snap, const double sun[3], const td_su
             rc = td_err_set(err, TD_ENOMEM, "out of memory for a sun bound");
             goto out;
         }
+        const int fine = had != NULL || !td_sunlit_kept_finer(snap->view.grid);
         atomic_init(&mine->refs, 1);
+        atomic_init(&mine->fine, fine);
         mine->version = snap->hv->version;
-        mine->fine = had != NULL || !td_sunlit_kept_finer(snap->view.grid);
         memcpy(mine->sun, sun, sizeof mine->sun);
-        rc = td_sunlit_build(&snap->view, sun, mine->fine, &mine->lit, err);
+        rc = td_sunlit_build(&snap->view, sun, fine, &mine->lit, err);
         if (rc)
             goto out;
         mine->bytes = sizeof *mine + (mine->lit ? mine->lit->bytes : 0);
         pthread_mutex_lock(&s->mu);
         s->sun_built++;
         k = sun_find_locked(d, snap->hv->version, sun); /* at the front when found */
-        if (k && k->fine < mine->fine) { /* the coarse one goes */
-            sun_drop_locked(s, d, &d->suns);
+        int keep = 1;
+        if (k && fine && !atomic_load_explicit(&k->fine, memory_order_relaxed)) {
+            /* the coarse one goes where the budget has room for the finer (which
+               sun_keep_locked keeps); else it stays, this snapshot alone has the finer,
+               and no later use builds again */
+            keep = s->resident_bytes - k->bytes + mine->bytes <= s->o.budget_bytes;
+            if (keep)
+                sun_drop_locked(s, d, &d->suns);
+            else
+                atomic_store_explicit(&k->fine, 1, memory_order_relaxed);
             sunkeep_unref(k);
             k = NULL;
         }
         if (!k) {
             k = mine;
             mine = NULL;
-            if (k->lit && d->cur->version == k->version) /* a bound, of the heights now */
+            if (keep && k->lit && d->cur->version == k->version) /* a bound, of the heights now */
                 sun_keep_locked(s, d, k);
         } else {
             *kept = 1;

@@ -655,6 +655,40 @@ static void test_sun_bounds(void **state)
     assert_int_equal(st.resident_bytes, gb);
     td_snapshot_release(a);
     td_snapshot_release(c);
+
+    /* room for a sun's first bound but not for its finer one: the second use builds the
+       finer for its snapshot alone, the first stays kept, and later uses take it without
+       building again */
+    {
+        td_grid *g3 = terrain(17);
+        td_view plain = {g3, NULL};
+        td_sunlit *f = NULL;
+        const td_sunlit *l0 = NULL, *l1 = NULL;
+        assert_int_equal(td_sunlit_build(&plain, sun[0], 0, &f, &e), TD_OK);
+        td_store *mid = store_new(dataset_bytes(g3) + f->bytes + 4096, NULL);
+        td_sunlit_free(f);
+        assert_int_equal(td_store_add_grid(mid, "t", "api", g3, &e), TD_OK);
+        assert_int_equal(td_store_acquire(mid, "t", &a, &e), TD_OK);
+        assert_int_equal(td_snapshot_sunlit(a, sun[0], &l0, &kept, &e), TD_OK);
+        assert_int_equal(kept, 0);
+        td_store_stats_get(mid, &st);
+        assert_true(st.sun_bytes >= l0->bytes); /* kept */
+        assert_int_equal(td_snapshot_sunlit(a, sun[0], &l1, &kept, &e), TD_OK);
+        assert_int_equal(kept, 0);
+        same_as_fresh(a, sun[0], l1, 1);
+        td_store_stats_get(mid, &st);
+        assert_int_equal(st.sun_built, 2);
+        assert_true(st.sun_bytes >= l0->bytes && st.sun_bytes < l0->bytes + 1024); /* the first, still */
+        for (int k = 0; k < 2; k++) {
+            assert_int_equal(td_snapshot_sunlit(a, sun[0], &l1, &kept, &e), TD_OK);
+            assert_int_equal(kept, 1);
+            assert_ptr_equal(l1, l0);
+        }
+        td_store_stats_get(mid, &st);
+        assert_int_equal(st.sun_built, 2);
+        td_snapshot_release(a);
+        td_store_free(mid);
+    }
     td_store_free(s);
     td_store_free(tight);
 }
