@@ -1553,10 +1553,10 @@ td_status td_snapshot_sunlit(td_snapshot *snap, const double sun[3], const td_su
     *kept = 0;
     pthread_mutex_lock(&s->mu);
     k = sun_find_locked(d, snap->hv->version, sun);
-    s->sun_kept += k != NULL;
-    pthread_mutex_unlock(&s->mu);
     /* a render's bound kept from the sun's first use */
     had = k && !atomic_load_explicit(&k->fine, memory_order_relaxed) ? k : NULL;
+    s->sun_kept += k && !had; /* (the counters as the answers' X-Terrad-Sun-Bound) */
+    pthread_mutex_unlock(&s->mu);
     if (k && !had) {
         *kept = 1;
     } else {
@@ -1600,6 +1600,7 @@ td_status td_snapshot_sunlit(td_snapshot *snap, const double sun[3], const td_su
                 sun_keep_locked(s, d, k);
         } else {
             *kept = 1;
+            s->sun_kept++;
         }
         pthread_mutex_unlock(&s->mu);
     }
