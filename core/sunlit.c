@@ -316,11 +316,14 @@ static int block_shift(const td_grid *g, int min_shift, uint64_t max_bounds)
     return shift;
 }
 
-int td_sunlit_kept_finer(const td_grid *g)
+/* The blocks' shift of a kept bound (td_sunlit_build's kept) or of a render's own */
+static int bound_shift(const td_grid *g, int kept)
 {
-    return block_shift(g, TD_SUNLIT_MIN_SHIFT_KEPT, TD_SUNLIT_MAX_BOUNDS_KEPT) <
-           block_shift(g, TD_SUNLIT_MIN_SHIFT, TD_SUNLIT_MAX_BOUNDS);
+    return kept ? block_shift(g, TD_SUNLIT_MIN_SHIFT_KEPT, TD_SUNLIT_MAX_BOUNDS_KEPT)
+                : block_shift(g, TD_SUNLIT_MIN_SHIFT, TD_SUNLIT_MAX_BOUNDS);
 }
+
+int td_sunlit_kept_finer(const td_grid *g) { return bound_shift(g, 1) < bound_shift(g, 0); }
 
 td_status td_sunlit_build(const td_view *v, const double sun[3], int kept, td_sunlit **out, td_err *err)
 {
@@ -332,8 +335,7 @@ td_status td_sunlit_build(const td_view *v, const double sun[3], int kept, td_su
     *out = NULL;
     if (!(sun[2] > 0.0) || !(hs > 1e-9) || isnan(g->zmax) || g->w < 2 || g->h < 2)
         goto out; /* no bound: the sun at the zenith, below the horizon, or no terrain */
-    const int shift = kept ? block_shift(g, TD_SUNLIT_MIN_SHIFT_KEPT, TD_SUNLIT_MAX_BOUNDS_KEPT)
-                           : block_shift(g, TD_SUNLIT_MIN_SHIFT, TD_SUNLIT_MAX_BOUNDS);
+    const int shift = bound_shift(g, kept);
     const int32_t S = (int32_t)1 << shift;
     const int32_t bw = ((g->w - 2) >> shift) + 1, bh = ((g->h - 2) >> shift) + 1;
     const double rx = fabs(sun[0]) / hs / g->sx, ry = fabs(sun[1]) / hs / g->sy; /* cells a metre */

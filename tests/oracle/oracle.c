@@ -581,7 +581,9 @@ static uint64_t par_shadows(ctx *c, td_surface sf, const td_ray *sh, int n, cons
 
 /* The shadow rays of a colour render of the view (png, shadows on): td_occluded with the
  * render's sun bound answers as td_trace, whose hit is judged against the reference, and
- * so does the render's batched query (par_shadows). */
+ * so does the render's batched query (par_shadows); the same again with the finer bound a
+ * server keeps across renders (td_sunlit_build's `kept`) where the grid's blocks differ
+ * (td_sunlit_kept_finer: every test DEM but the largest). */
 static uint64_t camera_shadows(ctx *c, td_scene *sc, td_surface sf, td_ray *sh, uint64_t *count)
 {
     td_render_opts o;
@@ -597,28 +599,35 @@ static uint64_t camera_shadows(ctx *c, td_scene *sc, td_surface sf, td_ray *sh, 
     o.threads = 1;
     o.shadow_rays = sh;
     memset(&res, 0, sizeof res);
-    if (td_render(&c->view, sc, &o, &res, &err) || td_sunlit_build(&c->view, sun, 0, &lit, &err)) {
+    if (td_render(&c->view, sc, &o, &res, &err)) {
         printf("ERROR shadows: %s\n", err.msg);
         errors++;
     }
-    for (int k = 0; !errors && k < sc->image.width * sc->image.height; k++) {
-        td_hit h;
-        td_ref_hit ref;
-        uint32_t steps = 0;
-        int have = 0;
-        if (!(sh[k].tmax >= 0.0))
-            continue;
-        (*count)++;
-        td_trace(&c->view, TD_METHOD_AUTO, sf, &sh[k], &h);
-        if (td_occluded(&c->view, TD_METHOD_AUTO, sf, &sh[k], lit, &steps) != (h.t < INFINITY) ||
-            settle(c, sf, &sh[k], h.t, &ref, &have) == V_ERROR) {
-            if (errors++ < MAX_PRINT)
-                print_ray("shadow ray vs reference", TD_METHOD_AUTO, sf, &sh[k], h.t, have ? ref.t : NAN,
-                          have ? &ref : NULL);
+    for (int kept = 0; kept < 1 + td_sunlit_kept_finer(c->g) && !errors; kept++) {
+        if (td_sunlit_build(&c->view, sun, kept, &lit, &err)) {
+            printf("ERROR shadows: %s\n", err.msg);
+            errors++;
         }
+        for (int k = 0; !errors && k < sc->image.width * sc->image.height; k++) {
+            td_hit h;
+            td_ref_hit ref;
+            uint32_t steps = 0;
+            int have = 0;
+            if (!(sh[k].tmax >= 0.0))
+                continue;
+            *count += !kept;
+            td_trace(&c->view, TD_METHOD_AUTO, sf, &sh[k], &h);
+            if (td_occluded(&c->view, TD_METHOD_AUTO, sf, &sh[k], lit, &steps) != (h.t < INFINITY) ||
+                settle(c, sf, &sh[k], h.t, &ref, &have) == V_ERROR) {
+                if (errors++ < MAX_PRINT)
+                    print_ray(kept ? "shadow ray vs reference (kept bound)" : "shadow ray vs reference",
+                              TD_METHOD_AUTO, sf, &sh[k], h.t, have ? ref.t : NAN, have ? &ref : NULL);
+            }
+        }
+        errors += errors ? 0 : par_shadows(c, sf, sh, sc->image.width * sc->image.height, lit);
+        td_sunlit_free(lit);
+        lit = NULL;
     }
-    errors += errors ? 0 : par_shadows(c, sf, sh, sc->image.width * sc->image.height, lit);
-    td_sunlit_free(lit);
     td_render_result_free(&res);
     return errors;
 }

@@ -72,6 +72,31 @@ static void check_min4(const td_grid *g, const td_accel *a)
     }
 }
 
+/* The linear surface's height at (x, y) of cell (ci, cj) for a ray along d: the line
+ * between the heights where the ray's horizontal line enters the cell behind the point and
+ * leaves it ahead (on the cell's edges, where the surface is the bilinear patch's), as the
+ * walk takes it in the ray's first cell (trace.c's linear_under). The bilinear patch's
+ * height at the point is not it: a point 0.5 m above that may be under the linear surface
+ * along the sun, and its ray meets nothing. */
+static double linear_under_along(const td_grid *g, int32_t ci, int32_t cj, double x, double y, const double d[3])
+{
+    const double u = x / g->sx - ci, w = y / g->sy - cj, du = d[0] / g->sx, dw = d[1] / g->sy;
+    double t_in = -INFINITY, t_out = INFINITY;
+    if (du != 0.0) {
+        t_in = fmax(t_in, ((du > 0.0 ? 0.0 : 1.0) - u) / du);
+        t_out = fmin(t_out, ((du > 0.0 ? 1.0 : 0.0) - u) / du);
+    }
+    if (dw != 0.0) {
+        t_in = fmax(t_in, ((dw > 0.0 ? 0.0 : 1.0) - w) / dw);
+        t_out = fmin(t_out, ((dw > 0.0 ? 1.0 : 0.0) - w) / dw);
+    }
+    const double xa = (ci + u + t_in * du) * g->sx, ya = (cj + w + t_in * dw) * g->sy;
+    const double xb = (ci + u + t_out * du) * g->sx, yb = (cj + w + t_out * dw) * g->sy;
+    const double ha = td_surface_height(g, TD_SURFACE_BILINEAR, ci, cj, xa, ya);
+    const double hb = td_surface_height(g, TD_SURFACE_BILINEAR, ci, cj, xb, yb);
+    return t_out > t_in ? ha + (hb - ha) * (-t_in / (t_out - t_in)) : ha;
+}
+
 /* The bound's claims for one sun over grid g (with per-tile acceleration tiles, or NULL),
  * built as td_sunlit_build's `kept` says into blocks of 2^shift cells; fewer: and that it
  * saves steps (the steps with it added to *steps when not NULL). */
@@ -115,15 +140,11 @@ static size_t check_sun_as(const td_grid *g, const td_tile_accel *tiles, const d
         r.o[2] = ground + 0.5; /* from just above the surface: the same answer, fewer steps */
         ptrdiff_t sk = td_sunlit_strip(lit, x / g->sx, y / g->sy);
         if (lit->lo && sk >= 0 && r.o[2] < td_sunlit_lo(lit, sk, ci, cj) - 1e-3) {
-            /* below the shadow side: every surface under the point meets the ray (not the
-               linear surface, whose height under a point depends on the ray: td_surface_height
-               gives the bilinear patch's, and a point 0.5 m above that may be under the
-               linear surface along the sun, where the ray meets nothing; td_occluded takes it
-               along the ray, and the checks below hold it to td_trace) */
+            /* below the shadow side: every surface under the point meets the ray (the
+               linear surface's height under a point is the ray's own: linear_under_along) */
             for (int s = 0; s < TD_SURFACE_COUNT; s++) {
-                double under = td_surface_height(g, (td_surface)s, ci, cj, x, y);
-                if (s == TD_SURFACE_LINEAR)
-                    continue;
+                double under = s == TD_SURFACE_LINEAR ? linear_under_along(g, ci, cj, x, y, sun)
+                                                      : td_surface_height(g, (td_surface)s, ci, cj, x, y);
                 td_trace(&v, TD_METHOD_INCREMENTAL, (td_surface)s, &r, &h);
                 if (s == TD_SURFACE_PLANE || (!isnan(under) && r.o[2] > under + 1e-3))
                     assert_true(h.t < INFINITY);
