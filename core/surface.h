@@ -95,7 +95,11 @@ static inline int td_seg_hit(double ta, double fa, double tb, double fb, double 
  * with A from the patch's twist (A = -twist du dv, du and dv the ray's steps in cells per
  * unit t) and B fixed by the shared end values, so the quadratic agrees with both boundary
  * values exactly. Roots in the cancellation-free form q = -(B + sign(B) sqrt)/2, r1 = q/A,
- * r2 = fa/q. No iteration, no sampling. */
+ * r2 = fa/q. No iteration, no sampling. f(s) is the chord between fa and fb plus
+ * A s (s - L), which takes back at most A L^2 / 4 (A > 0; nothing for A < 0): with both
+ * ends above that (and 1e-12 of the magnitudes, far over the rounding of fext), there is
+ * no root and no division is needed. Same answers as the full test (whose fext is then
+ * above zero), measured 4-7% of the primary stage on bilinear level views. */
 static inline int td_quad_hit(double ta, double fa, double tb, double fb, double A, double *t)
 {
     int hit = 0;
@@ -107,6 +111,9 @@ static inline int td_quad_hit(double ta, double fa, double tb, double fb, double
         hit = 0;
     } else if (A == 0.0 || fabs(A) * L * L <= 1e-12 * (fabs(fa) + fabs(fb))) {
         hit = td_seg_hit(ta, fa, tb, fb, t);
+    } else if (fa > 0.0 && fb > 0.0 &&
+               (fa < fb ? fa : fb) > (A > 0.0 ? 0.25 * A * L * L : 0.0) + 1e-12 * (fa + fb + fabs(A) * L * L)) {
+        hit = 0; /* above the chord by more than the sag can take back */
     } else {
         double B = (fb - fa - A * L * L) / L;
         int change = (fa > 0.0) != (fb > 0.0) || fb == 0.0;

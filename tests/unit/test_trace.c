@@ -18,6 +18,7 @@
 #include "maxmip.h"
 #include "planes.h"
 #include "sunlit.h"
+#include "surface.h"
 #include "terrain.h"
 #include "trace.h"
 #include "terrain_fixture.h"
@@ -221,6 +222,58 @@ static void test_single_cell_bilinear(void **state)
     }
     td_accel_free(a);
     td_grid_free(g);
+}
+
+/* td_quad_hit on quadratics whose lowest point over the segment is a hair above or below
+ * zero while both ends are well above it (fa, fb > 0: the case its quick rejection takes):
+ * a dip between positive ends is a hit at a root, a hump or a sag that stays above zero
+ * is none. f(s) = chord(s) + A s (s - L), the minimum from its vertex (or an end). */
+static void test_quad_hit_sag(void **state)
+{
+    (void)state;
+    uint64_t seed = 11;
+    int hits = 0, misses = 0;
+    for (int n = 0; n < 100000; n++) {
+        const double L = 0.01 + 3.0 * rnd(&seed), fa = 1e-3 + 50.0 * rnd(&seed), fb = 1e-3 + 50.0 * rnd(&seed);
+        /* the twist that puts the sag's vertex at f = gap (convex, A > 0), or a hump (A < 0) */
+        const int hump = n % 5 == 0;
+        const double gap = (rnd(&seed) - 0.5) * 1e-6 * (fa + fb);
+        /* the vertex of chord + A s (s - L) is at sv = L / 2 - (fb - fa) / (2 A L); A by
+           bisection (f there falls as A grows, once sv is inside the segment) */
+        double A;
+        if (hump) {
+            A = -(0.1 + 100.0 * rnd(&seed));
+        } else {
+            double lo = 0.0, hi = 1e12;
+            for (int it = 0; it < 100; it++) {
+                double m = 0.5 * (lo + hi), sv = 0.5 * L - (fb - fa) / (2.0 * m * L);
+                double fv = (sv > 0.0 && sv < L) ? fa + (fb - fa) * sv / L + m * sv * (sv - L) : (fa < fb ? fa : fb);
+                if (fv > gap)
+                    lo = m;
+                else
+                    hi = m;
+            }
+            A = 0.5 * (lo + hi);
+        }
+        double fmin = fa < fb ? fa : fb;
+        const double sv = 0.5 * L - (fb - fa) / (2.0 * A * L);
+        if (A > 0.0 && sv > 0.0 && sv < L)
+            fmin = fa + (fb - fa) * sv / L + A * sv * (sv - L);
+        if (fabs(fmin) <= 1e-9 * (fa + fb + fabs(A) * L * L))
+            continue; /* within rounding of touching: either answer holds */
+        double t = NAN;
+        const int hit = td_quad_hit(2.0, fa, 2.0 + L, fb, A, &t);
+        assert_int_equal(hit, fmin <= 0.0);
+        if (hit) {
+            const double s = t - 2.0, f = fa + (fb - fa) * s / L + A * s * (s - L);
+            assert_true(s >= 0.0 && s <= L);
+            assert_true(fabs(f) <= 1e-6 * (fa + fb + A * L * L));
+            hits++;
+        } else {
+            misses++;
+        }
+    }
+    assert_true(hits > 5000 && misses > 5000);
 }
 
 /* All methods against a brute-force double triangle reference; all surfaces across
@@ -1065,6 +1118,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_flat_analytic),       cmocka_unit_test(test_single_cell_bilinear),
+        cmocka_unit_test(test_quad_hit_sag),
         cmocka_unit_test(test_methods_vs_reference), cmocka_unit_test(test_planes_bound),
         cmocka_unit_test(test_planes_degenerate),   cmocka_unit_test(test_maxmip_and_edt),
         cmocka_unit_test(test_accel_maxmip_store),
