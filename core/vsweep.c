@@ -112,6 +112,11 @@
 #define VS_DIAG 8
 /* last_real's points stop this far (in cells) short of the target */
 #define VS_LAST_GAP 1e-3
+/* A target's m and the ends of F's pieces are each computed with their own rounding (the
+ * column's (V - ev) / u, an edge clipped to the cone at u = v, ...): pieces that come this
+ * near a target's m count for its upper bound (f_near_max; |m| < VS_MDOM there, so this is
+ * thousands of times the rounding of m) */
+#define VS_MTOL 0x1p-40
 
 typedef struct piece {
     double m;      /* start; the piece ends where the next one starts */
@@ -205,6 +210,31 @@ static inline double pval(const piece *p, double m) { return p->qr + p->s * (m -
 static inline int same_line(const piece *a, const piece *b)
 {
     return a->qr == b->qr && a->s == b->s && a->mr == b->mr && a->slack == b->slack && a->umax == b->umax;
+}
+
+/* hi raised to the values of the pieces near m: those that end or start within VS_MTOL
+ * of m, p[k] the one holding m (p ends with a sentinel piece past every m asked), each at
+ * its end nearest m. A segment through a vertex where F drops (the edges beyond it a
+ * hole's, or clipped away at the cone's side) must meet the higher piece, though its m may
+ * be an ulp past that piece's end (fuzz_viewshed, test_vertex_hole_diagonal: a segment
+ * along the eye's diagonal through such a vertex was proved visible under the lower
+ * piece; the cast meets the surface there). More pieces only raise an upper bound: fewer
+ * proofs, none wrong. */
+static double f_near_scan(const piece *p, int k, double m, double hi)
+{
+    for (int j = k - 1; j >= 0 && p[j + 1].m >= m - VS_MTOL; j--) /* ending at most VS_MTOL before m */
+        hi = dmax(hi, pval(&p[j], p[j + 1].m));
+    for (int j = k + 1; p[j].m <= m + VS_MTOL; j++) /* starting at most VS_MTOL after it */
+        hi = dmax(hi, pval(&p[j], p[j].m));
+    return hi;
+}
+
+/* f_near_max: the scan only where a break is that near (rarely: inline, one test each way) */
+static inline double f_near_max(const piece *p, int k, double m, double hi)
+{
+    if (p[k].m >= m - VS_MTOL || p[k + 1].m <= m + VS_MTOL)
+        hi = f_near_scan(p, k, m, hi);
+    return hi;
 }
 
 static int pv_reserve(sweep *sw, pvec *v, int need)
@@ -705,7 +735,9 @@ static inline __attribute__((always_inline)) int col_walk(const piece *p, const 
             lo = dmin(lo, pval(&p[k - 1], mc[V]));
             hi = dmax(hi, pval(&p[k - 1], mc[V]));
         }
-        fh[V] = hi;
+        /* F drops at a vertex only where the edges beyond it are a hole's (or at the
+           cone's sides, col_pass): without holes the walk takes no more tests */
+        fh[V] = hu ? f_near_max(p, k, mc[V], hi) : hi;
         while (p[k + 1].m <= m1) {
             double x = p[k + 1].m, y0 = pval(&p[k], x), y1 = pval(&p[k + 1], x);
             lo = dmin(lo, dmin(y0, y1));
@@ -755,11 +787,15 @@ static void col_pass(sweep *sw, int32_t U, int32_t V0, int32_t V1)
     kc[V0] = k;
     k = hu ? col_walk(p, mc, kc, fm, fx, fl, fh, hu, k, V0, V1) : col_walk(p, mc, kc, fm, fx, fl, fh, NULL, k, V0, V1);
     fl[V1] = pval(&p[k], mc[V1]) - p[k].slack;
-    fh[V1] = pval(&p[k], mc[V1]);
-    if (k > 0 && p[k].m == mc[V1])
-        fh[V1] = dmax(fh[V1], pval(&p[k - 1], mc[V1]));
+    fh[V1] = f_near_max(p, k, mc[V1], pval(&p[k], mc[V1]));
     if (hu && !(p[k].umax < hu[bin_of(mc[V1])]))
         fl[V1] = -INFINITY;
+    /* the rows at the cone's sides (m = -1, 1), where the eye's strip's edges clipped to
+       the cone end (col_walk tested every row where there are holes) */
+    for (int32_t V = V0; !hu && V < V1 && mc[V] <= -1.0 + VS_MTOL; V++)
+        fh[V] = f_near_max(p, kc[V], mc[V], fh[V]);
+    for (int32_t V = V1 - 1; !hu && V > V0 && mc[V] >= 1.0 - VS_MTOL; V--)
+        fh[V] = f_near_max(p, kc[V], mc[V], fh[V]);
 }
 
 /* Whether an edge of the strip between columns U-1 and U, from (m_a, q_a) on column U
@@ -2047,10 +2083,10 @@ static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
     lo = Fp[k].umax < hu ? hi - Fp[k].slack : -INFINITY;
     if (k > 0 && Fp[k].m == m) { /* on a break: the piece ending here holds m too */
         double v = pval(&Fp[k - 1], m);
-        hi = dmax(hi, v);
         if (Fp[k - 1].umax < hu)
             lo = dmax(lo, v - Fp[k - 1].slack);
     }
+    hi = f_near_max(Fp, k, m, hi);
     eps = VS_EPS_ABS + VS_EPS_REL * fabs(q);
     if (q < lo - eps && t->hidden_ok) /* proved hidden already: the rest only raises lo */
         goto decide;
@@ -2058,9 +2094,7 @@ static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
      * rounding of a piece's value between its ends), hi decides alone */
     if (q <= t->nmax + 2.0 * eps) {
         int kn = find_in(t->Np, t->nn, m, &t->hint_n);
-        hi = dmax(hi, pval(&t->Np[kn], m));
-        if (kn > 0 && t->Np[kn].m == m) /* on a break: the piece ending here too */
-            hi = dmax(hi, pval(&t->Np[kn - 1], m));
+        hi = f_near_max(t->Np, kn, m, dmax(hi, pval(&t->Np[kn], m)));
     }
     if (t->th > 0.0)
         hi = dmax(hi, (zt - t->ez) / u);

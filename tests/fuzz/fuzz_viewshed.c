@@ -7,8 +7,8 @@
  * the surface, curvature, max_distance, voids and a second observer; both algorithms run
  * and must agree, errors included. Its seeds (corpus/viewshed) are the cases of
  * tests/unit/test_vsweep.c that a fuzzer of these terrains found (test_low_eye,
- * test_end_tangent, test_ulp_eyes), each failing on the code before its fix, and a few
- * plain ones. */
+ * test_end_tangent, test_ulp_eyes; diagonal-vertex-hole, test_vertex_hole_diagonal), each
+ * failing on the code before its fix, and a few plain ones. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

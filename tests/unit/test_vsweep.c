@@ -449,6 +449,42 @@ static void test_ulp_eyes(void **state)
     unmake(&fx);
 }
 
+/* A segment along the eye's diagonal through a vertex where the envelope drops: found by
+ * fuzz_viewshed (seed diagonal-vertex-hole). The eye (5.25, 5.25 cells, 1.5 m up) stands in
+ * a cell rising east to 212 m at its corner (6, 6); beyond that corner the column's next
+ * edge and the row's edges bound void cells only (column 7 and row 7 are voids), and the
+ * eye's own row edge is clipped away at the cone's side, so the column edge ending at the
+ * corner is the only piece of F there, and its end's m, (6 - ev) / u, rounds an ulp under
+ * the target's m = 1. The target (8, 8), 210 m, lies under the corner seen from the eye,
+ * so the segment meets the eye's cell; the sweep took F's value past the corner (the
+ * eye's clipped diagonal, far lower) and proved it visible. Every surface, with and
+ * without curvature, targets 0 and 1 m up. */
+static void test_vertex_hole_diagonal(void **state)
+{
+    const td_vs_point p = {5250.9803921568628, 3938.2352941176468};
+    td_viewshed_opts o;
+    fixture fx;
+    (void)state;
+    assert_int_equal(td_grid_create(30, 30, 1000.0, 750.0, 3, NULL, &fx.g, NULL), TD_OK);
+    for (int32_t j = 0; j < 30; j++)
+        for (int32_t i = 0; i < 30; i++)
+            fx.g->z[(size_t)j * 30 + i] = i == 7 || j == 7 ? NAN : (float)(i < 7 ? 200.0 + 2.0 * i : 209.0);
+    fixture_finish(&fx);
+    td_viewshed_opts_default(&o);
+    o.obs = &p;
+    o.nobs = 1;
+    o.height = 1.5;
+    for (int s = 0; s < TD_SURFACE_COUNT; s++)
+        for (int c = 0; c < 2; c++)
+            for (int t = 0; t < 2; t++) {
+                o.curvature = c;
+                o.k = 0.13;
+                o.target_height = t;
+                same(&fx, o, (td_surface)s);
+            }
+    unmake(&fx);
+}
+
 /* An eye on a row's line whose y / sy rounds 1 ulp over it (y = 31 sy with sy = 50/3:
  * 31.000000000000004 cells), found by fuzz_viewshed (seed ulp-over-line): in the south
  * cone the first column is then 4e-15 from the eye, and the strip after it holds a ridge
@@ -596,6 +632,7 @@ int main(void)
         cmocka_unit_test(test_saddle),   cmocka_unit_test(test_low_eye),
         cmocka_unit_test(test_exact_terrains), cmocka_unit_test(test_end_tangent),
         cmocka_unit_test(test_ulp_eyes), cmocka_unit_test(test_ulp_eye_over_line),
+        cmocka_unit_test(test_vertex_hole_diagonal),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
