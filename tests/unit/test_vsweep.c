@@ -455,7 +455,7 @@ static void test_ulp_eyes(void **state)
  * edge and the row's edges bound void cells only (column 7 and row 7 are voids), and the
  * eye's own row edge is clipped away at the cone's side, so the column edge ending at the
  * corner is the only piece of F there, and its end's m, (6 - ev) / u, rounds an ulp under
- * the target's m = 1. The target (8, 8), 210 m, lies under the corner seen from the eye,
+ * the target's m = 1. The target (8, 8), 209 m, lies under the corner seen from the eye,
  * so the segment meets the eye's cell; the sweep took F's value past the corner (the
  * eye's clipped diagonal, far lower) and proved it visible. Every surface, with and
  * without curvature, targets 0 and 1 m up. */
