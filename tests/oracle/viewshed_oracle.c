@@ -4,7 +4,8 @@
  *   viewshed_oracle DEM [--targets K] [--seed S]
  *       For observers on the highest sample (a peak), the lowest (a pit), the grid's
  *       south-west corner (or the valid sample nearest it), beside a void when the DEM has
- *       any, and a random point, on every surface: the viewshed (method auto), then K
+ *       any, 0.3 cells east and 0.2 north of the peak (under it, in its cell), and a random
+ *       point, on every surface: the viewshed (method auto), then K
  *       random targets (and every target within 3 cells of the observer) re-traced by
  *       td_ref_trace on the same segment (td_viewshed_ray) and by td_occluded with every
  *       method; then from the peak again with Earth curvature (k = 0.13), judged on a
@@ -72,14 +73,18 @@ static void judge_target(oracle *o, td_surface s, const double eye[3], int32_t i
 {
     td_ray r;
     td_ref_hit h;
-    int kind = td_viewshed_ray(o->g, s, eye[0], eye[1], eye[2], i, j, 0.0, &r), want, band;
+    int kind = td_viewshed_ray(o->g, s, eye[0], eye[1], eye[2], i, j, 0.0, &r), want, clear, band;
     if (kind != 0) {
         int ok = (kind < 0) == (got == TD_VS_OUTSIDE);
         o->agree += ok;
         o->wrong += !ok;
         return;
     }
-    want = ref_visible(o, s, &r, &h, &band);
+    clear = ref_visible(o, s, &r, &h, &band);
+    /* the rule's own part (docs/viewshed.md "Under the surface is not a line of sight"): a
+     * segment that starts under the surface is blocked though it may cross nothing (the
+     * linear surface's chord under an eye off its sample may be over the eye) */
+    want = clear && !td_viewshed_starts_under(o->g, s, &r);
     if (want == (got == 1)) {
         o->agree++;
     } else if (band) {
@@ -92,7 +97,7 @@ static void judge_target(oracle *o, td_surface s, const double eye[3], int32_t i
     }
     for (int m = 0; m < TD_METHOD_COUNT; m++) { /* every method, same segment */
         uint32_t steps = 0;
-        if ((!td_occluded(&o->v, (td_method)m, s, &r, NULL, &steps)) != want && !band) {
+        if ((!td_occluded(&o->v, (td_method)m, s, &r, NULL, &steps)) != clear && !band) {
             o->methods_wrong++;
             printf("  WRONG %s/%s: target (%d, %d) from (%.17g, %.17g, %.17g)\n", td_method_name((td_method)m),
                    td_surface_name(s), (int)i, (int)j, eye[0], eye[1], eye[2]);
@@ -100,7 +105,8 @@ static void judge_target(oracle *o, td_surface s, const double eye[3], int32_t i
     }
 }
 
-/* The observers of the test: peak, pit, corner, void edge, random (x, y in metres). */
+/* The observers of the test: peak, pit, corner, void edge, beside the peak, random (x, y in
+ * metres). */
 static int pick_observers(const td_grid *g, uint64_t *seed, td_vs_point *p)
 {
     int32_t hi = -1, lo = -1, corner = -1, edge = -1;
@@ -123,6 +129,8 @@ static int pick_observers(const td_grid *g, uint64_t *seed, td_vs_point *p)
         if (k >= 0)
             p[n++] = (td_vs_point){(k % g->w) * g->sx, (k / g->w) * g->sy};
     }
+    if (hi >= 0) /* where a click near the peak lands: inside its north-east cell, under the peak */
+        p[n++] = (td_vs_point){(hi % g->w + 0.3) * g->sx, (hi / g->w + 0.2) * g->sy};
     for (int tries = 0; tries < 1000; tries++) {
         td_vs_point q = {(double)(rnd(seed) % 100000) / 1e5 * (g->w - 1) * g->sx,
                          (double)(rnd(seed) % 100000) / 1e5 * (g->h - 1) * g->sy};
@@ -287,7 +295,7 @@ static int load(const char *path, oracle *o)
 
 static int run_check(oracle *o, int targets, uint64_t seed)
 {
-    td_vs_point obs[5];
+    td_vs_point obs[6];
     int n = pick_observers(o->g, &seed, obs), ok = 1;
     uint8_t *out = malloc((size_t)o->g->w * o->g->h);
     if (!out)
