@@ -2122,7 +2122,6 @@ TD_ROW_CLONES static void last_diags(sweep *sw, const tgt_cols *t, int32_t U, in
 #endif
 }
 
-/* Decides target (U, V) of column U (not a void) against F, or casts it. */
 /* The segment to a target at u, m, q starts under the surface, as the cast's
  * td_viewshed_starts_under finds it (and so blocks it without a trace), by far more than
  * either side's rounding: at its start, 2^-30 of it (w = 2^-30 u cells from the eye, inside
@@ -2143,6 +2142,7 @@ static int starts_under_eye(const sweep *sw, double u, double m, double q)
     return under;
 }
 
+/* Decides target (U, V) of column U (not a void) against F, or casts it. */
 static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
 {
     const piece *Fp = t->Fp;
