@@ -145,12 +145,11 @@ typedef struct sweep {
     int tri, bil, lin;
     int holes; /* the grid has void samples */
     int hidden_ok;  /* the segments start above the surface (see near_strip) */
-    /* the bilinear cells that hold the eye and the rays m in (lo, hi) whose starts (2^-30
-     * of the segment, nearer than near_u) are inside them: the eye farther than near_u from
-     * the cell's sides, or on its row line (one side of m = 0). Height along such a ray
-     * ground + (ga + gb m) u + k m u^2, the eye h over the ground (starts_under_eye). */
+    /* the cells that hold the eye (up to two: the eye on their row line), their corners
+     * and the eye's place ae, be in them, and the eye's height over the ground
+     * (starts_under_eye) */
     struct {
-        double lo, hi, ga, gb, k;
+        double z[4], ae, be;
     } es[2];
     int nes;
     double es_h;
@@ -1670,13 +1669,10 @@ static void near_strip(sweep *sw, int32_t U0)
             double k = z[0] - z[1] - z[2] + z[3], ae = c->eu - Uc, be = c->ev - V;
             twist = dmax(twist, fabs(k));
             slope = dmax(slope, dmax(fabs(z[1] - z[0]), fabs(z[3] - z[2])) + dmax(fabs(z[2] - z[0]), fabs(z[3] - z[1])));
-            if (sw->bil && 1.0 - ae > sw->near_u && sw->nes < 2 && (be == 0.0 || be > sw->near_u) &&
-                (be == 1.0 || 1.0 - be > sw->near_u)) {
-                sw->es[sw->nes].lo = be == 0.0 ? 0.0 : -INFINITY;
-                sw->es[sw->nes].hi = be == 1.0 ? 0.0 : INFINITY;
-                sw->es[sw->nes].ga = (z[1] - z[0]) + k * be;
-                sw->es[sw->nes].gb = (z[2] - z[0]) + k * ae;
-                sw->es[sw->nes].k = k;
+            if (sw->nes < 2) {
+                memcpy(sw->es[sw->nes].z, z, sizeof sw->es[0].z);
+                sw->es[sw->nes].ae = ae;
+                sw->es[sw->nes].be = be;
                 sw->es_h = h;
                 sw->nes++;
             }
@@ -2124,21 +2120,36 @@ TD_ROW_CLONES static void last_diags(sweep *sw, const tgt_cols *t, int32_t U, in
 
 /* The segment to a target at u, m, q starts under the surface, as the cast's
  * td_viewshed_starts_under finds it (and so blocks it without a trace), by far more than
- * either side's rounding: at its start, 2^-30 of it (w = 2^-30 u cells from the eye, inside
- * the eye's cell: es), it is over the surface by h + (q - s(m)) w - k m w^2, which must
- * be under -2^-38 (1 + |ez|) (1024 times the cast's tolerance, 2^-48 (1 + |ez|)) less the
- * rounding of q - s. An eye on the ground off its sample: the segments that leave it uphill
- * (from Blanca Peak 0.3 cells east and 0.2 south, 735,337 of them) were cast, each stopped
- * at once by that test. */
+ * either side's rounding. Its start, 2^-30 of it, is w = 2^-30 u cells from the eye, at
+ * a = ae + w, b = be + m w in a cell that holds the eye (bilinear or triangle; not within
+ * 2^-40 of the cell's sides, nor of the diagonal unless the eye is on it, so that the
+ * surface there is the eye's own patch or plane: height ground + s(m) w + k m w^2). The
+ * segment is over the surface there by h + (q - s(m)) w - k m w^2, which must be under
+ * -2^-38 (1 + |ez|) (1024 times the cast's tolerance, 2^-48 (1 + |ez|)) less the rounding
+ * of q - s. An eye on the ground off its sample: the segments that leave it uphill (from
+ * Blanca Peak 0.3 cells east and 0.2 south, 735,337 of them) were cast, each stopped at
+ * once by that test. */
 static int starts_under_eye(const sweep *sw, double u, double m, double q)
 {
+    const double tiny = 0x1p-40, w = 0x1p-30 * u, ez = fabs(sw->job->ez);
     int under = 0;
-    for (int e = 0; e < sw->nes && !under; e++)
-        if (m > sw->es[e].lo && m < sw->es[e].hi) {
-            double w = 0x1p-30 * u, s = sw->es[e].ga + sw->es[e].gb * m, ez = fabs(sw->job->ez);
-            double gap = sw->es_h + (q - s) * w - sw->es[e].k * m * w * w;
-            under = gap < -0x1p-38 * (1.0 + ez) - 1e-12 * (fabs(q) + fabs(s)) * w;
+    for (int e = 0; e < sw->nes && !under && (sw->bil || sw->tri); e++) {
+        const double *z = sw->es[e].z;
+        double ae = sw->es[e].ae, be = sw->es[e].be, a = ae + w, b = be + m * w, k = z[0] - z[1] - z[2] + z[3];
+        double ga = (z[1] - z[0]) + k * be, gb = (z[2] - z[0]) + k * ae, s, gap;
+        int in = a < 1.0 - tiny && b > tiny && b < 1.0 - tiny;
+        if (sw->tri) { /* the start's triangle, the eye's too: anti a + b < 1 (z0 z1 z2) or not, else a > b (z0 z1 z3) or not */
+            double d = sw->c.anti ? a + b - 1.0 : a - b, de = sw->c.anti ? ae + be - 1.0 : ae - be;
+            int first = sw->c.anti ? d < 0.0 : d > 0.0;
+            in = in && fabs(d) > tiny && (de == 0.0 || (de > 0.0) == (d > 0.0));
+            ga = first ? z[1] - z[0] : z[3] - z[2];
+            gb = first == !sw->c.anti ? z[3] - z[1] : z[2] - z[0];
+            k = 0.0;
         }
+        s = ga + gb * m;
+        gap = sw->es_h + (q - s) * w - k * m * w * w;
+        under = in && gap < -0x1p-38 * (1.0 + ez) - 1e-12 * (fabs(q) + fabs(s)) * w;
+    }
     return under;
 }
 
