@@ -154,6 +154,7 @@ typedef struct sweep {
     int nes;
     double es_h;
     int visible_ok; /* the eye's strip is bounded (see near_strip) */
+    int visible_start; /* else, on the linear surface: bounded where a segment starts over it (target) */
     pvec F, G, T;
     pvec C; /* column U's edges (add_column_pass) */
     pvec N; /* bounds of the eye's strip with no real point (slack infinite): hi only */
@@ -1722,8 +1723,10 @@ static void near_strip(sweep *sw, int32_t U0)
      * steep slope had segments under the surface from their start (test_low_eye). */
     double fall = 0x1p-30 * (slope * (c->uhi - c->eu) + dmax(j->ez - j->v->grid->zmin, 0.0));
     sw->hidden_ok = h > 1e-9 * (1.0 + fabs(j->ez)) + fall + (sw->lin ? twist / 4.0 : 0.0);
-    /* the linear surface's chord under the eye may be above it: then nothing is proved */
+    /* the linear surface's chord under the eye may be above it: then nothing is proved
+     * without a look at each segment's start (visible_start) */
     sw->visible_ok = !sw->lin || sw->hidden_ok;
+    sw->visible_start = !sw->visible_ok;
     merge_g(sw);
     sw->nmax = n_max(&sw->N);
 }
@@ -1865,7 +1868,7 @@ typedef struct tgt_cols {
     ptrdiff_t vstride;
     double u, ez, th;     /* th: the target height */
     int32_t vlo, vhi;
-    int pass, hidden_ok, visible_ok, bil, lin;
+    int pass, hidden_ok, visible_ok, visible_start, bil, lin;
     int nn, hint_n;       /* N's pieces, the search's hint */
     double nmax;          /* N's maximum */
     double ea;            /* the visible proofs' absolute eps (ground_eps) */
@@ -1915,6 +1918,7 @@ static void tgt_cols_init(sweep *sw, int32_t U, tgt_cols *t)
     t->pass = sw->pass_ok;
     t->hidden_ok = sw->hidden_ok;
     t->visible_ok = sw->visible_ok;
+    t->visible_start = sw->visible_start;
     t->bil = sw->bil;
     t->lin = sw->lin;
     t->ea = ground_eps(sw, t->u);
@@ -2191,8 +2195,15 @@ static void target(sweep *sw, tgt_cols *t, int32_t U, int32_t V)
     if (t->bil && q >= lo - eps && !(q > hi + eps && t->visible_ok))
         lo = dmax(lo, last_real(sw, U, u, m, hu));
 decide:;
-    /* visible: clear of everything nearer, and with the eye on the ground of its start (ground_eps) */
-    int vis = t->visible_ok && q > hi + eps && (q > hi + t->ea + VS_EPS_REL * fabs(q) || starts_clear(sw, U, V)) &&
+    /* visible: clear of everything nearer, and with the eye on the ground of its start
+     * (ground_eps). On the linear surface with a chord under the eye that may be over it
+     * (visible_start), a segment that starts over it (starts_clear) stays over the eye's
+     * cell's chord along its line (both linear in u, the segment over it at the start and,
+     * above the cell's edges, at its exit), and the other cells' chords peak in q at their
+     * edges (in F): from Blanca Peak 0.3 cells east and 0.2 south, 2 m up, 1,970,838 casts
+     * before. */
+    int vis = (t->visible_ok || t->visible_start) && q > hi + eps &&
+              ((t->visible_ok && q > hi + t->ea + VS_EPS_REL * fabs(q)) || starts_clear(sw, U, V)) &&
               end_clear(t, V, m, q);
 #ifdef TD_VSWEEP_DEBUG /* every proof checked against the cast */
     if (vis || (q < lo - eps && (t->hidden_ok || starts_clear(sw, U, V)))) {
