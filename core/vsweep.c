@@ -1670,7 +1670,7 @@ static void near_strip(sweep *sw, int32_t U0)
             double k = z[0] - z[1] - z[2] + z[3], ae = c->eu - Uc, be = c->ev - V;
             twist = dmax(twist, fabs(k));
             slope = dmax(slope, dmax(fabs(z[1] - z[0]), fabs(z[3] - z[2])) + dmax(fabs(z[2] - z[0]), fabs(z[3] - z[1])));
-            if (sw->nes < 2) {
+            if ((sw->bil || sw->tri) && sw->nes < 2) { /* starts_under_eye's */
                 memcpy(sw->es[sw->nes].z, z, sizeof sw->es[0].z);
                 sw->es[sw->nes].ae = ae;
                 sw->es[sw->nes].be = be;
@@ -2137,10 +2137,9 @@ static int starts_under_eye(const sweep *sw, double u, double m, double q)
 {
     const double tiny = 0x1p-40, w = 0x1p-30 * u, ez = fabs(sw->job->ez);
     int under = 0;
-    for (int e = 0; e < sw->nes && !under && (sw->bil || sw->tri); e++) {
+    for (int e = 0; e < sw->nes && !under; e++) {
         const double *z = sw->es[e].z;
-        double ae = sw->es[e].ae, be = sw->es[e].be, a = ae + w, b = be + m * w, k = z[0] - z[1] - z[2] + z[3];
-        double ga = (z[1] - z[0]) + k * be, gb = (z[2] - z[0]) + k * ae, s, gap;
+        double ae = sw->es[e].ae, be = sw->es[e].be, a = ae + w, b = be + m * w, k = 0.0, ga, gb, s, gap;
         int in = a < 1.0 - tiny && b > tiny && b < 1.0 - tiny;
         if (sw->tri) { /* the start's triangle, the eye's too: anti a + b < 1 (z0 z1 z2) or not, else a > b (z0 z1 z3) or not */
             double d = sw->c.anti ? a + b - 1.0 : a - b, de = sw->c.anti ? ae + be - 1.0 : ae - be;
@@ -2148,7 +2147,10 @@ static int starts_under_eye(const sweep *sw, double u, double m, double q)
             in = in && fabs(d) > tiny && (de == 0.0 || (de > 0.0) == (d > 0.0));
             ga = first ? z[1] - z[0] : z[3] - z[2];
             gb = first == !sw->c.anti ? z[3] - z[1] : z[2] - z[0];
-            k = 0.0;
+        } else { /* the bilinear patch: its slope along the ray at the eye, as near_strip's */
+            k = z[0] - z[1] - z[2] + z[3];
+            ga = (z[1] - z[0]) + k * be;
+            gb = (z[2] - z[0]) + k * ae;
         }
         s = ga + gb * m;
         gap = sw->es_h + (q - s) * w - k * m * w * w;
