@@ -566,6 +566,27 @@ int td_ref_point_near(const td_grid *g, td_surface s, const td_ray *r, double t,
     return near;
 }
 
+double td_ref_gap(const td_grid *g, td_surface s, const td_ray *r, double t)
+{
+    double p[3], z[4], gap = NAN;
+    for (int a = 0; a < 3; a++)
+        p[a] = r->o[a] + t * r->d[a];
+    int32_t i = cell_index(p[0], g->sx, g->w), j = cell_index(p[1], g->sy, g->h);
+    if (s != TD_SURFACE_PLANE && corners(g, i, j, z)) {
+        double u = (p[0] - i * g->sx) / g->sx, v = (p[1] - j * g->sy) / g->sy, l0, l1, A, B, C;
+        ref_walk w = {.g = g, .s = s, .r = r};
+        if (s == TD_SURFACE_TRIANGLE) {
+            gap = p[2] - tri_height(z, u, v);
+        } else if (s == TD_SURFACE_BILINEAR || !clip_cell(g, r, i, j, 0.0, &l0, &l1)) {
+            gap = p[2] - bilin(z, u, v);
+        } else { /* linear: the chord of the ray's line through the cell, as coefs */
+            coefs(&w, i, j, z, 0, t, l0, l1, &A, &B, &C);
+            gap = C;
+        }
+    }
+    return gap;
+}
+
 double td_ref_tol(const double p[3])
 {
     double m = fmax(fabs(p[0]), fmax(fabs(p[1]), fabs(p[2])));

@@ -37,6 +37,12 @@ void td_ref_trace(const td_grid *g, td_surface s, const td_ray *r, double eps, t
  * within eps of a box's boundary) of surface s. */
 int td_ref_point_near(const td_grid *g, td_surface s, const td_ray *r, double t, double eps);
 
+/* The height of r's point at t over surface s (metres; negative: under it), in the cell
+ * holding the point's ground position: for `linear` the chord of the ray's line through
+ * that cell. NaN for `plane` and over a hole (nothing to be under). The viewshed rule's
+ * "starts under the surface" (docs/viewshed.md), judged without core/viewshed.c. */
+double td_ref_gap(const td_grid *g, td_surface s, const td_ray *r, double t);
+
 /* Tolerance in metres on a hit point: 1 mm plus float32 rounding of its coordinates. */
 double td_ref_tol(const double p[3]);
 

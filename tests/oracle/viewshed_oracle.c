@@ -83,8 +83,19 @@ static void judge_target(oracle *o, td_surface s, const double eye[3], int32_t i
     clear = ref_visible(o, s, &r, &h, &band);
     /* the rule's own part (docs/viewshed.md "Under the surface is not a line of sight"): a
      * segment that starts under the surface is blocked though it may cross nothing (the
-     * linear surface's chord under an eye off its sample may be over the eye) */
-    want = clear && !td_viewshed_starts_under(o->g, s, &r);
+     * linear surface's chord under an eye off its sample may be over the eye). Judged on
+     * the reference's heights (td_ref_gap), not core's td_viewshed_starts_under: under at
+     * the start by more than T, or on the surface there within T and under by more than T
+     * 2^-20 of the segment on (it crossed the surface in between: blocked either way). A
+     * start on the surface within T that does not go under is a tie. T is 2^-40 of the
+     * eye's height (4e-9 m at 4,300 m): 256 times core's tolerance, hundreds of times the
+     * rounding of either side's height (a few ulps), and far under the gap a segment from
+     * an eye on the ground opens at the start (2^-30 of its rise over the ground's: 1e-7 m
+     * for 100 m). */
+    double T = 0x1p-40 * (1.0 + fabs(r.o[2])), g0 = td_ref_gap(o->g, s, &r, r.tmin);
+    int under = g0 < -T || (g0 <= T && r.tmin < 0x1p-20 && td_ref_gap(o->g, s, &r, 0x1p-20) < -T);
+    band = band || (!under && fabs(g0) <= T);
+    want = clear && !under;
     if (want == (got == 1)) {
         o->agree++;
     } else if (band) {
@@ -106,8 +117,8 @@ static void judge_target(oracle *o, td_surface s, const double eye[3], int32_t i
 }
 
 /* The observers of the test: peak, pit, corner, void edge, beside the peak, random (x, y in
- * metres). */
-static int pick_observers(const td_grid *g, uint64_t *seed, td_vs_point *p)
+ * metres); *beside: the index of the one beside the peak (-1: none). */
+static int pick_observers(const td_grid *g, uint64_t *seed, td_vs_point *p, int *beside)
 {
     int32_t hi = -1, lo = -1, corner = -1, edge = -1;
     int n = 0;
@@ -129,6 +140,7 @@ static int pick_observers(const td_grid *g, uint64_t *seed, td_vs_point *p)
         if (k >= 0)
             p[n++] = (td_vs_point){(k % g->w) * g->sx, (k / g->w) * g->sy};
     }
+    *beside = hi >= 0 ? n : -1;
     if (hi >= 0) /* where a click near the peak lands: inside its north-east cell, under the peak */
         p[n++] = (td_vs_point){(hi % g->w + 0.3) * g->sx, (hi / g->w + 0.2) * g->sy};
     for (int tries = 0; tries < 1000; tries++) {
@@ -296,7 +308,7 @@ static int load(const char *path, oracle *o)
 static int run_check(oracle *o, int targets, uint64_t seed)
 {
     td_vs_point obs[6];
-    int n = pick_observers(o->g, &seed, obs), ok = 1;
+    int beside, n = pick_observers(o->g, &seed, obs, &beside), ok = 1;
     uint8_t *out = malloc((size_t)o->g->w * o->g->h);
     if (!out)
         return 0;
@@ -305,6 +317,10 @@ static int run_check(oracle *o, int targets, uint64_t seed)
             ok &= check_observer(o, (td_surface)s, obs[k], k == 1 ? 10.0 : 2.0, 0, targets, &seed, out);
     for (int s = 0; s < TD_SURFACE_COUNT; s++) /* from the peak, over the curved Earth */
         ok &= check_observer(o, (td_surface)s, obs[0], 2.0, 1, targets, &seed, out);
+    /* beside the peak on the ground: the segments that leave it uphill start under the
+     * surface (the rule's start-under part, judged on the reference's heights) */
+    for (int s = 0; s < TD_SURFACE_COUNT && beside >= 0; s++)
+        ok &= check_observer(o, (td_surface)s, obs[beside], 0.0, 0, targets, &seed, out);
     printf("targets judged: %" PRIu64 " agree, %" PRIu64 " ties (float band %.3g m), %" PRIu64
            " wrong; td_occluded by each method on the same segments: %" PRIu64 " wrong\n",
            o->agree, o->tie, o->eps, o->wrong, o->methods_wrong);
