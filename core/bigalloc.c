@@ -22,7 +22,7 @@ void *td_bigalloc(size_t n)
         p = malloc(n ? n : 1);
     } else {
         size_t up = (n + hp - 1) & ~(hp - 1), down = n & ~(hp - 1);
-        size_t whole = (up - n) * 4 <= n ? up : down; /* the last page only when it is mostly ours */
+        size_t whole = (up - n) * 4 <= n || up == hp ? up : down; /* the last page: mostly ours, or the only one */
         size_t rest = whole < n ? ((n - whole) & ~(size_t)4095) : 0; /* whole 4 KiB pages after them */
         if (posix_memalign(&p, hp, whole > n ? whole : n) != 0) {
             p = NULL;

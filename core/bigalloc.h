@@ -13,10 +13,13 @@
  * The costs: with the kernel's default defrag ("madvise"), a fault in an advised range
  * compacts memory when no free 2 MiB block is left; and a huge page is resident whole
  * once touched, so a buffer's last, partial one is advised (the buffer rounded up to it)
- * only when that adds at most a quarter to the buffer (11.5 MB of heights take 12), else
+ * only when that adds at most a quarter to the buffer (11.5 MB of heights take 12) or when
+ * it is the buffer's only one (from TD_BIGALLOC_MIN to 2 MiB: at most 1 MiB more), else
  * it stays 4 KiB pages (a 2.1 MB sun bound kept by the server costs no more than its size).
  * Those 4 KiB pages are mapped in one call (MADV_POPULATE_WRITE), since every user writes
- * its buffer whole right after: picos's 1.4 MB of heights load 1.5 ms faster so. Where
+ * its buffer whole right after: picos's 1.4 MB of heights loaded 1.5 ms faster so, and
+ * on one huge page (2026-12-02) 3.5-4.0 -> 0.55-0.77 ms again (td_dem_load in a loop, the
+ * first call aside; `terrad viewshed`'s `cpu_ms.load` 4.4-4.9 -> 1.1-1.3 ms). Where
  * the kernel has no transparent huge pages (or is older than 5.14) the advice fails and
  * the buffer is an aligned malloc like any other.
  *

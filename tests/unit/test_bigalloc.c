@@ -1,7 +1,7 @@
 /* test_bigalloc.c: large buffers (core/bigalloc.c): small ones plain, large ones
  * 2 MiB-aligned with their whole huge pages advised (the VMA's "hg" flag in
  * /proc/self/smaps, where the kernel has transparent huge pages), a partial last page
- * only when it is mostly the buffer's; every byte writable, freed by free(); the
+ * only when it is mostly the buffer's or its only one; every byte writable, freed by free(); the
  * zeroing variant zeroes reused memory and refuses an overflowing size. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -95,6 +95,21 @@ static void test_partial_tail_stays_small(void **state)
     free(p);
 }
 
+static void test_one_page_is_huge(void **state)
+{
+    (void)state;
+    const size_t n = 714 * 482 * 4; /* picos's heights, 1.3 MiB: its only huge page */
+    unsigned char *p = td_bigalloc(n);
+    assert_non_null(p);
+    assert_int_equal((uintptr_t)p % TD_BIGALLOC_PAGE, 0);
+    fill_and_check(p, n);
+    if (have_thp()) {
+        assert_int_equal(advised_huge(p), 1);
+        assert_int_equal(advised_huge(p + n - 1), 1);
+    }
+    free(p);
+}
+
 static void test_calloc_zeroes_and_checks(void **state)
 {
     (void)state;
@@ -114,7 +129,11 @@ static void test_calloc_zeroes_and_checks(void **state)
 
 int main(void)
 {
+    /* test_one_page_is_huge first: glibc's threshold for mapping a buffer of its own
+       rises to the largest one freed, after which buffers come from a heap whose ranges
+       earlier tests advised (its "hg" would then not be this buffer's doing) */
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_one_page_is_huge),
         cmocka_unit_test(test_small_is_plain),
         cmocka_unit_test(test_large_is_aligned_and_advised),
         cmocka_unit_test(test_partial_tail_stays_small),

@@ -1663,6 +1663,14 @@ static void test_demutil_f32_row(void **state)
     assert_int_equal(td_demutil_f32_row("x.f32", &raw, row, 4, 0, &err), TD_OK);
     assert_true(row[0] == 0.0f && signbit(row[0]) && row[1] == 1.5f && isnan(row[2]) &&
                 row[3] == FLT_MAX);
+    /* the same rule with offset +0 (the rows with a void or a zero take a quick path of
+       their own): -0.0 comes out +0.0, as v * 1 + 0 */
+    raw.offset = 0.0;
+    row[0] = -0.0f;
+    row[2] = -9999.0f;
+    assert_int_equal(td_demutil_f32_row("x.f32", &raw, row, 4, 0, &err), TD_OK);
+    assert_true(row[0] == 0.0f && !signbit(row[0]) && row[1] == 1.5f && isnan(row[2]) && row[3] == FLT_MAX);
+    raw.offset = -0.0;
     row[2] = 5.0f;
     assert_int_equal(td_demutil_f32_row("x.f32", &raw, row, 5, 7, &err), TD_EFORMAT);
     assert_string_equal(err.msg, "x.f32: NaN sample at column 4, row 7 (why)");
