@@ -65,19 +65,25 @@ static void test_small_is_plain(void **state)
     free(q);
 }
 
-static void test_large_is_aligned_and_advised(void **state)
+/* td_bigalloc(n) is 2 MiB-aligned, writable, and advised huge to its last byte (the last
+ * page rounded up) */
+static void check_all_huge(size_t n)
 {
-    (void)state;
-    const size_t n = 11 * MB + MB / 2; /* trinidad's heights: rounded up to 12 MiB */
     unsigned char *p = td_bigalloc(n);
     assert_non_null(p);
     assert_int_equal((uintptr_t)p % TD_BIGALLOC_PAGE, 0);
     fill_and_check(p, n);
     if (have_thp()) {
         assert_int_equal(advised_huge(p), 1);
-        assert_int_equal(advised_huge(p + n - 1), 1); /* the last page, rounded up */
+        assert_int_equal(advised_huge(p + n - 1), 1);
     }
     free(p);
+}
+
+static void test_large_is_aligned_and_advised(void **state)
+{
+    (void)state;
+    check_all_huge(11 * MB + MB / 2); /* trinidad's heights: rounded up to 12 MiB */
 }
 
 static void test_partial_tail_stays_small(void **state)
@@ -98,16 +104,7 @@ static void test_partial_tail_stays_small(void **state)
 static void test_one_page_is_huge(void **state)
 {
     (void)state;
-    const size_t n = 714 * 482 * 4; /* picos's heights, 1.3 MiB: its only huge page */
-    unsigned char *p = td_bigalloc(n);
-    assert_non_null(p);
-    assert_int_equal((uintptr_t)p % TD_BIGALLOC_PAGE, 0);
-    fill_and_check(p, n);
-    if (have_thp()) {
-        assert_int_equal(advised_huge(p), 1);
-        assert_int_equal(advised_huge(p + n - 1), 1);
-    }
-    free(p);
+    check_all_huge(714 * 482 * 4); /* picos's heights, 1.3 MiB: its only huge page */
 }
 
 static void test_calloc_zeroes_and_checks(void **state)
