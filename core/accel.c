@@ -21,6 +21,7 @@ void td_accel_opts_default(td_accel_opts *o)
     o->planes_k = TD_PLANES_K_DEFAULT;
     o->minima = 1;
     o->threads = 0;
+    o->transient = 0;
 }
 
 void td_accel_opts_for(td_method m, td_accel_opts *o)
@@ -52,9 +53,14 @@ typedef struct build_job {
     pthread_mutex_t err_lock;
 } build_job;
 
+/* Builds tiles until none is left. A max-mipmap's scratch is the worker's, kept from tile
+ * to tile on huge pages (td_bigalloc_scratch): picos's six tiles faulted in 80 fresh
+ * 4 KiB pages for it, 0.85 ms of a 1.9 ms build. */
 static void *build_worker(void *arg)
 {
     build_job *job = arg;
+    float *scratch = NULL;
+    size_t cap = 0;
     for (;;) {
         size_t i = atomic_fetch_add(&job->next, 1);
         td_err err;
@@ -63,8 +69,14 @@ static void *build_worker(void *arg)
             break;
         if (job->what == 0) {
             td_maxmip *m = &job->a->mm[i];
+            size_t need = td_maxmip_scratch_floats(job->g, i, job->minima);
+            if (need > cap) {
+                free(scratch);
+                scratch = td_bigalloc_scratch(need * sizeof *scratch);
+                cap = scratch ? need : 0;
+            }
             rc = td_maxmip_build_into(job->g, i, job->minima, m, job->code + job->at[2 * i],
-                                      job->mins + job->at[2 * i + 1], &err);
+                                      job->mins + job->at[2 * i + 1], scratch, &err);
             job->a->tiles[i].maxmip = rc == TD_OK ? m : NULL;
         } else {
             td_planes *p = NULL;
@@ -79,6 +91,7 @@ static void *build_worker(void *arg)
             pthread_mutex_unlock(&job->err_lock);
         }
     }
+    free(scratch);
     return NULL;
 }
 
@@ -120,7 +133,7 @@ static td_status run_build(const td_grid *g, td_accel *a, int what, const td_acc
 /* The max-mipmaps' records and their one buffer: *at (malloc'ed, 2 ntiles + 1 entries) gets
  * where each tile's codes and minima start (in codes and in floats from the first of each)
  * and, last, the byte offset of the first minimum in the buffer. */
-static td_status maxmip_store(const td_grid *g, td_accel *a, int minima, size_t **at, td_err *err)
+static td_status maxmip_store(const td_grid *g, td_accel *a, int minima, int transient, size_t **at, td_err *err)
 {
     td_status rc = TD_OK;
     size_t codes = 0, mins = 0, bytes = 0, *o = malloc((2 * a->ntiles + 1) * sizeof *o);
@@ -137,7 +150,7 @@ static td_status maxmip_store(const td_grid *g, td_accel *a, int minima, size_t 
     a->mm = calloc(a->ntiles ? a->ntiles : 1, sizeof *a->mm);
     if (o && !td_add_size(o[2 * a->ntiles], mins * sizeof(float), &bytes)) /* cannot overflow: */
         bytes = 0;                                                         /* they fit the grid */
-    a->store = o && bytes ? td_bigalloc(bytes) : NULL;
+    a->store = o && bytes ? (transient ? td_bigalloc_scratch(bytes) : td_bigalloc(bytes)) : NULL;
     if (!o || !a->mm || !a->store)
         rc = td_err_set(err, TD_ENOMEM, "out of memory for the max-mipmaps (%zu bytes)", bytes);
     *at = o;
@@ -168,7 +181,7 @@ td_status td_accel_build(const td_grid *g, const td_accel_opts *o, td_accel **ou
     }
     stats.tiles = (int64_t)a->ntiles;
     if (o->maxmip) {
-        rc = maxmip_store(g, a, o->minima, &at, err);
+        rc = maxmip_store(g, a, o->minima, o->transient, &at, err);
         if (rc == TD_OK)
             rc = run_build(g, a, 0, o, threads, at, &stats.maxmip_seconds, err);
         if (rc != TD_OK)

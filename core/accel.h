@@ -20,6 +20,8 @@ typedef struct td_accel_opts {
     int threads;  /* <= 0: one per core */
     int minima;   /* the max-mipmaps keep their 4 x 4 blocks' minima (maxmip.h; the sun
                      bound's shadow side reads them): 1 by default */
+    int transient; /* the structures live for one command (`terrad viewshed`): their buffer
+                      is scratch (td_bigalloc_scratch); 0 by default */
 } td_accel_opts;
 
 typedef struct td_accel_stats {

@@ -1,6 +1,7 @@
 /* bigalloc.c: see bigalloc.h. */
 #include "bigalloc.h"
 
+#include <stdatomic.h>
 #include <stdlib.h>
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -43,6 +44,18 @@ void *td_bigcalloc(size_t count, size_t size)
     if (p)
         memset(p, 0, n);
     return p;
+}
+
+static atomic_int oneshot;
+
+void td_bigalloc_oneshot(int on) { atomic_store_explicit(&oneshot, on != 0, memory_order_relaxed); }
+
+void *td_bigalloc_scratch(size_t n)
+{
+    const size_t hp = TD_BIGALLOC_PAGE;
+    int round = atomic_load_explicit(&oneshot, memory_order_relaxed) && n >= TD_BIGALLOC_SCRATCH_MIN &&
+                n <= (size_t)-1 - 2 * hp;
+    return round ? td_bigalloc((n + hp - 1) & ~(hp - 1)) : malloc(n ? n : 1);
 }
 
 void td_bigalloc_policy(void)

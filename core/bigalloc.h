@@ -45,6 +45,26 @@ void *td_bigalloc(size_t n);
 /* td_bigalloc of n zero bytes (count * size, NULL on overflow) */
 void *td_bigcalloc(size_t count, size_t size);
 
+/* From this many bytes on, td_bigalloc_scratch rounds a buffer up to whole huge pages */
+#define TD_BIGALLOC_SCRATCH_MIN ((size_t)64 << 10)
+
+/* n bytes, uninitialised, or NULL, for scratch that lives for one request or one build
+ * and is freed with free(). In a one-shot process (td_bigalloc_oneshot), from
+ * TD_BIGALLOC_SCRATCH_MIN on, td_bigalloc of n rounded up to whole huge pages, every page
+ * of it a huge one; else malloc. A huge page's first touch took 114-140 us here
+ * (2026-12-02, the guest above: zeroing 2 MiB), eleven or so 4 KiB pages' (10.5-10.7 us
+ * each), so from about 48 KiB touched it is the cheaper; the rest of the page is memory
+ * only while the buffer lives. A viewshed's sweep lists and its visibility, a max-mipmap
+ * build's cell maxima: picos (714 x 482) faulted in about 360 fresh 4 KiB pages for them,
+ * 3.8 ms of a 17 ms `terrad viewshed`. A server's heap is warm after its first requests
+ * (td_bigalloc_policy), and there a huge page a request faulted anew each time: 0.5-1.0 ms
+ * more CPU a viewshed of picos and of the demo's trinidad. */
+void *td_bigalloc_scratch(size_t n);
+
+/* on: the process runs one command and exits (`terrad viewshed`), so its heap is cold and
+ * td_bigalloc_scratch takes huge pages. Off by default; set before any thread allocates. */
+void td_bigalloc_oneshot(int on);
+
 /* The process's malloc policy, for the programs that serve or measure requests (terrad's
  * main, terrad-bench, maps-bench: what is measured is what is served). Every request
  * allocates and frees buffers of up to a few MB (a 512 x 512 render's 1 MiB of pixels,

@@ -206,21 +206,31 @@ void td_maxmip_sizes(const td_grid *g, size_t tile, int minima, size_t *codes, s
     *mins = (size_t)m.min4_w * (size_t)m.min4_h;
 }
 
+size_t td_maxmip_scratch_floats(const td_grid *g, size_t tile, int minima)
+{
+    const td_tile *t = &g->tiles[tile];
+    td_maxmip m;
+    size_t total = shape(g, t, minima, &m);
+    return (size_t)t->nx * (size_t)t->ny + 2 * ((size_t)t->nx + 1) + total;
+}
+
 td_status td_maxmip_build_into(const td_grid *g, size_t tile, int minima, td_maxmip *m, uint16_t *code,
-                               float *min4, td_err *err)
+                               float *min4, float *scratch, td_err *err)
 {
     td_status rc = TD_OK;
     const td_tile *t = &g->tiles[tile];
-    float *cell = NULL, *max = NULL;
-    size_t total;
+    float *own = NULL, *cell, *max;
+    size_t total, ncell = (size_t)t->nx * (size_t)t->ny + 2 * ((size_t)t->nx + 1);
 
     memset(m, 0, sizeof *m);
     total = shape(g, t, minima, m);
     m->code = code;
     m->min4 = minima ? min4 : NULL;
-    cell = malloc(sizeof(float) * ((size_t)t->nx * (size_t)t->ny + 2 * ((size_t)t->nx + 1)));
-    max = malloc(sizeof(float) * total);
-    if (!cell || !max) {
+    if (!scratch)
+        scratch = own = malloc(sizeof(float) * (ncell + total));
+    cell = scratch;
+    max = scratch ? scratch + ncell : NULL;
+    if (!scratch) {
         rc = td_err_set(err, TD_ENOMEM, "out of memory for a max-mipmap");
         goto out;
     }
@@ -244,8 +254,7 @@ td_status td_maxmip_build_into(const td_grid *g, size_t tile, int minima, td_max
     code_scale(max, m->dim[1] * (size_t)m->dim[1], &m->base, &m->step); /* level 1 has them all */
     codes_of(m->base, m->step, max, total, m->code);
 out:
-    free(cell);
-    free(max);
+    free(own);
     return rc;
 }
 
@@ -263,7 +272,7 @@ td_status td_maxmip_build_opts(const td_grid *g, size_t tile, int minima, td_max
     if (!m || !code || (minima && !min4))
         rc = td_err_set(err, TD_ENOMEM, "out of memory for a max-mipmap");
     else
-        rc = td_maxmip_build_into(g, tile, minima, m, code, min4, err);
+        rc = td_maxmip_build_into(g, tile, minima, m, code, min4, NULL, err);
     if (rc != TD_OK) {
         free(code);
         free(min4);

@@ -52,6 +52,10 @@ void td_maxmip_sizes(const td_grid *g, size_t tile, int minima, size_t *codes, s
  * accel.c): m is filled, its code and min4 pointing at `code` and `min4` (the sizes
  * td_maxmip_sizes gives; min4 unused without minima). Not for td_maxmip_free. */
 td_status td_maxmip_build_into(const td_grid *g, size_t tile, int minima, td_maxmip *m, uint16_t *code,
-                               float *min4, td_err *err);
+                               float *min4, float *scratch, td_err *err);
+/* The floats td_maxmip_build_into's `scratch` holds for tile `tile` (its cells' maxima
+ * and the levels above them; NULL there: it allocates its own): a build over many tiles
+ * keeps one (accel.c) */
+size_t td_maxmip_scratch_floats(const td_grid *g, size_t tile, int minima);
 
 #endif

@@ -609,7 +609,7 @@ td_status td_viewshed(const td_view *v, const td_viewshed_opts *o, uint8_t *out,
 
     memset(st, 0, sizeof *st);
     rc = td_viewshed_check(g, o, err);
-    if (rc == TD_OK && sweep && !direct && !(vis = td_bigalloc((size_t)g->w * (size_t)g->h)))
+    if (rc == TD_OK && sweep && !direct && !(vis = td_bigalloc_scratch((size_t)g->w * (size_t)g->h)))
         rc = td_err_set(err, TD_ENOMEM, "viewshed: out of memory");
     for (int first = 0; rc == TD_OK && first < o->nobs; first += per) {
         double t0 = td_clock_s(), t1;

@@ -83,6 +83,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "bigalloc.h"
 #include "simd.h"
 #include "viewshed.h"
 
@@ -128,6 +129,7 @@ typedef struct piece {
 typedef struct pvec {
     piece *p; /* n pieces and p[n], the sentinel whose m is the end (1) */
     int n, cap;
+    int own; /* p is malloc'ed (else a slice of its cone worker's scratch, cone_worker) */
 } pvec;
 
 typedef struct cone {
@@ -253,13 +255,18 @@ static int pv_reserve(sweep *sw, pvec *v, int need)
         piece *p;
         while (cap < need + 1)
             cap *= 2;
-        p = realloc(v->p, (size_t)cap * sizeof *p);
+        if (v->own) {
+            p = realloc(v->p, (size_t)cap * sizeof *p);
+        } else if ((p = malloc((size_t)cap * sizeof *p)) && v->cap) { /* out of the scratch */
+            memcpy(p, v->p, (size_t)v->cap * sizeof *p);
+        }
         if (!p) {
             sw->oom = 1;
             return 0;
         }
         v->p = p;
         v->cap = cap;
+        v->own = 1;
     }
     return 1;
 }
@@ -2422,17 +2429,69 @@ typedef struct cone_task {
  * buffers sized for the longer side, and the envelope's lists handed from a cone to the
  * next (fresh pages cost: allocated a cone at a time they were a quarter of the page
  * faults of trinidad's whole command, docs/viewshed.md "Speed"). */
+/* A cone worker's scratch, one buffer (td_bigalloc_scratch: one huge page's fault where
+ * its 4 KiB pages and the lists' growth by realloc faulted in hundreds): the lists' first
+ * pieces (F, C and T VS_LIST_ROWS a row of the grid's longer side, G and N one; a list
+ * that outgrows its slice moves to malloc, pv_reserve; trinidad from Blanca Peak reached
+ * 3.4 (F, C) and 0.2 (T) a row, picos from its centre 5.7 (F, C, T); the unit tests' small
+ * grids outgrow theirs thousands of times), then the columns' doubles, the kcol ints, the
+ * panel's floats and the colok bytes. */
+#define VS_LIST_ROWS 6
+enum { VS_LIST_EXTRA = 16 };
+
+typedef struct scratch {
+    void *buf;
+    piece *list[5]; /* F, G, T, N, C */
+    int cap[5];
+    double *zb;
+    int *kb;
+    float *panel;
+    uint8_t *ob;
+} scratch;
+
+static int scratch_init(scratch *s, size_t nmax)
+{
+    static const int rows[5] = {VS_LIST_ROWS, 1, VS_LIST_ROWS, 1, VS_LIST_ROWS};
+    size_t at[5], n = 0, nzb = 15 * nmax + VS_DIAG, zb, kb, panel, ob;
+    memset(s, 0, sizeof *s);
+    if (nmax > (size_t)1 << 24) /* past any grid a cone's rows make (td_grid's limits) */
+        return 0;
+    for (int i = 0; i < 5; i++) {
+        s->cap[i] = rows[i] * (int)nmax + VS_LIST_EXTRA;
+        at[i] = n;
+        n += (size_t)s->cap[i] * sizeof(piece);
+    }
+    zb = n;
+    n += nzb * sizeof(double);
+    kb = n;
+    n += nmax * sizeof(int);
+    panel = n;
+    n += (size_t)VS_PANEL * nmax * sizeof(float);
+    ob = n;
+    n += nmax;
+    if (!(s->buf = td_bigalloc_scratch(n)))
+        return 0;
+    for (int i = 0; i < 5; i++)
+        s->list[i] = (piece *)(void *)((char *)s->buf + at[i]);
+    s->zb = (double *)(void *)((char *)s->buf + zb);
+    s->kb = (int *)(void *)((char *)s->buf + kb);
+    s->panel = (float *)(void *)((char *)s->buf + panel);
+    s->ob = (uint8_t *)s->buf + ob;
+    /* zeroed: last_diags' candidate test reads up to VS_DIAG - 1 rows past a column's last
+       (never stored), which would otherwise be bytes never written */
+    memset(s->zb, 0, nzb * sizeof(double));
+    return 1;
+}
+
+/* The worker's cones, one after another; each takes the lists of the one before (their
+ * pieces are cleared by sweep_cone and near_strip), the first the scratch's. */
 static void *cone_worker(void *arg)
 {
     cone_task *t = arg;
     const td_grid *g = t->job->v->grid;
     size_t nmax = (size_t)(g->w > g->h ? g->w : g->h);
-    /* zeroed: last_diags' candidate test reads up to VS_DIAG - 1 rows past a column's last
-       (never stored), which would otherwise be bytes never written */
-    double *zb = calloc(15 * nmax + VS_DIAG, sizeof *zb);
-    int *kb = malloc(nmax * sizeof *kb);
-    uint8_t *ob = malloc(nmax);
-    float *panel = malloc((size_t)VS_PANEL * nmax * sizeof *panel);
+    scratch s;
+    int ok = scratch_init(&s, nmax);
     sweep *prev = NULL;
     for (;;) {
         int k = atomic_fetch_add_explicit(&t->next, 1, memory_order_relaxed);
@@ -2441,33 +2500,35 @@ static void *cone_worker(void *arg)
             break;
         sw = &t->sw[k];
         size_t nv = (size_t)(sw->c.vhi - sw->c.vlo + 1);
-        if (prev) { /* the lists of the cone before (sweep_cone and near_strip clear them) */
-            pvec *from[5] = {&prev->F, &prev->G, &prev->T, &prev->N, &prev->C};
-            pvec *to[5] = {&sw->F, &sw->G, &sw->T, &sw->N, &sw->C};
-            for (int i = 0; i < 5; i++) {
+        pvec *to[5] = {&sw->F, &sw->G, &sw->T, &sw->N, &sw->C};
+        for (int i = 0; i < 5; i++) {
+            if (prev) {
+                pvec *from[5] = {&prev->F, &prev->G, &prev->T, &prev->N, &prev->C};
                 *to[i] = *from[i];
-                *from[i] = (pvec){NULL, 0, 0};
+                *from[i] = (pvec){NULL, 0, 0, 0};
+            } else if (ok) {
+                *to[i] = (pvec){s.list[i], 0, s.cap[i], 0};
             }
         }
-        sw->panel = sw->c.vi == 0 ? panel : NULL;
-        if (zb && kb && ob && panel && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) &&
-            pv_reserve(sw, &sw->T, 16) && pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
+        sw->panel = sw->c.vi == 0 ? s.panel : NULL;
+        if (ok && pv_reserve(sw, &sw->F, 16) && pv_reserve(sw, &sw->G, 16) && pv_reserve(sw, &sw->T, 16) &&
+            pv_reserve(sw, &sw->N, 16) && pv_reserve(sw, &sw->C, 16)) {
             for (size_t q = 0; q < 15 * nv; q++)
-                zb[q] = NAN;
-            memset(ob, 0, nv);
+                s.zb[q] = NAN;
+            memset(s.ob, 0, nv);
             for (int b = 0; b < 3; b++) {
-                sw->zcol[b] = zb + (size_t)b * nv;
-                sw->mcol[b] = zb + (size_t)(3 + b) * nv;
-                sw->qcol[b] = zb + (size_t)(6 + b) * nv;
+                sw->zcol[b] = s.zb + (size_t)b * nv;
+                sw->mcol[b] = s.zb + (size_t)(3 + b) * nv;
+                sw->qcol[b] = s.zb + (size_t)(6 + b) * nv;
             }
-            sw->fmin = zb + 9 * nv;
-            sw->lcol = zb + 10 * nv;
-            sw->cslope = zb + 11 * nv;
-            sw->fmax = zb + 12 * nv;
-            sw->flo = zb + 13 * nv;
-            sw->fhi = zb + 14 * nv;
-            sw->kcol = kb;
-            sw->colok = ob;
+            sw->fmin = s.zb + 9 * nv;
+            sw->lcol = s.zb + 10 * nv;
+            sw->cslope = s.zb + 11 * nv;
+            sw->fmax = s.zb + 12 * nv;
+            sw->flo = s.zb + 13 * nv;
+            sw->fhi = s.zb + 14 * nv;
+            sw->kcol = s.kb;
+            sw->colok = s.ob;
             sweep_cone(sw);
         } else {
             sw->oom = 1;
@@ -2475,17 +2536,23 @@ static void *cone_worker(void *arg)
         sw->panel = NULL;
         prev = sw;
     }
-    free(zb);
-    free(kb);
-    free(ob);
-    free(panel);
+    if (prev) { /* the lists the last cone holds: the malloc'ed ones freed, none left pointing into s */
+        pvec *last[5] = {&prev->F, &prev->G, &prev->T, &prev->N, &prev->C};
+        for (int i = 0; i < 5; i++) {
+            if (last[i]->own)
+                free(last[i]->p);
+            *last[i] = (pvec){NULL, 0, 0, 0};
+        }
+    }
+    free(s.buf);
     return NULL;
 }
 
 td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st, td_err *err)
 {
     const td_grid *g = job->v->grid;
-    cone_task *t = calloc(1, sizeof *t);
+    /* 128 KiB (each cone's hole_u): zeroed fresh 4 KiB pages cost 32 faults */
+    cone_task *t = td_bigalloc_scratch(sizeof *t);
     pthread_t th[3];
     int n = job->threads < 1 ? 1 : (job->threads > 4 ? 4 : job->threads), started = 0, oom = 0;
     double eu = job->ex / g->sx, ev = job->ey / g->sy;
@@ -2495,6 +2562,7 @@ td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st,
         rc = td_err_set(err, TD_ENOMEM, "viewshed: out of memory");
         goto out;
     }
+    memset(t, 0, sizeof *t);
     t->job = job;
     t->vis = vis;
     atomic_init(&t->next, 0);
@@ -2530,12 +2598,7 @@ td_status td_vsweep(const td_vsweep_job *job, uint8_t *vis, td_vsweep_stats *st,
         st->facing += sw->facing;
         st->rays += sw->rays;
         st->steps += sw->steps;
-        oom |= sw->oom;
-        free(sw->F.p);
-        free(sw->G.p);
-        free(sw->T.p);
-        free(sw->N.p);
-        free(sw->C.p);
+        oom |= sw->oom; /* its lists: freed by the worker that swept it (cone_worker) */
     }
     if (oom)
         rc = td_err_set(err, TD_ENOMEM, "viewshed: out of memory for the horizon");

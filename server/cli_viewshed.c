@@ -178,6 +178,7 @@ static int vs_run(vs_cli *c)
     td_accel_opts_for(c->o.method, &ao);
     ao.threads = c->o.threads;
     ao.minima = 0; /* no sun bound to read them */
+    ao.transient = 1;
     if ((ao.maxmip || ao.planes) && td_accel_build(g, &ao, &acc, NULL, &err)) {
         fprintf(stderr, "terrad viewshed: %s: %s\n", c->dem, err.msg);
         goto out;
@@ -186,7 +187,7 @@ static int vs_run(vs_cli *c)
     ck[2] = clock();
     v.grid = g;
     v.accel = acc ? acc->tiles : NULL;
-    counts = td_bigalloc((size_t)g->w * (size_t)g->h); /* written whole next (bigalloc.h) */
+    counts = td_bigalloc_scratch((size_t)g->w * (size_t)g->h); /* written whole next (bigalloc.h) */
     if (!counts) {
         fprintf(stderr, "terrad viewshed: out of memory\n");
         goto out;

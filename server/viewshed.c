@@ -293,7 +293,7 @@ static td_status work_viewshed(vs_job *j, td_http_req *hq, td_http_resp *r, td_v
 {
     const td_view *v = td_snapshot_view(j->h.snap);
     td_vs_point *pts = calloc((size_t)j->q.npts, sizeof *pts);
-    uint8_t *counts = td_bigalloc((size_t)v->grid->w * (size_t)v->grid->h); /* written whole next */
+    uint8_t *counts = td_bigalloc_scratch((size_t)v->grid->w * (size_t)v->grid->h); /* written whole next */
     td_buf png = {0};
     td_status rc = TD_OK;
     double t;

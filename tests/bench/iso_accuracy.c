@@ -529,7 +529,7 @@ static td_status trace_cost(FILE *f, const char *data, td_err *err)
         td_grid *g = NULL;
         td_iso *iso[2] = {NULL, NULL};
         td_accel *ac = NULL;
-        td_accel_opts ao = {1, 1, 8, 1, 1};
+        td_accel_opts ao = {1, 1, 8, 1, 1, 0};
         td_accel_stats ast;
         uint64_t seed = 31 + (uint64_t)d;
         snprintf(path, sizeof path, "%s/%s", data, files[d]);
@@ -638,7 +638,7 @@ static td_status lod_twins(FILE *f, const char *data, const char *extra, td_err 
         const char *name = "";
         td_grid *g = NULL;
         td_lod *lod = NULL;
-        td_accel_opts ao = {0, 0, 1, 1, 0};
+        td_accel_opts ao = {0, 0, 1, 1, 0, 0};
         rc = lod_dem(data, extra, d, &ao, &g, &lod, &name, err);
         if (!rc && !g)
             break;

@@ -193,7 +193,7 @@ int main(int argc, char **argv)
     td_grid *g = NULL;
     td_lod *lod = NULL;
     td_dem_opts o;
-    td_accel_opts ao = {0, 0, 1, 1, 0};
+    td_accel_opts ao = {0, 0, 1, 1, 0, 0};
     tally t = {0};
     uint64_t seed = 1414;
     size_t n = 60000;

@@ -2,7 +2,8 @@
  * 2 MiB-aligned with their whole huge pages advised (the VMA's "hg" flag in
  * /proc/self/smaps, where the kernel has transparent huge pages), a partial last page
  * only when it is mostly the buffer's or its only one; every byte writable, freed by free(); the
- * zeroing variant zeroes reused memory and refuses an overflowing size. */
+ * zeroing variant zeroes reused memory and refuses an overflowing size; scratch on whole huge
+ * pages in a one-shot process only. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -107,6 +108,35 @@ static void test_one_page_is_huge(void **state)
     check_all_huge(714 * 482 * 4); /* picos's heights, 1.3 MiB: its only huge page */
 }
 
+/* Scratch (td_bigalloc_scratch): malloc in a serving process; in a one-shot one, from
+ * TD_BIGALLOC_SCRATCH_MIN on, whole huge pages (picos's visibility, 336 KiB, on one). */
+static void test_scratch_follows_oneshot(void **state)
+{
+    (void)state;
+    const size_t n = 714 * 482;
+    unsigned char *p = td_bigalloc_scratch(n), *q;
+    assert_non_null(p);
+    fill_and_check(p, n);
+    if (have_thp()) /* from a heap no earlier test advised (main's order) */
+        assert_int_equal(advised_huge(p), 0);
+    free(p);
+    td_bigalloc_oneshot(1);
+    p = td_bigalloc_scratch(n);
+    q = td_bigalloc_scratch(TD_BIGALLOC_SCRATCH_MIN - 1);
+    assert_non_null(p);
+    assert_non_null(q);
+    assert_int_equal((uintptr_t)p % TD_BIGALLOC_PAGE, 0);
+    fill_and_check(p, TD_BIGALLOC_PAGE); /* the whole page is the buffer's */
+    fill_and_check(q, TD_BIGALLOC_SCRATCH_MIN - 1);
+    if (have_thp()) {
+        assert_int_equal(advised_huge(p), 1);
+        assert_int_equal(advised_huge(p + TD_BIGALLOC_PAGE - 1), 1);
+    }
+    free(p);
+    free(q);
+    td_bigalloc_oneshot(0);
+}
+
 static void test_calloc_zeroes_and_checks(void **state)
 {
     (void)state;
@@ -131,6 +161,7 @@ int main(void)
        earlier tests advised (its "hg" would then not be this buffer's doing) */
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_one_page_is_huge),
+        cmocka_unit_test(test_scratch_follows_oneshot),
         cmocka_unit_test(test_small_is_plain),
         cmocka_unit_test(test_large_is_aligned_and_advised),
         cmocka_unit_test(test_partial_tail_stays_small),

@@ -594,7 +594,7 @@ static void test_iso_packed_trace(void **state)
     td_iso_free(fl);
     td_iso_free(l);
     td_lod *lod = NULL;
-    td_accel_opts ao = {0, 0, 1, 1, 0};
+    td_accel_opts ao = {0, 0, 1, 1, 0, 0};
     assert_int_equal(td_lod_build(g, 3, &ao, &lod, NULL), TD_OK);
     assert_int_equal(td_lod_add_iso(lod, g, NULL), TD_OK);
     for (int k = 1; k <= lod->levels; k++) {
@@ -625,7 +625,7 @@ static void test_iso_lod_twin(void **state)
     (void)state;
     td_grid *g = load("volcano.asc");
     td_lod *lod = NULL;
-    td_accel_opts ao = {0, 0, 1, 1, 0};
+    td_accel_opts ao = {0, 0, 1, 1, 0, 0};
     uint64_t seed = 3;
     assert_int_equal(td_lod_build(g, 3, &ao, &lod, NULL), TD_OK);
     assert_int_equal(lod->levels, 3);
